@@ -1,0 +1,42 @@
+//! `tcpf run --in-process`: the reference run, every machine in one loop.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use tcpf_core::mission::Mission;
+use tcpf_core::planner::Plan;
+use tcpf_core::sim::Fleet;
+
+use crate::rundir::RunDir;
+use crate::summary::{Clock, Mode, Summary};
+
+pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
+    dir.write_mission(mission)?;
+    dir.write_plan(plan)?;
+    let mut telemetry = dir.telemetry()?;
+    let mut failure = None;
+    let started = Instant::now();
+    let results = Fleet::new(mission, plan).run(|states, commands| {
+        let held: Vec<_> = commands.iter().map(Some).collect();
+        if failure.is_none() {
+            failure = telemetry.tick(states, &held).err();
+        }
+    });
+    let wall_time_s = started.elapsed().as_secs_f64();
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    telemetry.finish()?;
+    let summary = Summary {
+        mission: mission.mission.name.clone(),
+        seed: mission.mission.seed,
+        mode: Mode::InProcess,
+        clock: Clock::Lockstep,
+        completed: results.vehicles.iter().all(|v| v.arrival_time.is_some() && !v.lost),
+        sim_time_s: results.ticks as f64 * mission.mission.control_period,
+        results,
+        wall_time_s,
+    };
+    dir.write_summary(&summary)?;
+    Ok(summary)
+}

@@ -1,0 +1,7 @@
+//! tcpf-coordinator: what runs around a fleet: the run directory, the recorder, the launcher,
+//! reports and the human-readable tables.
+
+pub mod inprocess;
+pub mod rundir;
+pub mod summary;
+pub mod table;

@@ -1,0 +1,88 @@
+//! The run directory: `mission.toml`, `plan.json`, `telemetry.csv`, `summary.json`.
+
+use std::fs::{self, File};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use tcpf_core::mission::Mission;
+use tcpf_core::msg::{Command, State};
+use tcpf_core::planner::Plan;
+use tcpf_core::telemetry;
+
+use crate::summary::Summary;
+
+pub struct RunDir {
+    pub path: PathBuf,
+}
+
+impl RunDir {
+    /// `out`, or a fresh `runs/<mission>-<timestamp>/`.
+    pub fn create(out: Option<&Path>, mission: &Mission) -> Result<RunDir> {
+        let path = match out {
+            Some(p) => p.to_path_buf(),
+            None => {
+                let stamp = chrono::Utc::now().format("%Y%m%d-%H%M%S");
+                let base = PathBuf::from("runs").join(format!("{}-{stamp}", mission.mission.name));
+                let mut path = base.clone();
+                let mut n = 2;
+                while path.exists() {
+                    path = PathBuf::from(format!("{}-{n}", base.display()));
+                    n += 1;
+                }
+                path
+            }
+        };
+        fs::create_dir_all(&path).with_context(|| format!("cannot create run directory {}", path.display()))?;
+        Ok(RunDir { path })
+    }
+
+    fn write(&self, name: &str, contents: &str) -> Result<()> {
+        let file = self.path.join(name);
+        fs::write(&file, contents).with_context(|| format!("cannot write {}", file.display()))
+    }
+
+    pub fn write_mission(&self, mission: &Mission) -> Result<()> {
+        self.write("mission.toml", &toml::to_string(mission)?)
+    }
+
+    pub fn write_plan(&self, plan: &Plan) -> Result<()> {
+        self.write("plan.json", &(serde_json::to_string_pretty(plan)? + "\n"))
+    }
+
+    pub fn write_summary(&self, summary: &Summary) -> Result<()> {
+        self.write("summary.json", &(serde_json::to_string_pretty(summary)? + "\n"))
+    }
+
+    pub fn telemetry(&self) -> Result<Telemetry> {
+        let file = self.path.join("telemetry.csv");
+        let mut out = BufWriter::new(File::create(&file).with_context(|| format!("cannot write {}", file.display()))?);
+        out.write_all(telemetry::HEADER.as_bytes())?;
+        Ok(Telemetry {
+            out,
+            line: String::new(),
+        })
+    }
+}
+
+/// `telemetry.csv`, written as the ticks come.
+pub struct Telemetry {
+    out: BufWriter<File>,
+    line: String,
+}
+
+impl Telemetry {
+    pub fn tick(&mut self, states: &[State], commands: &[Option<&Command>]) -> Result<()> {
+        self.line.clear();
+        for (s, c) in states.iter().zip(commands) {
+            telemetry::row(&mut self.line, s, *c);
+        }
+        self.out.write_all(self.line.as_bytes())?;
+        Ok(())
+    }
+
+    pub fn finish(mut self) -> Result<()> {
+        self.out.flush()?;
+        Ok(())
+    }
+}

@@ -1,0 +1,91 @@
+//! The tables `tcpf plan` and `tcpf run` print.
+
+use std::fmt::Write;
+
+use tcpf_core::planner::Plan;
+
+use crate::summary::Summary;
+
+pub fn plan(plan: &Plan) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "t_f = {:.3} s   cost ({:?}) = {:.4}",
+        plan.t_f, plan.cost_kind, plan.cost
+    );
+    match &plan.closest {
+        Some(c) => {
+            let _ = writeln!(
+                s,
+                "min separation {:.3} m (vehicles {} and {}, t = {:.2} s)",
+                c.distance, c.vehicles[0], c.vehicles[1], c.t
+            );
+        }
+        None => s.push_str("min separation: one vehicle, no pair\n"),
+    }
+    if plan.active.is_empty() {
+        s.push_str("active constraint: none (interior optimum)\n");
+    }
+    for a in &plan.active {
+        let _ = writeln!(s, "active constraint: {} — {}", a.constraint, a.detail);
+    }
+    let _ = writeln!(
+        s,
+        "\n{:>4} {:>8} {:>7} {:>10} {:>10} {:>12}",
+        "id", "cost", "weight", "min m/s", "max m/s", "max m/s²"
+    );
+    for v in &plan.vehicles {
+        let _ = writeln!(
+            s,
+            "{:>4} {:>8.4} {:>7} {:>10.4} {:>10.4} {:>12.5}",
+            v.id, v.cost, v.weight, v.min_speed, v.max_speed, v.max_accel
+        );
+    }
+    s
+}
+
+pub fn summary(summary: &Summary) -> String {
+    let r = &summary.results;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{} (seed {}, {:?}, {:?}): {}",
+        summary.mission,
+        summary.seed,
+        summary.mode,
+        summary.clock,
+        if summary.completed {
+            "completed"
+        } else {
+            "NOT completed"
+        }
+    );
+    let _ = writeln!(s, "{:>4} {:>12} {:>6}", "id", "arrival s", "lost");
+    for v in &r.vehicles {
+        let arrival = v.arrival_time.map_or("-".to_string(), |a| format!("{a:.3}"));
+        let _ = writeln!(s, "{:>4} {:>12} {:>6}", v.id, arrival, v.lost);
+    }
+    let _ = writeln!(s, "t_f {:.3} s, {} ticks", r.t_f, r.ticks);
+    let _ = writeln!(
+        s,
+        "coordination error {:.3} s (to last arrival {:.3} s), clearance {:.3} m (to last arrival {:.3} m)",
+        r.max_coordination_error,
+        r.max_coordination_error_to_last_arrival,
+        r.min_clearance,
+        r.min_clearance_to_last_arrival
+    );
+    for l in &r.links {
+        let _ = writeln!(
+            s,
+            "link {}→{}: sent {}, delivered {}, dropped {}",
+            l.from, l.to, l.sent, l.delivered, l.dropped
+        );
+    }
+    let _ = writeln!(
+        s,
+        "wall time {:.3} s, {:.1}× real time",
+        summary.wall_time_s,
+        summary.speedup()
+    );
+    s
+}

@@ -1,0 +1,64 @@
+//! Throughput of the in-process simulator on the paper's case (b), in vehicle-steps per second,
+//! beside a baseline measured in the same run: the world alone integrating the same fleet with
+//! constant commands. The ratio of the two is what to compare across machines.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use std::hint::black_box;
+use tcpf_core::mission;
+use tcpf_core::msg::{Command, PROTOCOL_VERSION};
+use tcpf_core::planner;
+use tcpf_core::sim::Fleet;
+use tcpf_core::world::World;
+
+fn case_b() -> mission::Mission {
+    let file = format!("{}/../configs/paper/b-current.toml", env!("CARGO_MANIFEST_DIR"));
+    mission::parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap()
+}
+
+fn bench(c: &mut Criterion) {
+    let m = case_b();
+    let plan = planner::plan(&m).unwrap();
+    let ticks = Fleet::new(&m, &plan).run(|_, _| {}).ticks;
+    let steps = ticks * plan.vehicles.len() as u64;
+
+    let mut group = c.benchmark_group("case_b");
+    group.throughput(Throughput::Elements(steps));
+    group.bench_function("world_only_baseline", |b| {
+        let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+        let command = Command {
+            version: PROTOCOL_VERSION,
+            tick: 0,
+            id: 0,
+            v: 0.6,
+            r: 0.01,
+            hold: false,
+            gamma: 0.0,
+            gamma_dot: 1.0,
+            v_d: 0.6,
+            x_e: 0.0,
+            y_e: 0.0,
+            psi_e: 0.0,
+            receptions: Vec::new(),
+        };
+        let held = vec![Some(&command); paths.len()];
+        b.iter(|| {
+            let mut world = World::new(&m, &paths);
+            for _ in 0..ticks {
+                black_box(world.states());
+                world.step(&held);
+            }
+            world
+        })
+    });
+    group.bench_function("fleet_in_process", |b| {
+        b.iter(|| {
+            Fleet::new(&m, &plan).run(|s, _| {
+                black_box(s);
+            })
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

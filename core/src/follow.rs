@@ -1,0 +1,225 @@
+//! Path following (SPEC §2, Lemma 2): errors in the Serret–Frenet frame, the control law of
+//! eqs. 22–23 and the error kinematics of eq. 21 it was designed against.
+
+use crate::path::{PathPoint, Vec2};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gains {
+    pub k1: f64,
+    pub k2: f64,
+    pub k3: f64,
+    pub d1: f64,
+}
+
+/// (x_e, y_e) in frame {T} at p_d(γ), and ψ_e = ψ_F − ψ_T wrapped to (−π, π].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Errors {
+    pub x_e: f64,
+    pub y_e: f64,
+    pub psi_e: f64,
+}
+
+/// The law's outputs: speed through the water, yaw rate and the virtual-time rate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Law {
+    pub v: f64,
+    pub r: f64,
+    pub gamma_dot: f64,
+}
+
+pub fn wrap(angle: f64) -> f64 {
+    let a = (angle + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    if a == -std::f64::consts::PI {
+        std::f64::consts::PI
+    } else {
+        a
+    }
+}
+
+/// Unit saturation.
+pub fn sat(x: f64) -> f64 {
+    x.clamp(-1.0, 1.0)
+}
+
+/// R(ψ)ᵀ w: an inertial vector in a frame rotated by ψ.
+pub fn to_frame(psi: f64, w: Vec2) -> Vec2 {
+    let (s, c) = psi.sin_cos();
+    Vec2::new(c * w.x + s * w.y, -s * w.x + c * w.y)
+}
+
+pub fn errors(position: Vec2, psi_f: f64, point: &PathPoint) -> Errors {
+    let e = to_frame(point.heading, position - point.position);
+    Errors {
+        x_e: e.x,
+        y_e: e.y,
+        psi_e: wrap(psi_f - point.heading),
+    }
+}
+
+/// ζ = −arcsin(k2 y_e/(|y_e| + d1)), the approach angle.
+pub fn zeta(g: &Gains, y_e: f64) -> f64 {
+    -(g.k2 * y_e / (y_e.abs() + g.d1)).asin()
+}
+
+/// ∂ζ/∂y_e.
+pub fn dzeta(g: &Gains, y_e: f64) -> f64 {
+    let den = y_e.abs() + g.d1;
+    let u = g.k2 * y_e / den;
+    -(g.k2 * g.d1 / (den * den)) / (1.0 - u * u).sqrt()
+}
+
+/// σ = (sin ψ_e − sin ζ)/(ψ_e − ζ), written so that it is finite at ψ_e = ζ.
+pub fn sigma(psi_e: f64, zeta: f64) -> f64 {
+    let h = 0.5 * (psi_e - zeta);
+    let sinc = if h.abs() < 1e-8 { 1.0 - h * h / 6.0 } else { h.sin() / h };
+    (0.5 * (psi_e + zeta)).cos() * sinc
+}
+
+/// eq. 21: (ẋ_e, ẏ_e, ψ̇_e) given the inputs. `current` is the current in frame {T}
+/// (v_c cos ψ_cT, v_c sin ψ_cT).
+pub fn error_rates(
+    point: &PathPoint,
+    e: &Errors,
+    v: f64,
+    r: f64,
+    gamma_dot: f64,
+    current: Vec2,
+    beta_dot: f64,
+) -> [f64; 3] {
+    let s = point.speed * gamma_dot;
+    [
+        (e.y_e * point.curvature - 1.0) * s + v * e.psi_e.cos() + current.x,
+        -e.x_e * point.curvature * s + v * e.psi_e.sin() + current.y,
+        r - point.curvature * s + beta_dot,
+    ]
+}
+
+/// eqs. 22b and 23 for a speed command `v` already set by eq. 22a/25.
+pub fn control(g: &Gains, point: &PathPoint, e: &Errors, v: f64, current: Vec2, beta_dot: f64) -> Law {
+    let v_d = point.speed;
+    // eq. 23, with 1 + ṽ_d/v_d = v/v_d
+    let gamma_dot = v / v_d * e.psi_e.cos() + g.k1 / v_d * sat(e.x_e);
+    // D7: ζ̇ from the measured ẏ_e of eq. 21
+    let y_e_dot = error_rates(point, e, v, 0.0, gamma_dot, current, 0.0)[1];
+    let z = zeta(g, e.y_e);
+    let z_dot = dzeta(g, e.y_e) * y_e_dot;
+    // eq. 22b
+    let r = point.curvature * v_d * gamma_dot + z_dot
+        - g.k3 * (e.psi_e - z)
+        - g.k3 * e.y_e * v * sigma(e.psi_e, z)
+        - beta_dot;
+    Law { v, r, gamma_dot }
+}
+
+/// V = ½(x_e² + y_e²) + (ψ_e − ζ)²/(2 k3).
+pub fn lyapunov(g: &Gains, e: &Errors) -> f64 {
+    let d = e.psi_e - zeta(g, e.y_e);
+    0.5 * (e.x_e * e.x_e + e.y_e * e.y_e) + d * d / (2.0 * g.k3)
+}
+
+/// V̇ along the closed loop, as Lemma 2 states it: negative but for the current's term.
+pub fn lyapunov_rate(g: &Gains, e: &Errors, v: f64, current: Vec2) -> f64 {
+    let d = e.psi_e - zeta(g, e.y_e);
+    -g.k1 * e.x_e * sat(e.x_e) - g.k2 * v * e.y_e * e.y_e / (e.y_e.abs() + g.d1) - d * d
+        + e.x_e * current.x
+        + e.y_e * current.y
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_chacha::rand_core::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * ((rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
+    }
+
+    const G: Gains = Gains {
+        k1: 5.0,
+        k2: 1.0,
+        k3: 0.34,
+        d1: 1.0,
+    };
+
+    #[test]
+    fn lyapunov_derivative_matches_lemma_2_at_random_states() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..20_000 {
+            let point = PathPoint {
+                position: Vec2::zeros(),
+                tangent: Vec2::zeros(),
+                second: Vec2::zeros(),
+                heading: uniform(&mut rng, -3.0, 3.0),
+                curvature: uniform(&mut rng, -2.0, 2.0),
+                speed: uniform(&mut rng, 0.05, 1.5),
+            };
+            let e = Errors {
+                x_e: uniform(&mut rng, -5.0, 5.0),
+                y_e: uniform(&mut rng, -5.0, 5.0),
+                psi_e: uniform(&mut rng, -3.1, 3.1),
+            };
+            let g = Gains {
+                k2: uniform(&mut rng, 0.1, 1.0),
+                ..G
+            };
+            let current = Vec2::new(uniform(&mut rng, -0.3, 0.3), uniform(&mut rng, -0.3, 0.3));
+            let v = uniform(&mut rng, 0.05, 3.0);
+            let beta_dot = uniform(&mut rng, -0.5, 0.5);
+            let law = control(&g, &point, &e, v, current, beta_dot);
+            let [xd, yd, pd] = error_rates(&point, &e, law.v, law.r, law.gamma_dot, current, beta_dot);
+            // Chain rule on V with eq. 21's rates, against the closed form.
+            let z = zeta(&g, e.y_e);
+            let chain = e.x_e * xd + e.y_e * yd + (e.psi_e - z) * (pd - dzeta(&g, e.y_e) * yd) / g.k3;
+            let closed = lyapunov_rate(&g, &e, v, current);
+            assert!(
+                (chain - closed).abs() < 1e-9 * (1.0 + closed.abs()),
+                "{e:?} {chain} vs {closed}"
+            );
+        }
+    }
+
+    #[test]
+    fn dzeta_matches_finite_difference() {
+        for y in [-3.0, -0.2, 0.3, 4.0] {
+            let h = 1e-6;
+            let fd = (zeta(&G, y + h) - zeta(&G, y - h)) / (2.0 * h);
+            assert!((fd - dzeta(&G, y)).abs() < 1e-7);
+        }
+    }
+
+    #[test]
+    fn sigma_is_the_difference_quotient_and_finite_at_equality() {
+        for (a, b) in [(0.3, -0.2), (2.5, 1.0), (-1.0, 0.4)] {
+            assert!((sigma(a, b) - (f64::sin(a) - f64::sin(b)) / (a - b)).abs() < 1e-12);
+        }
+        assert!((sigma(0.7, 0.7) - 0.7f64.cos()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn wrap_stays_in_half_open_interval() {
+        assert!((wrap(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+        assert!((wrap(-0.5 - std::f64::consts::TAU) + 0.5).abs() < 1e-12);
+        assert_eq!(wrap(0.25), 0.25);
+    }
+
+    #[test]
+    fn on_the_path_the_law_tracks_the_nominal_speed() {
+        let point = PathPoint {
+            position: Vec2::zeros(),
+            tangent: Vec2::new(0.6, 0.0),
+            second: Vec2::zeros(),
+            heading: 0.0,
+            curvature: 0.2,
+            speed: 0.6,
+        };
+        let e = Errors {
+            x_e: 0.0,
+            y_e: 0.0,
+            psi_e: 0.0,
+        };
+        let law = control(&G, &point, &e, 0.6, Vec2::zeros(), 0.0);
+        assert!((law.gamma_dot - 1.0).abs() < 1e-15);
+        assert!((law.r - 0.2 * 0.6).abs() < 1e-15, "turns at c_c v_d");
+    }
+}

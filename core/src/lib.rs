@@ -1,0 +1,15 @@
+//! tcpf-core: time-coordinated path following (SPEC.md) as deterministic state machines.
+//! No I/O, no async, no clocks: the process crates only move these machines' messages.
+
+pub mod agent;
+pub mod coord;
+pub mod follow;
+pub mod links;
+pub mod metrics;
+pub mod mission;
+pub mod msg;
+pub mod path;
+pub mod planner;
+pub mod sim;
+pub mod telemetry;
+pub mod world;

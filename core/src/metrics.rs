@@ -1,0 +1,180 @@
+//! The metrics of SPEC §4 (D16), accumulated tick by tick from what the world measured and what
+//! the agents commanded, and the run summary of DESIGN.md.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::links::LinkStats;
+use crate::msg::{Command, State};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VehicleSummary {
+    pub id: u32,
+    /// First t with γ_i(t) ≥ t_f; `None` if it never arrived.
+    pub arrival_time: Option<f64>,
+    pub lost: bool,
+}
+
+/// What a run measured. `summary.json` is this plus how it ran.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Results {
+    pub t_f: f64,
+    pub ticks: u64,
+    pub vehicles: Vec<VehicleSummary>,
+    /// On [0, first arrival] (the headline).
+    pub max_coordination_error: f64,
+    /// Infinite (null in JSON) for a fleet of one.
+    pub min_clearance: f64,
+    /// On [0, last arrival].
+    pub max_coordination_error_to_last_arrival: f64,
+    pub min_clearance_to_last_arrival: f64,
+    pub links: Vec<LinkStats>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Metrics {
+    t_f: f64,
+    dt: f64,
+    ticks: u64,
+    /// Previous tick's γ and positions, for interpolating at the first arrival.
+    previous: Option<(Vec<f64>, Vec<[f64; 2]>)>,
+    ids: Vec<u32>,
+    arrivals: Vec<Option<f64>>,
+    lost: Vec<bool>,
+    en_route: (f64, f64),
+    to_last: (f64, f64),
+    links: BTreeMap<(u32, u32), LinkStats>,
+}
+
+/// max |γ_i − γ_j| and min |p_i − p_j| over all pairs.
+fn spread(gammas: &[f64], positions: &[[f64; 2]]) -> (f64, f64) {
+    let (mut err, mut clr) = (0.0f64, f64::INFINITY);
+    for i in 0..gammas.len() {
+        for j in i + 1..gammas.len() {
+            err = err.max((gammas[i] - gammas[j]).abs());
+            clr = clr.min((positions[i][0] - positions[j][0]).hypot(positions[i][1] - positions[j][1]));
+        }
+    }
+    (err, clr)
+}
+
+fn lerp(a: f64, b: f64, s: f64) -> f64 {
+    a + s * (b - a)
+}
+
+impl Metrics {
+    pub fn new(ids: &[u32], t_f: f64, dt: f64) -> Metrics {
+        Metrics {
+            t_f,
+            dt,
+            ticks: 0,
+            previous: None,
+            ids: ids.to_vec(),
+            arrivals: vec![None; ids.len()],
+            lost: vec![false; ids.len()],
+            en_route: (0.0, f64::INFINITY),
+            to_last: (0.0, f64::INFINITY),
+            links: BTreeMap::new(),
+        }
+    }
+
+    pub fn mark_lost(&mut self, id: u32) {
+        if let Some(n) = self.ids.iter().position(|&i| i == id) {
+            self.lost[n] = true;
+        }
+    }
+
+    fn first_arrival(&self) -> Option<f64> {
+        self.arrivals.iter().flatten().copied().reduce(f64::min)
+    }
+
+    /// One tick: `states` and `commands` in the order of `ids`. A lost vehicle has no command; its
+    /// γ is frozen at its last value.
+    pub fn record(&mut self, tick: u64, states: &[State], commands: &[Option<&Command>]) {
+        let t = tick as f64 * self.dt;
+        let positions: Vec<[f64; 2]> = states.iter().map(|s| s.position).collect();
+        let gammas: Vec<f64> = commands
+            .iter()
+            .enumerate()
+            .map(|(n, c)| {
+                c.map(|c| c.gamma)
+                    .or_else(|| self.previous.as_ref().map(|p| p.0[n]))
+                    .unwrap_or(0.0)
+            })
+            .collect();
+        let before_first = self.first_arrival().is_none();
+        for (n, &g) in gammas.iter().enumerate() {
+            if self.arrivals[n].is_none() && g >= self.t_f {
+                let prev = self.previous.as_ref().map(|p| p.0[n]);
+                self.arrivals[n] = Some(match prev {
+                    Some(p) if g > p => t - self.dt + self.dt * (self.t_f - p) / (g - p),
+                    _ => t,
+                });
+            }
+        }
+        let now = spread(&gammas, &positions);
+        self.to_last = (self.to_last.0.max(now.0), self.to_last.1.min(now.1));
+        match (before_first, self.first_arrival(), &self.previous) {
+            (true, None, _) => self.en_route = (self.en_route.0.max(now.0), self.en_route.1.min(now.1)),
+            // The first arrival fell inside this step: close the en-route window exactly there.
+            (true, Some(first), Some((pg, pp))) => {
+                let s = ((first - (t - self.dt)) / self.dt).clamp(0.0, 1.0);
+                let g: Vec<f64> = pg.iter().zip(&gammas).map(|(a, b)| lerp(*a, *b, s)).collect();
+                let p: Vec<[f64; 2]> = pp
+                    .iter()
+                    .zip(&positions)
+                    .map(|(a, b)| [lerp(a[0], b[0], s), lerp(a[1], b[1], s)])
+                    .collect();
+                let at = spread(&g, &p);
+                self.en_route = (self.en_route.0.max(at.0), self.en_route.1.min(at.1));
+            }
+            _ => {}
+        }
+        for c in commands.iter().flatten() {
+            for r in &c.receptions {
+                let s = self.links.entry((r.from, c.id)).or_insert(LinkStats {
+                    from: r.from,
+                    to: c.id,
+                    sent: 0,
+                    delivered: 0,
+                    dropped: 0,
+                });
+                s.sent += 1;
+                if r.delivered {
+                    s.delivered += 1;
+                } else {
+                    s.dropped += 1;
+                }
+            }
+        }
+        self.previous = Some((gammas, positions));
+        self.ticks += 1;
+    }
+
+    pub fn all_arrived(&self) -> bool {
+        self.arrivals
+            .iter()
+            .zip(&self.lost)
+            .all(|(a, lost)| a.is_some() || *lost)
+    }
+
+    pub fn results(&self) -> Results {
+        Results {
+            t_f: self.t_f,
+            ticks: self.ticks,
+            vehicles: self
+                .ids
+                .iter()
+                .zip(&self.arrivals)
+                .zip(&self.lost)
+                .map(|((&id, &arrival_time), &lost)| VehicleSummary { id, arrival_time, lost })
+                .collect(),
+            max_coordination_error: self.en_route.0,
+            min_clearance: self.en_route.1,
+            max_coordination_error_to_last_arrival: self.to_last.0,
+            min_clearance_to_last_arrival: self.to_last.1,
+            links: self.links.values().copied().collect(),
+        }
+    }
+}

@@ -1,0 +1,152 @@
+//! The messages the machines exchange, as they go on the wire (docs/PROTOCOL.md). Every message
+//! carries the protocol version; a receiver drops one whose version or numbers it cannot use.
+
+use serde::{Deserialize, Serialize};
+
+use crate::path::GeneralizedPath;
+
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// World → agent and recorder: a vehicle's measured state at tick k.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    pub version: u16,
+    pub tick: u64,
+    pub id: u32,
+    pub t: f64,
+    pub position: [f64; 2],
+    /// ψ_B, body heading
+    pub heading: f64,
+    /// β = ψ_F − ψ_B
+    pub sideslip: f64,
+    pub sideslip_rate: f64,
+    /// Water current at the vehicle, inertial frame, m/s.
+    pub current: [f64; 2],
+}
+
+/// One receiver-side decision on a γ message (SPEC D12).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Reception {
+    pub from: u32,
+    pub delivered: bool,
+}
+
+/// Agent → world and recorder: the command of tick k and the agent's view that produced it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Command {
+    pub version: u16,
+    pub tick: u64,
+    pub id: u32,
+    /// Speed through the water, m/s.
+    pub v: f64,
+    /// Yaw rate, rad/s.
+    pub r: f64,
+    /// Freeze the vehicle where it is (post_arrival = "stop").
+    pub hold: bool,
+    /// γ_i(t_k), before this tick's update.
+    pub gamma: f64,
+    pub gamma_dot: f64,
+    pub v_d: f64,
+    pub x_e: f64,
+    pub y_e: f64,
+    pub psi_e: f64,
+    /// At a communication instant: what became of each neighbour's γ.
+    pub receptions: Vec<Reception>,
+}
+
+/// Agent → neighbours: γ_i(t_k) at a communication instant.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Gamma {
+    pub version: u16,
+    pub tick: u64,
+    pub from: u32,
+    pub gamma: f64,
+}
+
+/// Planner → agent: the vehicle's generalized path.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PathMsg {
+    pub version: u16,
+    pub id: u32,
+    pub path: GeneralizedPath,
+}
+
+/// What a receiver checks before it uses a decoded message.
+pub trait Checked {
+    fn version(&self) -> u16;
+    fn numbers(&self) -> Vec<f64>;
+
+    fn usable(&self) -> Result<(), &'static str> {
+        if self.version() != PROTOCOL_VERSION {
+            Err("protocol version")
+        } else if !self.numbers().iter().all(|x| x.is_finite()) {
+            Err("non-finite number")
+        } else {
+            Ok(())
+        }
+    }
+}
+
+impl Checked for State {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn numbers(&self) -> Vec<f64> {
+        vec![
+            self.t,
+            self.position[0],
+            self.position[1],
+            self.heading,
+            self.sideslip,
+            self.sideslip_rate,
+            self.current[0],
+            self.current[1],
+        ]
+    }
+}
+
+impl Checked for Command {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn numbers(&self) -> Vec<f64> {
+        vec![
+            self.v,
+            self.r,
+            self.gamma,
+            self.gamma_dot,
+            self.v_d,
+            self.x_e,
+            self.y_e,
+            self.psi_e,
+        ]
+    }
+}
+
+impl Checked for Gamma {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn numbers(&self) -> Vec<f64> {
+        vec![self.gamma]
+    }
+}
+
+impl Checked for PathMsg {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn numbers(&self) -> Vec<f64> {
+        let p = &self.path;
+        let mut n: Vec<f64> = p.quintic.coefficients.iter().flatten().copied().collect();
+        n.extend([p.profile.eta0, p.profile.etaf, p.profile.t_f, p.profile.tau_f]);
+        n.extend(
+            p.start
+                .iter()
+                .chain(&p.start_velocity)
+                .chain(&p.goal)
+                .chain(&p.goal_velocity),
+        );
+        n
+    }
+}

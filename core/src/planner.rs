@@ -1,0 +1,423 @@
+//! Trajectory generation (SPEC §1): the common arrival time t_f that minimises Σ w_i J_i (eq. 19)
+//! under the speed, acceleration (eqs. 4, 20) and deconfliction constraints, found by a grid over
+//! [tf_min, tf_max] and a bounded 1-D refinement (D6).
+
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+use crate::mission::{CostKind, Mission, PlannerConfig, VehicleConfig};
+use crate::path::{Boundary, GeneralizedPath};
+
+/// Grid step of D6, s.
+const GRID: f64 = 0.01;
+/// Samples along one path (or one pair) before the extreme is refined.
+const SAMPLES: usize = 128;
+/// Simpson intervals for the cost integral.
+const QUADRATURE: usize = 128;
+/// Tolerance of the refinements on t_f, s.
+const TF_TOL: f64 = 1e-7;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VehiclePlan {
+    pub id: u32,
+    pub weight: f64,
+    pub cost: f64,
+    pub min_speed: f64,
+    pub max_speed: f64,
+    pub max_accel: f64,
+    pub path: GeneralizedPath,
+}
+
+/// The closest approach of two vehicles at equal time (D18).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Separation {
+    pub vehicles: [u32; 2],
+    pub distance: f64,
+    pub t: f64,
+}
+
+/// A constraint that holds with equality at the optimum.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Active {
+    /// `tf_min`, `tf_max`, `v_min`, `v_max`, `a_max` or `clearance`.
+    pub constraint: String,
+    pub vehicles: Vec<u32>,
+    pub detail: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    pub t_f: f64,
+    pub cost: f64,
+    pub cost_kind: CostKind,
+    /// Smallest pairwise distance at equal time over [0, t_f]; infinite for one vehicle.
+    pub min_separation: f64,
+    pub closest: Option<Separation>,
+    pub active: Vec<Active>,
+    pub vehicles: Vec<VehiclePlan>,
+}
+
+/// No t_f in [tf_min, tf_max] meets every constraint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Infeasible {
+    pub message: String,
+}
+
+impl fmt::Display for Infeasible {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Infeasible {}
+
+/// Which constraint fails, by whom; the unit of grouping in error messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+enum Constraint {
+    VMin(u32),
+    VMax(u32),
+    AMax(u32),
+    Clearance(u32, u32),
+}
+
+impl Constraint {
+    fn name(&self) -> &'static str {
+        match self {
+            Constraint::VMin(_) => "v_min",
+            Constraint::VMax(_) => "v_max",
+            Constraint::AMax(_) => "a_max",
+            Constraint::Clearance(..) => "clearance",
+        }
+    }
+
+    fn vehicles(&self) -> Vec<u32> {
+        match *self {
+            Constraint::VMin(i) | Constraint::VMax(i) | Constraint::AMax(i) => vec![i],
+            Constraint::Clearance(i, j) => vec![i, j],
+        }
+    }
+
+    /// Whether a larger value is the better one (how far to the bound).
+    fn larger_is_better(&self) -> bool {
+        matches!(self, Constraint::VMin(_) | Constraint::Clearance(..))
+    }
+
+    fn describe(&self, value: f64, bound: f64, t: f64) -> String {
+        match *self {
+            Constraint::VMin(i) => format!("vehicle {i} slows to {value:.3} m/s (v_min {bound}) at t = {t:.2} s"),
+            Constraint::VMax(i) => format!("vehicle {i} needs {value:.3} m/s (v_max {bound}) at t = {t:.2} s"),
+            Constraint::AMax(i) => format!("vehicle {i} needs {value:.4} m/s² (a_max {bound}) at t = {t:.2} s"),
+            Constraint::Clearance(i, j) => format!(
+                "vehicles {i} and {j} come within {value:.3} m of each other (clearance {bound} m) at t = {t:.2} s"
+            ),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Violation {
+    constraint: Constraint,
+    value: f64,
+    bound: f64,
+    t: f64,
+}
+
+/// Everything the planner knows about one candidate t_f.
+#[derive(Debug, Clone)]
+struct Candidate {
+    t_f: f64,
+    cost: f64,
+    vehicles: Vec<VehiclePlan>,
+    closest: Option<Separation>,
+    violations: Vec<Violation>,
+}
+
+impl Candidate {
+    fn feasible(&self) -> bool {
+        self.violations.is_empty()
+    }
+}
+
+/// The vehicle's path for a given t_f.
+pub fn vehicle_path(v: &VehicleConfig, t_f: f64) -> GeneralizedPath {
+    let end = |p: [f64; 2], v: [f64; 2], a: [f64; 2]| Boundary {
+        position: p.into(),
+        velocity: v.into(),
+        acceleration: a.into(),
+    };
+    GeneralizedPath::plan(
+        end(v.start, v.start_velocity, v.start_acceleration),
+        end(v.goal, v.goal_velocity, v.goal_acceleration),
+        t_f,
+    )
+}
+
+/// J_i of eq. 19 (D4), by Simpson's rule over τ ∈ [0, τ_f].
+pub fn cost(path: &GeneralizedPath, kind: CostKind) -> f64 {
+    let profile = &path.profile;
+    let power = match kind {
+        CostKind::Printed => 3,
+        CostKind::Energy => 2,
+    };
+    let h = profile.tau_f / QUADRATURE as f64;
+    let f = |tau: f64| path.quintic.eval(tau)[1].norm().powi(3) * profile.eta(tau).powi(power);
+    let mut sum = f(0.0) + f(profile.tau_f);
+    for k in 1..QUADRATURE {
+        sum += f(k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    sum * h / 3.0
+}
+
+/// Golden-section search for the minimum of `f` on [a, b]; returns (argmin, min).
+fn golden_min(mut a: f64, mut b: f64, tol: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - r * (b - a), a + r * (b - a));
+    let (mut fc, mut fd) = (f(c), f(d));
+    while b - a > tol {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - r * (b - a);
+            fc = f(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + r * (b - a);
+            fd = f(d);
+        }
+    }
+    let (fa, fb) = (f(a), f(b));
+    [(a, fa), (b, fb), (c, fc), (d, fd)]
+        .into_iter()
+        .fold((a, fa), |m, x| if x.1 < m.1 { x } else { m })
+}
+
+/// The minimum of `f` over [0, t_end]: sampled, then refined around the best sample.
+fn extreme(t_end: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
+    let h = t_end / SAMPLES as f64;
+    let (k, _) = (0..=SAMPLES)
+        .map(|k| (k, f(k as f64 * h)))
+        .fold((0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m });
+    let lo = (k.saturating_sub(1)) as f64 * h;
+    let hi = ((k + 1).min(SAMPLES)) as f64 * h;
+    golden_min(lo, hi, 1e-9 * t_end.max(1.0), f)
+}
+
+fn evaluate(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64) -> Candidate {
+    let mut violations = Vec::new();
+    let mut plans = Vec::with_capacity(vehicles.len());
+    let mut total = 0.0;
+    for v in vehicles {
+        let path = vehicle_path(v, t_f);
+        let speed = |t: f64| path.at(t).speed;
+        let accel = |t: f64| path.at(t).second.norm();
+        let (t_min_speed, min_speed) = extreme(t_f, speed);
+        let (t_max_speed, neg_max_speed) = extreme(t_f, |t| -speed(t));
+        let (t_max_accel, neg_max_accel) = extreme(t_f, |t| -accel(t));
+        let (max_speed, max_accel) = (-neg_max_speed, -neg_max_accel);
+        // eq. 20 and eq. 4
+        if min_speed < config.v_min {
+            violations.push(Violation {
+                constraint: Constraint::VMin(v.id),
+                value: min_speed,
+                bound: config.v_min,
+                t: t_min_speed,
+            });
+        }
+        if max_speed > config.v_max {
+            violations.push(Violation {
+                constraint: Constraint::VMax(v.id),
+                value: max_speed,
+                bound: config.v_max,
+                t: t_max_speed,
+            });
+        }
+        if max_accel > config.a_max {
+            violations.push(Violation {
+                constraint: Constraint::AMax(v.id),
+                value: max_accel,
+                bound: config.a_max,
+                t: t_max_accel,
+            });
+        }
+        let cost = cost(&path, config.cost);
+        total += v.weight * cost;
+        plans.push(VehiclePlan {
+            id: v.id,
+            weight: v.weight,
+            cost,
+            min_speed,
+            max_speed,
+            max_accel,
+            path,
+        });
+    }
+    let mut closest: Option<Separation> = None;
+    for (i, a) in plans.iter().enumerate() {
+        for b in &plans[i + 1..] {
+            let (t, distance) = extreme(t_f, |t| (a.path.at(t).position - b.path.at(t).position).norm());
+            if distance <= config.clearance {
+                violations.push(Violation {
+                    constraint: Constraint::Clearance(a.id, b.id),
+                    value: distance,
+                    bound: config.clearance,
+                    t,
+                });
+            }
+            if closest.is_none_or(|c| distance < c.distance) {
+                closest = Some(Separation {
+                    vehicles: [a.id, b.id],
+                    distance,
+                    t,
+                });
+            }
+        }
+    }
+    Candidate {
+        t_f,
+        cost: total,
+        vehicles: plans,
+        closest,
+        violations,
+    }
+}
+
+/// Bisects between a feasible and an infeasible t_f; returns the feasible side's limit and the
+/// infeasible candidate just beyond it.
+fn boundary_between(
+    config: &PlannerConfig,
+    vehicles: &[VehicleConfig],
+    feasible: f64,
+    infeasible: f64,
+) -> (f64, Candidate) {
+    let (mut good, mut bad) = (feasible, infeasible);
+    let mut beyond = evaluate(config, vehicles, bad);
+    while (good - bad).abs() > TF_TOL {
+        let mid = 0.5 * (good + bad);
+        let c = evaluate(config, vehicles, mid);
+        if c.feasible() {
+            good = mid;
+        } else {
+            bad = mid;
+            beyond = c;
+        }
+    }
+    (good, beyond)
+}
+
+/// Solves eq. 19 for the mission's vehicles.
+pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
+    let config = &mission.planner;
+    let vehicles = &mission.vehicles;
+    let steps = ((config.tf_max - config.tf_min) / GRID - 1e-9).ceil().max(0.0) as usize;
+    let grid: Vec<f64> = (0..=steps)
+        .map(|k| (config.tf_min + k as f64 * GRID).min(config.tf_max))
+        .collect();
+    let candidates: Vec<Candidate> = grid.iter().map(|&t| evaluate(config, vehicles, t)).collect();
+    let Some(best) = (0..candidates.len())
+        .filter(|&k| candidates[k].feasible())
+        .min_by(|&a, &b| candidates[a].cost.total_cmp(&candidates[b].cost))
+    else {
+        return Err(infeasible(config, &candidates));
+    };
+
+    let mut active = Vec::new();
+    let limit = |side: Option<usize>, edge_name: &str| -> (f64, Option<Active>) {
+        match side {
+            None => (
+                grid[best],
+                Some(Active {
+                    constraint: edge_name.into(),
+                    vehicles: vec![],
+                    detail: format!("t_f = {edge_name} = {}", grid[best]),
+                }),
+            ),
+            Some(k) if candidates[k].feasible() => (grid[k], None),
+            Some(k) => {
+                let (t, beyond) = boundary_between(config, vehicles, grid[best], grid[k]);
+                let v = beyond.violations[0];
+                let active = Active {
+                    constraint: v.constraint.name().into(),
+                    vehicles: v.constraint.vehicles(),
+                    detail: v.constraint.describe(v.value, v.bound, v.t),
+                };
+                (t, Some(active))
+            }
+        }
+    };
+    let (lo, lo_active) = limit(best.checked_sub(1), "tf_min");
+    let (hi, hi_active) = limit((best + 1 < grid.len()).then_some(best + 1), "tf_max");
+    let (t_f, _) = golden_min(lo, hi, TF_TOL, |t| evaluate(config, vehicles, t).cost);
+    // An optimum within a few tolerances of a limit sits on it: the limit's constraint is active.
+    for (edge, a) in [(lo, lo_active), (hi, hi_active)] {
+        if let Some(a) = a {
+            if (t_f - edge).abs() < 10.0 * TF_TOL {
+                active.push(a);
+            }
+        }
+    }
+    let c = evaluate(config, vehicles, t_f);
+    let c = if c.feasible() {
+        c
+    } else {
+        evaluate(
+            config,
+            vehicles,
+            if (t_f - lo).abs() < (t_f - hi).abs() { lo } else { hi },
+        )
+    };
+    Ok(Plan {
+        t_f: c.t_f,
+        cost: c.cost,
+        cost_kind: config.cost,
+        min_separation: c.closest.map_or(f64::INFINITY, |s| s.distance),
+        closest: c.closest,
+        active,
+        vehicles: c.vehicles,
+    })
+}
+
+fn infeasible(config: &PlannerConfig, candidates: &[Candidate]) -> Infeasible {
+    use std::collections::BTreeMap;
+    // Per constraint: the grid range over which it fails, and its least bad violation.
+    let mut failing: BTreeMap<Constraint, (usize, f64, f64, Violation)> = BTreeMap::new();
+    for c in candidates {
+        for v in &c.violations {
+            let e = failing.entry(v.constraint).or_insert((0, c.t_f, c.t_f, *v));
+            e.0 += 1;
+            e.1 = e.1.min(c.t_f);
+            e.2 = e.2.max(c.t_f);
+            let better = if v.constraint.larger_is_better() {
+                v.value > e.3.value
+            } else {
+                v.value < e.3.value
+            };
+            if better {
+                e.3 = *v;
+            }
+        }
+    }
+    let range = format!("[{}, {}]", config.tf_min, config.tf_max);
+    let everywhere: Vec<String> = failing
+        .values()
+        .filter(|(n, ..)| *n == candidates.len())
+        .map(|(_, _, _, v)| {
+            format!(
+                "{} for every t_f in {range} (at best)",
+                v.constraint.describe(v.value, v.bound, v.t)
+            )
+        })
+        .collect();
+    let message = if everywhere.is_empty() {
+        let parts: Vec<String> = failing
+            .values()
+            .map(|(_, a, b, v)| {
+                format!("{} fails for t_f in [{a:.2}, {b:.2}]", v.constraint.name())
+                    + &format!(" ({})", v.constraint.describe(v.value, v.bound, v.t))
+            })
+            .collect();
+        format!("no t_f in {range} meets every constraint: {}", parts.join("; "))
+    } else {
+        everywhere.join("; ")
+    };
+    Infeasible { message }
+}

@@ -1,0 +1,139 @@
+//! The world as a state machine: every vehicle's kinematics in the shared current (SPEC §2),
+//! integrated by RK4 over one control period with the commands held.
+
+use crate::follow;
+use crate::mission::Mission;
+use crate::msg::{Command, State, PROTOCOL_VERSION};
+use crate::path::{GeneralizedPath, Vec2};
+
+#[derive(Debug, Clone)]
+struct Body {
+    id: u32,
+    position: Vec2,
+    heading: f64,
+    lost: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct World {
+    dt: f64,
+    tick: u64,
+    current: Vec2,
+    sideslip_amplitude: f64,
+    sideslip_omega: f64,
+    bodies: Vec<Body>,
+}
+
+impl World {
+    /// Vehicles start on their paths at P0, heading along v0, offset by `initial_offset` (D15).
+    pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)]) -> World {
+        let mut world = World {
+            dt: mission.mission.control_period,
+            tick: 0,
+            current: Vec2::new(mission.current.direction.cos(), mission.current.direction.sin())
+                * mission.current.speed,
+            sideslip_amplitude: mission.sideslip.amplitude,
+            sideslip_omega: std::f64::consts::TAU / mission.sideslip.period,
+            bodies: Vec::with_capacity(paths.len()),
+        };
+        for (id, path) in paths {
+            let offset = mission
+                .vehicles
+                .iter()
+                .find(|v| v.id == *id)
+                .map_or([0.0; 3], |v| v.initial_offset);
+            let p0 = path.at(0.0);
+            let (s, c) = p0.heading.sin_cos();
+            let position = p0.position + Vec2::new(c * offset[0] - s * offset[1], s * offset[0] + c * offset[1]);
+            let heading = follow::wrap(p0.heading + offset[2] - world.sideslip(0.0).0);
+            world.bodies.push(Body {
+                id: *id,
+                position,
+                heading,
+                lost: false,
+            });
+        }
+        world
+    }
+
+    /// β(t) and β̇(t) (D9).
+    fn sideslip(&self, t: f64) -> (f64, f64) {
+        let (s, c) = (self.sideslip_omega * t).sin_cos();
+        (
+            self.sideslip_amplitude * s,
+            self.sideslip_amplitude * self.sideslip_omega * c,
+        )
+    }
+
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+
+    pub fn time(&self) -> f64 {
+        self.tick as f64 * self.dt
+    }
+
+    pub fn ids(&self) -> impl Iterator<Item = u32> + '_ {
+        self.bodies.iter().map(|b| b.id)
+    }
+
+    /// A vehicle whose agent is gone: from now on it drifts with the current, thrusters off.
+    pub fn mark_lost(&mut self, id: u32) {
+        if let Some(b) = self.bodies.iter_mut().find(|b| b.id == id) {
+            b.lost = true;
+        }
+    }
+
+    pub fn is_lost(&self, id: u32) -> bool {
+        self.bodies.iter().any(|b| b.id == id && b.lost)
+    }
+
+    /// The measured states of tick k, in the order of `paths` given to `new`.
+    pub fn states(&self) -> Vec<State> {
+        let t = self.time();
+        let (beta, beta_dot) = self.sideslip(t);
+        self.bodies
+            .iter()
+            .map(|b| State {
+                version: PROTOCOL_VERSION,
+                tick: self.tick,
+                id: b.id,
+                t,
+                position: b.position.into(),
+                heading: b.heading,
+                sideslip: beta,
+                sideslip_rate: beta_dot,
+                current: self.current.into(),
+            })
+            .collect()
+    }
+
+    /// Integrates tick k → k+1. `commands[n]` is the held command of the n-th vehicle; `None`
+    /// (or a lost vehicle) means thrusters off.
+    pub fn step(&mut self, commands: &[Option<&Command>]) {
+        let t = self.time();
+        let dt = self.dt;
+        for (n, b) in self.bodies.iter_mut().enumerate() {
+            let command = commands.get(n).copied().flatten().filter(|_| !b.lost);
+            if command.is_some_and(|c| c.hold) {
+                continue;
+            }
+            let (v, r) = command.map_or((0.0, 0.0), |c| (c.v, c.r));
+            let (amp, omega, current) = (self.sideslip_amplitude, self.sideslip_omega, self.current);
+            // ṗ = v (cos ψ_F, sin ψ_F) + v_c (cos ψ_c, sin ψ_c), ψ_F = ψ_B + β(t), ψ̇_B = r.
+            let f = |s: f64, heading: f64| {
+                let psi_f = heading + amp * (omega * (t + s)).sin();
+                Vec2::new(v * psi_f.cos(), v * psi_f.sin()) + current
+            };
+            let h0 = b.heading;
+            let k1 = f(0.0, h0);
+            let k2 = f(0.5 * dt, h0 + 0.5 * dt * r);
+            // The field depends on time and heading only, not on position, so k3 = k2.
+            let k3 = k2;
+            let k4 = f(dt, h0 + dt * r);
+            b.position += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            b.heading = follow::wrap(h0 + dt * r);
+        }
+        self.tick += 1;
+    }
+}

@@ -1,0 +1,158 @@
+//! SPEC §5: the paper's example planned and simulated in-process, against the figures an
+//! independent implementation gets. Tolerances are the ones issue 2 states.
+
+use tcpf_core::metrics::Results;
+use tcpf_core::mission::{self, Mission};
+use tcpf_core::planner;
+use tcpf_core::sim::Fleet;
+
+fn load(case: &str, overrides: &[&str]) -> Mission {
+    let file = format!("{}/../configs/paper/{case}.toml", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&file).unwrap();
+    let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    mission::parse(&file, &text, &overrides).unwrap()
+}
+
+fn simulate(m: &Mission) -> Results {
+    let plan = planner::plan(m).unwrap();
+    Fleet::new(m, &plan).run(|_, _| {})
+}
+
+fn arrivals(r: &Results) -> Vec<f64> {
+    r.vehicles
+        .iter()
+        .map(|v| v.arrival_time.expect("every vehicle arrives"))
+        .collect()
+}
+
+#[test]
+fn planner_finds_the_papers_optimum() {
+    let plan = planner::plan(&load("a-nominal", &[])).unwrap();
+    assert!((plan.t_f - 45.689).abs() < 0.005, "t_f = {}", plan.t_f);
+    assert!((plan.cost - 5.2309).abs() < 0.001, "Σ J = {}", plan.cost);
+    assert!(plan.active.is_empty(), "interior optimum: {:?}", plan.active);
+    // Both vehicles share η: the equal-time distance bottoms out at 5/√2.
+    assert!(
+        (plan.min_separation - 5.0 / 2f64.sqrt()).abs() < 1e-3,
+        "{}",
+        plan.min_separation
+    );
+}
+
+#[test]
+fn energy_cost_moves_the_optimum_little() {
+    let plan = planner::plan(&load("a-nominal", &["planner.cost=\"energy\""])).unwrap();
+    assert!(plan.t_f > 45.0 && plan.t_f < 48.0, "t_f = {}", plan.t_f);
+}
+
+#[test]
+fn acceleration_bound_becomes_active() {
+    let plan = planner::plan(&load("a-nominal", &["planner.a_max=0.07"])).unwrap();
+    assert!((plan.t_f - 50.1).abs() < 0.1, "t_f = {}", plan.t_f);
+    assert_eq!(plan.active.len(), 1, "{:?}", plan.active);
+    assert_eq!(plan.active[0].constraint, "a_max");
+    let worst = plan.vehicles.iter().map(|v| v.max_accel).fold(0.0, f64::max);
+    assert!((worst - 0.07).abs() < 1e-5, "the bound holds with equality: {worst}");
+}
+
+#[test]
+fn infeasible_clearance_names_the_vehicles() {
+    let m = load("a-nominal", &["planner.clearance=4.0"]);
+    let e = planner::plan(&m).unwrap_err().to_string();
+    assert!(e.contains("vehicles 1 and 2 come within 3.53"), "{e}");
+    assert!(e.contains("clearance 4"), "{e}");
+    assert!(e.contains("every t_f in [30, 60]"), "{e}");
+}
+
+#[test]
+fn infeasible_speed_names_the_bound() {
+    let m = load("a-nominal", &["planner.v_max=0.6"]);
+    let e = planner::plan(&m).unwrap_err().to_string();
+    assert!(e.contains("v_max 0.6"), "{e}");
+}
+
+#[test]
+fn case_a_nominal_arrives_at_t_f() {
+    let m = load("a-nominal", &[]);
+    let r = simulate(&m);
+    for a in arrivals(&r) {
+        assert!((a - r.t_f).abs() < 0.02, "arrival {a} vs t_f {}", r.t_f);
+    }
+    assert!(r.max_coordination_error < 0.01, "{}", r.max_coordination_error);
+    assert!((r.min_clearance - 3.536).abs() < 0.01, "{}", r.min_clearance);
+}
+
+#[test]
+fn case_b_current_arrives_together_late() {
+    let r = simulate(&load("b-current", &[]));
+    for a in arrivals(&r) {
+        assert!((a - 55.46).abs() < 0.1, "arrival {a}");
+    }
+    assert!(
+        (r.max_coordination_error - 0.36).abs() < 0.05,
+        "{}",
+        r.max_coordination_error
+    );
+    assert!((r.min_clearance - 3.53).abs() < 0.02, "{}", r.min_clearance);
+}
+
+#[test]
+fn case_c_without_coordination_drifts_apart() {
+    let r = simulate(&load("c-uncoordinated", &[]));
+    assert!(
+        (r.max_coordination_error - 6.62).abs() < 0.15,
+        "{}",
+        r.max_coordination_error
+    );
+    assert!((r.min_clearance - 0.60).abs() < 0.05, "{}", r.min_clearance);
+    let a = arrivals(&r);
+    assert!((a[0] - 52.15).abs() < 0.15 && (a[1] - 59.94).abs() < 0.15, "{a:?}");
+    assert!(r.links.is_empty(), "no coordination, no messages");
+}
+
+#[test]
+fn case_d_lossy_over_twenty_seeds() {
+    let (mut err, mut clr) = (Vec::new(), Vec::new());
+    for seed in 1..=20 {
+        let r = simulate(&load("d-lossy", &[&format!("mission.seed={seed}")]));
+        err.push(r.max_coordination_error);
+        clr.push(r.min_clearance);
+        let delivered: u64 = r.links.iter().map(|l| l.delivered).sum();
+        let sent: u64 = r.links.iter().map(|l| l.sent).sum();
+        let fraction = delivered as f64 / sent as f64;
+        assert!((fraction - 0.1).abs() < 0.05, "seed {seed}: delivered {fraction}");
+    }
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+    eprintln!(
+        "case (d): mean error {:.3} s, mean clearance {:.3} m",
+        mean(&err),
+        mean(&clr)
+    );
+    assert!((3.3..=4.3).contains(&mean(&err)), "mean error {}", mean(&err));
+    assert!((2.3..=3.1).contains(&mean(&clr)), "mean clearance {}", mean(&clr));
+}
+
+#[test]
+fn sideslip_is_cancelled_by_the_law() {
+    let plain = simulate(&load("b-current", &[]));
+    let slipping = simulate(&load("b-current", &["sideslip.amplitude=0.2", "sideslip.period=7.0"]));
+    for (a, b) in arrivals(&plain).iter().zip(arrivals(&slipping)) {
+        assert!((a - b).abs() < 0.05, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn same_seed_same_bits() {
+    let m = load("d-lossy", &["mission.seed=4"]);
+    let record = || {
+        let plan = planner::plan(&m).unwrap();
+        let mut out = String::new();
+        Fleet::new(&m, &plan).run(|states, commands| {
+            for (s, c) in states.iter().zip(commands) {
+                tcpf_core::telemetry::row(&mut out, s, Some(c));
+            }
+        });
+        out
+    };
+    assert_eq!(record(), record());
+}

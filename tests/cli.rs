@@ -1,0 +1,165 @@
+//! The `tcpf` binary as a user runs it: exit codes, error messages, the run directory.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn tcpf(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(args)
+        .output()
+        .expect("tcpf runs")
+}
+
+fn paper(case: &str) -> String {
+    format!("{}/configs/paper/{case}.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tcpf-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn plan_json_has_the_contract_fields() {
+    let o = tcpf(&["plan", &paper("a-nominal"), "--json"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["t_f"].as_f64().unwrap() - 45.689).abs() < 0.005);
+    assert!(v["cost"].as_f64().is_some() && v["min_separation"].as_f64().is_some());
+    for vehicle in v["vehicles"].as_array().unwrap() {
+        for key in ["id", "cost", "min_speed", "max_speed", "max_accel"] {
+            assert!(!vehicle[key].is_null(), "vehicle lacks {key}");
+        }
+    }
+}
+
+#[test]
+fn plan_table_names_the_active_constraint() {
+    let o = tcpf(&["plan", &paper("a-nominal"), "--set", "planner.a_max=0.07"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("t_f = 50.1"), "{out}");
+    assert!(out.contains("active constraint: a_max"), "{out}");
+}
+
+#[test]
+fn typo_in_a_mission_file_exits_2_naming_file_line_and_key() {
+    let dir = scratch("typo");
+    let file = dir.join("typo.toml");
+    let original = std::fs::read_to_string(paper("b-current")).unwrap();
+    std::fs::write(&file, original.replace("kc = 0.5", "kc_gain = 0.5")).unwrap();
+    let line = original.lines().position(|l| l.starts_with("kc = ")).unwrap() + 1;
+    let o = tcpf(&[
+        "run",
+        file.to_str().unwrap(),
+        "--in-process",
+        "--out",
+        dir.join("run").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&format!("typo.toml:{line}: key `control.kc_gain`")),
+        "{err}"
+    );
+    assert!(!dir.join("run").exists(), "nothing written for bad input");
+}
+
+#[test]
+fn missing_file_and_bad_override_exit_2() {
+    let o = tcpf(&["plan", "/nonexistent/mission.toml"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("/nonexistent/mission.toml"));
+    let o = tcpf(&["plan", &paper("a-nominal"), "--set", "comms.loss=2"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("comms.loss"), "{}", text(&o));
+}
+
+#[test]
+fn infeasible_plan_exits_1_with_the_binding_constraint() {
+    let o = tcpf(&["plan", &paper("a-nominal"), "--set", "planner.clearance=5"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("vehicles 1 and 2 come within") && err.contains("clearance 5"),
+        "{err}"
+    );
+}
+
+fn run_in_process(case: &str, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["run", case, "--in-process", "--out", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    tcpf(&args)
+}
+
+#[test]
+fn run_writes_the_run_directory() {
+    let dir = scratch("rundir");
+    let o = run_in_process(&paper("b-current"), &dir, &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    for f in ["mission.toml", "plan.json", "telemetry.csv", "summary.json"] {
+        assert!(dir.join(f).is_file(), "{f} missing");
+    }
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["mission"], "paper-b-current");
+    assert_eq!(s["mode"], "in-process");
+    assert_eq!(s["clock"], "lockstep");
+    let ticks = s["ticks"].as_u64().unwrap();
+    for v in s["vehicles"].as_array().unwrap() {
+        assert!((v["arrival_time"].as_f64().unwrap() - 55.46).abs() < 0.1);
+        assert_eq!(v["lost"], false);
+    }
+    for key in [
+        "max_coordination_error",
+        "min_clearance",
+        "max_coordination_error_to_last_arrival",
+        "min_clearance_to_last_arrival",
+        "wall_time_s",
+    ] {
+        assert!(s[key].as_f64().is_some(), "{key}");
+    }
+    assert_eq!(s["links"].as_array().unwrap().len(), 2);
+    let rows = std::fs::read_to_string(dir.join("telemetry.csv"))
+        .unwrap()
+        .lines()
+        .count() as u64;
+    assert_eq!(rows, 1 + 2 * ticks, "header plus one row per vehicle per tick");
+    // The resolved mission is itself a valid mission file.
+    let o = tcpf(&["plan", dir.join("mission.toml").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+#[test]
+fn same_mission_and_seed_give_byte_identical_telemetry() {
+    let dir = scratch("identical");
+    let (a, b, c) = (dir.join("a"), dir.join("b"), dir.join("c"));
+    for (out, seed) in [(&a, "3"), (&b, "3"), (&c, "4")] {
+        let o = run_in_process(&paper("d-lossy"), out, &["--seed", seed]);
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    let read = |d: &Path| std::fs::read(d.join("telemetry.csv")).unwrap();
+    assert!(read(&a) == read(&b), "same seed, same bytes");
+    assert!(read(&a) != read(&c), "another seed, another run");
+}
+
+#[test]
+fn a_run_that_does_not_finish_exits_1() {
+    let dir = scratch("short");
+    let o = run_in_process(&paper("b-current"), &dir, &["--set", "mission.max_duration=10"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["completed"], false);
+    assert!(s["vehicles"][0]["arrival_time"].is_null());
+}
