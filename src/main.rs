@@ -1,11 +1,14 @@
 //! `tcpf`: time-coordinated path following for fleets of vehicles. One binary, every role.
 
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
-use tcpf_coordinator::{inprocess, rundir::RunDir, table};
+use tcpf_bus::session::ZenohArgs;
+use tcpf_coordinator::{inprocess, launcher, planner_node, rundir::RunDir, table};
 use tcpf_core::mission::{self, Mission};
 use tcpf_core::planner::{self, Plan};
 
@@ -38,7 +41,7 @@ enum Command {
         /// Run directory (default runs/<mission>-<timestamp>/).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Drive every machine in one loop instead of one process per role.
+        /// Drive every machine in one loop instead of one process per role (the reference).
         #[arg(long)]
         in_process: bool,
         /// Mission seed (overrides mission.seed).
@@ -52,6 +55,42 @@ enum Command {
         /// Print one JSON object instead of a table.
         #[arg(long)]
         json: bool,
+    },
+    /// Role: plan and serve every vehicle's path.
+    Planner {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+    },
+    /// Role: the world and its lockstep clock.
+    World {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        /// Recorders to wait for before the first tick.
+        #[arg(long, default_value_t = 0)]
+        recorders: usize,
+        /// Seconds to wait for the planner and the agents.
+        #[arg(long, default_value_t = 60.0)]
+        startup_timeout: f64,
+    },
+    /// Role: the agent of one vehicle.
+    Agent {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        /// The vehicle's id.
+        #[arg(long)]
+        id: u32,
+        /// Seconds to wait for the planner, the world and the neighbours.
+        #[arg(long, default_value_t = 60.0)]
+        startup_timeout: f64,
+        /// Seconds after which a silent neighbour stops being counted.
+        #[arg(long, default_value_t = 3.0)]
+        stale_timeout: f64,
     },
 }
 
@@ -78,6 +117,17 @@ fn solve(mission: &Mission, file: &Path) -> Result<Plan, Failure> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let role = matches!(
+        cli.command,
+        Command::Planner { .. } | Command::World { .. } | Command::Agent { .. }
+    );
+    let filter =
+        std::env::var("RUST_LOG").unwrap_or_else(|_| if role { "info,zenoh=warn" } else { "warn,zenoh=error" }.into());
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_writer(std::io::stderr)
+        .init();
     let outcome = match cli.command {
         Command::Plan { mission, json } => plan(&mission, json),
         Command::Run {
@@ -86,6 +136,20 @@ fn main() -> ExitCode {
             in_process,
             seed,
         } => run(&mission, out.as_deref(), in_process, seed),
+        Command::Planner { mission, zenoh } => planner(&mission, &zenoh),
+        Command::World {
+            mission,
+            zenoh,
+            recorders,
+            startup_timeout,
+        } => world(&mission, &zenoh, recorders, startup_timeout),
+        Command::Agent {
+            mission,
+            zenoh,
+            id,
+            startup_timeout,
+            stale_timeout,
+        } => agent(&mission, &zenoh, id, startup_timeout, stale_timeout),
     };
     match outcome {
         Ok(code) => code,
@@ -117,18 +181,82 @@ fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
 fn run(args: &MissionArgs, out: Option<&Path>, in_process: bool, seed: Option<u64>) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
     let plan = solve(&mission, &args.file)?;
-    if !in_process {
-        return Err(Failure::Input(anyhow!(
-            "running as processes is not built yet: add --in-process"
-        )));
-    }
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
-    let summary = inprocess::run(&mission, &plan, &dir).map_err(Failure::Failed)?;
+    let summary = if in_process {
+        inprocess::run(&mission, &plan, &dir).map_err(Failure::Failed)?
+    } else {
+        let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
+        runtime()?
+            .block_on(launcher::run(&mission, &plan, &dir, &exe))
+            .map_err(Failure::Failed)?
+    };
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());
-    Ok(if summary.completed {
+    Ok(if summary.interrupted {
+        ExitCode::from(130)
+    } else if summary.completed {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
     })
+}
+
+fn runtime() -> Result<tokio::runtime::Runtime, Failure> {
+    tokio::runtime::Runtime::new().map_err(|e| Failure::Failed(e.into()))
+}
+
+fn code(ok: bool, interrupted: bool) -> ExitCode {
+    match (ok, interrupted) {
+        (_, true) => ExitCode::from(130),
+        (true, _) => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    }
+}
+
+fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let plan = solve(&mission, &args.file)?;
+    let exit = runtime()?
+        .block_on(planner_node::run(&mission, &plan, zenoh))
+        .map_err(Failure::Failed)?;
+    Ok(code(
+        exit == planner_node::Exit::Ended,
+        exit == planner_node::Exit::Interrupted,
+    ))
+}
+
+fn world(args: &MissionArgs, zenoh: &ZenohArgs, recorders: usize, startup_timeout: f64) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let options = tcpf_world::Options {
+        startup_timeout: Duration::from_secs_f64(startup_timeout),
+        recorders,
+    };
+    let exit = runtime()?
+        .block_on(tcpf_world::run(&mission, zenoh, &options))
+        .map_err(Failure::Failed)?;
+    Ok(code(
+        matches!(exit, tcpf_world::Exit::Ended { lost: 0, .. }),
+        exit == tcpf_world::Exit::Interrupted,
+    ))
+}
+
+fn agent(
+    args: &MissionArgs,
+    zenoh: &ZenohArgs,
+    id: u32,
+    startup_timeout: f64,
+    stale_timeout: f64,
+) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let options = tcpf_agent::Options {
+        startup_timeout: Duration::from_secs_f64(startup_timeout),
+        stale_timeout: Duration::from_secs_f64(stale_timeout),
+    };
+    let exit = runtime()?
+        .block_on(tcpf_agent::run(&mission, id, zenoh, &options))
+        .map_err(Failure::Failed)?;
+    Ok(code(
+        exit == tcpf_agent::Exit::Ended,
+        exit == tcpf_agent::Exit::Interrupted,
+    ))
 }

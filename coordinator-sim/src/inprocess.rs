@@ -17,9 +17,8 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
     let mut failure = None;
     let started = Instant::now();
     let results = Fleet::new(mission, plan).run(|states, commands| {
-        let held: Vec<_> = commands.iter().map(Some).collect();
         if failure.is_none() {
-            failure = telemetry.tick(states, &held).err();
+            failure = telemetry.tick(states, commands).err();
         }
     });
     let wall_time_s = started.elapsed().as_secs_f64();
@@ -32,10 +31,13 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
         seed: mission.mission.seed,
         mode: Mode::InProcess,
         clock: Clock::Lockstep,
-        completed: results.vehicles.iter().all(|v| v.arrival_time.is_some() && !v.lost),
+        completed: Summary::all_arrived(&results),
+        interrupted: false,
         sim_time_s: results.ticks as f64 * mission.mission.control_period,
         results,
         wall_time_s,
+        rejected_messages: 0,
+        children: Vec::new(),
     };
     dir.write_summary(&summary)?;
     Ok(summary)

@@ -2,6 +2,9 @@
 //! reports and the human-readable tables.
 
 pub mod inprocess;
+pub mod launcher;
+pub mod planner_node;
+pub mod recording;
 pub mod rundir;
 pub mod summary;
 pub mod table;

@@ -17,6 +17,18 @@ pub enum Clock {
     Realtime,
 }
 
+/// One child process of `tcpf run`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChildSummary {
+    pub role: String,
+    pub id: u32,
+    pub pid: u32,
+    /// Exit code; `None` if it was killed by a signal.
+    pub exit_code: Option<i32>,
+    /// Messages it refused, from its exit report; `None` if it sent none (killed).
+    pub rejected: Option<u64>,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     pub mission: String,
@@ -25,14 +37,25 @@ pub struct Summary {
     pub clock: Clock,
     /// Whether every vehicle arrived (and none was lost) before max_duration.
     pub completed: bool,
+    /// Stopped by a signal before the end.
+    pub interrupted: bool,
     #[serde(flatten)]
     pub results: Results,
     /// Simulated seconds, ticks × control period.
     pub sim_time_s: f64,
     pub wall_time_s: f64,
+    /// Payloads dropped because they did not decode, had the wrong version, non-finite numbers or
+    /// broke the protocol, summed over every process.
+    pub rejected_messages: u64,
+    pub children: Vec<ChildSummary>,
 }
 
 impl Summary {
+    /// Every vehicle arrived and none was lost.
+    pub fn all_arrived(results: &Results) -> bool {
+        results.vehicles.iter().all(|v| v.arrival_time.is_some() && !v.lost)
+    }
+
     /// How many times faster than real time the run went.
     pub fn speedup(&self) -> f64 {
         self.sim_time_s / self.wall_time_s.max(1e-9)

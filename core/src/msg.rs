@@ -150,3 +150,46 @@ impl Checked for PathMsg {
         n
     }
 }
+
+/// A vehicle whose agent the world stopped waiting for, and from which tick on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Lost {
+    pub id: u32,
+    pub tick: u64,
+}
+
+/// World → everyone: the run is over after `ticks` ticks (0..ticks were run).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct End {
+    pub version: u16,
+    pub ticks: u64,
+    pub lost: Vec<Lost>,
+}
+
+impl Checked for End {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn numbers(&self) -> Vec<f64> {
+        Vec::new()
+    }
+}
+
+/// Any process → recorder, as it exits: who it was and what it refused.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Report {
+    pub version: u16,
+    pub role: String,
+    pub id: u32,
+    pub pid: u32,
+    pub rejected: u64,
+}
+
+impl Checked for Report {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn numbers(&self) -> Vec<f64> {
+        Vec::new()
+    }
+}

@@ -149,7 +149,7 @@ fn same_seed_same_bits() {
         let mut out = String::new();
         Fleet::new(&m, &plan).run(|states, commands| {
             for (s, c) in states.iter().zip(commands) {
-                tcpf_core::telemetry::row(&mut out, s, Some(c));
+                tcpf_core::telemetry::row(&mut out, s, *c);
             }
         });
         out

@@ -1,0 +1,81 @@
+//! Payloads are postcard-encoded serde structs (docs/PROTOCOL.md). A payload is used only if it
+//! decodes exactly (no trailing bytes), has our protocol version and finite numbers.
+
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use tcpf_core::msg::Checked;
+
+pub fn encode<T: Serialize>(message: &T) -> Vec<u8> {
+    postcard::to_stdvec(message).expect("tcpf messages always encode")
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Invalid {
+    Undecodable,
+    Version,
+    NonFinite,
+}
+
+pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid> {
+    let (message, rest) = postcard::take_from_bytes::<T>(bytes).map_err(|_| Invalid::Undecodable)?;
+    if !rest.is_empty() {
+        return Err(Invalid::Undecodable);
+    }
+    match message.usable() {
+        Ok(()) => Ok(message),
+        Err("protocol version") => Err(Invalid::Version),
+        Err(_) => Err(Invalid::NonFinite),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tcpf_core::msg::{Gamma, State, PROTOCOL_VERSION};
+
+    fn state() -> State {
+        State {
+            version: PROTOCOL_VERSION,
+            tick: 42,
+            id: 2,
+            t: 0.42,
+            position: [1.0, -2.5],
+            heading: 0.1,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [-0.1, 0.0],
+        }
+    }
+
+    #[test]
+    fn round_trip_is_bit_exact() {
+        let s = state();
+        assert_eq!(decode::<State>(&encode(&s)), Ok(s));
+    }
+
+    #[test]
+    fn garbage_wrong_version_and_nan_are_refused() {
+        assert_eq!(decode::<State>(b"\xff\xff\xff garbage"), Err(Invalid::Undecodable));
+        assert_eq!(decode::<Gamma>(&[]), Err(Invalid::Undecodable));
+        let mut bytes = encode(&state());
+        bytes.push(0);
+        assert_eq!(decode::<State>(&bytes), Err(Invalid::Undecodable), "trailing bytes");
+        let old = State {
+            version: PROTOCOL_VERSION + 1,
+            ..state()
+        };
+        assert_eq!(decode::<State>(&encode(&old)), Err(Invalid::Version));
+        let nan = State {
+            position: [f64::NAN, 0.0],
+            ..state()
+        };
+        assert_eq!(decode::<State>(&encode(&nan)), Err(Invalid::NonFinite));
+        let g = Gamma {
+            version: PROTOCOL_VERSION,
+            tick: 0,
+            from: 1,
+            gamma: f64::INFINITY,
+        };
+        assert_eq!(decode::<Gamma>(&encode(&g)), Err(Invalid::NonFinite));
+    }
+}

@@ -1,0 +1,111 @@
+//! The key expressions of DESIGN.md ("Wire"), in one place. `<m>` is the mission name.
+
+use std::fmt;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    Planner,
+    World,
+    Agent,
+    Record,
+}
+
+impl Role {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Role::Planner => "planner",
+            Role::World => "world",
+            Role::Agent => "agent",
+            Role::Record => "record",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Role> {
+        [Role::Planner, Role::World, Role::Agent, Role::Record]
+            .into_iter()
+            .find(|r| r.as_str() == s)
+    }
+}
+
+impl fmt::Display for Role {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct Keys {
+    root: String,
+}
+
+impl Keys {
+    pub fn new(mission: &str) -> Keys {
+        Keys {
+            root: format!("tcpf/{mission}"),
+        }
+    }
+
+    fn key(&self, kind: &str, id: impl fmt::Display) -> String {
+        format!("{}/{kind}/{id}", self.root)
+    }
+
+    pub fn plan(&self, id: impl fmt::Display) -> String {
+        self.key("plan", id)
+    }
+    pub fn state(&self, id: impl fmt::Display) -> String {
+        self.key("state", id)
+    }
+    pub fn cmd(&self, id: impl fmt::Display) -> String {
+        self.key("cmd", id)
+    }
+    pub fn gamma(&self, id: impl fmt::Display) -> String {
+        self.key("gamma", id)
+    }
+    pub fn alive(&self, role: Role, id: impl fmt::Display) -> String {
+        format!("{}/alive/{role}/{id}", self.root)
+    }
+    /// Every liveliness token of the mission.
+    pub fn alive_all(&self) -> String {
+        format!("{}/alive/**", self.root)
+    }
+    /// The world's announcement that the run is over.
+    pub fn end(&self) -> String {
+        format!("{}/end", self.root)
+    }
+    pub fn report(&self, role: Role, id: impl fmt::Display) -> String {
+        format!("{}/report/{role}/{id}", self.root)
+    }
+
+    /// (role, id) of a liveliness key of this mission.
+    pub fn parse_alive(&self, key: &str) -> Option<(Role, u32)> {
+        let rest = key.strip_prefix(&self.root)?.strip_prefix("/alive/")?;
+        let (role, id) = rest.split_once('/')?;
+        Some((Role::parse(role)?, id.parse().ok()?))
+    }
+
+    /// The trailing id of a per-vehicle key.
+    pub fn id_of(key: &str) -> Option<u32> {
+        key.rsplit('/').next()?.parse().ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_follow_the_design() {
+        let k = Keys::new("paper-b-current");
+        assert_eq!(k.plan(2), "tcpf/paper-b-current/plan/2");
+        assert_eq!(k.state(2), "tcpf/paper-b-current/state/2");
+        assert_eq!(k.cmd("*"), "tcpf/paper-b-current/cmd/*");
+        assert_eq!(k.gamma(1), "tcpf/paper-b-current/gamma/1");
+        assert_eq!(k.alive(Role::Agent, 3), "tcpf/paper-b-current/alive/agent/3");
+        assert_eq!(
+            k.parse_alive("tcpf/paper-b-current/alive/world/0"),
+            Some((Role::World, 0))
+        );
+        assert_eq!(k.parse_alive("tcpf/other/alive/world/0"), None);
+        assert_eq!(Keys::id_of("tcpf/m/cmd/12"), Some(12));
+    }
+}

@@ -1,0 +1,8 @@
+//! tcpf-bus: everything the processes share about Zenoh: the session from the usual options, the
+//! key expressions, the message codec and typed publishers and subscribers.
+
+pub mod codec;
+pub mod keys;
+pub mod session;
+pub mod signals;
+pub mod typed;

@@ -1,0 +1,193 @@
+//! `tcpf run` as processes: one planner, one world and one agent per vehicle, children of the same
+//! binary on a loopback port of their own; the launcher records them and stops them all.
+
+use std::fs::File;
+use std::path::Path;
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use tcpf_bus::keys::Role;
+use tcpf_bus::session::ZenohArgs;
+use tcpf_bus::signals::Shutdown;
+use tcpf_core::mission::Mission;
+use tcpf_core::planner::Plan;
+use tokio::process::{Child, Command};
+
+use crate::recording::Recording;
+use crate::rundir::RunDir;
+use crate::summary::{ChildSummary, Clock, Mode, Summary};
+
+/// How long children get to exit by themselves after the end before they are killed.
+const GRACE: Duration = Duration::from_secs(3);
+/// A run in which no tick completes for this long has stalled.
+const STALL: Duration = Duration::from_secs(60);
+
+struct Process {
+    role: Role,
+    id: u32,
+    pid: u32,
+    child: Child,
+    exit_code: Option<Option<i32>>,
+}
+
+impl Process {
+    fn poll(&mut self) -> Option<Option<i32>> {
+        if self.exit_code.is_none() {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                self.exit_code = Some(status.code());
+            }
+        }
+        self.exit_code
+    }
+}
+
+/// A port on 127.0.0.1 that was free a moment ago.
+fn free_port() -> Result<u16> {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").context("no free port on 127.0.0.1")?;
+    Ok(listener.local_addr()?.port())
+}
+
+fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String]) -> Result<Process> {
+    let logs = dir.path.join("logs");
+    std::fs::create_dir_all(&logs)?;
+    let name = match id {
+        Some(id) => format!("{role}-{id}.log"),
+        None => format!("{role}.log"),
+    };
+    let log = File::create(logs.join(&name)).with_context(|| format!("cannot create logs/{name}"))?;
+    let mut command = Command::new(exe);
+    command.arg(role.as_str()).args(args);
+    if let Some(id) = id {
+        command.args(["--id", &id.to_string()]);
+    }
+    let child = command
+        .stdin(Stdio::null())
+        .stdout(Stdio::from(log.try_clone()?))
+        .stderr(Stdio::from(log))
+        .kill_on_drop(true)
+        .spawn()
+        .with_context(|| format!("cannot start {} {role}", exe.display()))?;
+    let pid = child.id().ok_or_else(|| anyhow!("{role} exited at once"))?;
+    Ok(Process {
+        role,
+        id: id.unwrap_or(0),
+        pid,
+        child,
+        exit_code: None,
+    })
+}
+
+enum Outcome {
+    Completed,
+    Interrupted,
+    Failed(String),
+}
+
+/// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
+pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Result<Summary> {
+    let mut shutdown = Shutdown::new()?;
+    dir.write_mission(mission)?;
+    dir.write_plan(plan)?;
+    let mission_file = dir.path.join("mission.toml").display().to_string();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
+    let session = ZenohArgs {
+        listen: vec![endpoint.clone()],
+        ..ZenohArgs::default()
+    }
+    .open()
+    .await?;
+    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry()?).await?;
+
+    let common = vec![mission_file, "-e".to_string(), endpoint];
+    let mut children = vec![spawn(exe, dir, Role::Planner, None, &common)?];
+    let mut world_args = common.clone();
+    world_args.extend(["--recorders".to_string(), "1".to_string()]);
+    children.push(spawn(exe, dir, Role::World, None, &world_args)?);
+    for v in &mission.vehicles {
+        children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common)?);
+    }
+    let started = Instant::now();
+    let mut check = tokio::time::interval(Duration::from_millis(100));
+
+    let outcome = loop {
+        if recording.complete() {
+            break Outcome::Completed;
+        }
+        tokio::select! {
+            r = recording.step() => r?,
+            _ = shutdown.recv() => break Outcome::Interrupted,
+            _ = check.tick() => {
+                let dead = children.iter_mut().find_map(|c| {
+                    let code = c.poll()?;
+                    matches!(c.role, Role::World | Role::Planner).then(|| format!("the {} exited ({}) before the end; see logs/{}.log", c.role, code.map_or("killed".into(), |c| format!("code {c}")), c.role))
+                });
+                if let Some(why) = dead {
+                    if recording.end.is_none() {
+                        break Outcome::Failed(why);
+                    }
+                }
+                if recording.progress.elapsed() > STALL {
+                    break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {})", STALL.as_secs(), recording.ticks()));
+                }
+            }
+        }
+    };
+    let wall_time_s = started.elapsed().as_secs_f64();
+
+    if matches!(outcome, Outcome::Completed) {
+        // Let the children report and exit by themselves.
+        let deadline = Instant::now() + GRACE;
+        while Instant::now() < deadline && children.iter_mut().any(|c| c.poll().is_none()) {
+            tokio::select! {
+                r = recording.step() => r?,
+                _ = check.tick() => {}
+            }
+        }
+    }
+    for c in children.iter_mut() {
+        if c.poll().is_none() {
+            let _ = c.child.start_kill();
+            if let Ok(status) = c.child.wait().await {
+                c.exit_code = Some(status.code());
+            }
+        }
+    }
+    let _ = session.close().await;
+
+    let results = recording.results();
+    let children: Vec<ChildSummary> = children
+        .iter()
+        .map(|c| ChildSummary {
+            role: c.role.as_str().into(),
+            id: c.id,
+            pid: c.pid,
+            exit_code: c.exit_code.flatten(),
+            rejected: recording
+                .exit_reports
+                .iter()
+                .find(|r| r.role == c.role.as_str() && r.id == c.id)
+                .map(|r| r.rejected),
+        })
+        .collect();
+    let rejected_messages = recording.rejected.total() + children.iter().filter_map(|c| c.rejected).sum::<u64>();
+    let summary = Summary {
+        mission: mission.mission.name.clone(),
+        seed: mission.mission.seed,
+        mode: Mode::Processes,
+        clock: Clock::Lockstep,
+        completed: matches!(outcome, Outcome::Completed) && Summary::all_arrived(&results),
+        interrupted: matches!(outcome, Outcome::Interrupted),
+        sim_time_s: results.ticks as f64 * mission.mission.control_period,
+        results,
+        wall_time_s,
+        rejected_messages,
+        children,
+    };
+    recording.finish()?;
+    dir.write_summary(&summary)?;
+    match outcome {
+        Outcome::Failed(why) => Err(anyhow!("{why} (run directory {})", dir.path.display())),
+        _ => Ok(summary),
+    }
+}

@@ -1,0 +1,93 @@
+//! `tcpf planner`: solves SPEC §1 and serves each vehicle's generalized path, as a queryable (an
+//! agent that starts late or restarts gets its path) and once as a publication.
+
+use anyhow::{anyhow, Result};
+use tcpf_bus::codec::encode;
+use tcpf_bus::keys::{Keys, Role};
+use tcpf_bus::session::ZenohArgs;
+use tcpf_bus::signals::Shutdown;
+use tcpf_bus::typed::{presence, report, subscribe, Rejected};
+use tcpf_core::mission::Mission;
+use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
+use tcpf_core::planner::Plan;
+use zenoh::key_expr::KeyExpr;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Exit {
+    Ended,
+    WorldGone,
+    Interrupted,
+}
+
+/// Serves `plan` until the world announces the end, the world goes away, or a signal.
+pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Exit> {
+    let keys = Keys::new(&mission.mission.name);
+    let mut shutdown = Shutdown::new()?;
+    let session = zenoh.open().await?;
+    let rejected = Rejected::default();
+    let paths: Vec<(KeyExpr<'static>, Vec<u8>)> = plan
+        .vehicles
+        .iter()
+        .map(|v| {
+            let key = KeyExpr::try_from(keys.plan(v.id)).expect("mission names are valid key chunks");
+            (
+                key,
+                encode(&PathMsg {
+                    version: PROTOCOL_VERSION,
+                    id: v.id,
+                    path: v.path,
+                }),
+            )
+        })
+        .collect();
+    let queryable = session
+        .declare_queryable(keys.plan("*"))
+        .await
+        .map_err(|e| anyhow!("cannot serve {}: {e}", keys.plan("*")))?;
+    let (_presence, mut presence) = presence(&session, &keys).await?;
+    let (_ends, mut ends) = subscribe::<End>(&session, &keys.end(), &rejected).await?;
+    for (key, bytes) in &paths {
+        session
+            .put(key.clone(), bytes.clone())
+            .await
+            .map_err(|e| anyhow!("publish {key}: {e}"))?;
+    }
+    let token = session
+        .liveliness()
+        .declare_token(keys.alive(Role::Planner, 0))
+        .await
+        .map_err(|e| anyhow!("liveliness token: {e}"))?;
+    tracing::info!(
+        "planner: t_f = {:.3} s for {} vehicles, serving {}",
+        plan.t_f,
+        paths.len(),
+        keys.plan("*")
+    );
+
+    let mut world_seen = false;
+    let exit = loop {
+        tokio::select! {
+            Ok(query) = queryable.recv_async() => {
+                for (key, bytes) in paths.iter().filter(|(k, _)| k.intersects(query.key_expr())) {
+                    if let Err(e) = query.reply(key.clone(), bytes.clone()).await {
+                        tracing::warn!("planner: reply on {key} failed: {e}");
+                    }
+                }
+            }
+            Some(p) = presence.recv() => if p.role == Role::World {
+                if p.alive {
+                    world_seen = true;
+                } else if world_seen {
+                    break Exit::WorldGone;
+                }
+            },
+            Some(_) = ends.recv() => break Exit::Ended,
+            _ = shutdown.recv() => break Exit::Interrupted,
+        }
+    };
+    tracing::info!("planner: {exit:?}");
+    report(&session, &keys, Role::Planner, 0, &rejected).await?;
+    let _ = token.undeclare().await;
+    let _ = session.close().await;
+    Ok(exit)
+}

@@ -1,0 +1,123 @@
+//! The recorder's Zenoh shell: every state, command, end and exit report of a mission, fed to
+//! core's `Recorder`, which hands complete ticks to `telemetry.csv` in order.
+
+use std::time::Instant;
+
+use anyhow::{anyhow, Result};
+use tcpf_bus::keys::{Keys, Role};
+use tcpf_bus::typed::{subscribe, Received, Rejected};
+use tcpf_core::metrics::Results;
+use tcpf_core::mission::Mission;
+use tcpf_core::msg::{Command, End, Report, State};
+use tcpf_core::record::Recorder;
+use tokio::sync::mpsc::UnboundedReceiver;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::Subscriber;
+use zenoh::Session;
+
+use crate::rundir::Telemetry;
+
+pub struct Recording {
+    pub rejected: Rejected,
+    recorder: Recorder,
+    telemetry: Telemetry,
+    states: UnboundedReceiver<Received<State>>,
+    commands: UnboundedReceiver<Received<Command>>,
+    ends: UnboundedReceiver<Received<End>>,
+    reports: UnboundedReceiver<Received<Report>>,
+    pub exit_reports: Vec<Report>,
+    pub end: Option<End>,
+    /// When the last tick was written.
+    pub progress: Instant,
+    _subscribers: Vec<Subscriber<()>>,
+    _token: LivelinessToken,
+}
+
+fn check<T>(key: &str, id: u32, result: Result<(), T>, rejected: &Rejected)
+where
+    T: std::fmt::Debug,
+{
+    let result = if Keys::id_of(key) == Some(id) {
+        result.map_err(|e| format!("{e:?}"))
+    } else {
+        Err("vehicle differs from key".into())
+    };
+    if let Err(e) = result {
+        rejected.count(&e, key);
+    }
+}
+
+impl Recording {
+    /// Subscribes to the mission, then declares the recorder's token (the world waits for it).
+    pub async fn start(session: &Session, mission: &Mission, t_f: f64, telemetry: Telemetry) -> Result<Recording> {
+        let keys = Keys::new(&mission.mission.name);
+        let rejected = Rejected::default();
+        let (s1, states) = subscribe::<State>(session, &keys.state("*"), &rejected).await?;
+        let (s2, commands) = subscribe::<Command>(session, &keys.cmd("*"), &rejected).await?;
+        let (s3, ends) = subscribe::<End>(session, &keys.end(), &rejected).await?;
+        let (s4, reports) =
+            subscribe::<Report>(session, &format!("tcpf/{}/report/**", mission.mission.name), &rejected).await?;
+        let token = session
+            .liveliness()
+            .declare_token(keys.alive(Role::Record, std::process::id()))
+            .await
+            .map_err(|e| anyhow!("liveliness token: {e}"))?;
+        let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+        Ok(Recording {
+            rejected,
+            recorder: Recorder::new(&ids, t_f, mission.mission.control_period),
+            telemetry,
+            states,
+            commands,
+            ends,
+            reports,
+            exit_reports: Vec::new(),
+            end: None,
+            progress: Instant::now(),
+            _subscribers: vec![s1, s2, s3, s4],
+            _token: token,
+        })
+    }
+
+    /// Takes one message, and writes every tick it completes.
+    pub async fn step(&mut self) -> Result<()> {
+        tokio::select! {
+            Some(s) = self.states.recv() => check(&s.key, s.message.id, self.recorder.on_state(s.message), &self.rejected),
+            Some(c) = self.commands.recv() => check(&c.key, c.message.id, self.recorder.on_command(c.message), &self.rejected),
+            Some(e) = self.ends.recv() => {
+                self.end = Some(e.message.clone());
+                self.recorder.on_end(e.message);
+            }
+            Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
+        }
+        let before = self.recorder.ticks_recorded();
+        let mut failure = Ok(());
+        let telemetry = &mut self.telemetry;
+        self.recorder.drain(|states, commands| {
+            if failure.is_ok() {
+                failure = telemetry.tick(states, commands);
+            }
+        });
+        if self.recorder.ticks_recorded() > before {
+            self.progress = Instant::now();
+        }
+        failure
+    }
+
+    /// The world announced the end and every tick up to it is written.
+    pub fn complete(&self) -> bool {
+        self.recorder.complete()
+    }
+
+    pub fn ticks(&self) -> u64 {
+        self.recorder.ticks_recorded()
+    }
+
+    pub fn results(&self) -> Results {
+        self.recorder.results()
+    }
+
+    pub fn finish(self) -> Result<()> {
+        self.telemetry.finish()
+    }
+}

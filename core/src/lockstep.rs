@@ -1,0 +1,225 @@
+//! The lockstep clock of DESIGN.md, as two machines: the world's side (publish the states of tick
+//! k, collect every live agent's command of tick k, integrate) and the agent's side (take the state
+//! of tick k, publish γ at a communication instant, collect the live neighbours' γ of tick k,
+//! command). The shells feed them what arrives and publish what they return.
+
+use std::collections::BTreeSet;
+
+use crate::agent::Agent;
+use crate::metrics::Metrics;
+use crate::mission::Mission;
+use crate::msg::{Command, End, Gamma, Lost, State, PROTOCOL_VERSION};
+use crate::path::GeneralizedPath;
+use crate::sim::max_ticks;
+use crate::world::World;
+
+/// Why a well-formed message was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reject {
+    UnknownVehicle,
+    WrongTick,
+    Duplicate,
+    NotANeighbour,
+}
+
+pub struct WorldNode {
+    world: World,
+    metrics: Metrics,
+    max_ticks: u64,
+    ids: Vec<u32>,
+    states: Vec<State>,
+    pending: Vec<Option<Command>>,
+    lost: Vec<Lost>,
+}
+
+impl WorldNode {
+    pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)], t_f: f64) -> WorldNode {
+        let world = World::new(mission, paths);
+        let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
+        WorldNode {
+            states: world.states(),
+            metrics: Metrics::new(&ids, t_f, mission.mission.control_period),
+            max_ticks: max_ticks(mission),
+            pending: vec![None; ids.len()],
+            ids,
+            world,
+            lost: Vec::new(),
+        }
+    }
+
+    pub fn tick(&self) -> u64 {
+        self.world.tick()
+    }
+
+    /// The states of the current tick, to publish.
+    pub fn states(&self) -> &[State] {
+        &self.states
+    }
+
+    pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
+        let n = self
+            .ids
+            .iter()
+            .position(|&i| i == command.id)
+            .ok_or(Reject::UnknownVehicle)?;
+        if command.tick != self.tick() || self.world.is_lost(command.id) {
+            return Err(Reject::WrongTick);
+        }
+        if self.pending[n].is_some() {
+            return Err(Reject::Duplicate);
+        }
+        self.pending[n] = Some(command);
+        Ok(())
+    }
+
+    /// The agent of `id` is gone: its vehicle drifts from this tick on, and nobody waits for it.
+    pub fn on_lost(&mut self, id: u32) {
+        if self.ids.contains(&id) && !self.world.is_lost(id) {
+            self.world.mark_lost(id);
+            self.metrics.mark_lost(id);
+            self.lost.push(Lost { id, tick: self.tick() });
+        }
+    }
+
+    /// Live vehicles whose command of this tick has not come yet.
+    pub fn waiting_for(&self) -> Vec<u32> {
+        self.ids
+            .iter()
+            .zip(&self.pending)
+            .filter(|(id, c)| c.is_none() && !self.world.is_lost(**id))
+            .map(|(id, _)| *id)
+            .collect()
+    }
+
+    /// Closes the tick (`observe` sees it), then either ends the run or integrates to the next.
+    /// Call when `waiting_for` is empty.
+    pub fn advance(&mut self, observe: impl FnOnce(&[State], &[Option<&Command>])) -> Option<End> {
+        let tick = self.tick();
+        let held: Vec<Option<&Command>> = self
+            .ids
+            .iter()
+            .zip(&self.pending)
+            .map(|(id, c)| c.as_ref().filter(|_| !self.world.is_lost(*id)))
+            .collect();
+        self.metrics.record(tick, &self.states, &held);
+        observe(&self.states, &held);
+        if self.metrics.all_arrived() || tick >= self.max_ticks {
+            return Some(self.end());
+        }
+        self.world.step(&held);
+        self.pending.iter_mut().for_each(|c| *c = None);
+        self.states = self.world.states();
+        None
+    }
+
+    /// The run is over after the tick just closed.
+    fn end(&self) -> End {
+        End {
+            version: PROTOCOL_VERSION,
+            ticks: self.tick() + 1,
+            lost: self.lost.clone(),
+        }
+    }
+
+    /// The run stops before the current tick closes.
+    pub fn interrupted(&self) -> End {
+        End {
+            version: PROTOCOL_VERSION,
+            ticks: self.tick(),
+            lost: self.lost.clone(),
+        }
+    }
+
+    pub fn metrics(&self) -> &Metrics {
+        &self.metrics
+    }
+}
+
+pub struct AgentNode {
+    agent: Agent,
+    next_tick: u64,
+    state: Option<State>,
+    inbox: Vec<Gamma>,
+    gone: BTreeSet<u32>,
+}
+
+impl AgentNode {
+    pub fn new(agent: Agent) -> AgentNode {
+        AgentNode {
+            agent,
+            next_tick: 0,
+            state: None,
+            inbox: Vec::new(),
+            gone: BTreeSet::new(),
+        }
+    }
+
+    pub fn agent(&self) -> &Agent {
+        &self.agent
+    }
+
+    /// The state of the next tick; returns the γ to publish if it is a communication instant.
+    pub fn on_state(&mut self, state: State) -> Result<Option<Gamma>, Reject> {
+        if state.id != self.agent.id() {
+            return Err(Reject::UnknownVehicle);
+        }
+        if state.tick != self.next_tick || self.state.is_some() {
+            return Err(Reject::WrongTick);
+        }
+        self.state = Some(state);
+        Ok(self.agent.gamma_to_send(state.tick))
+    }
+
+    pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {
+        if !self.agent.neighbours().any(|j| j == gamma.from) {
+            return Err(Reject::NotANeighbour);
+        }
+        if gamma.tick < self.next_tick {
+            return Err(Reject::WrongTick);
+        }
+        if self.inbox.iter().any(|g| g.from == gamma.from && g.tick == gamma.tick) {
+            return Err(Reject::Duplicate);
+        }
+        self.inbox.push(gamma);
+        Ok(())
+    }
+
+    /// Stop (or resume) waiting for neighbour `id`: its agent is gone, or stale.
+    pub fn set_gone(&mut self, id: u32, gone: bool) {
+        if gone {
+            self.gone.insert(id);
+        } else {
+            self.gone.remove(&id);
+        }
+    }
+
+    /// Every neighbour is counted (none gone or stale).
+    pub fn all_present(&self) -> bool {
+        self.gone.is_empty()
+    }
+
+    /// Live neighbours whose γ of this tick is still awaited.
+    pub fn waiting_for(&self) -> Vec<u32> {
+        match self.state {
+            Some(s) if self.agent.is_comm_tick(s.tick) => self
+                .agent
+                .neighbours()
+                .filter(|j| !self.gone.contains(j) && !self.inbox.iter().any(|g| g.from == *j && g.tick == s.tick))
+                .collect(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// The command of this tick, once the state and every awaited γ are in.
+    pub fn command(&mut self) -> Option<Command> {
+        if !self.waiting_for().is_empty() {
+            return None;
+        }
+        let state = self.state.take()?;
+        let command = self.agent.step(&state, &self.inbox);
+        self.next_tick = state.tick + 1;
+        let next = self.next_tick;
+        self.inbox.retain(|g| g.tick >= next);
+        Some(command)
+    }
+}

@@ -1,0 +1,119 @@
+//! The recorder as a machine: states and commands arrive from many processes in any order; it
+//! hands them on tick by tick, in order, exactly as the in-process run sees them.
+
+use std::collections::BTreeMap;
+
+use crate::lockstep::Reject;
+use crate::metrics::{Metrics, Results};
+use crate::msg::{Command, End, State};
+
+/// One tick as it fills: a slot per vehicle for its state and its command.
+type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
+
+pub struct Recorder {
+    ids: Vec<u32>,
+    metrics: Metrics,
+    next: u64,
+    ticks: BTreeMap<u64, Tick>,
+    end: Option<End>,
+}
+
+impl Recorder {
+    pub fn new(ids: &[u32], t_f: f64, dt: f64) -> Recorder {
+        Recorder {
+            ids: ids.to_vec(),
+            metrics: Metrics::new(ids, t_f, dt),
+            next: 0,
+            ticks: BTreeMap::new(),
+            end: None,
+        }
+    }
+
+    fn slot(&mut self, tick: u64, id: u32) -> Result<(&mut Tick, usize), Reject> {
+        let n = self.ids.iter().position(|&i| i == id).ok_or(Reject::UnknownVehicle)?;
+        if tick < self.next || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+            return Err(Reject::WrongTick);
+        }
+        let len = self.ids.len();
+        Ok((
+            self.ticks
+                .entry(tick)
+                .or_insert_with(|| (vec![None; len], vec![None; len])),
+            n,
+        ))
+    }
+
+    pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
+        let (t, n) = self.slot(state.tick, state.id)?;
+        if t.0[n].is_some() {
+            return Err(Reject::Duplicate);
+        }
+        t.0[n] = Some(state);
+        Ok(())
+    }
+
+    pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
+        let (t, n) = self.slot(command.tick, command.id)?;
+        if t.1[n].is_some() {
+            return Err(Reject::Duplicate);
+        }
+        t.1[n] = Some(command);
+        Ok(())
+    }
+
+    pub fn on_end(&mut self, end: End) {
+        self.end = Some(end);
+    }
+
+    fn lost_at(&self, id: u32, tick: u64) -> bool {
+        self.end
+            .as_ref()
+            .is_some_and(|e| e.lost.iter().any(|l| l.id == id && l.tick <= tick))
+    }
+
+    /// Hands on every tick that is complete, in order: all states, and the commands of every
+    /// vehicle not lost by then (a lost vehicle's late command is dropped, as the world did).
+    pub fn drain(&mut self, mut emit: impl FnMut(&[State], &[Option<&Command>])) {
+        loop {
+            let tick = self.next;
+            if self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+                return;
+            }
+            let Some((states, commands)) = self.ticks.get(&tick) else {
+                return;
+            };
+            let lost: Vec<bool> = self.ids.iter().map(|&id| self.lost_at(id, tick)).collect();
+            let complete =
+                states.iter().all(Option::is_some) && commands.iter().zip(&lost).all(|(c, lost)| c.is_some() || *lost);
+            if !complete {
+                return;
+            }
+            let (states, commands) = self.ticks.remove(&tick).expect("present");
+            let states: Vec<State> = states.into_iter().flatten().collect();
+            for (id, _) in self.ids.iter().zip(&lost).filter(|(_, l)| **l) {
+                self.metrics.mark_lost(*id);
+            }
+            let held: Vec<Option<&Command>> = commands
+                .iter()
+                .zip(&lost)
+                .map(|(c, l)| c.as_ref().filter(|_| !l))
+                .collect();
+            self.metrics.record(tick, &states, &held);
+            emit(&states, &held);
+            self.next += 1;
+        }
+    }
+
+    /// Every tick of the run has been handed on.
+    pub fn complete(&self) -> bool {
+        self.end.as_ref().is_some_and(|e| self.next >= e.ticks)
+    }
+
+    pub fn ticks_recorded(&self) -> u64 {
+        self.next
+    }
+
+    pub fn results(&self) -> Results {
+        self.metrics.results()
+    }
+}
