@@ -14,6 +14,9 @@ use tcpf_core::mission::Mission;
 use tcpf_core::msg::{End, Gamma, State};
 use tokio::sync::mpsc;
 
+/// How long to wait for the end message after the world or the planner went away.
+const END_GRACE: Duration = Duration::from_millis(500);
+
 #[derive(Debug, Clone)]
 pub struct Options {
     /// How long to wait for the planner, the world and the neighbours at start.
@@ -121,6 +124,10 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             }
             Some(p) = presence.recv() => match p.role {
                 Role::World | Role::Planner if !p.alive => {
+                    // At the end the planner may leave before the world's end message reaches us.
+                    if tokio::time::timeout(END_GRACE, ends.recv()).await.is_ok_and(|e| e.is_some()) {
+                        break Exit::Ended;
+                    }
                     tracing::warn!("agent {id}: the {} is gone; stopping", p.role);
                     break Exit::Orphaned;
                 }

@@ -97,6 +97,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
     }
     .open()
     .await?;
+    // Where to attach another tool to the running fleet (a recorder, a testbed bridge, a probe).
+    std::fs::write(dir.path.join("endpoint"), format!("{endpoint}\n"))?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry()?).await?;
 
     let common = vec![mission_file, "-e".to_string(), endpoint];
@@ -156,6 +158,12 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
     let _ = session.close().await;
 
     let results = recording.results();
+    let report = |c: &Process| {
+        recording
+            .exit_reports
+            .iter()
+            .find(|r| r.role == c.role.as_str() && r.id == c.id)
+    };
     let children: Vec<ChildSummary> = children
         .iter()
         .map(|c| ChildSummary {
@@ -163,11 +171,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
             id: c.id,
             pid: c.pid,
             exit_code: c.exit_code.flatten(),
-            rejected: recording
-                .exit_reports
-                .iter()
-                .find(|r| r.role == c.role.as_str() && r.id == c.id)
-                .map(|r| r.rejected),
+            rejected: report(c).map(|r| r.rejected),
+            reported_pid: report(c).map(|r| r.pid),
         })
         .collect();
     let rejected_messages = recording.rejected.total() + children.iter().filter_map(|c| c.rejected).sum::<u64>();

@@ -1,6 +1,8 @@
 //! `tcpf planner`: solves SPEC §1 and serves each vehicle's generalized path, as a queryable (an
 //! agent that starts late or restarts gets its path) and once as a publication.
 
+use std::time::Duration;
+
 use anyhow::{anyhow, Result};
 use tcpf_bus::codec::encode;
 use tcpf_bus::keys::{Keys, Role};
@@ -78,7 +80,8 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
                 if p.alive {
                     world_seen = true;
                 } else if world_seen {
-                    break Exit::WorldGone;
+                    let end = tokio::time::timeout(Duration::from_millis(500), ends.recv()).await;
+                    break if end.is_ok_and(|e| e.is_some()) { Exit::Ended } else { Exit::WorldGone };
                 }
             },
             Some(_) = ends.recv() => break Exit::Ended,

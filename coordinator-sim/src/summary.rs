@@ -27,6 +27,8 @@ pub struct ChildSummary {
     pub exit_code: Option<i32>,
     /// Messages it refused, from its exit report; `None` if it sent none (killed).
     pub rejected: Option<u64>,
+    /// The pid the process gave in its exit report: equal to `pid` when the role ran there.
+    pub reported_pid: Option<u32>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

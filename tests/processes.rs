@@ -1,0 +1,372 @@
+//! `tcpf run` as a fleet of processes over Zenoh, spawned as a user would. Every test kills what
+//! it started, whatever happens, and checks that no process is left behind.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+fn paper(case: &str) -> String {
+    format!("{}/configs/paper/{case}.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tcpf-proc-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// (pid, parent pid, state) of every process.
+fn processes() -> Vec<(u32, u32, char)> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        // The command name is in parentheses and may hold spaces: parse after the last ')'.
+        let rest: Vec<&str> = stat[stat.rfind(')').unwrap() + 2..].split(' ').collect();
+        out.push((pid, rest[1].parse().unwrap(), rest[0].chars().next().unwrap()));
+    }
+    out
+}
+
+fn descendants(root: u32) -> Vec<u32> {
+    let all = processes();
+    let mut found = vec![root];
+    let mut k = 0;
+    while k < found.len() {
+        let parent = found[k];
+        found.extend(all.iter().filter(|p| p.1 == parent).map(|p| p.0));
+        k += 1;
+    }
+    found.remove(0);
+    found
+}
+
+fn alive(pid: u32) -> bool {
+    processes().iter().any(|p| p.0 == pid && p.2 != 'Z')
+}
+
+fn kill(signal: &str, pid: u32) {
+    let _ = Command::new("kill").args([signal, &pid.to_string()]).status();
+}
+
+/// A `tcpf run` that is killed with everything under it when dropped.
+struct Launch {
+    child: Child,
+    out: PathBuf,
+}
+
+impl Launch {
+    fn start(mission: &str, out: &Path, extra: &[&str]) -> Launch {
+        let child = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["run", mission, "--out", out.to_str().unwrap()])
+            .args(extra)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        Launch {
+            child,
+            out: out.to_path_buf(),
+        }
+    }
+
+    fn wait(&mut self, limit: Duration) -> ExitStatus {
+        let deadline = Instant::now() + limit;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(Instant::now() < deadline, "tcpf run did not finish within {limit:?}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Waits until `file` in the run directory contains `text`.
+    fn wait_for(&self, file: &str, text: &str) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !std::fs::read_to_string(self.out.join(file)).is_ok_and(|s| s.contains(text)) {
+            assert!(Instant::now() < deadline, "{file} never said {text:?}");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    fn summary(&self) -> Value {
+        serde_json::from_str(&std::fs::read_to_string(self.out.join("summary.json")).unwrap()).unwrap()
+    }
+}
+
+impl Drop for Launch {
+    fn drop(&mut self) {
+        for pid in descendants(self.child.id()) {
+            kill("-9", pid);
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn run_in_process(mission: &str, out: &Path, extra: &[&str]) {
+    let status = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["run", mission, "--in-process", "--out", out.to_str().unwrap()])
+        .args(extra)
+        .stdout(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
+fn summary(dir: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
+const METRICS: [&str; 6] = [
+    "t_f",
+    "ticks",
+    "max_coordination_error",
+    "min_clearance",
+    "max_coordination_error_to_last_arrival",
+    "min_clearance_to_last_arrival",
+];
+
+fn assert_same_run(processes: &Path, in_process: &Path) {
+    let a = std::fs::read(processes.join("telemetry.csv")).unwrap();
+    let b = std::fs::read(in_process.join("telemetry.csv")).unwrap();
+    assert!(a == b, "telemetry.csv differs between processes and in-process");
+    let (sa, sb) = (summary(processes), summary(in_process));
+    for key in METRICS {
+        assert_eq!(sa[key], sb[key], "{key}");
+    }
+    assert_eq!(sa["vehicles"], sb["vehicles"]);
+    assert_eq!(sa["links"], sb["links"]);
+    assert_eq!(sa["mode"], "processes");
+    assert_eq!(sb["mode"], "in-process");
+}
+
+fn assert_none_left(summary: &Value) {
+    for c in summary["children"].as_array().unwrap() {
+        let pid = c["pid"].as_u64().unwrap() as u32;
+        assert!(!alive(pid), "{} {} (pid {pid}) still running", c["role"], c["id"]);
+    }
+}
+
+#[test]
+fn processes_and_in_process_are_bit_identical() {
+    for (case, seed) in [("b-current", "1"), ("d-lossy", "1")] {
+        let dir = scratch(&format!("identical-{case}"));
+        let mut launch = Launch::start(&paper(case), &dir.join("p"), &["--seed", seed]);
+        assert!(launch.wait(Duration::from_secs(180)).success());
+        run_in_process(&paper(case), &dir.join("i"), &["--seed", seed]);
+        assert_same_run(&dir.join("p"), &dir.join("i"));
+        let s = launch.summary();
+        eprintln!(
+            "{case}: {} ticks in {:.2} s of wall time, {:.1}× real time, {:.0} µs a tick",
+            s["ticks"],
+            s["wall_time_s"].as_f64().unwrap(),
+            s["sim_time_s"].as_f64().unwrap() / s["wall_time_s"].as_f64().unwrap(),
+            1e6 * s["wall_time_s"].as_f64().unwrap() / s["ticks"].as_f64().unwrap()
+        );
+        assert_none_left(&s);
+    }
+}
+
+#[test]
+fn every_role_runs_in_its_own_process() {
+    let dir = scratch("pids");
+    let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
+    assert!(launch.wait(Duration::from_secs(180)).success());
+    let s = launch.summary();
+    let children = s["children"].as_array().unwrap();
+    let roles: Vec<(&str, u64)> = children
+        .iter()
+        .map(|c| (c["role"].as_str().unwrap(), c["id"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(roles, vec![("planner", 0), ("world", 0), ("agent", 1), ("agent", 2)]);
+    let mut pids: Vec<u64> = children.iter().map(|c| c["pid"].as_u64().unwrap()).collect();
+    for c in children {
+        assert_eq!(
+            c["pid"], c["reported_pid"],
+            "the role reported from the process the launcher started"
+        );
+        assert_eq!(c["exit_code"], 0);
+        assert_ne!(c["pid"].as_u64().unwrap(), launch.child.id() as u64);
+    }
+    pids.sort_unstable();
+    pids.dedup();
+    assert_eq!(pids.len(), 4, "distinct pids");
+    assert_none_left(&s);
+    for f in ["planner.log", "world.log", "agent-1.log", "agent-2.log"] {
+        assert!(dir.join("logs").join(f).is_file(), "{f}");
+    }
+}
+
+#[test]
+fn a_ring_of_five_completes() {
+    let mission = format!("{}/configs/ring5.toml", env!("CARGO_MANIFEST_DIR"));
+    let dir = scratch("ring5");
+    let mut launch = Launch::start(&mission, &dir.join("p"), &[]);
+    assert!(launch.wait(Duration::from_secs(300)).success());
+    let s = launch.summary();
+    assert_eq!(s["completed"], true);
+    assert_eq!(s["vehicles"].as_array().unwrap().len(), 5);
+    assert_eq!(
+        s["links"].as_array().unwrap().len(),
+        10,
+        "a ring of five has ten directed links"
+    );
+    run_in_process(&mission, &dir.join("i"), &[]);
+    assert_same_run(&dir.join("p"), &dir.join("i"));
+    assert_none_left(&s);
+}
+
+#[test]
+fn a_killed_agent_is_lost_and_the_others_arrive() {
+    let dir = scratch("kill");
+    let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
+    launch.wait_for("logs/world.log", "starting");
+    let agent = descendants(launch.child.id())
+        .into_iter()
+        .find(|pid| {
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
+            args.windows(2).any(|w| w[0] == b"--id" && w[1] == b"2")
+        })
+        .expect("agent 2 runs");
+    kill("-9", agent);
+    let status = launch.wait(Duration::from_secs(120));
+    assert_eq!(status.code(), Some(1), "a lost vehicle fails the run");
+    let s = launch.summary();
+    assert_eq!(s["completed"], false);
+    assert_eq!(s["vehicles"][1]["lost"], true);
+    assert!(s["vehicles"][1]["arrival_time"].is_null());
+    assert_eq!(s["vehicles"][0]["lost"], false);
+    assert!(
+        s["vehicles"][0]["arrival_time"].as_f64().is_some(),
+        "vehicle 1 still arrives"
+    );
+    assert_none_left(&s);
+    assert!(descendants(launch.child.id()).is_empty());
+}
+
+#[test]
+fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
+    let dir = scratch("sigint");
+    let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.005"]);
+    launch.wait_for("logs/world.log", "starting");
+    std::thread::sleep(Duration::from_millis(300));
+    let children = descendants(launch.child.id());
+    assert!(children.len() >= 4, "planner, world and agents run: {children:?}");
+    let signalled = Instant::now();
+    kill("-INT", launch.child.id());
+    let status = launch.wait(Duration::from_secs(10));
+    let all_gone = Instant::now();
+    assert_eq!(status.code(), Some(130));
+    for pid in &children {
+        assert!(!alive(*pid), "child {pid} survived");
+    }
+    assert!(
+        all_gone - signalled < Duration::from_secs(2),
+        "stopped in {:?}",
+        all_gone - signalled
+    );
+    let s = launch.summary();
+    assert_eq!(s["interrupted"], true);
+    assert_eq!(s["completed"], false);
+    let telemetry = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
+    let rows = telemetry.lines().count() as u64;
+    assert_eq!(rows, 1 + 2 * s["ticks"].as_u64().unwrap(), "whole ticks only");
+    assert!(rows > 1);
+    toml::from_str::<toml::Table>(&std::fs::read_to_string(dir.join("mission.toml")).unwrap()).unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn garbage_on_the_bus_is_counted_and_dropped() {
+    use tcpf_core::msg::{Command as Cmd, Gamma, PROTOCOL_VERSION};
+    use zenoh::Wait;
+
+    let dir = scratch("garbage");
+    let mut launch = Launch::start(
+        &paper("b-current"),
+        &dir.join("p"),
+        &["--set", "mission.control_period=0.005"],
+    );
+    launch.wait_for("endpoint", "tcp/");
+    let endpoint = std::fs::read_to_string(dir.join("p/endpoint"))
+        .unwrap()
+        .trim()
+        .to_string();
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", "\"peer\"").unwrap();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    config
+        .insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
+        .unwrap();
+    config
+        .insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
+        .unwrap();
+    let session = zenoh::open(config).await.unwrap();
+    launch.wait_for("logs/world.log", "starting");
+
+    let wrong_version = Cmd {
+        version: PROTOCOL_VERSION + 7,
+        tick: 3,
+        id: 1,
+        v: 1.0,
+        r: 0.0,
+        hold: false,
+        gamma: 0.0,
+        gamma_dot: 1.0,
+        v_d: 1.0,
+        x_e: 0.0,
+        y_e: 0.0,
+        psi_e: 0.0,
+        receptions: vec![],
+    };
+    let nan = Gamma {
+        version: PROTOCOL_VERSION,
+        tick: 10,
+        from: 1,
+        gamma: f64::NAN,
+    };
+    let payloads: Vec<Vec<u8>> = vec![
+        b"\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff garbage".to_vec(),
+        Vec::new(),
+        postcard::to_stdvec(&wrong_version).unwrap(),
+        postcard::to_stdvec(&nan).unwrap(),
+    ];
+    let mut sent = 0;
+    while launch.child.try_wait().unwrap().is_none() {
+        for key in ["gamma/1", "gamma/2", "cmd/1", "cmd/2"] {
+            for p in &payloads {
+                session
+                    .put(format!("tcpf/paper-b-current/{key}"), p.clone())
+                    .wait()
+                    .unwrap();
+                sent += 1;
+            }
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    session.close().await.unwrap();
+    assert!(launch.wait(Duration::from_secs(1)).success());
+    let s = launch.summary();
+    let rejected = s["rejected_messages"].as_u64().unwrap();
+    eprintln!("sent {sent} bad payloads, {rejected} counted as rejected");
+    assert!(rejected > 0, "the garbage was counted");
+    assert!(
+        rejected <= sent * 2,
+        "at most the world and the recorder see each cmd, one agent each gamma"
+    );
+    run_in_process(
+        &paper("b-current"),
+        &dir.join("i"),
+        &["--set", "mission.control_period=0.005"],
+    );
+    assert_same_run(&dir.join("p"), &dir.join("i"));
+}
