@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
 use tcpf_bus::session::ZenohArgs;
-use tcpf_coordinator::{inprocess, launcher, planner_node, rundir::RunDir, table};
+use tcpf_coordinator::{bench, inprocess, launcher, planner_node, rundir::RunDir, table};
 use tcpf_core::mission::{self, Mission};
 use tcpf_core::planner::{self, Plan};
 
@@ -55,6 +55,22 @@ enum Command {
         /// Print one JSON object instead of a table.
         #[arg(long)]
         json: bool,
+    },
+    /// Compare a lockstep tick with a raw Zenoh round trip between two processes.
+    Bench {
+        #[command(flatten)]
+        mission: MissionArgs,
+        /// Round trips to time.
+        #[arg(long, default_value_t = 2000)]
+        count: u64,
+    },
+    /// The echo side of `tcpf bench`.
+    #[command(hide = true)]
+    Pong {
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        #[arg(long)]
+        count: u64,
     },
     /// Role: plan and serve every vehicle's path.
     Planner {
@@ -136,6 +152,10 @@ fn main() -> ExitCode {
             in_process,
             seed,
         } => run(&mission, out.as_deref(), in_process, seed),
+        Command::Bench { mission, count } => bench(&mission, count),
+        Command::Pong { zenoh, count } => runtime()
+            .and_then(|rt| rt.block_on(bench::pong(&zenoh, count)).map_err(Failure::Failed))
+            .map(|_| ExitCode::SUCCESS),
         Command::Planner { mission, zenoh } => planner(&mission, &zenoh),
         Command::World {
             mission,
@@ -259,4 +279,38 @@ fn agent(
         exit == tcpf_agent::Exit::Ended,
         exit == tcpf_agent::Exit::Interrupted,
     ))
+}
+
+fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let plan = solve(&mission, &args.file)?;
+    let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
+    let dir = RunDir::create(
+        Some(&std::env::temp_dir().join(format!("tcpf-bench-{}", std::process::id()))),
+        &mission,
+    )
+    .map_err(Failure::Failed)?;
+    let rt = runtime()?;
+    let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
+    let before = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
+    let summary = rt
+        .block_on(launcher::run(&mission, &plan, &dir, &exe))
+        .map_err(Failure::Failed)?;
+    let after = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
+    let _ = std::fs::remove_dir_all(&dir.path);
+    let rtt = 0.5 * (median(&before) + median(&after));
+    println!(
+        "zenoh round trip between two processes: median {:.1} µs before, {:.1} µs after the run",
+        median(&before),
+        median(&after)
+    );
+    println!(
+        "lockstep tick ({} vehicles, {} ticks): {:.1} µs",
+        plan.vehicles.len(),
+        summary.results.ticks,
+        summary.tick_wall_time_us
+    );
+    println!("tick / round trip: {:.2}", summary.tick_wall_time_us / rtt);
+    println!("simulated / wall time: {:.1}", summary.speedup());
+    Ok(ExitCode::SUCCESS)
 }

@@ -26,6 +26,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
         return Err(e);
     }
     telemetry.finish()?;
+    let ticks = results.ticks;
     let summary = Summary {
         mission: mission.mission.name.clone(),
         seed: mission.mission.seed,
@@ -35,6 +36,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
         interrupted: false,
         sim_time_s: results.ticks as f64 * mission.mission.control_period,
         results,
+        tick_wall_time_us: 1e6 * wall_time_s / ticks.max(1) as f64,
         wall_time_s,
         rejected_messages: 0,
         children: Vec::new(),

@@ -186,6 +186,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
         sim_time_s: results.ticks as f64 * mission.mission.control_period,
         results,
         wall_time_s,
+        tick_wall_time_us: 1e6 * recording.tick_wall_time().unwrap_or(wall_time_s),
         rejected_messages,
         children,
     };

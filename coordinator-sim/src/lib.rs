@@ -1,6 +1,7 @@
 //! tcpf-coordinator: what runs around a fleet: the run directory, the recorder, the launcher,
 //! reports and the human-readable tables.
 
+pub mod bench;
 pub mod inprocess;
 pub mod launcher;
 pub mod planner_node;

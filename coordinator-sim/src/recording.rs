@@ -29,6 +29,8 @@ pub struct Recording {
     pub end: Option<End>,
     /// When the last tick was written.
     pub progress: Instant,
+    /// When the first tick was written.
+    first: Option<Instant>,
     _subscribers: Vec<Subscriber<()>>,
     _token: LivelinessToken,
 }
@@ -74,6 +76,7 @@ impl Recording {
             exit_reports: Vec::new(),
             end: None,
             progress: Instant::now(),
+            first: None,
             _subscribers: vec![s1, s2, s3, s4],
             _token: token,
         })
@@ -100,6 +103,7 @@ impl Recording {
         });
         if self.recorder.ticks_recorded() > before {
             self.progress = Instant::now();
+            self.first.get_or_insert(self.progress);
         }
         failure
     }
@@ -111,6 +115,13 @@ impl Recording {
 
     pub fn ticks(&self) -> u64 {
         self.recorder.ticks_recorded()
+    }
+
+    /// Mean wall time of a tick in steady state, from the first tick written to the last.
+    pub fn tick_wall_time(&self) -> Option<f64> {
+        let first = self.first?;
+        let ticks = self.recorder.ticks_recorded();
+        (ticks > 1).then(|| (self.progress - first).as_secs_f64() / (ticks - 1) as f64)
     }
 
     pub fn results(&self) -> Results {

@@ -46,6 +46,8 @@ pub struct Summary {
     /// Simulated seconds, ticks × control period.
     pub sim_time_s: f64,
     pub wall_time_s: f64,
+    /// Mean wall time of one tick in steady state, µs.
+    pub tick_wall_time_us: f64,
     /// Payloads dropped because they did not decode, had the wrong version, non-finite numbers or
     /// broke the protocol, summed over every process.
     pub rejected_messages: u64,
