@@ -48,6 +48,17 @@ mod tests {
     }
 
     #[test]
+    fn encoding_matches_the_protocol_document() {
+        let g = Gamma {
+            version: PROTOCOL_VERSION,
+            tick: 300,
+            from: 2,
+            gamma: 1.5,
+        };
+        assert_eq!(encode(&g), [0x01, 0xac, 0x02, 0x02, 0, 0, 0, 0, 0, 0, 0xf8, 0x3f]);
+    }
+
+    #[test]
     fn round_trip_is_bit_exact() {
         let s = state();
         assert_eq!(decode::<State>(&encode(&s)), Ok(s));

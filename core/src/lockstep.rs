@@ -223,3 +223,96 @@ impl AgentNode {
         Some(command)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mission;
+    use crate::planner;
+
+    fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
+        let file = format!("{}/../configs/paper/b-current.toml", env!("CARGO_MANIFEST_DIR"));
+        let m = mission::parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap();
+        let plan = planner::plan(&m).unwrap();
+        let paths = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+        (m, paths, plan.t_f)
+    }
+
+    #[test]
+    fn an_agent_waits_for_its_live_neighbours_at_communication_instants_only() {
+        let (m, paths, t_f) = case_b();
+        let world = WorldNode::new(&m, &paths, t_f);
+        let mut node = AgentNode::new(Agent::new(&m, 1, paths[0].1));
+        let gamma = node
+            .on_state(world.states()[0])
+            .unwrap()
+            .expect("tick 0 is a communication instant");
+        assert_eq!((gamma.from, gamma.tick), (1, 0));
+        assert_eq!(node.waiting_for(), vec![2]);
+        assert!(node.command().is_none(), "no command before the neighbour's γ");
+        assert_eq!(node.on_gamma(Gamma { from: 3, ..gamma }), Err(Reject::NotANeighbour));
+        node.on_gamma(Gamma { from: 2, ..gamma }).unwrap();
+        assert_eq!(node.on_gamma(Gamma { from: 2, ..gamma }), Err(Reject::Duplicate));
+        let command = node.command().expect("all in");
+        assert_eq!(command.receptions.len(), 1);
+        assert_eq!(
+            node.on_gamma(Gamma { from: 2, ..gamma }),
+            Err(Reject::WrongTick),
+            "tick 0 is over"
+        );
+
+        let state = State {
+            tick: 1,
+            ..world.states()[0]
+        };
+        assert_eq!(node.on_state(State { tick: 5, ..state }), Err(Reject::WrongTick));
+        assert_eq!(node.on_state(state), Ok(None), "tick 1 is no communication instant");
+        assert!(node.command().is_some_and(|c| c.receptions.is_empty()));
+    }
+
+    #[test]
+    fn a_gone_neighbour_is_not_waited_for() {
+        let (m, paths, t_f) = case_b();
+        let world = WorldNode::new(&m, &paths, t_f);
+        let mut node = AgentNode::new(Agent::new(&m, 2, paths[1].1));
+        node.on_state(world.states()[1]).unwrap();
+        assert_eq!(node.waiting_for(), vec![1]);
+        node.set_gone(1, true);
+        assert!(!node.all_present());
+        let command = node.command().expect("nobody to wait for");
+        assert!(command.receptions.is_empty(), "nothing heard, nothing counted");
+    }
+
+    #[test]
+    fn the_world_waits_for_every_live_command_of_the_tick() {
+        let (m, paths, t_f) = case_b();
+        let mut world = WorldNode::new(&m, &paths, t_f);
+        let mut agents: Vec<Agent> = paths.iter().map(|&(id, p)| Agent::new(&m, id, p)).collect();
+        let states = world.states().to_vec();
+        let commands: Vec<Command> = agents.iter_mut().zip(&states).map(|(a, s)| a.step(s, &[])).collect();
+        assert_eq!(world.waiting_for(), vec![1, 2]);
+        assert_eq!(
+            world.on_command(Command {
+                id: 9,
+                ..commands[0].clone()
+            }),
+            Err(Reject::UnknownVehicle)
+        );
+        assert_eq!(
+            world.on_command(Command {
+                tick: 1,
+                ..commands[0].clone()
+            }),
+            Err(Reject::WrongTick)
+        );
+        world.on_command(commands[0].clone()).unwrap();
+        assert_eq!(world.on_command(commands[0].clone()), Err(Reject::Duplicate));
+        assert_eq!(world.waiting_for(), vec![2]);
+        world.on_lost(2);
+        assert!(world.waiting_for().is_empty());
+        assert!(world.advance(|_, held| assert!(held[1].is_none())).is_none());
+        assert_eq!(world.tick(), 1);
+        assert_eq!(world.waiting_for(), vec![1], "a lost vehicle is never waited for again");
+        assert_eq!(world.interrupted().lost, vec![Lost { id: 2, tick: 0 }]);
+    }
+}

@@ -117,3 +117,90 @@ impl Recorder {
         self.metrics.results()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mission;
+    use crate::msg::{Lost, PROTOCOL_VERSION};
+    use crate::planner;
+    use crate::sim::Fleet;
+    use crate::telemetry;
+
+    fn recorded_run() -> (Vec<(State, Command)>, String, Results, f64, f64) {
+        let file = format!("{}/../configs/paper/d-lossy.toml", env!("CARGO_MANIFEST_DIR"));
+        let m = mission::parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap();
+        let plan = planner::plan(&m).unwrap();
+        let mut messages = Vec::new();
+        let mut csv = String::new();
+        let results = Fleet::new(&m, &plan).run(|states, commands| {
+            for (s, c) in states.iter().zip(commands) {
+                telemetry::row(&mut csv, s, *c);
+                messages.push((*s, (*c).unwrap().clone()));
+            }
+        });
+        (messages, csv, results, plan.t_f, m.mission.control_period)
+    }
+
+    #[test]
+    fn out_of_order_delivery_gives_the_in_process_rows() {
+        let (messages, csv, results, t_f, dt) = recorded_run();
+        let ticks = results.ticks;
+        let mut recorder = Recorder::new(&[1, 2], t_f, dt);
+        let mut out = String::new();
+        // Commands before states, the second vehicle first, ticks in a scrambled order.
+        let mut order: Vec<usize> = (0..messages.len()).rev().collect();
+        order.sort_by_key(|&k| (k * 7919) % 1000);
+        for &k in &order {
+            recorder.on_command(messages[k].1.clone()).unwrap();
+        }
+        for &k in &order {
+            recorder.on_state(messages[k].0).unwrap();
+            recorder.drain(|s, c| s.iter().zip(c).for_each(|(s, c)| telemetry::row(&mut out, s, *c)));
+        }
+        assert!(!recorder.complete(), "not before the end is known");
+        assert_eq!(
+            recorder.on_state(messages[0].0),
+            Err(Reject::WrongTick),
+            "tick 0 is written"
+        );
+        recorder.on_end(End {
+            version: PROTOCOL_VERSION,
+            ticks,
+            lost: vec![],
+        });
+        recorder.drain(|_, _| panic!("nothing left"));
+        assert!(recorder.complete());
+        assert_eq!(out, csv);
+        assert_eq!(recorder.results(), results);
+    }
+
+    #[test]
+    fn a_lost_vehicle_stops_being_waited_for_once_the_end_says_so() {
+        let (messages, _, _, t_f, dt) = recorded_run();
+        let mut recorder = Recorder::new(&[1, 2], t_f, dt);
+        let lost_at = 100;
+        for (s, c) in messages.iter().filter(|(s, _)| s.tick < 200) {
+            recorder.on_state(*s).unwrap();
+            if c.id == 1 || c.tick < lost_at {
+                recorder.on_command(c.clone()).unwrap();
+            }
+        }
+        let mut ticks = 0;
+        recorder.drain(|_, _| ticks += 1);
+        assert_eq!(ticks, lost_at, "stuck where vehicle 2's commands stop");
+        recorder.on_end(End {
+            version: PROTOCOL_VERSION,
+            ticks: 200,
+            lost: vec![Lost { id: 2, tick: lost_at }],
+        });
+        recorder.drain(|_, c| {
+            assert!(c[0].is_some() && c[1].is_none());
+            ticks += 1;
+        });
+        assert_eq!(ticks, 200);
+        assert!(recorder.complete());
+        let r = recorder.results();
+        assert!(r.vehicles[1].lost && !r.vehicles[0].lost);
+    }
+}
