@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
 use tcpf_bus::session::ZenohArgs;
-use tcpf_coordinator::{bench, inprocess, launcher, planner_node, rundir::RunDir, table};
+use tcpf_coordinator::{bench, inprocess, launcher, planner_node, rundir::RunDir, sweep, table};
 use tcpf_core::mission::{self, Mission};
 use tcpf_core::planner::{self, Plan};
 
@@ -55,6 +55,36 @@ enum Command {
         /// Print one JSON object instead of a table.
         #[arg(long)]
         json: bool,
+    },
+    /// Fault-injection experiment: every (value, seed) pair, summarised per value.
+    Sweep {
+        #[command(flatten)]
+        mission: MissionArgs,
+        /// Loss probabilities to sweep (comms.loss), e.g. 0,0.3,0.6,0.9.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            conflicts_with = "param",
+            required_unless_present = "param"
+        )]
+        loss: Vec<String>,
+        /// Any mission key instead: KEY=V1,V2,...
+        #[arg(long, value_name = "KEY=V1,V2,...")]
+        param: Option<String>,
+        /// Seeds 1..=N for every value.
+        #[arg(long)]
+        seeds: u64,
+        /// Run each as a real fleet of processes (one after the other) instead of in-process.
+        #[arg(long)]
+        processes: bool,
+        /// Output directory (default runs/<mission>-sweep-<timestamp>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Write (again) a run directory's report.html from its recorded files.
+    Report {
+        /// The run directory.
+        dir: PathBuf,
     },
     /// Compare a lockstep tick with a raw Zenoh round trip between two processes.
     Bench {
@@ -153,6 +183,15 @@ fn main() -> ExitCode {
             seed,
         } => run(&mission, out.as_deref(), in_process, seed),
         Command::Bench { mission, count } => bench(&mission, count),
+        Command::Report { dir } => report(&dir),
+        Command::Sweep {
+            mission,
+            loss,
+            param,
+            seeds,
+            processes,
+            out,
+        } => sweep(&mission, &loss, param.as_deref(), seeds, processes, out.as_deref()),
         Command::Pong { zenoh, count } => runtime()
             .and_then(|rt| rt.block_on(bench::pong(&zenoh, count)).map_err(Failure::Failed))
             .map(|_| ExitCode::SUCCESS),
@@ -312,5 +351,82 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     );
     println!("tick / round trip: {:.2}", summary.tick_wall_time_us / rtt);
     println!("simulated / wall time: {:.1}", summary.speedup());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn report(dir: &Path) -> Result<ExitCode, Failure> {
+    if !dir.join("summary.json").is_file() {
+        return Err(Failure::Input(anyhow!(
+            "{}: not a run directory (no summary.json)",
+            dir.display()
+        )));
+    }
+    tcpf_coordinator::report::write(dir).map_err(Failure::Failed)?;
+    println!("{}", dir.join("report.html").display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn sweep(
+    args: &MissionArgs,
+    loss: &[String],
+    param: Option<&str>,
+    seeds: u64,
+    processes: bool,
+    out: Option<&Path>,
+) -> Result<ExitCode, Failure> {
+    let (key, column, values): (String, String, Vec<String>) = match param {
+        Some(p) => {
+            let (k, v) = p
+                .split_once('=')
+                .ok_or_else(|| Failure::Input(anyhow!("--param {p}: expected KEY=V1,V2,...")))?;
+            (
+                k.trim().into(),
+                k.trim().into(),
+                v.split(',').map(|s| s.trim().to_string()).collect(),
+            )
+        }
+        None => (
+            "comms.loss".into(),
+            "loss".into(),
+            loss.iter().map(|s| s.trim().to_string()).collect(),
+        ),
+    };
+    if values.iter().any(|v| v.is_empty()) || seeds == 0 {
+        return Err(Failure::Input(anyhow!(
+            "a sweep needs non-empty values and --seeds ≥ 1"
+        )));
+    }
+    let base = load(args, None)?;
+    let mut jobs = Vec::new();
+    for value in &values {
+        for seed in 1..=seeds {
+            let mut one = MissionArgs {
+                file: args.file.clone(),
+                set: args.set.clone(),
+            };
+            one.set.push(format!("{key}={value}"));
+            let mission = load(&one, Some(seed))?;
+            jobs.push(sweep::Job {
+                value: value.clone(),
+                seed,
+                mission,
+            });
+        }
+    }
+    let out = out.map_or_else(|| sweep::default_out(&base), Path::to_path_buf);
+    let rows = if processes {
+        let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
+        runtime()?
+            .block_on(sweep::run_processes(&jobs, &out, &exe))
+            .map_err(Failure::Failed)?
+    } else {
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        sweep::run_in_process(&jobs, threads).map_err(Failure::Failed)?
+    };
+    let mode = if processes { "processes" } else { "in-process" };
+    let summary = sweep::summarise(&base.mission.name, &key, seeds, mode, &rows);
+    let table = sweep::write(&out, &column, &rows, &summary).map_err(Failure::Failed)?;
+    print!("{table}");
+    println!("sweep directory: {}", out.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -7,6 +7,7 @@ use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 
+use crate::progress::Ticks;
 use crate::rundir::RunDir;
 use crate::summary::{Clock, Mode, Summary};
 
@@ -15,13 +16,18 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
     dir.write_plan(plan)?;
     let mut telemetry = dir.telemetry()?;
     let mut failure = None;
+    let progress = Ticks::new(mission);
+    let mut ticks = 0;
     let started = Instant::now();
     let results = Fleet::new(mission, plan).run(|states, commands| {
+        ticks += 1;
+        progress.set(ticks);
         if failure.is_none() {
             failure = telemetry.tick(states, commands).err();
         }
     });
     let wall_time_s = started.elapsed().as_secs_f64();
+    progress.finish();
     if let Some(e) = failure {
         return Err(e);
     }
@@ -42,5 +48,6 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
         children: Vec::new(),
     };
     dir.write_summary(&summary)?;
+    crate::report::write(&dir.path)?;
     Ok(summary)
 }

@@ -14,6 +14,7 @@ use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tokio::process::{Child, Command};
 
+use crate::progress::Ticks;
 use crate::recording::Recording;
 use crate::rundir::RunDir;
 use crate::summary::{ChildSummary, Clock, Mode, Summary};
@@ -109,6 +110,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
     for v in &mission.vehicles {
         children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common)?);
     }
+    let progress = Ticks::new(mission);
     let started = Instant::now();
     let mut check = tokio::time::interval(Duration::from_millis(100));
 
@@ -117,7 +119,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
             break Outcome::Completed;
         }
         tokio::select! {
-            r = recording.step() => r?,
+            r = recording.step() => {
+                r?;
+                progress.set(recording.ticks());
+            }
             _ = shutdown.recv() => break Outcome::Interrupted,
             _ = check.tick() => {
                 let dead = children.iter_mut().find_map(|c| {
@@ -136,6 +141,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
         }
     };
     let wall_time_s = started.elapsed().as_secs_f64();
+    progress.finish();
 
     if matches!(outcome, Outcome::Completed) {
         // Let the children report and exit by themselves.
@@ -192,6 +198,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
     };
     recording.finish()?;
     dir.write_summary(&summary)?;
+    crate::report::write(&dir.path)?;
     match outcome {
         Outcome::Failed(why) => Err(anyhow!("{why} (run directory {})", dir.path.display())),
         _ => Ok(summary),

@@ -3,10 +3,23 @@
 
 use crate::coord;
 use crate::follow::{self, Gains};
-use crate::links::Link;
+use std::collections::VecDeque;
+
+use crate::links::{Link, LinkSpec};
 use crate::mission::{Mission, PostArrival};
 use crate::msg::{Command, Gamma, Reception, State, PROTOCOL_VERSION};
 use crate::path::{GeneralizedPath, Vec2};
+
+/// An inbound link and the messages it delivered that are not yet usable (SPEC D12 with delay).
+#[derive(Debug, Clone)]
+struct Inbound {
+    link: Link,
+    /// Ticks from sending to use: the delay rounded up to whole communication periods, since γ
+    /// is only used at communication instants.
+    delay_ticks: u64,
+    /// (tick sent, γ_j) of delivered messages, oldest first.
+    delivered: VecDeque<(u64, f64)>,
+}
 
 #[derive(Debug, Clone)]
 pub struct Agent {
@@ -18,7 +31,7 @@ pub struct Agent {
     comm_every: u64,
     post_arrival: PostArrival,
     /// Inbound links j→i, ascending j.
-    links: Vec<Link>,
+    links: Vec<Inbound>,
     gamma: f64,
     /// Σ_j (γ_i(t_k) − γ_j(t_k)) over the neighbours heard at the last instant t_k, held until
     /// the next (D12); `None` when none was heard.
@@ -46,7 +59,15 @@ impl Agent {
             post_arrival: mission.mission.post_arrival,
             links: neighbours
                 .iter()
-                .map(|&j| Link::new(mission.mission.seed, j, id, mission.comms.loss))
+                .map(|&j| {
+                    let link = Link::new(mission.mission.seed, j, id, LinkSpec::of(mission, j, id));
+                    let periods = (link.delay() / mission.comms.period - 1e-9).ceil().max(0.0) as u64;
+                    Inbound {
+                        link,
+                        delay_ticks: periods * mission.comm_every(),
+                        delivered: VecDeque::new(),
+                    }
+                })
                 .collect(),
             gamma: 0.0,
             sum: None,
@@ -67,7 +88,7 @@ impl Agent {
     }
 
     pub fn neighbours(&self) -> impl Iterator<Item = u32> + '_ {
-        self.links.iter().map(|l| l.from)
+        self.links.iter().map(|l| l.link.from)
     }
 
     pub fn is_comm_tick(&self, tick: u64) -> bool {
@@ -91,17 +112,24 @@ impl Agent {
         let mut receptions = Vec::new();
         if self.is_comm_tick(tick) {
             let mut sum = None;
-            for link in &mut self.links {
-                let message = inbox.iter().find(|m| m.from == link.from && m.tick == tick);
-                let delivered = link.transmit();
+            let t = tick as f64 * self.dt;
+            for inbound in &mut self.links {
+                let from = inbound.link.from;
+                let message = inbox.iter().find(|m| m.from == from && m.tick == tick);
+                let delivered = inbound.link.transmit(t);
                 if let Some(m) = message {
-                    receptions.push(Reception {
-                        from: link.from,
-                        delivered,
-                    });
+                    receptions.push(Reception { from, delivered });
                     if delivered {
-                        *sum.get_or_insert(0.0) += self.gamma - m.gamma;
+                        inbound.delivered.push_back((tick, m.gamma));
                     }
+                }
+                // The message of t_k − delay, if it got through, is what j is heard saying now.
+                let sent = tick.checked_sub(inbound.delay_ticks);
+                while inbound.delivered.front().is_some_and(|(k, _)| Some(*k) < sent) {
+                    inbound.delivered.pop_front();
+                }
+                if let Some(&(_, gamma_j)) = inbound.delivered.front().filter(|(k, _)| Some(*k) == sent) {
+                    *sum.get_or_insert(0.0) += self.gamma - gamma_j;
                 }
             }
             self.sum = sum;

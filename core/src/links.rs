@@ -6,16 +6,71 @@ use rand_chacha::rand_core::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::mission::Mission;
+
+/// How a link loses messages.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Loss {
+    /// Each message lost independently with this probability.
+    Bernoulli(f64),
+    /// Gilbert–Elliott: (p_enter_bad, p_leave_bad, loss_good, loss_bad).
+    Burst {
+        p_enter_bad: f64,
+        p_leave_bad: f64,
+        loss_good: f64,
+        loss_bad: f64,
+    },
+}
+
+/// Everything the mission says about one directed link.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkSpec {
+    pub loss: Loss,
+    /// s
+    pub delay: f64,
+    /// [start, end) windows in which every message is lost.
+    pub outages: Vec<(f64, f64)>,
+}
+
+impl LinkSpec {
+    /// The link j→i as `[comms]` declares it: defaults, then `[[comms.link]]` overrides.
+    pub fn of(mission: &Mission, from: u32, to: u32) -> LinkSpec {
+        let c = &mission.comms;
+        let over = c.links.iter().find(|l| (l.from, l.to) == (from, to));
+        let loss = match (&c.burst, over.and_then(|o| o.loss)) {
+            (_, Some(p)) => Loss::Bernoulli(p),
+            (Some(b), None) => Loss::Burst {
+                p_enter_bad: b.p_enter_bad,
+                p_leave_bad: b.p_leave_bad,
+                loss_good: b.loss_good,
+                loss_bad: b.loss_bad,
+            },
+            (None, None) => Loss::Bernoulli(c.loss),
+        };
+        LinkSpec {
+            loss,
+            delay: over.and_then(|o| o.delay).unwrap_or(c.delay),
+            outages: c
+                .outages
+                .iter()
+                .filter(|o| o.from.matches(from) && o.to.matches(to))
+                .map(|o| (o.start, o.end))
+                .collect(),
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct Link {
     pub from: u32,
     pub to: u32,
-    loss: f64,
+    spec: LinkSpec,
+    bad: bool,
     rng: ChaCha8Rng,
 }
 
 impl Link {
-    pub fn new(seed: u64, from: u32, to: u32, loss: f64) -> Link {
+    pub fn new(seed: u64, from: u32, to: u32, spec: LinkSpec) -> Link {
         let mut key = [0u8; 32];
         key[..8].copy_from_slice(&seed.to_le_bytes());
         key[8..12].copy_from_slice(&from.to_le_bytes());
@@ -24,17 +79,38 @@ impl Link {
         Link {
             from,
             to,
-            loss,
+            spec,
+            bad: false,
             rng: ChaCha8Rng::from_seed(key),
         }
     }
 
-    /// Advances the link by one communication instant and says whether a message sent in it gets
-    /// through. Called once per instant whether or not a message arrived, so that the stream
-    /// stays aligned with time.
-    pub fn transmit(&mut self) -> bool {
-        let u = (self.rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        u >= self.loss
+    pub fn delay(&self) -> f64 {
+        self.spec.delay
+    }
+
+    fn uniform(&mut self) -> f64 {
+        (self.rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Advances the link to the communication instant t and says whether a message sent then
+    /// gets through. Called once per instant whether or not a message arrived, and drawing the
+    /// same number of numbers every time, so that the stream stays aligned with time.
+    pub fn transmit(&mut self, t: f64) -> bool {
+        let lost = match self.spec.loss {
+            Loss::Bernoulli(p) => self.uniform() < p,
+            Loss::Burst {
+                p_enter_bad,
+                p_leave_bad,
+                loss_good,
+                loss_bad,
+            } => {
+                let switch = self.uniform() < if self.bad { p_leave_bad } else { p_enter_bad };
+                self.bad ^= switch;
+                self.uniform() < if self.bad { loss_bad } else { loss_good }
+            }
+        };
+        !lost && !self.spec.outages.iter().any(|&(start, end)| start <= t && t < end)
     }
 }
 
@@ -52,48 +128,96 @@ pub struct LinkStats {
 mod tests {
     use super::*;
 
+    fn bernoulli(p: f64) -> LinkSpec {
+        LinkSpec {
+            loss: Loss::Bernoulli(p),
+            delay: 0.0,
+            outages: vec![],
+        }
+    }
+
+    #[test]
+    fn gilbert_elliott_loses_in_bursts_at_its_stationary_rate() {
+        let spec = LinkSpec {
+            loss: Loss::Burst {
+                p_enter_bad: 0.05,
+                p_leave_bad: 0.2,
+                loss_good: 0.0,
+                loss_bad: 1.0,
+            },
+            delay: 0.0,
+            outages: vec![],
+        };
+        let mut l = Link::new(5, 1, 2, spec);
+        let n = 200_000;
+        let lost: Vec<bool> = (0..n).map(|_| !l.transmit(0.0)).collect();
+        let rate = lost.iter().filter(|x| **x).count() as f64 / n as f64;
+        assert!(
+            (rate - 0.2).abs() < 0.01,
+            "stationary bad share 0.05/(0.05+0.2) = 0.2, measured {rate}"
+        );
+        let runs = lost.windows(2).filter(|w| w[0] && !w[1]).count() as f64;
+        let mean_burst = rate * n as f64 / runs;
+        assert!(
+            (mean_burst - 5.0).abs() < 0.3,
+            "mean burst 1/p_leave_bad = 5, measured {mean_burst}"
+        );
+    }
+
+    #[test]
+    fn an_outage_loses_everything_in_its_window_and_nothing_else() {
+        let spec = LinkSpec {
+            loss: Loss::Bernoulli(0.0),
+            delay: 0.0,
+            outages: vec![(1.0, 2.0)],
+        };
+        let mut l = Link::new(5, 1, 2, spec);
+        let got: Vec<bool> = (0..30).map(|k| l.transmit(k as f64 * 0.1)).collect();
+        assert!(got[..10].iter().all(|x| *x) && got[10..20].iter().all(|x| !*x) && got[20..].iter().all(|x| *x));
+    }
+
     #[test]
     fn a_links_sequence_does_not_depend_on_other_links() {
         let alone: Vec<bool> = {
-            let mut l = Link::new(3, 1, 2, 0.5);
-            (0..1000).map(|_| l.transmit()).collect()
+            let mut l = Link::new(3, 1, 2, bernoulli(0.5));
+            (0..1000).map(|_| l.transmit(0.0)).collect()
         };
         let mut links = [
-            Link::new(3, 7, 2, 0.5),
-            Link::new(3, 1, 2, 0.5),
-            Link::new(3, 2, 1, 0.5),
+            Link::new(3, 7, 2, bernoulli(0.5)),
+            Link::new(3, 1, 2, bernoulli(0.5)),
+            Link::new(3, 2, 1, bernoulli(0.5)),
         ];
         let mut interleaved = Vec::new();
         for _ in 0..1000 {
             for l in links.iter_mut() {
-                let d = l.transmit();
+                let d = l.transmit(0.0);
                 if (l.from, l.to) == (1, 2) {
                     interleaved.push(d);
                 }
             }
         }
         assert_eq!(alone, interleaved);
-        let mut reverse = Link::new(3, 2, 1, 0.5);
-        let other: Vec<bool> = (0..1000).map(|_| reverse.transmit()).collect();
+        let mut reverse = Link::new(3, 2, 1, bernoulli(0.5));
+        let other: Vec<bool> = (0..1000).map(|_| reverse.transmit(0.0)).collect();
         assert_ne!(alone, other, "each direction has its own stream");
     }
 
     #[test]
     fn loss_rate_matches_probability() {
         for p in [0.0, 0.3, 0.9, 1.0] {
-            let mut l = Link::new(11, 1, 2, p);
+            let mut l = Link::new(11, 1, 2, bernoulli(p));
             let n = 100_000;
-            let lost = (0..n).filter(|_| !l.transmit()).count() as f64 / n as f64;
+            let lost = (0..n).filter(|_| !l.transmit(0.0)).count() as f64 / n as f64;
             assert!((lost - p).abs() < 0.01, "p={p} measured {lost}");
         }
     }
 
     #[test]
     fn seeds_change_the_stream() {
-        let mut a = Link::new(1, 1, 2, 0.5);
-        let mut b = Link::new(2, 1, 2, 0.5);
-        let sa: Vec<bool> = (0..64).map(|_| a.transmit()).collect();
-        let sb: Vec<bool> = (0..64).map(|_| b.transmit()).collect();
+        let mut a = Link::new(1, 1, 2, bernoulli(0.5));
+        let mut b = Link::new(2, 1, 2, bernoulli(0.5));
+        let sa: Vec<bool> = (0..64).map(|_| a.transmit(0.0)).collect();
+        let sb: Vec<bool> = (0..64).map(|_| b.transmit(0.0)).collect();
         assert_ne!(sa, sb);
     }
 }

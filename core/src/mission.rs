@@ -156,14 +156,79 @@ pub struct CommsConfig {
     /// Explicit undirected edges, instead of `topology`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub edges: Option<Vec<[u32; 2]>>,
-    /// Probability that a message on a directed link is lost.
+    /// Probability that a message on a directed link is lost (Bernoulli).
     pub loss: f64,
+    /// s: a message sent at t_k is usable from t_k + delay on.
+    pub delay: f64,
+    /// Bursty loss instead of `loss`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub burst: Option<BurstConfig>,
+    #[serde(rename = "outage", skip_serializing_if = "Vec::is_empty")]
+    pub outages: Vec<OutageConfig>,
+    /// Per directed link overrides of `loss` and `delay`.
+    #[serde(rename = "link", skip_serializing_if = "Vec::is_empty")]
+    pub links: Vec<LinkOverride>,
+}
+
+/// Gilbert–Elliott loss: a two-state Markov chain per link, stepped once per communication
+/// instant, each state with its own loss probability.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BurstConfig {
+    pub p_enter_bad: f64,
+    pub p_leave_bad: f64,
+    #[serde(default)]
+    pub loss_good: f64,
+    #[serde(default = "defaults::loss_bad")]
+    pub loss_bad: f64,
+}
+
+/// A vehicle id, or `"*"` for every vehicle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Endpoint {
+    Id(u32),
+    Any(String),
+}
+
+impl Endpoint {
+    pub fn matches(&self, id: u32) -> bool {
+        match self {
+            Endpoint::Id(i) => *i == id,
+            Endpoint::Any(_) => true,
+        }
+    }
+}
+
+/// Every message on the matching directed links sent in [start, end) is lost.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutageConfig {
+    pub from: Endpoint,
+    pub to: Endpoint,
+    pub start: f64,
+    pub end: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkOverride {
+    pub from: u32,
+    pub to: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delay: Option<f64>,
 }
 
 impl Default for CommsConfig {
     fn default() -> Self {
         CommsConfig {
             period: 0.1,
+            delay: 0.0,
+            burst: None,
+            outages: Vec::new(),
+            links: Vec::new(),
             topology: None,
             edges: None,
             loss: 0.0,
@@ -201,6 +266,9 @@ mod defaults {
         120.0
     }
     pub fn weight() -> f64 {
+        1.0
+    }
+    pub fn loss_bad() -> f64 {
         1.0
     }
 }
@@ -584,6 +652,7 @@ impl Mission {
             }
             check(v.weight > 0.0 && v.weight.is_finite(), vkey(i, "weight"), "must be > 0")?;
         }
+        self.validate_faults()?;
         if let Some(edges) = &k.edges {
             for e in edges {
                 for id in e {
@@ -597,6 +666,104 @@ impl Mission {
                     e[0] != e[1],
                     key("comms", "edges"),
                     format!("edge {e:?} joins a vehicle to itself"),
+                )?;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn ckey(path: &[Seg]) -> Vec<Seg> {
+    let mut p = vec![Seg::Key("comms".into())];
+    p.extend_from_slice(path);
+    p
+}
+
+fn item(table: &str, i: usize, k: &str) -> Vec<Seg> {
+    ckey(&[Seg::Key(table.into()), Seg::Index(i), Seg::Key(k.into())])
+}
+
+fn probability(path: Vec<Seg>, p: f64) -> Result<(), Invalid> {
+    check((0.0..=1.0).contains(&p), path, "must be a probability in [0, 1]")
+}
+
+impl Mission {
+    /// The link fault models of `[comms]`: in range, consistent, and naming real links.
+    fn validate_faults(&self) -> Result<(), Invalid> {
+        let k = &self.comms;
+        check(
+            k.delay >= 0.0 && k.delay.is_finite(),
+            key("comms", "delay"),
+            "must be a finite number ≥ 0 (s)",
+        )?;
+        if let Some(b) = &k.burst {
+            for (name, p) in [
+                ("p_enter_bad", b.p_enter_bad),
+                ("p_leave_bad", b.p_leave_bad),
+                ("loss_good", b.loss_good),
+                ("loss_bad", b.loss_bad),
+            ] {
+                probability(ckey(&[Seg::Key("burst".into()), Seg::Key(name.into())]), p)?;
+            }
+            check(
+                k.loss == 0.0,
+                key("comms", "loss"),
+                "contradicts [comms.burst]: Gilbert–Elliott replaces Bernoulli loss; keep one",
+            )?;
+        }
+        let ids: Vec<u32> = self.vehicles.iter().map(|v| v.id).collect();
+        for (i, o) in k.outages.iter().enumerate() {
+            for (name, end) in [("from", &o.from), ("to", &o.to)] {
+                let ok = match end {
+                    Endpoint::Id(id) => ids.contains(id),
+                    Endpoint::Any(s) => s == "*",
+                };
+                check(
+                    ok,
+                    item("outage", i, name),
+                    "must be the id of a vehicle of the mission, or \"*\"",
+                )?;
+            }
+            finite(item("outage", i, "start"), &[o.start])?;
+            finite(item("outage", i, "end"), &[o.end])?;
+            check(
+                o.end > o.start,
+                item("outage", i, "end"),
+                format!("must be after start ({})", o.start),
+            )?;
+        }
+        let graph = crate::coord::neighbours(self);
+        for (i, l) in k.links.iter().enumerate() {
+            let linked = graph.get(&l.to).is_some_and(|n| n.contains(&l.from));
+            check(
+                linked,
+                item("link", i, "from"),
+                format!("{} → {} is not a link of the communication graph", l.from, l.to),
+            )?;
+            let twice = k.links[..i].iter().any(|o| (o.from, o.to) == (l.from, l.to));
+            check(
+                !twice,
+                item("link", i, "to"),
+                format!("link {} → {} is overridden twice", l.from, l.to),
+            )?;
+            check(
+                l.loss.is_some() || l.delay.is_some(),
+                item("link", i, "from"),
+                "overrides nothing: give `loss` or `delay`",
+            )?;
+            if let Some(p) = l.loss {
+                probability(item("link", i, "loss"), p)?;
+                check(
+                    k.burst.is_none(),
+                    item("link", i, "loss"),
+                    "contradicts [comms.burst]: a link's Bernoulli loss under Gilbert–Elliott",
+                )?;
+            }
+            if let Some(d) = l.delay {
+                check(
+                    d >= 0.0 && d.is_finite(),
+                    item("link", i, "delay"),
+                    "must be a finite number ≥ 0 (s)",
                 )?;
             }
         }
@@ -709,6 +876,43 @@ goal_velocity = [0.75, 0.0]
     fn comms_period_must_be_a_multiple_of_the_control_period() {
         let e = parse("x.toml", PAPER, &["comms.period=0.015".into()]).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("comms.period"));
+    }
+
+    #[test]
+    fn fault_models_parse_and_contradictions_name_the_key() {
+        let faults = "[comms]\ndelay = 0.3\n[comms.burst]\np_enter_bad = 0.05\np_leave_bad = 0.2\n[[comms.outage]]\nfrom = 1\nto = \"*\"\nstart = 10.0\nend = 30.0\n[[comms.link]]\nfrom = 2\nto = 1\ndelay = 1.0\n";
+        let text = PAPER.replace("[[vehicle]]\nid = 1", &format!("{faults}\n[[vehicle]]\nid = 1"));
+        let m = parse("f.toml", &text, &[]).unwrap();
+        assert_eq!(m.comms.burst.as_ref().unwrap().loss_bad, 1.0);
+        assert_eq!(m.comms.outages[0].to, Endpoint::Any("*".into()));
+        assert_eq!(m.comms.links[0].delay, Some(1.0));
+        assert_eq!(
+            parse("r.toml", &toml::to_string(&m).unwrap(), &[]).unwrap(),
+            m,
+            "round trip"
+        );
+
+        let e = parse("f.toml", &text, &["comms.loss=0.5".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.loss"), "{e}");
+        let bad = text.replace("to = \"*\"", "to = \"all\"");
+        let e = parse("f.toml", &bad, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.outage[0].to"), "{e}");
+        assert!(e.line.is_some());
+        let bad = text.replace("end = 30.0", "end = 5.0");
+        assert_eq!(
+            parse("f.toml", &bad, &[]).unwrap_err().key.as_deref(),
+            Some("comms.outage[0].end")
+        );
+        let bad = text.replace("from = 2\nto = 1", "from = 2\nto = 2");
+        assert_eq!(
+            parse("f.toml", &bad, &[]).unwrap_err().key.as_deref(),
+            Some("comms.link[0].from")
+        );
+        let bad = text.replace("p_leave_bad = 0.2", "p_leave_bad = 0.2\nloss_bda = 1.0");
+        assert_eq!(
+            parse("f.toml", &bad, &[]).unwrap_err().key.as_deref(),
+            Some("comms.burst.loss_bda")
+        );
     }
 
     #[test]

@@ -1,0 +1,252 @@
+//! SVG charts for the reports, drawn with plotters' SVG backend (no fonts needed: the browser
+//! renders the text).
+
+use plotters::prelude::*;
+
+/// A shaded band: its name and (x, low, high) points.
+pub type Band = (String, Vec<(f64, f64, f64)>);
+
+/// One named line of a chart.
+pub struct Series {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+}
+
+pub struct Chart<'a> {
+    pub title: &'a str,
+    pub x_label: &'a str,
+    pub y_label: &'a str,
+    pub series: Vec<Series>,
+    /// Horizontal reference lines: (y, label).
+    pub levels: Vec<(f64, String)>,
+    /// Min–max bands drawn under the lines: (name, x, low, high).
+    pub bands: Vec<Band>,
+    /// Keep x and y at the same scale (maps).
+    pub equal_axes: bool,
+    /// Labels at points: (x, y, text).
+    pub labels: Vec<(f64, f64, String)>,
+    /// Marked points: (x, y, name), drawn as circles.
+    pub markers: Vec<(f64, f64, String)>,
+}
+
+impl<'a> Chart<'a> {
+    pub fn new(title: &'a str, x_label: &'a str, y_label: &'a str) -> Chart<'a> {
+        Chart {
+            title,
+            x_label,
+            y_label,
+            series: Vec::new(),
+            levels: Vec::new(),
+            bands: Vec::new(),
+            equal_axes: false,
+            labels: Vec::new(),
+            markers: Vec::new(),
+        }
+    }
+
+    fn bounds(&self) -> ((f64, f64), (f64, f64)) {
+        let xs = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.0))
+            .chain(self.bands.iter().flat_map(|b| b.1.iter().map(|p| p.0)));
+        let ys = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.1))
+            .chain(self.levels.iter().map(|l| l.0))
+            .chain(self.bands.iter().flat_map(|b| b.1.iter().flat_map(|p| [p.1, p.2])))
+            .chain(self.markers.iter().map(|m| m.1));
+        let range = |it: &mut dyn Iterator<Item = f64>| {
+            let (lo, hi) = it
+                .filter(|v| v.is_finite())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+            if lo > hi {
+                (0.0, 1.0)
+            } else if hi - lo < 1e-9 {
+                (lo - 0.5, hi + 0.5)
+            } else {
+                let pad = 0.05 * (hi - lo);
+                (lo - pad, hi + pad)
+            }
+        };
+        let xs_all: Vec<f64> = xs.chain(self.markers.iter().map(|m| m.0)).collect();
+        (range(&mut xs_all.into_iter()), range(&mut ys.into_iter()))
+    }
+
+    /// The chart as an SVG document of `width` × `height` pixels.
+    pub fn svg(&self, width: u32, height: u32) -> String {
+        let mut out = String::new();
+        let ((mut x0, mut x1), (mut y0, mut y1)) = self.bounds();
+        if self.equal_axes {
+            // Stretch the narrower axis so that a metre is as long on both.
+            let plot = ((width - 90) as f64, (height - 80) as f64);
+            let scale = ((x1 - x0) / plot.0).max((y1 - y0) / plot.1);
+            let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+            (x0, x1, y0, y1) = (
+                cx - 0.5 * scale * plot.0,
+                cx + 0.5 * scale * plot.0,
+                cy - 0.5 * scale * plot.1,
+                cy + 0.5 * scale * plot.1,
+            );
+        }
+        {
+            let root = SVGBackend::with_string(&mut out, (width, height)).into_drawing_area();
+            let _ = self.draw(&root, (x0, x1), (y0, y1));
+            let _ = root.present();
+        }
+        out
+    }
+
+    fn draw(
+        &self,
+        root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+        x: (f64, f64),
+        y: (f64, f64),
+    ) -> Result<(), Box<dyn std::error::Error + '_>> {
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(root)
+            .caption(self.title, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x.0..x.1, y.0..y.1)?;
+        chart
+            .configure_mesh()
+            .x_desc(self.x_label)
+            .y_desc(self.y_label)
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()?;
+        for (k, (name, band)) in self.bands.iter().enumerate() {
+            let color = Palette99::pick(k).mix(0.2);
+            let mut outline: Vec<(f64, f64)> = band.iter().map(|p| (p.0, p.2)).collect();
+            outline.extend(band.iter().rev().map(|p| (p.0, p.1)));
+            chart
+                .draw_series(std::iter::once(Polygon::new(outline, color.filled())))?
+                .label(name.clone());
+        }
+        for (y, label) in &self.levels {
+            let style = ShapeStyle::from(&BLACK).stroke_width(1);
+            chart
+                .draw_series(DashedLineSeries::new(vec![(x.0, *y), (x.1, *y)], 6, 4, style))?
+                .label(label.clone())
+                .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], BLACK));
+        }
+        for (k, s) in self.series.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(2)))?
+                .label(s.name.clone())
+                .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], color.stroke_width(2)));
+        }
+        for (px, py, text) in &self.labels {
+            chart.draw_series(std::iter::once(Circle::new((*px, *py), 2, BLACK.filled())))?;
+            chart.draw_series(std::iter::once(Text::new(text.clone(), (*px, *py), ("sans-serif", 11))))?;
+        }
+        for (px, py, name) in &self.markers {
+            chart.draw_series(std::iter::once(Circle::new((*px, *py), 5, BLACK.stroke_width(2))))?;
+            chart.draw_series(std::iter::once(Text::new(name.clone(), (*px, *py), ("sans-serif", 12))))?;
+        }
+        if !self.series.is_empty() || !self.levels.is_empty() {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()?;
+        }
+        Ok(())
+    }
+}
+
+/// Grouped bars: per category, one bar per named value.
+pub fn bars(
+    title: &str,
+    y_label: &str,
+    categories: &[String],
+    groups: &[(&str, Vec<f64>)],
+    width: u32,
+    height: u32,
+) -> String {
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, (width, height)).into_drawing_area();
+        let top = groups.iter().flat_map(|g| g.1.iter().copied()).fold(1.0f64, f64::max) * 1.1;
+        let n = categories.len().max(1);
+        let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
+            root.fill(&WHITE)?;
+            let mut chart = ChartBuilder::on(&root)
+                .caption(title, ("sans-serif", 18))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(0.0..n as f64, 0.0..top)?;
+            chart
+                .configure_mesh()
+                .disable_x_mesh()
+                .x_labels(n)
+                .x_label_formatter(&|x| {
+                    categories
+                        .get(x.floor() as usize)
+                        .filter(|_| x.fract() > 0.3)
+                        .cloned()
+                        .unwrap_or_default()
+                })
+                .y_desc(y_label)
+                .draw()?;
+            let w = 0.8 / groups.len().max(1) as f64;
+            for (g, (name, values)) in groups.iter().enumerate() {
+                let color = Palette99::pick(g).to_rgba();
+                chart
+                    .draw_series(values.iter().enumerate().map(|(c, v)| {
+                        let left = c as f64 + 0.1 + g as f64 * w;
+                        Rectangle::new([(left, 0.0), (left + w, *v)], color.filled())
+                    }))?
+                    .label(*name)
+                    .legend(move |(a, b)| Rectangle::new([(a, b - 5), (a + 12, b + 5)], color.filled()));
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()?;
+            root.present()?;
+            Ok(())
+        };
+        let _ = draw();
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_chart_draws_its_lines_labels_and_levels() {
+        let mut c = Chart::new("t", "x", "y");
+        c.series.push(Series {
+            name: "one".into(),
+            points: vec![(0.0, 0.0), (1.0, 2.0), (2.0, 1.0)],
+        });
+        c.levels.push((1.5, "limit".into()));
+        c.markers.push((0.0, 0.0, "start".into()));
+        let svg = c.svg(400, 300);
+        assert!(svg.starts_with("<svg") && svg.contains("</svg>"));
+        assert!(svg.contains("<polyline"), "the line");
+        assert!(svg.contains("\none\n") && svg.contains("\nlimit\n") && svg.contains("\nstart\n"));
+    }
+
+    #[test]
+    fn bars_have_one_rectangle_per_value() {
+        let svg = bars(
+            "links",
+            "messages",
+            &["1→2".into(), "2→1".into()],
+            &[("delivered", vec![5.0, 6.0]), ("dropped", vec![1.0, 0.0])],
+            400,
+            300,
+        );
+        assert!(svg.matches("<rect").count() >= 4, "{svg}");
+        assert!(svg.contains("\ndelivered\n"));
+    }
+}

@@ -1,0 +1,36 @@
+//! A progress bar for long runs: simulated time and ticks per second, on stderr when it is a
+//! terminal; indicatif draws nothing otherwise.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use tcpf_core::mission::Mission;
+use tcpf_core::sim::max_ticks;
+
+pub struct Ticks {
+    bar: ProgressBar,
+    dt: f64,
+}
+
+impl Ticks {
+    pub fn new(mission: &Mission) -> Ticks {
+        let bar = ProgressBar::new(max_ticks(mission));
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} t = {msg} s  {per_sec} ticks  {elapsed}").expect("valid template"),
+        );
+        Ticks {
+            bar,
+            dt: mission.mission.control_period,
+        }
+    }
+
+    /// Ticks so far; redraws at most every 64 ticks, which keeps it off the hot path.
+    pub fn set(&self, ticks: u64) {
+        if ticks.is_multiple_of(64) {
+            self.bar.set_position(ticks);
+            self.bar.set_message(format!("{:.1}", ticks as f64 * self.dt));
+        }
+    }
+
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}

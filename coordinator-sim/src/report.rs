@@ -1,0 +1,287 @@
+//! `report.html`: a self-contained page (no network needed) with the run's summary and the
+//! paper's figures for this run, built from the files of the run directory alone.
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::path::Path;
+
+use anyhow::{anyhow, Context, Result};
+use serde_json::Value;
+use tcpf_core::coord;
+use tcpf_core::mission::{self, Mission};
+
+use crate::plots::{bars, Chart, Series};
+
+/// At most this many points per line: enough for the eye, small enough for the page.
+const POINTS: usize = 1500;
+
+/// One vehicle's telemetry columns.
+#[derive(Default)]
+struct Track {
+    t: Vec<f64>,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    gamma: Vec<f64>,
+    v: Vec<f64>,
+    y_e: Vec<f64>,
+}
+
+fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
+    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or_else(|| anyhow!("{}: empty", file.display()))?
+        .split(',')
+        .collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .ok_or_else(|| anyhow!("{}: no column {name}", file.display()))
+    };
+    let (ct, cid, cx, cy, cg, cv, cye) = (
+        col("t")?,
+        col("id")?,
+        col("x")?,
+        col("y")?,
+        col("gamma")?,
+        col("v")?,
+        col("y_e")?,
+    );
+    let mut tracks: BTreeMap<u32, Track> = BTreeMap::new();
+    for (n, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let num = |c: usize| f.get(c).and_then(|s| s.parse::<f64>().ok());
+        let bad = || anyhow!("{}:{}: malformed row", file.display(), n + 2);
+        let id: u32 = f.get(cid).and_then(|s| s.parse().ok()).ok_or_else(bad)?;
+        let tr = tracks.entry(id).or_default();
+        tr.t.push(num(ct).ok_or_else(bad)?);
+        tr.x.push(num(cx).ok_or_else(bad)?);
+        tr.y.push(num(cy).ok_or_else(bad)?);
+        // A lost vehicle has no command columns: its γ stays where it was.
+        let last = |v: &Vec<f64>| v.last().copied().unwrap_or(0.0);
+        let (g, v, ye) = (
+            num(cg).unwrap_or(last(&tr.gamma)),
+            num(cv).unwrap_or(0.0),
+            num(cye).unwrap_or(f64::NAN),
+        );
+        tr.gamma.push(g);
+        tr.v.push(v);
+        tr.y_e.push(ye);
+    }
+    Ok(tracks)
+}
+
+fn every(n: usize) -> usize {
+    n.div_ceil(POINTS).max(1)
+}
+
+fn thin(xs: &[f64], ys: &[f64]) -> Vec<(f64, f64)> {
+    let step = every(xs.len());
+    xs.iter()
+        .zip(ys)
+        .step_by(step)
+        .map(|(a, b)| (*a, *b))
+        .filter(|p| p.1.is_finite())
+        .collect()
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+fn number(v: &Value, digits: usize) -> String {
+    v.as_f64().map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
+}
+
+/// Writes `report.html` into `dir` from its mission.toml, summary.json and telemetry.csv.
+pub fn write(dir: &Path) -> Result<()> {
+    let read = |name: &str| {
+        std::fs::read_to_string(dir.join(name)).with_context(|| format!("cannot read {}", dir.join(name).display()))
+    };
+    let mission_file = dir.join("mission.toml").display().to_string();
+    let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| anyhow!("{e}"))?;
+    let summary: Value = serde_json::from_str(&read("summary.json")?).context("summary.json")?;
+    let tracks = read_telemetry(&dir.join("telemetry.csv"))?;
+    let html = page(&mission, &summary, &tracks);
+    std::fs::write(dir.join("report.html"), html)
+        .with_context(|| format!("cannot write {}", dir.join("report.html").display()))
+}
+
+type Pairs = Vec<(u32, u32)>;
+
+/// Every pair of vehicles, and those that are linked.
+fn pairs(mission: &Mission, ids: &[u32]) -> (Pairs, Pairs) {
+    let all: Vec<(u32, u32)> = ids
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &a)| ids[k + 1..].iter().map(move |&b| (a, b)))
+        .collect();
+    let graph = coord::neighbours(mission);
+    let linked: Vec<(u32, u32)> = all
+        .iter()
+        .copied()
+        .filter(|(a, b)| graph.get(a).is_some_and(|n| n.contains(b)))
+        .collect();
+    (all, linked)
+}
+
+fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>) -> String {
+    let ids: Vec<u32> = tracks.keys().copied().collect();
+    let (all, linked) = pairs(mission, &ids);
+    let t_f = summary["t_f"].as_f64().unwrap_or(0.0);
+    let mut figures: Vec<(&str, String, String)> = Vec::new();
+
+    let mut paths = Chart::new("Paths, with time along them", "x (m)", "y (m)");
+    paths.equal_axes = true;
+    for (id, tr) in tracks {
+        paths.series.push(Series {
+            name: format!("vehicle {id}"),
+            points: thin(&tr.x, &tr.y),
+        });
+        let dt = tr.t.get(1).map_or(1.0, |t1| t1 - tr.t[0]).max(1e-9);
+        let stride = (10.0 / dt).round().max(1.0) as usize;
+        for k in (stride..tr.t.len()).step_by(stride) {
+            paths.labels.push((tr.x[k], tr.y[k], format!("{:.0}", tr.t[k])));
+        }
+    }
+    for v in &mission.vehicles {
+        paths.markers.push((v.start[0], v.start[1], format!("start {}", v.id)));
+        paths.markers.push((v.goal[0], v.goal[1], format!("goal {}", v.id)));
+    }
+    figures.push((
+        "paths",
+        "Paths (the paper's Fig. 4): labels give the time in s.".into(),
+        paths.svg(900, 600),
+    ));
+
+    let mut gaps = Chart::new("Coordination error |γi − γj|", "t (s)", "|γi − γj| (s)");
+    let shown = if linked.is_empty() { &all } else { &linked };
+    for (a, b) in shown {
+        let (ta, tb) = (&tracks[a], &tracks[b]);
+        let diff: Vec<f64> = ta.gamma.iter().zip(&tb.gamma).map(|(x, y)| (x - y).abs()).collect();
+        gaps.series.push(Series {
+            name: format!("{a}–{b}"),
+            points: thin(&ta.t, &diff),
+        });
+    }
+    let what = if linked.is_empty() {
+        "every pair (no links)"
+    } else {
+        "each linked pair"
+    };
+    figures.push((
+        "coordination",
+        format!("Coordination error for {what} (Fig. 5)."),
+        gaps.svg(900, 400),
+    ));
+
+    let mut distance = Chart::new("Distance between vehicles", "t (s)", "distance (m)");
+    for (a, b) in &all {
+        let (ta, tb) = (&tracks[a], &tracks[b]);
+        let d: Vec<f64> = (0..ta.t.len().min(tb.t.len()))
+            .map(|k| (ta.x[k] - tb.x[k]).hypot(ta.y[k] - tb.y[k]))
+            .collect();
+        distance.series.push(Series {
+            name: format!("{a}–{b}"),
+            points: thin(&ta.t, &d),
+        });
+    }
+    distance.levels.push((
+        mission.planner.clearance,
+        format!("clearance {} m", mission.planner.clearance),
+    ));
+    figures.push((
+        "distances",
+        "Pairwise distances with the clearance E (Fig. 6).".into(),
+        distance.svg(900, 400),
+    ));
+
+    let mut speeds = Chart::new("Speed through the water", "t (s)", "v (m/s)");
+    let mut cross = Chart::new("Cross-track error", "t (s)", "y_e (m)");
+    for (id, tr) in tracks {
+        speeds.series.push(Series {
+            name: format!("vehicle {id}"),
+            points: thin(&tr.t, &tr.v),
+        });
+        cross.series.push(Series {
+            name: format!("vehicle {id}"),
+            points: thin(&tr.t, &tr.y_e),
+        });
+    }
+    figures.push((
+        "speeds",
+        "Commanded speed through the water.".into(),
+        speeds.svg(900, 400),
+    ));
+    figures.push((
+        "cross-track",
+        "Cross-track error y_e in the path frame.".into(),
+        cross.svg(900, 400),
+    ));
+
+    let links = summary["links"].as_array().cloned().unwrap_or_default();
+    let names: Vec<String> = links.iter().map(|l| format!("{}→{}", l["from"], l["to"])).collect();
+    let count = |k: &str| links.iter().map(|l| l[k].as_f64().unwrap_or(0.0)).collect::<Vec<f64>>();
+    let link_chart = bars(
+        "Messages per directed link",
+        "messages",
+        &names,
+        &[("delivered", count("delivered")), ("dropped", count("dropped"))],
+        900,
+        350,
+    );
+    figures.push((
+        "links",
+        "Messages delivered and dropped on each directed link.".into(),
+        link_chart,
+    ));
+
+    let mut html = String::new();
+    let title = format!("tcpf run: {}", summary["mission"].as_str().unwrap_or("?"));
+    let _ = write!(
+        html,
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\n<style>body{{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}}table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:.25em .6em;text-align:right}}th{{background:#f4f4f4}}figure{{margin:1.5em 0}}figcaption{{color:#555;margin-top:.3em}}</style></head><body>\n<h1>{}</h1>\n",
+        escape(&title),
+        escape(&title)
+    );
+    let _ = writeln!(
+        html,
+        "<table id=\"summary\"><tr><th>seed</th><th>mode</th><th>clock</th><th>t_f (s)</th><th>ticks</th><th>completed</th><th>coordination error (s)</th><th>clearance (m)</th><th>wall time (s)</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table>",
+        summary["seed"],
+        escape(summary["mode"].as_str().unwrap_or("")),
+        escape(summary["clock"].as_str().unwrap_or("")),
+        number(&summary["t_f"], 3),
+        summary["ticks"],
+        summary["completed"],
+        number(&summary["max_coordination_error"], 3),
+        number(&summary["min_clearance"], 3),
+        number(&summary["wall_time_s"], 3),
+    );
+    html.push_str(
+        "<table id=\"vehicles\"><tr><th>vehicle</th><th>arrival (s)</th><th>arrival − t_f (s)</th><th>lost</th></tr>",
+    );
+    for v in summary["vehicles"].as_array().cloned().unwrap_or_default() {
+        let late = v["arrival_time"]
+            .as_f64()
+            .map_or("–".to_string(), |a| format!("{:+.3}", a - t_f));
+        let _ = write!(
+            html,
+            "<tr><td>{}</td><td>{}</td><td>{late}</td><td>{}</td></tr>",
+            v["id"],
+            number(&v["arrival_time"], 3),
+            v["lost"]
+        );
+    }
+    html.push_str("</table>\n");
+    for (id, caption, svg) in figures {
+        let _ = writeln!(
+            html,
+            "<figure class=\"plot\" id=\"{id}\">{svg}<figcaption>{}</figcaption></figure>",
+            escape(&caption)
+        );
+    }
+    html.push_str("</body></html>\n");
+    html
+}

@@ -1,0 +1,317 @@
+//! `tcpf sweep`: one mission over a grid of (value, seed), as in-process runs in parallel over
+//! the cores or as real fleets one after the other, summarised per value.
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use anyhow::{anyhow, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use tcpf_core::metrics::Results;
+use tcpf_core::mission::Mission;
+use tcpf_core::planner::{self, Plan};
+use tcpf_core::sim::Fleet;
+
+use crate::plots::{Chart, Series};
+use crate::rundir::RunDir;
+
+/// One run of the sweep: the mission with the swept key and the seed set.
+pub struct Job {
+    pub value: String,
+    pub seed: u64,
+    pub mission: Mission,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Row {
+    pub value: String,
+    pub seed: u64,
+    pub max_coordination_error: f64,
+    pub min_clearance: f64,
+    /// Last minus first arrival; `None` if a vehicle never arrived.
+    pub arrival_spread: Option<f64>,
+    /// Delivered over sent γ messages, all links; `None` without links.
+    pub delivered_fraction: Option<f64>,
+}
+
+impl Row {
+    pub fn new(value: &str, seed: u64, r: &Results) -> Row {
+        let arrivals: Option<Vec<f64>> = r.vehicles.iter().map(|v| v.arrival_time).collect();
+        let sent: u64 = r.links.iter().map(|l| l.sent).sum();
+        let delivered: u64 = r.links.iter().map(|l| l.delivered).sum();
+        Row {
+            value: value.to_string(),
+            seed,
+            max_coordination_error: r.max_coordination_error,
+            min_clearance: r.min_clearance,
+            arrival_spread: arrivals.map(|a| {
+                a.iter().copied().fold(f64::NEG_INFINITY, f64::max) - a.iter().copied().fold(f64::INFINITY, f64::min)
+            }),
+            delivered_fraction: (sent > 0).then(|| delivered as f64 / sent as f64),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Stats {
+    pub mean: f64,
+    pub std: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+impl Stats {
+    fn of(xs: &[f64]) -> Option<Stats> {
+        if xs.is_empty() {
+            return None;
+        }
+        let n = xs.len() as f64;
+        let mean = xs.iter().sum::<f64>() / n;
+        let var = if xs.len() > 1 {
+            xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)
+        } else {
+            0.0
+        };
+        Some(Stats {
+            mean,
+            std: var.sqrt(),
+            min: xs.iter().copied().fold(f64::INFINITY, f64::min),
+            max: xs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        })
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ValueSummary {
+    pub value: String,
+    pub runs: usize,
+    pub max_coordination_error: Option<Stats>,
+    pub min_clearance: Option<Stats>,
+    pub arrival_spread: Option<Stats>,
+    pub delivered_fraction: Option<Stats>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepSummary {
+    pub mission: String,
+    pub parameter: String,
+    pub seeds: u64,
+    pub mode: String,
+    pub values: Vec<ValueSummary>,
+}
+
+fn progress(total: usize) -> ProgressBar {
+    let bar = ProgressBar::new(total as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} runs {elapsed} (eta {eta})").expect("valid template"),
+    );
+    bar
+}
+
+/// Plans once per value (the plan does not depend on the seed).
+fn plans(jobs: &[Job]) -> Result<Vec<Plan>> {
+    let mut by_value: Vec<(String, Plan)> = Vec::new();
+    let mut out = Vec::with_capacity(jobs.len());
+    for job in jobs {
+        let plan = match by_value.iter().find(|(v, _)| *v == job.value) {
+            Some((_, p)) => p.clone(),
+            None => {
+                let p =
+                    planner::plan(&job.mission).map_err(|e| anyhow!("value {}: infeasible plan: {e}", job.value))?;
+                by_value.push((job.value.clone(), p.clone()));
+                p
+            }
+        };
+        out.push(plan);
+    }
+    Ok(out)
+}
+
+/// Every job in-process, spread over `threads` threads.
+pub fn run_in_process(jobs: &[Job], threads: usize) -> Result<Vec<Row>> {
+    let plans = plans(jobs)?;
+    let next = AtomicUsize::new(0);
+    let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; jobs.len()]);
+    let bar = progress(jobs.len());
+    std::thread::scope(|s| {
+        for _ in 0..threads.max(1) {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                let Some(job) = jobs.get(k) else { break };
+                let results = Fleet::new(&job.mission, &plans[k]).run(|_, _| {});
+                rows.lock().expect("no worker panics")[k] = Some(Row::new(&job.value, job.seed, &results));
+                bar.inc(1);
+            });
+        }
+    });
+    bar.finish_and_clear();
+    Ok(rows
+        .into_inner()
+        .expect("no worker panics")
+        .into_iter()
+        .map(|r| r.expect("every job ran"))
+        .collect())
+}
+
+/// Every job as a real fleet of processes, one after the other, each with its run directory.
+pub async fn run_processes(jobs: &[Job], out: &Path, exe: &Path) -> Result<Vec<Row>> {
+    let plans = plans(jobs)?;
+    let bar = progress(jobs.len());
+    let mut rows = Vec::with_capacity(jobs.len());
+    for (job, plan) in jobs.iter().zip(&plans) {
+        let name = format!("{}-seed{}", job.value.replace(['/', ' ', '"'], "_"), job.seed);
+        let dir = RunDir::create(Some(&out.join("runs").join(name)), &job.mission)?;
+        let summary = crate::launcher::run(&job.mission, plan, &dir, exe).await?;
+        rows.push(Row::new(&job.value, job.seed, &summary.results));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(rows)
+}
+
+pub fn summarise(mission: &str, parameter: &str, seeds: u64, mode: &str, rows: &[Row]) -> SweepSummary {
+    let mut values: Vec<String> = Vec::new();
+    for r in rows {
+        if !values.contains(&r.value) {
+            values.push(r.value.clone());
+        }
+    }
+    let values = values
+        .into_iter()
+        .map(|value| {
+            let these: Vec<&Row> = rows.iter().filter(|r| r.value == value).collect();
+            let pick = |f: &dyn Fn(&Row) -> Option<f64>| {
+                Stats::of(
+                    &these
+                        .iter()
+                        .filter_map(|r| f(r))
+                        .filter(|x| x.is_finite())
+                        .collect::<Vec<f64>>(),
+                )
+            };
+            ValueSummary {
+                runs: these.len(),
+                max_coordination_error: pick(&|r| Some(r.max_coordination_error)),
+                min_clearance: pick(&|r| Some(r.min_clearance)),
+                arrival_spread: pick(&|r| r.arrival_spread),
+                delivered_fraction: pick(&|r| r.delivered_fraction),
+                value,
+            }
+        })
+        .collect();
+    SweepSummary {
+        mission: mission.into(),
+        parameter: parameter.into(),
+        seeds,
+        mode: mode.into(),
+        values,
+    }
+}
+
+fn cell(x: Option<f64>) -> String {
+    x.map_or(String::new(), |x| x.to_string())
+}
+
+/// Writes sweep.csv, sweep.json, the two plots and sweep.html into `out`; returns the table.
+pub fn write(out: &Path, column: &str, rows: &[Row], summary: &SweepSummary) -> Result<String> {
+    std::fs::create_dir_all(out)?;
+    let mut csv = format!("{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction\n");
+    for r in rows {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{}",
+            r.value,
+            r.seed,
+            r.max_coordination_error,
+            r.min_clearance,
+            cell(r.arrival_spread),
+            cell(r.delivered_fraction)
+        );
+    }
+    std::fs::write(out.join("sweep.csv"), csv)?;
+    std::fs::write(out.join("sweep.json"), serde_json::to_string_pretty(summary)? + "\n")?;
+
+    let numeric: Option<Vec<f64>> = summary.values.iter().map(|v| v.value.parse::<f64>().ok()).collect();
+    let mut figures = String::new();
+    if let Some(xs) = numeric {
+        for (name, title, unit, pick) in [
+            (
+                "sweep-error.svg",
+                "Coordination error",
+                "max |γi − γj| (s)",
+                (|v: &ValueSummary| v.max_coordination_error) as fn(&ValueSummary) -> Option<Stats>,
+            ),
+            (
+                "sweep-clearance.svg",
+                "Clearance",
+                "min distance (m)",
+                |v: &ValueSummary| v.min_clearance,
+            ),
+        ] {
+            let points: Vec<(f64, Stats)> = xs
+                .iter()
+                .zip(&summary.values)
+                .filter_map(|(x, v)| pick(v).map(|s| (*x, s)))
+                .collect();
+            let mut chart = Chart::new(title, &summary.parameter, unit);
+            chart.bands.push((
+                "min–max".into(),
+                points.iter().map(|(x, s)| (*x, s.min, s.max)).collect(),
+            ));
+            chart.series.push(Series {
+                name: format!("mean over {} seeds", summary.seeds),
+                points: points.iter().map(|(x, s)| (*x, s.mean)).collect(),
+            });
+            let svg = chart.svg(800, 400);
+            std::fs::write(out.join(name), &svg)?;
+            figures.push_str(&format!(
+                "<figure class=\"plot\" id=\"{}\">{svg}</figure>\n",
+                name.trim_end_matches(".svg")
+            ));
+        }
+    }
+    let table = table(summary);
+    let html = format!(
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>tcpf sweep: {m}</title><style>body{{font-family:sans-serif;max-width:860px;margin:2em auto}}</style></head><body><h1>tcpf sweep: {m} over {p}</h1><pre>{t}</pre>{figures}</body></html>\n",
+        m = summary.mission,
+        p = summary.parameter,
+        t = table.replace('&', "&amp;").replace('<', "&lt;")
+    );
+    std::fs::write(out.join("sweep.html"), html)?;
+    Ok(table)
+}
+
+pub fn table(summary: &SweepSummary) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10}",
+        summary.parameter, "runs", "coordination error s", "clearance m", "spread s", "delivered"
+    );
+    let f = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3} ± {:.3}", s.mean, s.std));
+    let m = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3}", s.mean));
+    for v in &summary.values {
+        let _ = writeln!(
+            s,
+            "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10}",
+            v.value,
+            v.runs,
+            f(v.max_coordination_error),
+            f(v.min_clearance),
+            m(v.arrival_spread),
+            m(v.delivered_fraction)
+        );
+    }
+    s
+}
+
+/// Where a sweep writes by default.
+pub fn default_out(mission: &Mission) -> PathBuf {
+    PathBuf::from("runs").join(format!(
+        "{}-sweep-{}",
+        mission.mission.name,
+        chrono::Utc::now().format("%Y%m%d-%H%M%S")
+    ))
+}

@@ -1,0 +1,220 @@
+//! Experiments as users run them: sweeps, fault models in mission files, and reports that a real
+//! browser renders.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn tcpf(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(args)
+        .output()
+        .expect("tcpf runs")
+}
+
+fn config(name: &str) -> String {
+    format!("{}/configs/{name}.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tcpf-exp-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn ok(o: Output) -> Output {
+    assert!(
+        o.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+fn json(file: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap()
+}
+
+#[test]
+fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
+    let dir = scratch("sweep");
+    let out = dir.join("sweep");
+    ok(tcpf(&[
+        "sweep",
+        &config("paper/d-lossy"),
+        "--loss",
+        "0,0.5,0.9",
+        "--seeds",
+        "20",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    let summary = json(&out.join("sweep.json"));
+    let means: Vec<f64> = summary["values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["max_coordination_error"]["mean"].as_f64().unwrap())
+        .collect();
+    eprintln!("mean coordination error at loss 0, 0.5, 0.9: {means:?}");
+    assert!(means[0] < means[1] && means[1] < means[2], "{means:?}");
+    assert!((3.3..=4.3).contains(&means[2]), "SPEC §5 (d): {}", means[2]);
+    for plot in ["sweep-error.svg", "sweep-clearance.svg", "sweep.html"] {
+        assert!(out.join(plot).is_file(), "{plot}");
+    }
+
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "loss,seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction"
+    );
+    assert_eq!(rows.len(), 60);
+    // The json's mean is the csv's mean.
+    let at_09: Vec<f64> = rows
+        .iter()
+        .filter(|r| r[0] == "0.9")
+        .map(|r| r[2].parse().unwrap())
+        .collect();
+    assert!((at_09.iter().sum::<f64>() / 20.0 - means[2]).abs() < 1e-12);
+    // A row is the run of the same mission, loss and seed, to the bit.
+    for (loss, seed) in [("0.5", "3"), ("0.9", "17")] {
+        let row = rows.iter().find(|r| r[0] == loss && r[1] == seed).unwrap();
+        let run = dir.join(format!("run-{loss}-{seed}"));
+        ok(tcpf(&[
+            "run",
+            &config("paper/d-lossy"),
+            "--in-process",
+            "--set",
+            &format!("comms.loss={loss}"),
+            "--seed",
+            seed,
+            "--out",
+            run.to_str().unwrap(),
+        ]));
+        let s = json(&run.join("summary.json"));
+        assert_eq!(
+            row[2].parse::<f64>().unwrap(),
+            s["max_coordination_error"].as_f64().unwrap()
+        );
+        assert_eq!(row[3].parse::<f64>().unwrap(), s["min_clearance"].as_f64().unwrap());
+        let arrivals: Vec<f64> = s["vehicles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v["arrival_time"].as_f64().unwrap())
+            .collect();
+        assert_eq!(
+            row[4].parse::<f64>().unwrap(),
+            arrivals.iter().copied().fold(f64::MIN, f64::max) - arrivals.iter().copied().fold(f64::MAX, f64::min)
+        );
+    }
+}
+
+#[test]
+fn any_key_can_be_swept() {
+    let dir = scratch("param");
+    let o = ok(tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--param",
+        "comms.delay=0,1.0",
+        "--seeds",
+        "2",
+        "--out",
+        dir.to_str().unwrap(),
+    ]));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("comms.delay"));
+    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+    assert!(csv.starts_with("comms.delay,seed,"));
+    assert_eq!(csv.lines().count(), 1 + 4);
+    let o = tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--param",
+        "comms.dealy=0,1",
+        "--seeds",
+        "1",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "a typo in the swept key is bad input");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("comms.dealy"));
+}
+
+/// Debian's chromium, headless, as the machine's notes prescribe for a closed network.
+fn chromium(args: &[&str]) -> Output {
+    let profile = scratch("chromium-profile");
+    let exe = ["chromium", "/usr/bin/chromium"]
+        .into_iter()
+        .find(|c| Command::new(c).arg("--version").output().is_ok());
+    let exe = exe.expect("this test needs Debian's chromium: apt-get install chromium (.ci/run installs it)");
+    Command::new(exe)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            &format!("--user-data-dir={}", profile.display()),
+        ])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn the_report_renders_in_a_real_browser_with_every_plot() {
+    let dir = scratch("report");
+    let run = dir.join("run");
+    ok(tcpf(&[
+        "run",
+        &config("outage"),
+        "--in-process",
+        "--out",
+        run.to_str().unwrap(),
+    ]));
+    let page = format!("file://{}", run.join("report.html").display());
+    let dom = chromium(&["--dump-dom", &page]);
+    let dom = String::from_utf8_lossy(&dom.stdout).to_string();
+    for id in ["paths", "coordination", "distances", "speeds", "cross-track", "links"] {
+        let start = dom
+            .find(&format!("id=\"{id}\""))
+            .unwrap_or_else(|| panic!("figure {id} missing from the rendered page"));
+        let figure = &dom[start..start + dom[start..].find("</figure>").unwrap()];
+        assert!(figure.contains("<svg"), "{id}: no svg");
+        let marks = figure.matches("<polyline").count() + figure.matches("<rect").count();
+        assert!(marks > 2, "{id}: empty plot");
+    }
+    assert!(dom.contains("id=\"summary\""));
+    let shot = dir.join("report.png");
+    let o = chromium(&[
+        "--window-size=1000,2600",
+        &format!("--screenshot={}", shot.display()),
+        &page,
+    ]);
+    let size = std::fs::metadata(&shot).map(|m| m.len()).unwrap_or(0);
+    assert!(
+        size > 50_000,
+        "a screenshot with something on it ({size} bytes): {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    // `tcpf report` regenerates the same page from the recorded files.
+    let before = std::fs::read(run.join("report.html")).unwrap();
+    std::fs::remove_file(run.join("report.html")).unwrap();
+    ok(tcpf(&["report", run.to_str().unwrap()]));
+    assert_eq!(std::fs::read(run.join("report.html")).unwrap(), before);
+}
+
+#[test]
+fn contradictory_fault_settings_are_bad_input() {
+    let o = tcpf(&["plan", &config("outage"), "--set", "comms.delay=-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("comms.delay"));
+}
