@@ -122,6 +122,16 @@ enum Command {
         #[arg(long, default_value_t = 60.0)]
         startup_timeout: f64,
     },
+    /// Role: record a fleet started by hand (start its world with --recorders 1).
+    Record {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        /// Run directory (default runs/<mission>-<timestamp>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Role: the agent of one vehicle.
     Agent {
         #[command(flatten)]
@@ -196,6 +206,7 @@ fn main() -> ExitCode {
             .and_then(|rt| rt.block_on(bench::pong(&zenoh, count)).map_err(Failure::Failed))
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { mission, zenoh } => planner(&mission, &zenoh),
+        Command::Record { mission, zenoh, out } => record(&mission, &zenoh, out.as_deref()),
         Command::World {
             mission,
             zenoh,
@@ -429,4 +440,16 @@ fn sweep(
     print!("{table}");
     println!("sweep directory: {}", out.display());
     Ok(ExitCode::SUCCESS)
+}
+
+fn record(args: &MissionArgs, zenoh: &ZenohArgs, out: Option<&Path>) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let plan = solve(&mission, &args.file)?;
+    let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
+    let summary = runtime()?
+        .block_on(tcpf_coordinator::recording::record(&mission, &plan, &dir, zenoh))
+        .map_err(Failure::Failed)?;
+    print!("{}", table::summary(&summary));
+    println!("run directory: {}", dir.path.display());
+    Ok(code(summary.completed, summary.interrupted))
 }

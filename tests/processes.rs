@@ -370,3 +370,85 @@ async fn garbage_on_the_bus_is_counted_and_dropped() {
     );
     assert_same_run(&dir.join("p"), &dir.join("i"));
 }
+
+/// Children started by a test, killed when it ends whatever happens.
+struct Fleet(Vec<Child>);
+
+impl Drop for Fleet {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+#[test]
+fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
+    let dir = scratch("by-hand");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mission = paper("b-current");
+    let role = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    let mut fleet = Fleet(vec![role(&["planner", &mission, "-l", &endpoint])]);
+    fleet
+        .0
+        .push(role(&["world", &mission, "-e", &endpoint, "--recorders", "1"]));
+    fleet.0.push(role(&["agent", &mission, "--id", "2", "-e", &endpoint]));
+    fleet.0.push(role(&["agent", &mission, "--id", "1", "-e", &endpoint]));
+    let out = dir.join("p");
+    let record = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(record.status.success(), "{}", String::from_utf8_lossy(&record.stderr));
+    for child in &mut fleet.0 {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while child.try_wait().unwrap().is_none() {
+            assert!(Instant::now() < deadline, "a role did not exit after the end");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        assert!(child.wait().unwrap().success());
+    }
+    run_in_process(&mission, &dir.join("i"), &[]);
+    assert_same_run(&out, &dir.join("i"));
+}
+
+#[test]
+fn a_sweep_of_real_fleets_matches_the_in_process_sweep() {
+    let dir = scratch("sweep-processes");
+    let sweep = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "sweep",
+            "--loss",
+            "0,0.9",
+            "--seeds",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let mission = paper("d-lossy");
+        args.insert(1, &mission);
+        let o = Command::new(env!("CARGO_BIN_EXE_tcpf")).args(&args).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read_to_string(out.join("sweep.csv")).unwrap()
+    };
+    let processes = sweep(&["--processes"], &dir.join("p"));
+    assert_eq!(processes, sweep(&[], &dir.join("i")));
+    assert!(
+        dir.join("p/runs/0.9-seed1/report.html").is_file(),
+        "each fleet keeps its run directory"
+    );
+}

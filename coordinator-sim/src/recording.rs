@@ -132,3 +132,55 @@ impl Recording {
         self.telemetry.finish()
     }
 }
+
+/// `tcpf record`: records a fleet started elsewhere (start the world with `--recorders 1`) until
+/// the world's end or a signal, and writes the run directory.
+pub async fn record(
+    mission: &Mission,
+    plan: &tcpf_core::planner::Plan,
+    dir: &crate::rundir::RunDir,
+    zenoh: &tcpf_bus::session::ZenohArgs,
+) -> Result<crate::summary::Summary> {
+    use crate::summary::{Clock, Mode, Summary};
+    let mut shutdown = tcpf_bus::signals::Shutdown::new()?;
+    dir.write_mission(mission)?;
+    dir.write_plan(plan)?;
+    let session = zenoh.open().await?;
+    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry()?).await?;
+    let progress = crate::progress::Ticks::new(mission);
+    let started = Instant::now();
+    let interrupted = loop {
+        if recording.complete() {
+            break false;
+        }
+        tokio::select! {
+            r = recording.step() => {
+                r?;
+                progress.set(recording.ticks());
+            }
+            _ = shutdown.recv() => break true,
+        }
+    };
+    progress.finish();
+    let wall_time_s = started.elapsed().as_secs_f64();
+    let _ = session.close().await;
+    let results = recording.results();
+    let summary = Summary {
+        mission: mission.mission.name.clone(),
+        seed: mission.mission.seed,
+        mode: Mode::Processes,
+        clock: Clock::Lockstep,
+        completed: !interrupted && Summary::all_arrived(&results),
+        interrupted,
+        sim_time_s: results.ticks as f64 * mission.mission.control_period,
+        tick_wall_time_us: 1e6 * recording.tick_wall_time().unwrap_or(wall_time_s),
+        results,
+        wall_time_s,
+        rejected_messages: recording.rejected.total() + recording.exit_reports.iter().map(|r| r.rejected).sum::<u64>(),
+        children: Vec::new(),
+    };
+    recording.finish()?;
+    dir.write_summary(&summary)?;
+    crate::report::write(&dir.path)?;
+    Ok(summary)
+}
