@@ -1,33 +1,10 @@
 //! The `tcpf` binary as a user runs it: exit codes, error messages, the run directory.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 
-fn tcpf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(args)
-        .output()
-        .expect("tcpf runs")
-}
-
-fn paper(case: &str) -> String {
-    format!("{}/configs/paper/{case}.toml", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tcpf-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{paper, scratch, tcpf, text};
 
 #[test]
 fn plan_json_has_the_contract_fields() {

@@ -1,28 +1,13 @@
 //! Experiments as users run them: sweeps, fault models in mission files, and reports that a real
 //! browser renders.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use serde_json::Value;
 
-fn tcpf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(args)
-        .output()
-        .expect("tcpf runs")
-}
-
-fn config(name: &str) -> String {
-    format!("{}/configs/{name}.toml", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tcpf-exp-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::{config, scratch, tcpf};
 
 fn ok(o: Output) -> Output {
     assert!(

@@ -7,16 +7,8 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-fn paper(case: &str) -> String {
-    format!("{}/configs/paper/{case}.toml", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tcpf-proc-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::{paper, scratch};
 
 /// (pid, parent pid, state) of every process.
 fn processes() -> Vec<(u32, u32, char)> {

@@ -17,7 +17,7 @@ use tokio::process::{Child, Command};
 use crate::progress::Ticks;
 use crate::recording::Recording;
 use crate::rundir::RunDir;
-use crate::summary::{ChildSummary, Clock, Mode, Summary};
+use crate::summary::{ChildSummary, Summary};
 
 /// How long children get to exit by themselves after the end before they are killed.
 const GRACE: Duration = Duration::from_secs(3);
@@ -163,7 +163,6 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
     }
     let _ = session.close().await;
 
-    let results = recording.results();
     let report = |c: &Process| {
         recording
             .exit_reports
@@ -181,24 +180,15 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
             reported_pid: report(c).map(|r| r.pid),
         })
         .collect();
-    let rejected_messages = recording.rejected.total() + children.iter().filter_map(|c| c.rejected).sum::<u64>();
-    let summary = Summary {
-        mission: mission.mission.name.clone(),
-        seed: mission.mission.seed,
-        mode: Mode::Processes,
-        clock: Clock::Lockstep,
-        completed: matches!(outcome, Outcome::Completed) && Summary::all_arrived(&results),
-        interrupted: matches!(outcome, Outcome::Interrupted),
-        sim_time_s: results.ticks as f64 * mission.mission.control_period,
-        results,
+    let ended = matches!(outcome, Outcome::Completed);
+    let summary = recording.close(
+        mission,
+        dir,
+        ended,
+        matches!(outcome, Outcome::Interrupted),
         wall_time_s,
-        tick_wall_time_us: 1e6 * recording.tick_wall_time().unwrap_or(wall_time_s),
-        rejected_messages,
         children,
-    };
-    recording.finish()?;
-    dir.write_summary(&summary)?;
-    crate::report::write(&dir.path)?;
+    )?;
     match outcome {
         Outcome::Failed(why) => Err(anyhow!("{why} (run directory {})", dir.path.display())),
         _ => Ok(summary),

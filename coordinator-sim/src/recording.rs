@@ -15,7 +15,13 @@ use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
-use crate::rundir::Telemetry;
+use tcpf_bus::session::ZenohArgs;
+use tcpf_bus::signals::Shutdown;
+use tcpf_core::planner::Plan;
+
+use crate::progress::Ticks;
+use crate::rundir::{RunDir, Telemetry};
+use crate::summary::{ChildSummary, Clock, Mode, Summary};
 
 pub struct Recording {
     pub rejected: Rejected,
@@ -128,26 +134,48 @@ impl Recording {
         self.recorder.results()
     }
 
-    pub fn finish(self) -> Result<()> {
-        self.telemetry.finish()
+    /// Ends the recording: flushes telemetry.csv and writes summary.json and report.html.
+    /// `ended` says whether the run reached its end, `children` who ran it.
+    pub fn close(
+        self,
+        mission: &Mission,
+        dir: &RunDir,
+        ended: bool,
+        interrupted: bool,
+        wall_time_s: f64,
+        children: Vec<ChildSummary>,
+    ) -> Result<Summary> {
+        let results = self.results();
+        let summary = Summary {
+            mission: mission.mission.name.clone(),
+            seed: mission.mission.seed,
+            mode: Mode::Processes,
+            clock: Clock::Lockstep,
+            completed: ended && Summary::all_arrived(&results),
+            interrupted,
+            sim_time_s: results.ticks as f64 * mission.mission.control_period,
+            tick_wall_time_us: 1e6 * self.tick_wall_time().unwrap_or(wall_time_s),
+            results,
+            wall_time_s,
+            rejected_messages: self.rejected.total() + self.exit_reports.iter().map(|r| r.rejected).sum::<u64>(),
+            children,
+        };
+        self.telemetry.finish()?;
+        dir.write_summary(&summary)?;
+        crate::report::write(&dir.path)?;
+        Ok(summary)
     }
 }
 
 /// `tcpf record`: records a fleet started elsewhere (start the world with `--recorders 1`) until
 /// the world's end or a signal, and writes the run directory.
-pub async fn record(
-    mission: &Mission,
-    plan: &tcpf_core::planner::Plan,
-    dir: &crate::rundir::RunDir,
-    zenoh: &tcpf_bus::session::ZenohArgs,
-) -> Result<crate::summary::Summary> {
-    use crate::summary::{Clock, Mode, Summary};
-    let mut shutdown = tcpf_bus::signals::Shutdown::new()?;
+pub async fn record(mission: &Mission, plan: &Plan, dir: &RunDir, zenoh: &ZenohArgs) -> Result<Summary> {
+    let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
     let session = zenoh.open().await?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry()?).await?;
-    let progress = crate::progress::Ticks::new(mission);
+    let progress = Ticks::new(mission);
     let started = Instant::now();
     let interrupted = loop {
         if recording.complete() {
@@ -164,23 +192,5 @@ pub async fn record(
     progress.finish();
     let wall_time_s = started.elapsed().as_secs_f64();
     let _ = session.close().await;
-    let results = recording.results();
-    let summary = Summary {
-        mission: mission.mission.name.clone(),
-        seed: mission.mission.seed,
-        mode: Mode::Processes,
-        clock: Clock::Lockstep,
-        completed: !interrupted && Summary::all_arrived(&results),
-        interrupted,
-        sim_time_s: results.ticks as f64 * mission.mission.control_period,
-        tick_wall_time_us: 1e6 * recording.tick_wall_time().unwrap_or(wall_time_s),
-        results,
-        wall_time_s,
-        rejected_messages: recording.rejected.total() + recording.exit_reports.iter().map(|r| r.rejected).sum::<u64>(),
-        children: Vec::new(),
-    };
-    recording.finish()?;
-    dir.write_summary(&summary)?;
-    crate::report::write(&dir.path)?;
-    Ok(summary)
+    recording.close(mission, dir, !interrupted, interrupted, wall_time_s, Vec::new())
 }
