@@ -1,6 +1,8 @@
 //! A progress bar for long runs: simulated time and ticks per second, on stderr when it is a
 //! terminal; indicatif draws nothing otherwise.
 
+use std::cell::Cell;
+
 use indicatif::{ProgressBar, ProgressStyle};
 use tcpf_core::mission::Mission;
 use tcpf_core::sim::max_ticks;
@@ -8,6 +10,7 @@ use tcpf_core::sim::max_ticks;
 pub struct Ticks {
     bar: ProgressBar,
     dt: f64,
+    drawn: Cell<u64>,
 }
 
 impl Ticks {
@@ -19,12 +22,15 @@ impl Ticks {
         Ticks {
             bar,
             dt: mission.mission.control_period,
+            drawn: Cell::new(0),
         }
     }
 
-    /// Ticks so far; redraws at most every 64 ticks, which keeps it off the hot path.
+    /// Ticks so far; redraws once 64 more have passed (a recorder may complete several ticks at
+    /// once), which keeps it off the hot path.
     pub fn set(&self, ticks: u64) {
-        if ticks.is_multiple_of(64) {
+        if ticks >= self.drawn.get() + 64 {
+            self.drawn.set(ticks);
             self.bar.set_position(ticks);
             self.bar.set_message(format!("{:.1}", ticks as f64 * self.dt));
         }

@@ -191,28 +191,53 @@ fn golden_min(mut a: f64, mut b: f64, tol: f64, f: impl Fn(f64) -> f64) -> (f64,
         .fold((a, fa), |m, x| if x.1 < m.1 { x } else { m })
 }
 
-/// The minimum of `f` over [0, t_end]: sampled, then refined around the best sample.
-fn extreme(t_end: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
+/// Sampled values within this share of a bound are refined before feasibility is decided; the
+/// sampling error of a smooth path's extremes is far below it.
+const MARGIN: f64 = 0.05;
+
+/// The minimum of `f` over [0, t_end] from its samples at k·t_end/SAMPLES; refined around the
+/// best sample when `refine`. Returns (t, value).
+fn extreme(samples: &[f64], t_end: f64, refine: bool, f: impl Fn(f64) -> f64) -> (f64, f64) {
     let h = t_end / SAMPLES as f64;
-    let (k, _) = (0..=SAMPLES)
-        .map(|k| (k, f(k as f64 * h)))
-        .fold((0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m });
+    let (k, v) = samples
+        .iter()
+        .enumerate()
+        .fold((0, f64::INFINITY), |m, (k, &x)| if x < m.1 { (k, x) } else { m });
+    if !refine {
+        return (k as f64 * h, v);
+    }
     let lo = (k.saturating_sub(1)) as f64 * h;
     let hi = ((k + 1).min(SAMPLES)) as f64 * h;
     golden_min(lo, hi, 1e-9 * t_end.max(1.0), f)
 }
 
-fn evaluate(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64) -> Candidate {
+/// Whether a sampled value is close enough to its bound to need refining.
+fn near(value: f64, bound: f64) -> bool {
+    (value - bound).abs() <= MARGIN * bound.abs().max(1e-3)
+}
+
+/// Everything about one candidate t_f. With `exact`, every extreme is refined; without, only
+/// those near their bound, which decides feasibility alike at a fraction of the cost.
+fn evaluate(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64, exact: bool) -> Candidate {
+    let h = t_f / SAMPLES as f64;
     let mut violations = Vec::new();
     let mut plans = Vec::with_capacity(vehicles.len());
+    let mut positions = Vec::with_capacity(vehicles.len());
     let mut total = 0.0;
     for v in vehicles {
         let path = vehicle_path(v, t_f);
+        let points: Vec<_> = (0..=SAMPLES).map(|k| path.at(k as f64 * h)).collect();
         let speed = |t: f64| path.at(t).speed;
         let accel = |t: f64| path.at(t).second.norm();
-        let (t_min_speed, min_speed) = extreme(t_f, speed);
-        let (t_max_speed, neg_max_speed) = extreme(t_f, |t| -speed(t));
-        let (t_max_accel, neg_max_accel) = extreme(t_f, |t| -accel(t));
+        let speeds: Vec<f64> = points.iter().map(|p| p.speed).collect();
+        let slow = extreme(&speeds, t_f, false, speed);
+        let (t_min_speed, min_speed) = extreme(&speeds, t_f, exact || near(slow.1, config.v_min), speed);
+        let fast: Vec<f64> = speeds.iter().map(|s| -s).collect();
+        let quick = extreme(&fast, t_f, false, |t| -speed(t));
+        let (t_max_speed, neg_max_speed) = extreme(&fast, t_f, exact || near(-quick.1, config.v_max), |t| -speed(t));
+        let accels: Vec<f64> = points.iter().map(|p| -p.second.norm()).collect();
+        let hard = extreme(&accels, t_f, false, |t| -accel(t));
+        let (t_max_accel, neg_max_accel) = extreme(&accels, t_f, exact || near(-hard.1, config.a_max), |t| -accel(t));
         let (max_speed, max_accel) = (-neg_max_speed, -neg_max_accel);
         // eq. 20 and eq. 4
         if min_speed < config.v_min {
@@ -241,6 +266,7 @@ fn evaluate(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64) -> Can
         }
         let cost = cost(&path, config.cost);
         total += v.weight * cost;
+        positions.push(points.iter().map(|p| p.position).collect::<Vec<_>>());
         plans.push(VehiclePlan {
             id: v.id,
             weight: v.weight,
@@ -252,9 +278,17 @@ fn evaluate(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64) -> Can
         });
     }
     let mut closest: Option<Separation> = None;
-    for (i, a) in plans.iter().enumerate() {
-        for b in &plans[i + 1..] {
-            let (t, distance) = extreme(t_f, |t| (a.path.at(t).position - b.path.at(t).position).norm());
+    for i in 0..plans.len() {
+        for j in i + 1..plans.len() {
+            let (a, b) = (&plans[i], &plans[j]);
+            let gaps: Vec<f64> = positions[i]
+                .iter()
+                .zip(&positions[j])
+                .map(|(p, q)| (p - q).norm())
+                .collect();
+            let gap = |t: f64| (a.path.at(t).position - b.path.at(t).position).norm();
+            let sampled = extreme(&gaps, t_f, false, gap);
+            let (t, distance) = extreme(&gaps, t_f, exact || near(sampled.1, config.clearance), gap);
             if distance <= config.clearance {
                 violations.push(Violation {
                     constraint: Constraint::Clearance(a.id, b.id),
@@ -290,10 +324,10 @@ fn boundary_between(
     infeasible: f64,
 ) -> (f64, Candidate) {
     let (mut good, mut bad) = (feasible, infeasible);
-    let mut beyond = evaluate(config, vehicles, bad);
+    let mut beyond = evaluate(config, vehicles, bad, true);
     while (good - bad).abs() > TF_TOL {
         let mid = 0.5 * (good + bad);
-        let c = evaluate(config, vehicles, mid);
+        let c = evaluate(config, vehicles, mid, true);
         if c.feasible() {
             good = mid;
         } else {
@@ -304,6 +338,29 @@ fn boundary_between(
     (good, beyond)
 }
 
+/// Every grid point, spread over the cores; each candidate is computed on its own, so the result
+/// does not depend on how the grid is split.
+fn scan(config: &PlannerConfig, vehicles: &[VehicleConfig], grid: &[f64]) -> Vec<Candidate> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunk = grid.len().div_ceil(threads).max(1);
+    std::thread::scope(|s| {
+        let parts: Vec<_> = grid
+            .chunks(chunk)
+            .map(|part| {
+                s.spawn(move || {
+                    part.iter()
+                        .map(|&t| evaluate(config, vehicles, t, false))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        parts
+            .into_iter()
+            .flat_map(|p| p.join().expect("evaluation does not panic"))
+            .collect()
+    })
+}
+
 /// Solves eq. 19 for the mission's vehicles.
 pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
     let config = &mission.planner;
@@ -312,7 +369,7 @@ pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
     let grid: Vec<f64> = (0..=steps)
         .map(|k| (config.tf_min + k as f64 * GRID).min(config.tf_max))
         .collect();
-    let candidates: Vec<Candidate> = grid.iter().map(|&t| evaluate(config, vehicles, t)).collect();
+    let candidates = scan(config, vehicles, &grid);
     let Some(best) = (0..candidates.len())
         .filter(|&k| candidates[k].feasible())
         .min_by(|&a, &b| candidates[a].cost.total_cmp(&candidates[b].cost))
@@ -346,7 +403,7 @@ pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
     };
     let (lo, lo_active) = limit(best.checked_sub(1), "tf_min");
     let (hi, hi_active) = limit((best + 1 < grid.len()).then_some(best + 1), "tf_max");
-    let (t_f, _) = golden_min(lo, hi, TF_TOL, |t| evaluate(config, vehicles, t).cost);
+    let (t_f, _) = golden_min(lo, hi, TF_TOL, |t| evaluate(config, vehicles, t, false).cost);
     // An optimum within a few tolerances of a limit sits on it: the limit's constraint is active.
     for (edge, a) in [(lo, lo_active), (hi, hi_active)] {
         if let Some(a) = a {
@@ -355,7 +412,7 @@ pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
             }
         }
     }
-    let c = evaluate(config, vehicles, t_f);
+    let c = evaluate(config, vehicles, t_f, true);
     let c = if c.feasible() {
         c
     } else {
@@ -363,6 +420,7 @@ pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
             config,
             vehicles,
             if (t_f - lo).abs() < (t_f - hi).abs() { lo } else { hi },
+            true,
         )
     };
     Ok(Plan {
