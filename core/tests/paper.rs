@@ -156,3 +156,27 @@ fn same_seed_same_bits() {
     };
     assert_eq!(record(), record());
 }
+
+#[test]
+fn post_arrival_stop_freezes_each_vehicle_where_it_arrives() {
+    let m = load("c-uncoordinated", &["mission.post_arrival=\"stop\""]);
+    let plan = planner::plan(&m).unwrap();
+    let mut first: Vec<[f64; 2]> = Vec::new();
+    let r = Fleet::new(&m, &plan).run(|states, commands| {
+        if commands[0].unwrap().hold {
+            first.push(states[0].position);
+        }
+    });
+    let a = arrivals(&r);
+    assert!(a[1] - a[0] > 5.0, "vehicle 1 waits for vehicle 2: {a:?}");
+    assert!(first.len() > 500, "held for the rest of the run");
+    assert!(
+        first.windows(2).all(|w| w[0] == w[1]),
+        "not moved by the current or anything else"
+    );
+    let goal = plan.vehicles[0].path.goal;
+    assert!(
+        (first[0][0] - goal[0]).hypot(first[0][1] - goal[1]) < 0.5,
+        "stopped at its goal"
+    );
+}
