@@ -169,6 +169,13 @@ pub fn cost(path: &GeneralizedPath, kind: CostKind) -> f64 {
     sum * h / 3.0
 }
 
+/// Σ w_i J_i of eq. 19 alone, summed in the order `evaluate` sums it.
+fn fleet_cost(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64) -> f64 {
+    vehicles.iter().fold(0.0, |total, v| {
+        total + v.weight * cost(&vehicle_path(v, t_f), config.cost)
+    })
+}
+
 /// Golden-section search for the minimum of `f` on [a, b]; returns (argmin, min).
 fn golden_min(mut a: f64, mut b: f64, tol: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
     let r = (5f64.sqrt() - 1.0) / 2.0;
@@ -403,7 +410,7 @@ pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
     };
     let (lo, lo_active) = limit(best.checked_sub(1), "tf_min");
     let (hi, hi_active) = limit((best + 1 < grid.len()).then_some(best + 1), "tf_max");
-    let (t_f, _) = golden_min(lo, hi, TF_TOL, |t| evaluate(config, vehicles, t, false).cost);
+    let (t_f, _) = golden_min(lo, hi, TF_TOL, |t| fleet_cost(config, vehicles, t));
     // An optimum within a few tolerances of a limit sits on it: the limit's constraint is active.
     for (edge, a) in [(lo, lo_active), (hi, hi_active)] {
         if let Some(a) = a {
