@@ -3,7 +3,7 @@
 
 use serde::de::DeserializeOwned;
 use serde::Serialize;
-use tcpf_core::msg::Checked;
+use tcpf_core::msg::{Checked, Unusable};
 
 pub fn encode<T: Serialize>(message: &T) -> Vec<u8> {
     postcard::to_stdvec(message).expect("tcpf messages always encode")
@@ -23,8 +23,8 @@ pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid>
     }
     match message.usable() {
         Ok(()) => Ok(message),
-        Err("protocol version") => Err(Invalid::Version),
-        Err(_) => Err(Invalid::NonFinite),
+        Err(Unusable::Version) => Err(Invalid::Version),
+        Err(Unusable::NonFinite) => Err(Invalid::NonFinite),
     }
 }
 

@@ -71,16 +71,23 @@ pub struct PathMsg {
     pub path: GeneralizedPath,
 }
 
+/// Why a decoded message cannot be used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unusable {
+    Version,
+    NonFinite,
+}
+
 /// What a receiver checks before it uses a decoded message.
 pub trait Checked {
     fn version(&self) -> u16;
     fn numbers(&self) -> Vec<f64>;
 
-    fn usable(&self) -> Result<(), &'static str> {
+    fn usable(&self) -> Result<(), Unusable> {
         if self.version() != PROTOCOL_VERSION {
-            Err("protocol version")
+            Err(Unusable::Version)
         } else if !self.numbers().iter().all(|x| x.is_finite()) {
-            Err("non-finite number")
+            Err(Unusable::NonFinite)
         } else {
             Ok(())
         }
