@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use serde_json::Value;
 
 mod common;
-use common::{paper, scratch};
+use common::{config, paper, scratch};
 
 /// (pid, parent pid, state) of every process.
 fn processes() -> Vec<(u32, u32, char)> {
@@ -128,9 +128,11 @@ const METRICS: [&str; 6] = [
 ];
 
 fn assert_same_run(processes: &Path, in_process: &Path) {
-    let a = std::fs::read(processes.join("telemetry.csv")).unwrap();
-    let b = std::fs::read(in_process.join("telemetry.csv")).unwrap();
-    assert!(a == b, "telemetry.csv differs between processes and in-process");
+    for file in ["telemetry.csv", "messages.csv"] {
+        let a = std::fs::read(processes.join(file)).unwrap();
+        let b = std::fs::read(in_process.join(file)).unwrap();
+        assert!(a == b, "{file} differs between processes and in-process");
+    }
     let (sa, sb) = (summary(processes), summary(in_process));
     for key in METRICS {
         assert_eq!(sa[key], sb[key], "{key}");
@@ -169,6 +171,35 @@ fn processes_and_in_process_are_bit_identical() {
 }
 
 #[test]
+fn each_link_model_runs_the_same_as_processes() {
+    let ring5 = config("ring5");
+    for (name, mission, extra) in [
+        ("delay", paper("b-current"), &["--set", "comms.delay=2"][..]),
+        ("event", ring5.clone(), &["--set", "comms.trigger=\"event\""][..]),
+        ("tdma", ring5, &["--set", "comms.tdma_slot=1"][..]),
+        ("acoustic", config("acoustic"), &[][..]),
+    ] {
+        let dir = scratch(&format!("model-{name}"));
+        let mut launch = Launch::start(&mission, &dir.join("p"), extra);
+        assert!(launch.wait(Duration::from_secs(300)).success(), "{name}");
+        run_in_process(&mission, &dir.join("i"), extra);
+        assert_same_run(&dir.join("p"), &dir.join("i"));
+        let s = launch.summary();
+        let sent: Vec<u64> = s["vehicles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v["gamma_sent"].as_u64().unwrap())
+            .collect();
+        eprintln!(
+            "{name}: γ broadcasts per vehicle {sent:?}, error {}",
+            s["max_coordination_error"]
+        );
+        assert_none_left(&s);
+    }
+}
+
+#[test]
 fn every_role_runs_in_its_own_process() {
     let dir = scratch("pids");
     let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
@@ -200,7 +231,7 @@ fn every_role_runs_in_its_own_process() {
 
 #[test]
 fn a_ring_of_five_completes() {
-    let mission = format!("{}/configs/ring5.toml", env!("CARGO_MANIFEST_DIR"));
+    let mission = config("ring5");
     let dir = scratch("ring5");
     let mut launch = Launch::start(&mission, &dir.join("p"), &[]);
     assert!(launch.wait(Duration::from_secs(300)).success());
@@ -279,7 +310,7 @@ fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn garbage_on_the_bus_is_counted_and_dropped() {
-    use tcpf_core::msg::{Command as Cmd, Gamma, PROTOCOL_VERSION};
+    use tcpf_core::msg::{Command as Cmd, Gamma, Sample, PROTOCOL_VERSION};
     use zenoh::Wait;
 
     let dir = scratch("garbage");
@@ -324,7 +355,12 @@ async fn garbage_on_the_bus_is_counted_and_dropped() {
         version: PROTOCOL_VERSION,
         tick: 10,
         from: 1,
-        gamma: f64::NAN,
+        sample: Some(Sample {
+            t: 0.1,
+            gamma: f64::NAN,
+            gamma_dot: 1.0,
+            position: [0.0, 0.0],
+        }),
     };
     let payloads: Vec<Vec<u8>> = vec![
         b"\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff garbage".to_vec(),

@@ -31,7 +31,7 @@ pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tcpf_core::msg::{Gamma, State, PROTOCOL_VERSION};
+    use tcpf_core::msg::{Gamma, Sample, State, PROTOCOL_VERSION};
 
     fn state() -> State {
         State {
@@ -53,9 +53,25 @@ mod tests {
             version: PROTOCOL_VERSION,
             tick: 300,
             from: 2,
-            gamma: 1.5,
+            sample: Some(Sample {
+                t: 3.0,
+                gamma: 1.5,
+                gamma_dot: 1.0,
+                position: [2.0, -0.5],
+            }),
         };
-        assert_eq!(encode(&g), [0x01, 0xac, 0x02, 0x02, 0, 0, 0, 0, 0, 0, 0xf8, 0x3f]);
+        #[rustfmt::skip]
+        let bytes = [
+            0x02, 0xac, 0x02, 0x02, 0x01,
+            0, 0, 0, 0, 0, 0, 0x08, 0x40,
+            0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
+            0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
+            0, 0, 0, 0, 0, 0, 0x00, 0x40,
+            0, 0, 0, 0, 0, 0, 0xe0, 0xbf,
+        ];
+        assert_eq!(encode(&g), bytes);
+        let silent = Gamma { sample: None, ..g };
+        assert_eq!(encode(&silent), [0x02, 0xac, 0x02, 0x02, 0x00]);
     }
 
     #[test]
@@ -85,7 +101,12 @@ mod tests {
             version: PROTOCOL_VERSION,
             tick: 0,
             from: 1,
-            gamma: f64::INFINITY,
+            sample: Some(Sample {
+                t: 0.0,
+                gamma: f64::INFINITY,
+                gamma_dot: 1.0,
+                position: [0.0, 0.0],
+            }),
         };
         assert_eq!(decode::<Gamma>(&encode(&g)), Err(Invalid::NonFinite));
     }

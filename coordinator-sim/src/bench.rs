@@ -10,7 +10,7 @@ use anyhow::{anyhow, Context, Result};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::typed::{presence, subscribe, Outlet, Rejected};
-use tcpf_core::msg::{Gamma, PROTOCOL_VERSION};
+use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tokio::process::Command;
 
 const PING: &str = "tcpf/bench/ping";
@@ -21,7 +21,12 @@ fn probe(tick: u64) -> Gamma {
         version: PROTOCOL_VERSION,
         tick,
         from: 0,
-        gamma: tick as f64,
+        sample: Some(Sample {
+            t: tick as f64,
+            gamma: tick as f64,
+            gamma_dot: 1.0,
+            position: [0.0, 0.0],
+        }),
     }
 }
 

@@ -1,24 +1,47 @@
 //! The vehicle's controller as a state machine (DESIGN: sans-IO): measured state and neighbours' γ
-//! in, command and own γ out. Path following (SPEC §2) with time coordination (SPEC §3).
+//! in, command and own γ out. Path following (SPEC §2) with time coordination (SPEC §3), on links
+//! that lose, delay and ration messages (SPEC §6).
+
+use std::collections::VecDeque;
 
 use crate::coord;
 use crate::follow::{self, Gains};
-use std::collections::VecDeque;
-
 use crate::links::{Link, LinkSpec};
-use crate::mission::{Mission, PostArrival};
-use crate::msg::{Command, Gamma, Reception, State, PROTOCOL_VERSION};
+use crate::mission::{Mission, PostArrival, Trigger};
+use crate::msg::{Command, Gamma, Reception, Sample, State, PROTOCOL_VERSION};
 use crate::path::{GeneralizedPath, Vec2};
 
-/// An inbound link and the messages it delivered that are not yet usable (SPEC D12 with delay).
+/// An inbound link j→i and what it delivered.
 #[derive(Debug, Clone)]
 struct Inbound {
     link: Link,
-    /// Ticks from sending to use: the delay rounded up to whole communication periods, since γ
-    /// is only used at communication instants.
-    delay_ticks: u64,
-    /// (tick sent, γ_j) of delivered messages, oldest first.
-    delivered: VecDeque<(u64, f64)>,
+    /// Delivered samples still travelling: (tick from which usable, sample).
+    in_flight: VecDeque<(u64, Sample)>,
+    /// The newest sample that has arrived, and the tick it arrived.
+    latest: Option<(u64, Sample)>,
+}
+
+/// A shared acoustic medium (D21): the vehicle at `position` of the ascending ids sends only in
+/// slots position, position + n, position + 2n, …
+#[derive(Debug, Clone, Copy)]
+struct Tdma {
+    slot_ticks: u64,
+    vehicles: u64,
+    position: u64,
+}
+
+impl Tdma {
+    fn slot(&self, tick: u64) -> u64 {
+        tick / self.slot_ticks
+    }
+
+    fn is_mine(&self, tick: u64) -> bool {
+        self.slot(tick) % self.vehicles == self.position
+    }
+
+    fn cycle_ticks(&self) -> u64 {
+        self.slot_ticks * self.vehicles
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -26,24 +49,78 @@ pub struct Agent {
     id: u32,
     path: GeneralizedPath,
     gains: Gains,
+    /// k_c, capped by the largest delay when delay is compensated (D19).
     kc: f64,
     dt: f64,
     comm_every: u64,
     post_arrival: PostArrival,
+    compensate: bool,
+    trigger: Trigger,
+    threshold: f64,
+    heartbeat_ticks: u64,
+    tdma: Option<Tdma>,
+    /// Ticks for which an arrived sample stands for its sender: one period when every instant
+    /// brings a new one (D12's drop semantics), longer when senders may stay silent.
+    hold_ticks: u64,
     /// Inbound links j→i, ascending j.
     links: Vec<Inbound>,
     gamma: f64,
-    /// Σ_j (γ_i(t_k) − γ_j(t_k)) over the neighbours heard at the last instant t_k, held until
-    /// the next (D12); `None` when none was heard.
+    /// γ̇ over the last control period: the rate a sample carries.
+    gamma_dot: f64,
+    /// The last sample sent, and its tick: what the neighbours believe of γ_i (D20).
+    sent: Option<(u64, Sample)>,
+    /// Σ_j (γ_i(t_k) − γ̂_j(t_k)) over the neighbours heard at the last instant t_k, held until
+    /// the next (D12, D19); `None` when none was heard.
     sum: Option<f64>,
     stopped: bool,
+}
+
+/// What a sample says of its sender's γ at time t: predicted from its age and rate (D19), or
+/// taken as it was sent.
+fn estimate(sample: &Sample, t: f64, compensate: bool) -> f64 {
+    if compensate {
+        sample.gamma + sample.gamma_dot * (t - sample.t)
+    } else {
+        sample.gamma
+    }
 }
 
 impl Agent {
     /// The agent of vehicle `id`, at the start of its path (D15).
     pub fn new(mission: &Mission, id: u32, path: GeneralizedPath) -> Agent {
         let c = &mission.control;
-        let neighbours = coord::neighbours(mission).remove(&id).unwrap_or_default();
+        let k = &mission.comms;
+        let graph = coord::neighbours(mission);
+        let comm_every = mission.comm_every();
+        let whole_periods = |seconds: f64| (seconds / k.period - 1e-9).ceil().max(0.0) as u64 * comm_every;
+        let dt = mission.mission.control_period;
+        // The largest delay any link can impose, as the receivers will count it.
+        let max_delay = graph
+            .iter()
+            .flat_map(|(&to, from)| from.iter().map(move |&j| LinkSpec::of(mission, j, to).max_delay()))
+            .map(|d| whole_periods(d) as f64 * dt)
+            .fold(0.0, f64::max);
+        let kc = if c.delay_compensation {
+            coord::capped_gain(c.kc, coord::laplacian_max_eigenvalue(&graph), max_delay)
+        } else {
+            c.kc
+        };
+        let tdma = k.tdma_slot.map(|slot| Tdma {
+            slot_ticks: (slot / k.period).round() as u64 * comm_every,
+            vehicles: graph.len() as u64,
+            position: graph.keys().position(|&j| j == id).unwrap_or(0) as u64,
+        });
+        let heartbeat_ticks = whole_periods(k.heartbeat);
+        let silence = match k.trigger {
+            Trigger::Periodic => comm_every,
+            Trigger::Event => heartbeat_ticks,
+        };
+        let hold_ticks = match (k.trigger, tdma) {
+            (_, None) => silence,
+            (Trigger::Periodic, Some(t)) => t.cycle_ticks(),
+            (Trigger::Event, Some(t)) => silence + t.cycle_ticks(),
+        };
+        let neighbours = graph.get(&id).cloned().unwrap_or_default();
         Agent {
             id,
             path,
@@ -53,23 +130,28 @@ impl Agent {
                 k3: c.k3,
                 d1: c.d1,
             },
-            kc: c.kc,
-            dt: mission.mission.control_period,
-            comm_every: mission.comm_every(),
+            kc,
+            dt,
+            comm_every,
             post_arrival: mission.mission.post_arrival,
+            compensate: c.delay_compensation,
+            trigger: k.trigger,
+            threshold: k.threshold,
+            heartbeat_ticks,
+            tdma,
+            hold_ticks,
             links: neighbours
                 .iter()
-                .map(|&j| {
-                    let link = Link::new(mission.mission.seed, j, id, LinkSpec::of(mission, j, id));
-                    let periods = (link.delay() / mission.comms.period - 1e-9).ceil().max(0.0) as u64;
-                    Inbound {
-                        link,
-                        delay_ticks: periods * mission.comm_every(),
-                        delivered: VecDeque::new(),
-                    }
+                .map(|&j| Inbound {
+                    link: Link::new(mission.mission.seed, j, id, LinkSpec::of(mission, j, id)),
+                    in_flight: VecDeque::new(),
+                    latest: None,
                 })
                 .collect(),
             gamma: 0.0,
+            // On schedule, virtual time runs at the rate of time.
+            gamma_dot: 1.0,
+            sent: None,
             sum: None,
             stopped: false,
         }
@@ -95,41 +177,81 @@ impl Agent {
         !self.links.is_empty() && tick.is_multiple_of(self.comm_every)
     }
 
-    /// γ_i(t_k) for the neighbours, at a communication instant.
-    pub fn gamma_to_send(&self, tick: u64) -> Option<Gamma> {
-        self.is_comm_tick(tick).then_some(Gamma {
+    /// The coordination gain in use (k_c,eff of D19).
+    pub fn gain(&self) -> f64 {
+        self.kc
+    }
+
+    /// At a communication instant, what goes to the neighbours: a sample of γ_i if the trigger
+    /// fires (every instant when periodic; D20 when event-triggered; in its own slot only under
+    /// TDMA, D21), else a message without one. Call once per tick, before `step`.
+    pub fn broadcast(&mut self, state: &State) -> Option<Gamma> {
+        let tick = state.tick;
+        if !self.is_comm_tick(tick) {
+            return None;
+        }
+        let t = tick as f64 * self.dt;
+        let in_slot = self
+            .tdma
+            .is_none_or(|s| s.is_mine(tick) && self.sent.is_none_or(|(k, _)| s.slot(k) != s.slot(tick)));
+        let due = match (self.trigger, &self.sent) {
+            (Trigger::Periodic, _) | (Trigger::Event, None) => true,
+            (Trigger::Event, Some((k, last))) => {
+                tick - k >= self.heartbeat_ticks
+                    || (self.gamma - estimate(last, t, self.compensate)).abs() > self.threshold
+            }
+        };
+        let sample = (in_slot && due).then_some(Sample {
+            t,
+            gamma: self.gamma,
+            gamma_dot: self.gamma_dot,
+            position: state.position,
+        });
+        if let Some(s) = sample {
+            self.sent = Some((tick, s));
+        }
+        Some(Gamma {
             version: PROTOCOL_VERSION,
             tick,
             from: self.id,
-            gamma: self.gamma,
+            sample,
         })
     }
 
-    /// One control period: `inbox` holds the neighbours' γ of this tick (at a communication
-    /// instant; others are ignored). Returns the command to hold until the next tick.
+    /// One control period: `inbox` holds the neighbours' messages of this tick (at a
+    /// communication instant; others are ignored). Returns the command to hold until the next.
     pub fn step(&mut self, state: &State, inbox: &[Gamma]) -> Command {
         let tick = state.tick;
         let mut receptions = Vec::new();
         if self.is_comm_tick(tick) {
             let mut sum = None;
             let t = tick as f64 * self.dt;
+            let here = Vec2::from(state.position);
             for inbound in &mut self.links {
                 let from = inbound.link.from;
-                let message = inbox.iter().find(|m| m.from == from && m.tick == tick);
-                let delivered = inbound.link.transmit(t);
-                if let Some(m) = message {
+                let sample = inbox
+                    .iter()
+                    .find(|m| m.from == from && m.tick == tick)
+                    .and_then(|m| m.sample);
+                let distance = sample.map(|s| (Vec2::from(s.position) - here).norm());
+                let delivered = inbound.link.transmit(t, distance);
+                if let Some(s) = sample {
                     receptions.push(Reception { from, delivered });
                     if delivered {
-                        inbound.delivered.push_back((tick, m.gamma));
+                        let delay = inbound.link.spec().delay(distance.unwrap_or(0.0));
+                        let periods = (delay / (self.comm_every as f64 * self.dt) - 1e-9).ceil().max(0.0) as u64;
+                        inbound.in_flight.push_back((tick + periods * self.comm_every, s));
                     }
                 }
-                // The message of t_k − delay, if it got through, is what j is heard saying now.
-                let sent = tick.checked_sub(inbound.delay_ticks);
-                while inbound.delivered.front().is_some_and(|(k, _)| Some(*k) < sent) {
-                    inbound.delivered.pop_front();
+                // Delays differ by distance, so a later message may overtake an earlier one.
+                while let Some(n) = inbound.in_flight.iter().position(|(at, _)| *at <= tick) {
+                    let (at, s) = inbound.in_flight.remove(n).expect("found just now");
+                    if inbound.latest.is_none_or(|(_, l)| l.t < s.t) {
+                        inbound.latest = Some((at, s));
+                    }
                 }
-                if let Some(&(_, gamma_j)) = inbound.delivered.front().filter(|(k, _)| Some(*k) == sent) {
-                    *sum.get_or_insert(0.0) += self.gamma - gamma_j;
+                if let Some((_, s)) = inbound.latest.filter(|(at, _)| tick - at < self.hold_ticks) {
+                    *sum.get_or_insert(0.0) += self.gamma - estimate(&s, t, self.compensate);
                 }
             }
             self.sum = sum;
@@ -151,6 +273,7 @@ impl Agent {
             (law.v, law.r, law.gamma_dot)
         };
         self.gamma += self.dt * gamma_dot;
+        self.gamma_dot = gamma_dot;
         Command {
             version: PROTOCOL_VERSION,
             tick,

@@ -3,6 +3,8 @@
 
 use std::collections::BTreeMap;
 
+use nalgebra::DMatrix;
+
 use crate::follow::sat;
 use crate::mission::{Mission, Topology};
 
@@ -14,6 +16,29 @@ const COS_FLOOR: f64 = 1e-3;
 pub fn speed(v_d: f64, psi_e: f64, kc: f64, sum: Option<f64>) -> f64 {
     let correction = sum.map_or(1.0, |s| 1.0 - kc * sat(s));
     v_d / psi_e.cos().abs().max(COS_FLOOR) * correction
+}
+
+/// D19: the coordination gain capped by the largest delay d (s) and the graph, so that the loop
+/// keeps its phase margin: k_c,eff = min(k_c, 1 / (λ_max d)).
+pub fn capped_gain(kc: f64, lambda_max: f64, delay: f64) -> f64 {
+    if delay > 0.0 && lambda_max > 0.0 {
+        kc.min(1.0 / (lambda_max * delay))
+    } else {
+        kc
+    }
+}
+
+/// λ_max of the graph's Laplacian L = D − A: 2 for a pair, n for the complete graph of n.
+pub fn laplacian_max_eigenvalue(graph: &BTreeMap<u32, Vec<u32>>) -> f64 {
+    let ids: Vec<u32> = graph.keys().copied().collect();
+    let mut laplacian = DMatrix::<f64>::zeros(ids.len(), ids.len());
+    for (a, neighbours) in graph.values().enumerate() {
+        laplacian[(a, a)] = neighbours.len() as f64;
+        for b in neighbours.iter().filter_map(|j| ids.binary_search(j).ok()) {
+            laplacian[(a, b)] = -1.0;
+        }
+    }
+    laplacian.symmetric_eigenvalues().max()
 }
 
 /// Undirected communication graph: each vehicle's neighbours in ascending id order.
@@ -82,6 +107,29 @@ mod tests {
             text += &format!("[[vehicle]]\nid = {id}\nstart = [0.0, {id}.0]\nstart_velocity = [1.0, 0.0]\ngoal = [9.0, {id}.0]\ngoal_velocity = [1.0, 0.0]\n");
         }
         parse("g.toml", &text, &[]).unwrap()
+    }
+
+    #[test]
+    fn laplacian_spectra_of_the_usual_graphs() {
+        let lambda = |n, comms| laplacian_max_eigenvalue(&neighbours(&fleet(n, comms)));
+        assert!((lambda(2, "") - 2.0).abs() < 1e-12, "a pair");
+        assert!(
+            (lambda(3, "topology = \"line\"") - 3.0).abs() < 1e-12,
+            "a line of three"
+        );
+        assert!((lambda(6, "") - 6.0).abs() < 1e-12, "complete graph of six");
+        let ring5 = 2.0 - 2.0 * (4.0 * std::f64::consts::PI / 5.0).cos();
+        assert!((lambda(5, "topology = \"ring\"") - ring5).abs() < 1e-12, "ring of five");
+        assert_eq!(lambda(3, "edges = []"), 0.0, "no links");
+    }
+
+    #[test]
+    fn the_gain_is_capped_by_the_largest_delay_only_when_it_must_be() {
+        assert_eq!(capped_gain(0.5, 2.0, 0.0), 0.5);
+        assert_eq!(capped_gain(0.5, 2.0, 1.0), 0.5);
+        assert_eq!(capped_gain(0.5, 2.0, 2.0), 0.25);
+        assert_eq!(capped_gain(0.5, 3.0, 3.0), 1.0 / 9.0);
+        assert_eq!(capped_gain(0.5, 0.0, 3.0), 0.5, "nobody to couple with");
     }
 
     #[test]

@@ -1,5 +1,6 @@
-//! Link models (SPEC D12): each directed link j→i decides, at the receiver, whether the message of
-//! each communication instant is lost, from a random stream of its own. The stream is keyed by
+//! Link models (SPEC D12, D21): each directed link j→i decides, at the receiver, whether the
+//! message of each communication instant is lost and how long it travels, from a random stream of
+//! its own and the distance between the vehicles when it was sent. The stream is keyed by
 //! (mission seed, from, to) alone, so no other link and no ordering of events can change it.
 
 use rand_chacha::rand_core::{Rng, SeedableRng};
@@ -30,6 +31,11 @@ pub struct LinkSpec {
     pub delay: f64,
     /// [start, end) windows in which every message is lost.
     pub outages: Vec<(f64, f64)>,
+    /// Acoustic models (D21): nothing beyond `range` (m); loss rising linearly with distance to
+    /// `loss_at_range` at the range; propagation delay distance / `sound_speed`.
+    pub range: Option<f64>,
+    pub loss_at_range: f64,
+    pub sound_speed: Option<f64>,
 }
 
 impl LinkSpec {
@@ -56,7 +62,21 @@ impl LinkSpec {
                 .filter(|o| o.from.matches(from) && o.to.matches(to))
                 .map(|o| (o.start, o.end))
                 .collect(),
+            range: over.and_then(|o| o.range).or(c.range),
+            loss_at_range: over.and_then(|o| o.loss_at_range).unwrap_or(c.loss_at_range),
+            sound_speed: over.and_then(|o| o.sound_speed).or(c.sound_speed),
         }
+    }
+
+    /// s: how long a message sent across `distance` metres travels.
+    pub fn delay(&self, distance: f64) -> f64 {
+        self.delay + self.sound_speed.map_or(0.0, |c| distance / c)
+    }
+
+    /// s: the longest any message on this link travels (validation bounds the propagation delay
+    /// by the range).
+    pub fn max_delay(&self) -> f64 {
+        self.delay(self.range.unwrap_or(0.0))
     }
 }
 
@@ -85,8 +105,8 @@ impl Link {
         }
     }
 
-    pub fn delay(&self) -> f64 {
-        self.spec.delay
+    pub fn spec(&self) -> &LinkSpec {
+        &self.spec
     }
 
     fn uniform(&mut self) -> f64 {
@@ -94,9 +114,10 @@ impl Link {
     }
 
     /// Advances the link to the communication instant t and says whether a message sent then
-    /// gets through. Called once per instant whether or not a message arrived, and drawing the
-    /// same number of numbers every time, so that the stream stays aligned with time.
-    pub fn transmit(&mut self, t: f64) -> bool {
+    /// across `distance` (if one was sent) gets through. Called once per instant whether or not
+    /// a message was sent, and drawing the same number of numbers every time, so that the stream
+    /// stays aligned with time.
+    pub fn transmit(&mut self, t: f64, distance: Option<f64>) -> bool {
         let lost = match self.spec.loss {
             Loss::Bernoulli(p) => self.uniform() < p,
             Loss::Burst {
@@ -110,7 +131,15 @@ impl Link {
                 self.uniform() < if self.bad { loss_bad } else { loss_good }
             }
         };
-        !lost && !self.spec.outages.iter().any(|&(start, end)| start <= t && t < end)
+        // Only missions with a range draw for it, so that every other run keeps its stream.
+        let out_of_reach = match self.spec.range {
+            Some(range) => {
+                let u = self.uniform();
+                distance.is_some_and(|d| d > range || u < self.spec.loss_at_range * d / range)
+            }
+            None => false,
+        };
+        !lost && !out_of_reach && !self.spec.outages.iter().any(|&(start, end)| start <= t && t < end)
     }
 }
 
@@ -133,6 +162,9 @@ mod tests {
             loss: Loss::Bernoulli(p),
             delay: 0.0,
             outages: vec![],
+            range: None,
+            loss_at_range: 0.0,
+            sound_speed: None,
         }
     }
 
@@ -147,10 +179,13 @@ mod tests {
             },
             delay: 0.0,
             outages: vec![],
+            range: None,
+            loss_at_range: 0.0,
+            sound_speed: None,
         };
         let mut l = Link::new(5, 1, 2, spec);
         let n = 200_000;
-        let lost: Vec<bool> = (0..n).map(|_| !l.transmit(0.0)).collect();
+        let lost: Vec<bool> = (0..n).map(|_| !l.transmit(0.0, None)).collect();
         let rate = lost.iter().filter(|x| **x).count() as f64 / n as f64;
         assert!(
             (rate - 0.2).abs() < 0.01,
@@ -168,11 +203,11 @@ mod tests {
     fn an_outage_loses_everything_in_its_window_and_nothing_else() {
         let spec = LinkSpec {
             loss: Loss::Bernoulli(0.0),
-            delay: 0.0,
             outages: vec![(1.0, 2.0)],
+            ..bernoulli(0.0)
         };
         let mut l = Link::new(5, 1, 2, spec);
-        let got: Vec<bool> = (0..30).map(|k| l.transmit(k as f64 * 0.1)).collect();
+        let got: Vec<bool> = (0..30).map(|k| l.transmit(k as f64 * 0.1, None)).collect();
         assert!(got[..10].iter().all(|x| *x) && got[10..20].iter().all(|x| !*x) && got[20..].iter().all(|x| *x));
     }
 
@@ -180,7 +215,7 @@ mod tests {
     fn a_links_sequence_does_not_depend_on_other_links() {
         let alone: Vec<bool> = {
             let mut l = Link::new(3, 1, 2, bernoulli(0.5));
-            (0..1000).map(|_| l.transmit(0.0)).collect()
+            (0..1000).map(|_| l.transmit(0.0, None)).collect()
         };
         let mut links = [
             Link::new(3, 7, 2, bernoulli(0.5)),
@@ -190,7 +225,7 @@ mod tests {
         let mut interleaved = Vec::new();
         for _ in 0..1000 {
             for l in links.iter_mut() {
-                let d = l.transmit(0.0);
+                let d = l.transmit(0.0, None);
                 if (l.from, l.to) == (1, 2) {
                     interleaved.push(d);
                 }
@@ -198,7 +233,7 @@ mod tests {
         }
         assert_eq!(alone, interleaved);
         let mut reverse = Link::new(3, 2, 1, bernoulli(0.5));
-        let other: Vec<bool> = (0..1000).map(|_| reverse.transmit(0.0)).collect();
+        let other: Vec<bool> = (0..1000).map(|_| reverse.transmit(0.0, None)).collect();
         assert_ne!(alone, other, "each direction has its own stream");
     }
 
@@ -207,17 +242,36 @@ mod tests {
         for p in [0.0, 0.3, 0.9, 1.0] {
             let mut l = Link::new(11, 1, 2, bernoulli(p));
             let n = 100_000;
-            let lost = (0..n).filter(|_| !l.transmit(0.0)).count() as f64 / n as f64;
+            let lost = (0..n).filter(|_| !l.transmit(0.0, None)).count() as f64 / n as f64;
             assert!((lost - p).abs() < 0.01, "p={p} measured {lost}");
         }
+    }
+
+    #[test]
+    fn acoustic_loss_rises_with_distance_and_stops_at_the_range() {
+        let spec = LinkSpec {
+            range: Some(100.0),
+            loss_at_range: 0.6,
+            sound_speed: Some(1500.0),
+            ..bernoulli(0.0)
+        };
+        for (d, p) in [(0.0, 0.0), (50.0, 0.3), (100.0, 0.6), (100.5, 1.0), (400.0, 1.0)] {
+            let mut l = Link::new(7, 1, 2, spec.clone());
+            let n = 50_000;
+            let lost = (0..n).filter(|_| !l.transmit(0.0, Some(d))).count() as f64 / n as f64;
+            assert!((lost - p).abs() < 0.01, "at {d} m: loss {p} expected, measured {lost}");
+        }
+        assert_eq!(spec.delay(300.0), 0.2, "300 m at 1500 m/s");
+        assert_eq!(spec.max_delay(), 100.0 / 1500.0);
+        assert_eq!(LinkSpec { delay: 1.0, ..spec }.delay(150.0), 1.1);
     }
 
     #[test]
     fn seeds_change_the_stream() {
         let mut a = Link::new(1, 1, 2, bernoulli(0.5));
         let mut b = Link::new(2, 1, 2, bernoulli(0.5));
-        let sa: Vec<bool> = (0..64).map(|_| a.transmit(0.0)).collect();
-        let sb: Vec<bool> = (0..64).map(|_| b.transmit(0.0)).collect();
+        let sa: Vec<bool> = (0..64).map(|_| a.transmit(0.0, None)).collect();
+        let sb: Vec<bool> = (0..64).map(|_| b.transmit(0.0, None)).collect();
         assert_ne!(sa, sb);
     }
 }

@@ -167,7 +167,7 @@ impl AgentNode {
             return Err(Reject::WrongTick);
         }
         self.state = Some(state);
-        Ok(self.agent.gamma_to_send(state.tick))
+        Ok(self.agent.broadcast(&state))
     }
 
     pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {

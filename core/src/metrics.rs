@@ -14,6 +14,8 @@ pub struct VehicleSummary {
     /// First t with γ_i(t) ≥ t_f; `None` if it never arrived.
     pub arrival_time: Option<f64>,
     pub lost: bool,
+    /// γ messages this vehicle broadcast (one per instant, whatever the number of neighbours).
+    pub gamma_sent: u64,
 }
 
 /// What a run measured. `summary.json` is this plus how it ran.
@@ -45,6 +47,9 @@ pub struct Metrics {
     en_route: (f64, f64),
     to_last: (f64, f64),
     links: BTreeMap<(u32, u32), LinkStats>,
+    gamma_sent: Vec<u64>,
+    /// Per vehicle, the last tick at which a broadcast of it was counted.
+    sent_at: Vec<Option<u64>>,
 }
 
 /// max |γ_i − γ_j| and min |p_i − p_j| over all pairs.
@@ -76,6 +81,8 @@ impl Metrics {
             en_route: (0.0, f64::INFINITY),
             to_last: (0.0, f64::INFINITY),
             links: BTreeMap::new(),
+            gamma_sent: vec![0; ids.len()],
+            sent_at: vec![None; ids.len()],
         }
     }
 
@@ -141,6 +148,13 @@ impl Metrics {
                     dropped: 0,
                 });
                 s.sent += 1;
+                // Each neighbour reports the same broadcast: count it once.
+                if let Some(n) = self.ids.iter().position(|&i| i == r.from) {
+                    if self.sent_at[n] != Some(tick) {
+                        self.sent_at[n] = Some(tick);
+                        self.gamma_sent[n] += 1;
+                    }
+                }
                 if r.delivered {
                     s.delivered += 1;
                 } else {
@@ -168,7 +182,13 @@ impl Metrics {
                 .iter()
                 .zip(&self.arrivals)
                 .zip(&self.lost)
-                .map(|((&id, &arrival_time), &lost)| VehicleSummary { id, arrival_time, lost })
+                .zip(&self.gamma_sent)
+                .map(|(((&id, &arrival_time), &lost), &gamma_sent)| VehicleSummary {
+                    id,
+                    arrival_time,
+                    lost,
+                    gamma_sent,
+                })
                 .collect(),
             max_coordination_error: self.en_route.0,
             min_clearance: self.en_route.1,

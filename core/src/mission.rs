@@ -92,6 +92,9 @@ pub struct ControlConfig {
     pub d1: f64,
     pub kc: f64,
     pub coordination: bool,
+    /// Predict each neighbour's γ to the present from its message's age and rate, with the gain
+    /// capped by the largest delay (SPEC D19); false: the paper's law, which delay slows down.
+    pub delay_compensation: bool,
 }
 
 impl Default for ControlConfig {
@@ -104,6 +107,7 @@ impl Default for ControlConfig {
             d1: 1.0,
             kc: 0.5,
             coordination: true,
+            delay_compensation: true,
         }
     }
 }
@@ -146,6 +150,17 @@ pub enum Topology {
     Star,
 }
 
+/// When an agent sends γ (SPEC D20).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Trigger {
+    /// At every communication instant.
+    #[default]
+    Periodic,
+    /// When the neighbours' estimate of γ_i has drifted past `threshold`, or `heartbeat` is due.
+    Event,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CommsConfig {
@@ -165,9 +180,25 @@ pub struct CommsConfig {
     pub burst: Option<BurstConfig>,
     #[serde(rename = "outage", skip_serializing_if = "Vec::is_empty")]
     pub outages: Vec<OutageConfig>,
-    /// Per directed link overrides of `loss` and `delay`.
+    /// Per directed link overrides of `loss`, `delay` and the acoustic keys.
     #[serde(rename = "link", skip_serializing_if = "Vec::is_empty")]
     pub links: Vec<LinkOverride>,
+    pub trigger: Trigger,
+    /// δ, s of γ: the drift of the neighbours' estimate that makes an event-triggered agent send.
+    pub threshold: f64,
+    /// s: the longest an event-triggered agent stays silent.
+    pub heartbeat: f64,
+    /// m: beyond this distance at the sending instant nothing is delivered (D21).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range: Option<f64>,
+    /// Loss probability at `range`, rising linearly from 0 at zero distance, on top of any other.
+    pub loss_at_range: f64,
+    /// m/s: propagation delay distance / sound_speed, added to `delay`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sound_speed: Option<f64>,
+    /// s: a shared medium; vehicles send in turn, one slot each, in ascending id order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tdma_slot: Option<f64>,
 }
 
 /// Gilbert–Elliott loss: a two-state Markov chain per link, stepped once per communication
@@ -219,6 +250,12 @@ pub struct LinkOverride {
     pub loss: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub delay: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss_at_range: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sound_speed: Option<f64>,
 }
 
 impl Default for CommsConfig {
@@ -232,6 +269,14 @@ impl Default for CommsConfig {
             topology: None,
             edges: None,
             loss: 0.0,
+            // SPEC D20: with these case (b) sends 95 % fewer messages at the periodic error.
+            trigger: Trigger::Periodic,
+            threshold: 0.02,
+            heartbeat: 5.0,
+            range: None,
+            loss_at_range: 0.0,
+            sound_speed: None,
+            tdma_slot: None,
         }
     }
 }
@@ -653,6 +698,7 @@ impl Mission {
             check(v.weight > 0.0 && v.weight.is_finite(), vkey(i, "weight"), "must be > 0")?;
         }
         self.validate_faults()?;
+        self.validate_links()?;
         if let Some(edges) = &k.edges {
             for e in edges {
                 for id in e {
@@ -747,9 +793,13 @@ impl Mission {
                 format!("link {} → {} is overridden twice", l.from, l.to),
             )?;
             check(
-                l.loss.is_some() || l.delay.is_some(),
+                l.loss.is_some()
+                    || l.delay.is_some()
+                    || l.range.is_some()
+                    || l.loss_at_range.is_some()
+                    || l.sound_speed.is_some(),
                 item("link", i, "from"),
-                "overrides nothing: give `loss` or `delay`",
+                "overrides nothing: give `loss`, `delay`, `range`, `loss_at_range` or `sound_speed`",
             )?;
             if let Some(p) = l.loss {
                 probability(item("link", i, "loss"), p)?;
@@ -766,6 +816,73 @@ impl Mission {
                     "must be a finite number ≥ 0 (s)",
                 )?;
             }
+            self.validate_acoustic(
+                l.range.or(k.range),
+                l.loss_at_range.unwrap_or(k.loss_at_range),
+                l.sound_speed.or(k.sound_speed),
+                |name| item("link", i, name),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Event triggering (D20) and the acoustic models (D21).
+    fn validate_links(&self) -> Result<(), Invalid> {
+        let k = &self.comms;
+        check(
+            k.threshold >= 0.0 && k.threshold.is_finite(),
+            key("comms", "threshold"),
+            "must be a finite number ≥ 0 (s of γ)",
+        )?;
+        check(
+            k.heartbeat.is_finite() && k.heartbeat >= k.period,
+            key("comms", "heartbeat"),
+            format!("must be a finite number ≥ comms.period ({} s)", k.period),
+        )?;
+        self.validate_acoustic(k.range, k.loss_at_range, k.sound_speed, |name| key("comms", name))?;
+        if let Some(slot) = k.tdma_slot {
+            let ratio = slot / k.period;
+            check(
+                slot.is_finite() && ratio >= 1.0 - 1e-9 && (ratio - ratio.round()).abs() < 1e-6,
+                key("comms", "tdma_slot"),
+                format!("must be a whole multiple of comms.period ({} s)", k.period),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// One link's (or the fleet's) range, loss at range and sound speed.
+    fn validate_acoustic(
+        &self,
+        range: Option<f64>,
+        loss_at_range: f64,
+        sound_speed: Option<f64>,
+        path: impl Fn(&str) -> Vec<Seg>,
+    ) -> Result<(), Invalid> {
+        if let Some(r) = range {
+            check(
+                r > 0.0 && r.is_finite(),
+                path("range"),
+                "must be a finite number > 0 (m)",
+            )?;
+        }
+        probability(path("loss_at_range"), loss_at_range)?;
+        check(
+            loss_at_range == 0.0 || range.is_some(),
+            path("loss_at_range"),
+            "needs a `range`: the loss rises from 0 at zero distance to this at the range",
+        )?;
+        if let Some(c) = sound_speed {
+            check(
+                c > 0.0 && c.is_finite(),
+                path("sound_speed"),
+                "must be a finite number > 0 (m/s)",
+            )?;
+            check(
+                range.is_some(),
+                path("sound_speed"),
+                "needs a `range`: the largest propagation delay, range / sound_speed, caps the coordination gain (D19)",
+            )?;
         }
         Ok(())
     }

@@ -5,7 +5,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::path::GeneralizedPath;
 
-pub const PROTOCOL_VERSION: u16 = 1;
+/// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -54,13 +55,28 @@ pub struct Command {
     pub receptions: Vec<Reception>,
 }
 
-/// Agent → neighbours: γ_i(t_k) at a communication instant.
+/// What a sender knew of itself at the instant it sampled (SPEC D19): enough for a receiver to
+/// predict γ to its own time, and for the link to know how far the message travelled (D21).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// t_s, s: the instant γ and γ̇ were sampled.
+    pub t: f64,
+    pub gamma: f64,
+    /// γ̇ over the control period before t_s.
+    pub gamma_dot: f64,
+    /// The sender's position at t_s, inertial frame, m.
+    pub position: [f64; 2],
+}
+
+/// Agent → neighbours at a communication instant: γ_i(t_k), or `None` when the sender's trigger
+/// (event, TDMA slot) did not fire. The empty message exists for the lockstep clock only, so that
+/// a neighbour knows it need not wait; it is not a transmission and no link sees it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Gamma {
     pub version: u16,
     pub tick: u64,
     pub from: u32,
-    pub gamma: f64,
+    pub sample: Option<Sample>,
 }
 
 /// Planner → agent: the vehicle's generalized path.
@@ -135,7 +151,9 @@ impl Checked for Gamma {
         self.version
     }
     fn numbers(&self) -> Vec<f64> {
-        vec![self.gamma]
+        self.sample.map_or_else(Vec::new, |s| {
+            vec![s.t, s.gamma, s.gamma_dot, s.position[0], s.position[1]]
+        })
     }
 }
 

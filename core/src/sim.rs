@@ -31,11 +31,11 @@ impl Fleet {
     pub fn run(mut self, mut observe: impl FnMut(&[State], &[Option<&Command>])) -> Results {
         let mut inbox: Vec<Gamma> = Vec::with_capacity(self.agents.len());
         loop {
-            let tick = self.world.tick();
             inbox.clear();
-            inbox.extend(self.agents.iter().filter_map(|a| a.gamma_to_send(tick)));
-            for (agent, state) in self.agents.iter_mut().zip(self.world.states().to_vec()) {
-                let command = agent.step(&state, &inbox);
+            let states = self.world.states().to_vec();
+            inbox.extend(self.agents.iter_mut().zip(&states).filter_map(|(a, s)| a.broadcast(s)));
+            for (agent, state) in self.agents.iter_mut().zip(&states) {
+                let command = agent.step(state, &inbox);
                 self.world
                     .on_command(command)
                     .expect("in-process commands are always of this tick");
