@@ -55,7 +55,7 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert_eq!(
         csv.lines().next().unwrap(),
-        "loss,seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction"
+        "loss,seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s"
     );
     assert_eq!(rows.len(), 60);
     // The json's mean is the csv's mean.
@@ -130,6 +130,45 @@ fn any_key_can_be_swept() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("comms.dealy"));
 }
 
+#[test]
+fn a_threshold_sweep_shows_messages_traded_for_coordination() {
+    let dir = scratch("threshold");
+    let o = ok(tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--param",
+        "comms.threshold=0,0.02,0.5",
+        "--set",
+        "comms.trigger=event",
+        "--seeds",
+        "1",
+        "--out",
+        dir.to_str().unwrap(),
+    ]));
+    print!("{}", String::from_utf8_lossy(&o.stdout));
+    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let (error, rate) = (|r: &Vec<f64>| r[2], |r: &Vec<f64>| r[6]);
+    // δ = 0 sends at every instant (10 a second), as periodic sending does.
+    assert!((rate(&rows[0]) - 10.0).abs() < 0.01, "{}", rate(&rows[0]));
+    assert!(
+        rate(&rows[1]) < 0.1 * rate(&rows[0]),
+        "δ = 0.02 s cuts messages tenfold"
+    );
+    assert!(rate(&rows[2]) < rate(&rows[1]));
+    assert!(error(&rows[1]) < 1.05 * error(&rows[0]), "at the same error");
+    assert!(
+        error(&rows[2]) > 1.25 * error(&rows[0]),
+        "a coarse threshold costs coordination"
+    );
+    let plot = std::fs::read_to_string(dir.join("sweep-messages.svg")).unwrap();
+    assert!(plot.contains("broadcasts per vehicle per second"));
+}
+
 /// Debian's chromium, headless, as the machine's notes prescribe for a closed network.
 fn chromium(args: &[&str]) -> Output {
     let profile = scratch("chromium-profile");
@@ -168,13 +207,23 @@ fn the_report_renders_in_a_real_browser_with_every_plot() {
     let page = format!("file://{}", run.join("report.html").display());
     let dom = chromium(&["--dump-dom", &page]);
     let dom = String::from_utf8_lossy(&dom.stdout).to_string();
-    for id in ["paths", "coordination", "distances", "speeds", "cross-track", "links"] {
+    for id in [
+        "paths",
+        "coordination",
+        "distances",
+        "speeds",
+        "cross-track",
+        "links",
+        "messages",
+        "receptions",
+    ] {
         let start = dom
             .find(&format!("id=\"{id}\""))
             .unwrap_or_else(|| panic!("figure {id} missing from the rendered page"));
         let figure = &dom[start..start + dom[start..].find("</figure>").unwrap()];
         assert!(figure.contains("<svg"), "{id}: no svg");
-        let marks = figure.matches("<polyline").count() + figure.matches("<rect").count();
+        let marks =
+            figure.matches("<polyline").count() + figure.matches("<rect").count() + figure.matches("<circle").count();
         assert!(marks > 2, "{id}: empty plot");
     }
     assert!(dom.contains("id=\"summary\""));

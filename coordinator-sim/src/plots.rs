@@ -27,6 +27,8 @@ pub struct Chart<'a> {
     pub labels: Vec<(f64, f64, String)>,
     /// Marked points: (x, y, name), drawn as circles.
     pub markers: Vec<(f64, f64, String)>,
+    /// Named sets of points drawn as small dots, one colour each.
+    pub dots: Vec<Series>,
 }
 
 impl<'a> Chart<'a> {
@@ -41,6 +43,7 @@ impl<'a> Chart<'a> {
             equal_axes: false,
             labels: Vec::new(),
             markers: Vec::new(),
+            dots: Vec::new(),
         }
     }
 
@@ -49,14 +52,16 @@ impl<'a> Chart<'a> {
             .series
             .iter()
             .flat_map(|s| s.points.iter().map(|p| p.0))
-            .chain(self.bands.iter().flat_map(|b| b.1.iter().map(|p| p.0)));
+            .chain(self.bands.iter().flat_map(|b| b.1.iter().map(|p| p.0)))
+            .chain(self.dots.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
         let ys = self
             .series
             .iter()
             .flat_map(|s| s.points.iter().map(|p| p.1))
             .chain(self.levels.iter().map(|l| l.0))
             .chain(self.bands.iter().flat_map(|b| b.1.iter().flat_map(|p| [p.1, p.2])))
-            .chain(self.markers.iter().map(|m| m.1));
+            .chain(self.markers.iter().map(|m| m.1))
+            .chain(self.dots.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
         let range = |it: &mut dyn Iterator<Item = f64>| {
             let (lo, hi) = it
                 .filter(|v| v.is_finite())
@@ -139,6 +144,13 @@ impl<'a> Chart<'a> {
                 .label(s.name.clone())
                 .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], color.stroke_width(2)));
         }
+        for (k, s) in self.dots.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(s.points.iter().map(|&p| Circle::new(p, 2, color.filled())))?
+                .label(s.name.clone())
+                .legend(move |(a, b)| Circle::new((a + 8, b), 3, color.filled()));
+        }
         for (px, py, text) in &self.labels {
             chart.draw_series(std::iter::once(Circle::new((*px, *py), 2, BLACK.filled())))?;
             chart.draw_series(std::iter::once(Text::new(text.clone(), (*px, *py), ("sans-serif", 11))))?;
@@ -147,7 +159,7 @@ impl<'a> Chart<'a> {
             chart.draw_series(std::iter::once(Circle::new((*px, *py), 5, BLACK.stroke_width(2))))?;
             chart.draw_series(std::iter::once(Text::new(name.clone(), (*px, *py), ("sans-serif", 12))))?;
         }
-        if !self.series.is_empty() || !self.levels.is_empty() {
+        if !self.series.is_empty() || !self.levels.is_empty() || !self.dots.is_empty() {
             chart
                 .configure_series_labels()
                 .background_style(WHITE.mix(0.8))

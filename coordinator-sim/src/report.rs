@@ -73,6 +73,39 @@ fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
     Ok(tracks)
 }
 
+/// One γ message a link decided on (`messages.csv`).
+struct Message {
+    t: f64,
+    tick: u64,
+    from: u32,
+    to: u32,
+    delivered: bool,
+}
+
+/// `messages.csv`; a run directory from before it existed has none.
+fn read_messages(file: &Path) -> Result<Vec<Message>> {
+    if !file.exists() {
+        return Ok(Vec::new());
+    }
+    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
+    text.lines()
+        .enumerate()
+        .skip(1)
+        .map(|(n, line)| {
+            let f: Vec<&str> = line.split(',').collect();
+            let bad = || anyhow!("{}:{}: malformed row", file.display(), n + 1);
+            let field = |c: usize| f.get(c).copied().ok_or_else(bad);
+            Ok(Message {
+                tick: field(0)?.parse().map_err(|_| bad())?,
+                t: field(1)?.parse().map_err(|_| bad())?,
+                from: field(2)?.parse().map_err(|_| bad())?,
+                to: field(3)?.parse().map_err(|_| bad())?,
+                delivered: field(4)? == "1",
+            })
+        })
+        .collect()
+}
+
 fn every(n: usize) -> usize {
     n.div_ceil(POINTS).max(1)
 }
@@ -104,7 +137,8 @@ pub fn write(dir: &Path) -> Result<()> {
     let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| anyhow!("{e}"))?;
     let summary: Value = serde_json::from_str(&read("summary.json")?).context("summary.json")?;
     let tracks = read_telemetry(&dir.join("telemetry.csv"))?;
-    let html = page(&mission, &summary, &tracks);
+    let messages = read_messages(&dir.join("messages.csv"))?;
+    let html = page(&mission, &summary, &tracks, &messages);
     std::fs::write(dir.join("report.html"), html)
         .with_context(|| format!("cannot write {}", dir.join("report.html").display()))
 }
@@ -127,7 +161,73 @@ fn pairs(mission: &Mission, ids: &[u32]) -> (Pairs, Pairs) {
     (all, linked)
 }
 
-fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>) -> String {
+/// Broadcasts per vehicle over time, and every message of every link, delivered or lost.
+fn message_figures(messages: &[Message], figures: &mut Vec<(&str, String, String)>) {
+    if messages.is_empty() {
+        return;
+    }
+    let mut sent = Chart::new("γ messages sent", "t (s)", "broadcasts so far");
+    let mut senders: BTreeMap<u32, Vec<(f64, f64)>> = BTreeMap::new();
+    let mut last: BTreeMap<u32, u64> = BTreeMap::new();
+    for m in messages {
+        // Each neighbour's row is the same broadcast.
+        if last.insert(m.from, m.tick) != Some(m.tick) {
+            let points = senders.entry(m.from).or_default();
+            points.push((m.t, points.len() as f64 + 1.0));
+        }
+    }
+    for (id, points) in senders {
+        let stride = every(points.len());
+        let mut shown: Vec<(f64, f64)> = points.iter().step_by(stride).copied().collect();
+        // Thinned, the line still ends at the total.
+        if (points.len() - 1) % stride != 0 {
+            shown.extend(points.last());
+        }
+        sent.series.push(Series {
+            name: format!("vehicle {id}"),
+            points: shown,
+        });
+    }
+    figures.push((
+        "messages",
+        "γ messages each vehicle has broadcast so far: event triggering and TDMA show as flat stretches.".into(),
+        sent.svg(900, 400),
+    ));
+
+    let mut links: Vec<(u32, u32)> = messages.iter().map(|m| (m.from, m.to)).collect();
+    links.sort_unstable();
+    links.dedup();
+    let row = |m: &Message| links.iter().position(|l| *l == (m.from, m.to)).unwrap_or(0) as f64 + 1.0;
+    let stride = every(messages.len());
+    let mut marks = Chart::new("γ messages per directed link", "t (s)", "link");
+    for (name, delivered) in [("lost", false), ("delivered", true)] {
+        marks.dots.push(Series {
+            name: name.into(),
+            points: messages
+                .iter()
+                .step_by(stride)
+                .filter(|m| m.delivered == delivered)
+                .map(|m| (m.t, row(m)))
+                .collect(),
+        });
+    }
+    let t0 = messages[0].t;
+    for (k, (from, to)) in links.iter().enumerate() {
+        marks.labels.push((t0, k as f64 + 1.0, format!("{from}→{to}")));
+    }
+    let shown = if stride > 1 {
+        format!(" (one message in {stride} shown)")
+    } else {
+        String::new()
+    };
+    figures.push((
+        "receptions",
+        format!("Each γ message on each directed link, delivered or lost{shown}."),
+        marks.svg(900, 200 + 40 * links.len() as u32),
+    ));
+}
+
+fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messages: &[Message]) -> String {
     let ids: Vec<u32> = tracks.keys().copied().collect();
     let (all, linked) = pairs(mission, &ids);
     let t_f = summary["t_f"].as_f64().unwrap_or(0.0);
@@ -237,6 +337,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>) -> St
         "Messages delivered and dropped on each directed link.".into(),
         link_chart,
     ));
+    message_figures(messages, &mut figures);
 
     let mut html = String::new();
     let title = format!("tcpf run: {}", summary["mission"].as_str().unwrap_or("?"));

@@ -55,19 +55,25 @@ impl RunDir {
     }
 
     pub fn telemetry(&self) -> Result<Telemetry> {
-        let file = self.path.join("telemetry.csv");
-        let mut out = BufWriter::new(File::create(&file).with_context(|| format!("cannot write {}", file.display()))?);
-        out.write_all(telemetry::HEADER.as_bytes())?;
+        let create = |name: &str, header: &str| -> Result<BufWriter<File>> {
+            let file = self.path.join(name);
+            let mut out =
+                BufWriter::new(File::create(&file).with_context(|| format!("cannot write {}", file.display()))?);
+            out.write_all(header.as_bytes())?;
+            Ok(out)
+        };
         Ok(Telemetry {
-            out,
+            out: create("telemetry.csv", telemetry::HEADER)?,
+            messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
             line: String::new(),
         })
     }
 }
 
-/// `telemetry.csv`, written as the ticks come.
+/// `telemetry.csv` and `messages.csv`, written as the ticks come.
 pub struct Telemetry {
     out: BufWriter<File>,
+    messages: BufWriter<File>,
     line: String,
 }
 
@@ -78,11 +84,19 @@ impl Telemetry {
             telemetry::row(&mut self.line, s, *c);
         }
         self.out.write_all(self.line.as_bytes())?;
+        self.line.clear();
+        for (s, c) in states.iter().zip(commands) {
+            if let Some(c) = c {
+                telemetry::messages(&mut self.line, s, c);
+            }
+        }
+        self.messages.write_all(self.line.as_bytes())?;
         Ok(())
     }
 
     pub fn finish(mut self) -> Result<()> {
         self.out.flush()?;
+        self.messages.flush()?;
         Ok(())
     }
 }

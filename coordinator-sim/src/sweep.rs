@@ -34,10 +34,12 @@ pub struct Row {
     pub arrival_spread: Option<f64>,
     /// Delivered over sent γ messages, all links; `None` without links.
     pub delivered_fraction: Option<f64>,
+    /// γ broadcasts per vehicle per second of the run.
+    pub messages_per_vehicle_s: f64,
 }
 
 impl Row {
-    pub fn new(value: &str, seed: u64, r: &Results) -> Row {
+    pub fn new(value: &str, seed: u64, r: &Results, dt: f64) -> Row {
         let arrivals: Option<Vec<f64>> = r.vehicles.iter().map(|v| v.arrival_time).collect();
         let sent: u64 = r.links.iter().map(|l| l.sent).sum();
         let delivered: u64 = r.links.iter().map(|l| l.delivered).sum();
@@ -50,6 +52,8 @@ impl Row {
                 a.iter().copied().fold(f64::NEG_INFINITY, f64::max) - a.iter().copied().fold(f64::INFINITY, f64::min)
             }),
             delivered_fraction: (sent > 0).then(|| delivered as f64 / sent as f64),
+            messages_per_vehicle_s: r.vehicles.iter().map(|v| v.gamma_sent).sum::<u64>() as f64
+                / (r.vehicles.len() as f64 * r.ticks as f64 * dt),
         }
     }
 }
@@ -91,6 +95,7 @@ pub struct ValueSummary {
     pub min_clearance: Option<Stats>,
     pub arrival_spread: Option<Stats>,
     pub delivered_fraction: Option<Stats>,
+    pub messages_per_vehicle_s: Option<Stats>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -141,7 +146,12 @@ pub fn run_in_process(jobs: &[Job], threads: usize) -> Result<Vec<Row>> {
                 let k = next.fetch_add(1, Ordering::Relaxed);
                 let Some(job) = jobs.get(k) else { break };
                 let results = Fleet::new(&job.mission, &plans[k]).run(|_, _| {});
-                rows.lock().expect("no worker panics")[k] = Some(Row::new(&job.value, job.seed, &results));
+                rows.lock().expect("no worker panics")[k] = Some(Row::new(
+                    &job.value,
+                    job.seed,
+                    &results,
+                    job.mission.mission.control_period,
+                ));
                 bar.inc(1);
             });
         }
@@ -164,7 +174,12 @@ pub async fn run_processes(jobs: &[Job], out: &Path, exe: &Path) -> Result<Vec<R
         let name = format!("{}-seed{}", job.value.replace(['/', ' ', '"'], "_"), job.seed);
         let dir = RunDir::create(Some(&out.join("runs").join(name)), &job.mission)?;
         let summary = crate::launcher::run(&job.mission, plan, &dir, exe).await?;
-        rows.push(Row::new(&job.value, job.seed, &summary.results));
+        rows.push(Row::new(
+            &job.value,
+            job.seed,
+            &summary.results,
+            job.mission.mission.control_period,
+        ));
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -197,6 +212,7 @@ pub fn summarise(mission: &str, parameter: &str, seeds: u64, mode: &str, rows: &
                 min_clearance: pick(&|r| Some(r.min_clearance)),
                 arrival_spread: pick(&|r| r.arrival_spread),
                 delivered_fraction: pick(&|r| r.delivered_fraction),
+                messages_per_vehicle_s: pick(&|r| Some(r.messages_per_vehicle_s)),
                 value,
             }
         })
@@ -217,17 +233,20 @@ fn cell(x: Option<f64>) -> String {
 /// Writes sweep.csv, sweep.json, the two plots and sweep.html into `out`; returns the table.
 pub fn write(out: &Path, column: &str, rows: &[Row], summary: &SweepSummary) -> Result<String> {
     std::fs::create_dir_all(out)?;
-    let mut csv = format!("{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction\n");
+    let mut csv = format!(
+        "{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s\n"
+    );
     for r in rows {
         let _ = writeln!(
             csv,
-            "{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{}",
             r.value,
             r.seed,
             r.max_coordination_error,
             r.min_clearance,
             cell(r.arrival_spread),
-            cell(r.delivered_fraction)
+            cell(r.delivered_fraction),
+            r.messages_per_vehicle_s
         );
     }
     std::fs::write(out.join("sweep.csv"), csv)?;
@@ -248,6 +267,12 @@ pub fn write(out: &Path, column: &str, rows: &[Row], summary: &SweepSummary) -> 
                 "Clearance",
                 "min distance (m)",
                 |v: &ValueSummary| v.min_clearance,
+            ),
+            (
+                "sweep-messages.svg",
+                "γ messages",
+                "broadcasts per vehicle per second",
+                |v: &ValueSummary| v.messages_per_vehicle_s,
             ),
         ] {
             let points: Vec<(f64, Stats)> = xs
@@ -287,21 +312,22 @@ pub fn table(summary: &SweepSummary) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10}",
-        summary.parameter, "runs", "coordination error s", "clearance m", "spread s", "delivered"
+        "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10} {:>10}",
+        summary.parameter, "runs", "coordination error s", "clearance m", "spread s", "delivered", "msg/veh/s"
     );
     let f = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3} ± {:.3}", s.mean, s.std));
     let m = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3}", s.mean));
     for v in &summary.values {
         let _ = writeln!(
             s,
-            "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10}",
+            "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10} {:>10}",
             v.value,
             v.runs,
             f(v.max_coordination_error),
             f(v.min_clearance),
             m(v.arrival_spread),
-            m(v.delivered_fraction)
+            m(v.delivered_fraction),
+            m(v.messages_per_vehicle_s)
         );
     }
     s
