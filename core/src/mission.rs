@@ -697,8 +697,6 @@ impl Mission {
             }
             check(v.weight > 0.0 && v.weight.is_finite(), vkey(i, "weight"), "must be > 0")?;
         }
-        self.validate_faults()?;
-        self.validate_links()?;
         if let Some(edges) = &k.edges {
             for e in edges {
                 for id in e {
@@ -715,6 +713,10 @@ impl Mission {
                 )?;
             }
         }
+        // Fleet-wide link keys first, so that a bad one is not blamed on a link that inherits it.
+        // Both come after the edges, since link overrides are checked against the graph.
+        self.validate_links()?;
+        self.validate_faults()?;
         Ok(())
     }
 }
@@ -1030,6 +1032,60 @@ goal_velocity = [0.75, 0.0]
             parse("f.toml", &bad, &[]).unwrap_err().key.as_deref(),
             Some("comms.burst.loss_bda")
         );
+    }
+
+    #[test]
+    fn link_models_parse_and_bad_values_name_the_key() {
+        let links = "[comms]\ntrigger = \"event\"\nrange = 500.0\nloss_at_range = 0.4\nsound_speed = 1500.0\ntdma_slot = 1.0\n[[comms.link]]\nfrom = 2\nto = 1\nrange = 200.0\n";
+        let text = PAPER.replace("[[vehicle]]\nid = 1", &format!("{links}\n[[vehicle]]\nid = 1"));
+        let m = parse("l.toml", &text, &[]).unwrap();
+        assert_eq!(m.comms.trigger, Trigger::Event);
+        assert_eq!((m.comms.threshold, m.comms.heartbeat), (0.02, 5.0), "D20 defaults");
+        assert_eq!(m.comms.links[0].range, Some(200.0));
+        assert!(m.control.delay_compensation, "D19 is the default");
+        assert_eq!(
+            parse("r.toml", &toml::to_string(&m).unwrap(), &[]).unwrap(),
+            m,
+            "round trip"
+        );
+        for (set, key, says) in [
+            ("comms.heartbeat=0.05", "comms.heartbeat", "≥ comms.period"),
+            ("comms.threshold=-1", "comms.threshold", "≥ 0"),
+            ("comms.tdma_slot=0.25", "comms.tdma_slot", "whole multiple"),
+            ("comms.loss_at_range=1.5", "comms.loss_at_range", "probability"),
+            ("comms.sound_speed=0", "comms.sound_speed", "> 0"),
+            ("comms.trigger=sometimes", "comms.trigger", "unknown variant"),
+        ] {
+            let e = parse("l.toml", &text, &[set.into()]).unwrap_err();
+            assert_eq!(e.key.as_deref(), Some(key), "{set}: {e}");
+            assert!(e.to_string().contains(says), "{set}: {e}");
+        }
+        let no_range = text
+            .replace("range = 500.0\n", "")
+            .replace("range = 200.0\n", "delay = 0.5\n");
+        let e = parse("l.toml", &no_range, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.loss_at_range"), "{e}");
+        let e = parse("l.toml", &no_range, &["comms.loss_at_range=0".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.sound_speed"), "{e}");
+        assert!(e.to_string().contains("needs a `range`"), "{e}");
+        let link_only = text.replace("range = 500.0\n", "").replace("loss_at_range = 0.4\n", "");
+        let e = parse("l.toml", &link_only, &[]).unwrap_err();
+        assert_eq!(
+            e.key.as_deref(),
+            Some("comms.sound_speed"),
+            "a fleet-wide sound speed needs a fleet-wide range: {e}"
+        );
+    }
+
+    #[test]
+    fn an_edge_to_an_unknown_vehicle_is_an_error_even_with_link_overrides() {
+        let text = PAPER.replace(
+            "[[vehicle]]\nid = 1",
+            "[comms]\nedges = [[1, 9]]\n[[comms.link]]\nfrom = 2\nto = 1\ndelay = 1.0\n[[vehicle]]\nid = 1",
+        );
+        let e = parse("e.toml", &text, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.edges"), "{e}");
+        assert!(e.to_string().contains("names vehicle 9"), "{e}");
     }
 
     #[test]
