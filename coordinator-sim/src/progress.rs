@@ -5,7 +5,6 @@ use std::cell::Cell;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use tcpf_core::mission::Mission;
-use tcpf_core::sim::max_ticks;
 
 pub struct Ticks {
     bar: ProgressBar,
@@ -15,7 +14,7 @@ pub struct Ticks {
 
 impl Ticks {
     pub fn new(mission: &Mission) -> Ticks {
-        let bar = ProgressBar::new(max_ticks(mission));
+        let bar = ProgressBar::new(mission.max_ticks());
         bar.set_style(
             ProgressStyle::with_template("{bar:40} t = {msg} s  {per_sec} ticks  {elapsed}").expect("valid template"),
         );

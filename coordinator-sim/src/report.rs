@@ -7,7 +7,6 @@ use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
 use serde_json::Value;
-use tcpf_core::coord;
 use tcpf_core::mission::{self, Mission};
 
 use crate::plots::{bars, Chart, Series};
@@ -152,7 +151,7 @@ fn pairs(mission: &Mission, ids: &[u32]) -> (Pairs, Pairs) {
         .enumerate()
         .flat_map(|(k, &a)| ids[k + 1..].iter().map(move |&b| (a, b)))
         .collect();
-    let graph = coord::neighbours(mission);
+    let graph = mission.graph();
     let linked: Vec<(u32, u32)> = all
         .iter()
         .copied()

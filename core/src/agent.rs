@@ -90,7 +90,7 @@ impl Agent {
     pub fn new(mission: &Mission, id: u32, path: GeneralizedPath) -> Agent {
         let c = &mission.control;
         let k = &mission.comms;
-        let graph = coord::neighbours(mission);
+        let graph = mission.graph();
         let comm_every = mission.comm_every();
         let whole_periods = |seconds: f64| (seconds / k.period - 1e-9).ceil().max(0.0) as u64 * comm_every;
         let dt = mission.mission.control_period;

@@ -10,7 +10,6 @@ use crate::metrics::Metrics;
 use crate::mission::Mission;
 use crate::msg::{Command, End, Gamma, Lost, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
-use crate::sim::max_ticks;
 use crate::world::World;
 
 /// Why a well-formed message was not used.
@@ -39,7 +38,7 @@ impl WorldNode {
         WorldNode {
             states: world.states(),
             metrics: Metrics::new(&ids, t_f, mission.mission.control_period),
-            max_ticks: max_ticks(mission),
+            max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
             ids,
             world,

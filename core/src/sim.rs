@@ -8,11 +8,6 @@ use crate::mission::Mission;
 use crate::msg::{Command, Gamma, State};
 use crate::planner::Plan;
 
-/// The tick at which a run stops whether or not every vehicle arrived.
-pub fn max_ticks(mission: &Mission) -> u64 {
-    (mission.mission.max_duration / mission.mission.control_period).round() as u64
-}
-
 pub struct Fleet {
     world: WorldNode,
     agents: Vec<Agent>,

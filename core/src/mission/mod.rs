@@ -1,0 +1,592 @@
+//! The mission file: its types and how a file becomes a `Mission`. Every error names the file,
+//! the line and the key: `diagnostics` finds them, `overrides` applies `--set`, `validate`
+//! checks every value, `graph` builds the communication graph from the checked mission.
+
+mod diagnostics;
+mod graph;
+mod overrides;
+mod validate;
+
+use serde::{Deserialize, Serialize};
+use toml::de::DeTable;
+
+pub use diagnostics::MissionError;
+use diagnostics::{key_at, line_of, line_of_key, path_string};
+pub use graph::Graph;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mission {
+    pub mission: MissionSection,
+    #[serde(default)]
+    pub planner: PlannerConfig,
+    #[serde(default)]
+    pub control: ControlConfig,
+    #[serde(default)]
+    pub current: CurrentConfig,
+    #[serde(default)]
+    pub sideslip: SideslipConfig,
+    #[serde(default)]
+    pub comms: CommsConfig,
+    #[serde(rename = "vehicle")]
+    pub vehicles: Vec<VehicleConfig>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MissionSection {
+    pub name: String,
+    #[serde(default = "defaults::seed")]
+    pub seed: u64,
+    #[serde(default = "defaults::control_period")]
+    pub control_period: f64,
+    #[serde(default = "defaults::max_duration")]
+    pub max_duration: f64,
+    #[serde(default)]
+    pub post_arrival: PostArrival,
+}
+
+/// What a vehicle does once γ_i ≥ t_f (SPEC D11).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PostArrival {
+    #[default]
+    Continue,
+    Stop,
+}
+
+/// The cost J_i of eq. 19 (SPEC D4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CostKind {
+    #[default]
+    Printed,
+    Energy,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlannerConfig {
+    pub tf_min: f64,
+    pub tf_max: f64,
+    pub clearance: f64,
+    pub v_min: f64,
+    pub v_max: f64,
+    pub a_max: f64,
+    pub cost: CostKind,
+}
+
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        // SPEC D5 and the paper's interval.
+        PlannerConfig {
+            tf_min: 30.0,
+            tf_max: 60.0,
+            clearance: 1.0,
+            v_min: 0.1,
+            v_max: 1.0,
+            a_max: 0.1,
+            cost: CostKind::Printed,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControlConfig {
+    pub k1: f64,
+    pub k2: f64,
+    pub k3: f64,
+    pub d1: f64,
+    pub kc: f64,
+    pub coordination: bool,
+    /// Predict each neighbour's γ to the present from its message's age and rate, with the gain
+    /// capped by the largest delay (SPEC D19); false: the paper's law, which delay slows down.
+    pub delay_compensation: bool,
+}
+
+impl Default for ControlConfig {
+    fn default() -> Self {
+        // The gains of the paper's Sec. IV.
+        ControlConfig {
+            k1: 5.0,
+            k2: 1.0,
+            k3: 0.34,
+            d1: 1.0,
+            kc: 0.5,
+            coordination: true,
+            delay_compensation: true,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CurrentConfig {
+    /// m/s
+    pub speed: f64,
+    /// rad, inertial frame
+    pub direction: f64,
+}
+
+/// β(t) = amplitude · sin(2π t / period), the prescribed side-slip of SPEC D9.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SideslipConfig {
+    /// rad
+    pub amplitude: f64,
+    /// s
+    pub period: f64,
+}
+
+impl Default for SideslipConfig {
+    fn default() -> Self {
+        SideslipConfig {
+            amplitude: 0.0,
+            period: 10.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Topology {
+    #[default]
+    Complete,
+    Ring,
+    Line,
+    Star,
+}
+
+/// When an agent sends γ (SPEC D20).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Trigger {
+    /// At every communication instant.
+    #[default]
+    Periodic,
+    /// When the neighbours' estimate of γ_i has drifted past `threshold`, or `heartbeat` is due.
+    Event,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CommsConfig {
+    /// T_c, s
+    pub period: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub topology: Option<Topology>,
+    /// Explicit undirected edges, instead of `topology`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub edges: Option<Vec<[u32; 2]>>,
+    /// Probability that a message on a directed link is lost (Bernoulli).
+    pub loss: f64,
+    /// s: a message sent at t_k is usable from t_k + delay on.
+    pub delay: f64,
+    /// Bursty loss instead of `loss`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub burst: Option<BurstConfig>,
+    #[serde(rename = "outage", skip_serializing_if = "Vec::is_empty")]
+    pub outages: Vec<OutageConfig>,
+    /// Per directed link overrides of `loss`, `delay` and the acoustic keys.
+    #[serde(rename = "link", skip_serializing_if = "Vec::is_empty")]
+    pub links: Vec<LinkOverride>,
+    pub trigger: Trigger,
+    /// δ, s of γ: the drift of the neighbours' estimate that makes an event-triggered agent send.
+    pub threshold: f64,
+    /// s: the longest an event-triggered agent stays silent.
+    pub heartbeat: f64,
+    /// m: beyond this distance at the sending instant nothing is delivered (D21).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range: Option<f64>,
+    /// Loss probability at `range`, rising linearly from 0 at zero distance, on top of any other.
+    pub loss_at_range: f64,
+    /// m/s: propagation delay distance / sound_speed, added to `delay`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sound_speed: Option<f64>,
+    /// s: a shared medium; vehicles send in turn, one slot each, in ascending id order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tdma_slot: Option<f64>,
+}
+
+/// Gilbert–Elliott loss: a two-state Markov chain per link, stepped once per communication
+/// instant, each state with its own loss probability.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BurstConfig {
+    pub p_enter_bad: f64,
+    pub p_leave_bad: f64,
+    #[serde(default)]
+    pub loss_good: f64,
+    #[serde(default = "defaults::loss_bad")]
+    pub loss_bad: f64,
+}
+
+/// A vehicle id, or `"*"` for every vehicle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Endpoint {
+    Id(u32),
+    Any(String),
+}
+
+impl Endpoint {
+    pub fn matches(&self, id: u32) -> bool {
+        match self {
+            Endpoint::Id(i) => *i == id,
+            Endpoint::Any(_) => true,
+        }
+    }
+}
+
+/// Every message on the matching directed links sent in [start, end) is lost.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutageConfig {
+    pub from: Endpoint,
+    pub to: Endpoint,
+    pub start: f64,
+    pub end: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkOverride {
+    pub from: u32,
+    pub to: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delay: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss_at_range: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sound_speed: Option<f64>,
+}
+
+impl Default for CommsConfig {
+    fn default() -> Self {
+        CommsConfig {
+            period: 0.1,
+            delay: 0.0,
+            burst: None,
+            outages: Vec::new(),
+            links: Vec::new(),
+            topology: None,
+            edges: None,
+            loss: 0.0,
+            // SPEC D20: with these case (b) sends 95 % fewer messages at the periodic error.
+            trigger: Trigger::Periodic,
+            threshold: 0.02,
+            heartbeat: 5.0,
+            range: None,
+            loss_at_range: 0.0,
+            sound_speed: None,
+            tdma_slot: None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VehicleConfig {
+    pub id: u32,
+    pub start: [f64; 2],
+    pub start_velocity: [f64; 2],
+    pub goal: [f64; 2],
+    pub goal_velocity: [f64; 2],
+    #[serde(default)]
+    pub start_acceleration: [f64; 2],
+    #[serde(default)]
+    pub goal_acceleration: [f64; 2],
+    #[serde(default = "defaults::weight")]
+    pub weight: f64,
+    /// (x_e, y_e, ψ_e) at t = 0, in the path frame at the start (SPEC D15).
+    #[serde(default)]
+    pub initial_offset: [f64; 3],
+}
+
+mod defaults {
+    pub fn seed() -> u64 {
+        1
+    }
+    pub fn control_period() -> f64 {
+        0.01
+    }
+    pub fn max_duration() -> f64 {
+        120.0
+    }
+    pub fn weight() -> f64 {
+        1.0
+    }
+    pub fn loss_bad() -> f64 {
+        1.0
+    }
+}
+
+impl Mission {
+    /// Ticks per communication period T_c.
+    pub fn comm_every(&self) -> u64 {
+        (self.comms.period / self.mission.control_period).round() as u64
+    }
+
+    /// The tick at which a run stops whether or not every vehicle arrived.
+    pub fn max_ticks(&self) -> u64 {
+        (self.mission.max_duration / self.mission.control_period).round() as u64
+    }
+
+    /// The undirected communication graph: each vehicle's neighbours in ascending id order.
+    pub fn graph(&self) -> Graph {
+        graph::build(self)
+    }
+}
+
+/// Parses `text` (from `file`), applies `overrides` (`section.key=value`; `vehicle.<id>.key=value`
+/// for a vehicle) and validates the result.
+pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, MissionError> {
+    let err = |line, key: Option<String>, message: String| MissionError {
+        file: file.to_string(),
+        line,
+        key,
+        message,
+    };
+    let spanned = DeTable::parse(text).map_err(|e| {
+        let line = e.span().map(|s| line_of(text, s.start));
+        err(line, None, e.message().trim().to_string())
+    })?;
+    let table = spanned.get_ref();
+    let mission: Mission = toml::from_str(text).map_err(|e| {
+        let (line, key) = match e.span() {
+            Some(s) => {
+                let path = key_at(table, s.start);
+                (
+                    Some(line_of(text, s.start)),
+                    (!path.is_empty()).then(|| path_string(&path)),
+                )
+            }
+            None => (None, None),
+        };
+        err(line, key, e.message().trim().to_string())
+    })?;
+    let mission = if overrides.is_empty() {
+        mission
+    } else {
+        overrides::apply(file, text, overrides)?
+    };
+    mission.validate().map_err(|(path, message)| {
+        let key = path_string(&path);
+        match overrides.iter().find(|o| overrides::touches(o, &path, &mission)) {
+            Some(o) => err(None, Some(key), format!("{message} (from --set {o})")),
+            None => err(line_of_key(text, table, &path), Some(key), message),
+        }
+    })?;
+    Ok(mission)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PAPER: &str = r#"
+[mission]
+name = "paper-b-current"
+seed = 1
+
+[planner]
+tf_min = 30.0
+tf_max = 60.0
+
+[current]
+speed = 0.1
+direction = 3.141592653589793
+
+[[vehicle]]
+id = 1
+start = [0.0, 0.0]
+start_velocity = [0.5, 0.0]
+goal = [10.0, 10.0]
+goal_velocity = [0.75, 0.0]
+
+[[vehicle]]
+id = 2
+start = [0.0, 5.0]
+start_velocity = [0.5, 0.0]
+goal = [15.0, 10.0]
+goal_velocity = [0.75, 0.0]
+"#;
+
+    #[test]
+    fn parses_with_defaults() {
+        let m = parse("m.toml", PAPER, &[]).unwrap();
+        assert_eq!(m.mission.control_period, 0.01);
+        assert_eq!(m.control, ControlConfig::default());
+        assert_eq!(m.comms.period, 0.1);
+        assert_eq!(m.comm_every(), 10);
+        assert_eq!(m.vehicles.len(), 2);
+        assert_eq!(m.current.speed, 0.1);
+    }
+
+    #[test]
+    fn unknown_key_names_file_line_and_key() {
+        let text = PAPER.replace("tf_max = 60.0", "tf_mx = 60.0");
+        let e = parse("configs/x.toml", &text, &[]).unwrap_err();
+        assert_eq!(e.file, "configs/x.toml");
+        assert_eq!(e.line, Some(8));
+        assert_eq!(e.key.as_deref(), Some("planner.tf_mx"));
+        assert!(
+            e.to_string().starts_with("configs/x.toml:8: key `planner.tf_mx`"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn wrong_type_names_the_key() {
+        let text = PAPER.replace("speed = 0.1", "speed = \"fast\"");
+        let e = parse("x.toml", &text, &[]).unwrap_err();
+        assert_eq!(e.line, Some(11));
+        assert_eq!(e.key.as_deref(), Some("current.speed"));
+    }
+
+    #[test]
+    fn syntax_error_has_a_line() {
+        let text = PAPER.replace("seed = 1", "seed = = 1");
+        let e = parse("x.toml", &text, &[]).unwrap_err();
+        assert_eq!(e.line, Some(4));
+    }
+
+    #[test]
+    fn invalid_value_names_line_and_key() {
+        let text = PAPER.replace("goal_velocity = [0.75, 0.0]\n\n", "goal_velocity = [0.0, 0.0]\n\n");
+        let e = parse("x.toml", &text, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("vehicle[0].goal_velocity"));
+        assert_eq!(e.line, Some(19));
+    }
+
+    #[test]
+    fn overrides_apply_and_are_checked() {
+        let m = parse(
+            "x.toml",
+            PAPER,
+            &[
+                "comms.loss=0.9".into(),
+                "mission.name=other".into(),
+                "vehicle.2.weight=2".into(),
+            ],
+        )
+        .unwrap();
+        assert_eq!(m.comms.loss, 0.9);
+        assert_eq!(m.mission.name, "other");
+        assert_eq!(m.vehicles[1].weight, 2.0);
+        let e = parse("x.toml", PAPER, &["comms.los=0.9".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.los"));
+        let e = parse("x.toml", PAPER, &["comms.loss=1.5".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.loss"));
+        assert!(e.message.contains("--set comms.loss=1.5"), "{e}");
+    }
+
+    #[test]
+    fn comms_period_must_be_a_multiple_of_the_control_period() {
+        let e = parse("x.toml", PAPER, &["comms.period=0.015".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.period"));
+    }
+
+    #[test]
+    fn fault_models_parse_and_contradictions_name_the_key() {
+        let faults = "[comms]\ndelay = 0.3\n[comms.burst]\np_enter_bad = 0.05\np_leave_bad = 0.2\n[[comms.outage]]\nfrom = 1\nto = \"*\"\nstart = 10.0\nend = 30.0\n[[comms.link]]\nfrom = 2\nto = 1\ndelay = 1.0\n";
+        let text = PAPER.replace("[[vehicle]]\nid = 1", &format!("{faults}\n[[vehicle]]\nid = 1"));
+        let m = parse("f.toml", &text, &[]).unwrap();
+        assert_eq!(m.comms.burst.as_ref().unwrap().loss_bad, 1.0);
+        assert_eq!(m.comms.outages[0].to, Endpoint::Any("*".into()));
+        assert_eq!(m.comms.links[0].delay, Some(1.0));
+        assert_eq!(
+            parse("r.toml", &toml::to_string(&m).unwrap(), &[]).unwrap(),
+            m,
+            "round trip"
+        );
+
+        let e = parse("f.toml", &text, &["comms.loss=0.5".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.loss"), "{e}");
+        let bad = text.replace("to = \"*\"", "to = \"all\"");
+        let e = parse("f.toml", &bad, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.outage[0].to"), "{e}");
+        assert!(e.line.is_some());
+        let bad = text.replace("end = 30.0", "end = 5.0");
+        assert_eq!(
+            parse("f.toml", &bad, &[]).unwrap_err().key.as_deref(),
+            Some("comms.outage[0].end")
+        );
+        let bad = text.replace("from = 2\nto = 1", "from = 2\nto = 2");
+        assert_eq!(
+            parse("f.toml", &bad, &[]).unwrap_err().key.as_deref(),
+            Some("comms.link[0].from")
+        );
+        let bad = text.replace("p_leave_bad = 0.2", "p_leave_bad = 0.2\nloss_bda = 1.0");
+        assert_eq!(
+            parse("f.toml", &bad, &[]).unwrap_err().key.as_deref(),
+            Some("comms.burst.loss_bda")
+        );
+    }
+
+    #[test]
+    fn link_models_parse_and_bad_values_name_the_key() {
+        let links = "[comms]\ntrigger = \"event\"\nrange = 500.0\nloss_at_range = 0.4\nsound_speed = 1500.0\ntdma_slot = 1.0\n[[comms.link]]\nfrom = 2\nto = 1\nrange = 200.0\n";
+        let text = PAPER.replace("[[vehicle]]\nid = 1", &format!("{links}\n[[vehicle]]\nid = 1"));
+        let m = parse("l.toml", &text, &[]).unwrap();
+        assert_eq!(m.comms.trigger, Trigger::Event);
+        assert_eq!((m.comms.threshold, m.comms.heartbeat), (0.02, 5.0), "D20 defaults");
+        assert_eq!(m.comms.links[0].range, Some(200.0));
+        assert!(m.control.delay_compensation, "D19 is the default");
+        assert_eq!(
+            parse("r.toml", &toml::to_string(&m).unwrap(), &[]).unwrap(),
+            m,
+            "round trip"
+        );
+        for (set, key, says) in [
+            ("comms.heartbeat=0.05", "comms.heartbeat", "≥ comms.period"),
+            ("comms.threshold=-1", "comms.threshold", "≥ 0"),
+            ("comms.tdma_slot=0.25", "comms.tdma_slot", "whole multiple"),
+            ("comms.loss_at_range=1.5", "comms.loss_at_range", "probability"),
+            ("comms.sound_speed=0", "comms.sound_speed", "> 0"),
+            ("comms.trigger=sometimes", "comms.trigger", "unknown variant"),
+        ] {
+            let e = parse("l.toml", &text, &[set.into()]).unwrap_err();
+            assert_eq!(e.key.as_deref(), Some(key), "{set}: {e}");
+            assert!(e.to_string().contains(says), "{set}: {e}");
+        }
+        let no_range = text
+            .replace("range = 500.0\n", "")
+            .replace("range = 200.0\n", "delay = 0.5\n");
+        let e = parse("l.toml", &no_range, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.loss_at_range"), "{e}");
+        let e = parse("l.toml", &no_range, &["comms.loss_at_range=0".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.sound_speed"), "{e}");
+        assert!(e.to_string().contains("needs a `range`"), "{e}");
+        let link_only = text.replace("range = 500.0\n", "").replace("loss_at_range = 0.4\n", "");
+        let e = parse("l.toml", &link_only, &[]).unwrap_err();
+        assert_eq!(
+            e.key.as_deref(),
+            Some("comms.sound_speed"),
+            "a fleet-wide sound speed needs a fleet-wide range: {e}"
+        );
+    }
+
+    #[test]
+    fn an_edge_to_an_unknown_vehicle_is_an_error_even_with_link_overrides() {
+        let text = PAPER.replace(
+            "[[vehicle]]\nid = 1",
+            "[comms]\nedges = [[1, 9]]\n[[comms.link]]\nfrom = 2\nto = 1\ndelay = 1.0\n[[vehicle]]\nid = 1",
+        );
+        let e = parse("e.toml", &text, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.edges"), "{e}");
+        assert!(e.to_string().contains("names vehicle 9"), "{e}");
+    }
+
+    #[test]
+    fn resolved_mission_round_trips() {
+        let m = parse("x.toml", PAPER, &["comms.topology=\"ring\"".into()]).unwrap();
+        let text = toml::to_string(&m).unwrap();
+        assert_eq!(parse("resolved.toml", &text, &[]).unwrap(), m);
+    }
+}

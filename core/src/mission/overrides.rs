@@ -1,0 +1,67 @@
+//! `--set section.key=value` (and `vehicle.<id>.key=value`) applied to a parsed mission file.
+
+use super::diagnostics::Seg;
+use super::{Mission, MissionError};
+
+/// Whether the override `o` set the key at `path`, so that an error there names it.
+pub(super) fn touches(o: &str, path: &[Seg], mission: &Mission) -> bool {
+    let Some((key, _)) = o.split_once('=') else {
+        return false;
+    };
+    let parts: Vec<&str> = key.trim().split('.').collect();
+    match (parts.as_slice(), path) {
+        (["vehicle", id, k], [Seg::Key(v), Seg::Index(i), Seg::Key(pk)]) if v == "vehicle" => {
+            mission.vehicles.get(*i).is_some_and(|veh| id.parse() == Ok(veh.id)) && k == pk
+        }
+        ([s, k], [Seg::Key(ps), Seg::Key(pk), ..]) => s == ps && k == pk,
+        _ => false,
+    }
+}
+
+pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Mission, MissionError> {
+    let mut root: toml::Table = toml::from_str(text).expect("the file parsed once already");
+    for o in overrides {
+        let bad = |message: String| MissionError {
+            file: file.to_string(),
+            line: None,
+            key: Some(o.split('=').next().unwrap_or(o).trim().to_string()),
+            message: format!("--set {o}: {message}"),
+        };
+        let (key, raw) = o.split_once('=').ok_or_else(|| bad("expected KEY=VALUE".into()))?;
+        // A bare word that is no TOML value is taken as a string, so `--set mission.name=x` works.
+        let value = toml::from_str::<toml::Table>(&format!("v = {}", raw.trim()))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(raw.trim().to_string()));
+        let parts: Vec<&str> = key.trim().split('.').collect();
+        let slot = match parts.as_slice() {
+            ["vehicle", id, k] => {
+                let id: i64 = id.parse().map_err(|_| bad(format!("`{id}` is not a vehicle id")))?;
+                let vehicles = root.get_mut("vehicle").and_then(|v| v.as_array_mut());
+                let vehicle = vehicles
+                    .and_then(|vs| {
+                        vs.iter_mut()
+                            .find(|v| v.get("id").and_then(|i| i.as_integer()) == Some(id))
+                    })
+                    .and_then(|v| v.as_table_mut())
+                    .ok_or_else(|| bad(format!("no vehicle with id {id}")))?;
+                vehicle.insert(k.to_string(), value);
+                continue;
+            }
+            [section, k] => (section.to_string(), k.to_string()),
+            _ => return Err(bad("keys are `section.key` or `vehicle.<id>.key`".into())),
+        };
+        let section = root
+            .entry(slot.0.clone())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+            .as_table_mut()
+            .ok_or_else(|| bad(format!("`{}` is not a section", slot.0)))?;
+        section.insert(slot.1, value);
+        toml::Value::Table(root.clone())
+            .try_into::<Mission>()
+            .map_err(|e| bad(e.message().trim().to_string()))?;
+    }
+    Ok(toml::Value::Table(root)
+        .try_into::<Mission>()
+        .expect("checked after each override"))
+}

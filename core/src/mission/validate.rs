@@ -1,0 +1,355 @@
+//! Every value of a mission checked before anything uses it, with the key that holds it.
+
+use super::diagnostics::Seg;
+use super::{Endpoint, Mission};
+
+pub(super) type Invalid = (Vec<Seg>, String);
+
+fn key(section: &str, k: &str) -> Vec<Seg> {
+    vec![Seg::Key(section.into()), Seg::Key(k.into())]
+}
+
+fn vkey(i: usize, k: &str) -> Vec<Seg> {
+    vec![Seg::Key("vehicle".into()), Seg::Index(i), Seg::Key(k.into())]
+}
+
+fn check(ok: bool, path: Vec<Seg>, message: impl Into<String>) -> Result<(), Invalid> {
+    if ok {
+        Ok(())
+    } else {
+        Err((path, message.into()))
+    }
+}
+
+fn finite(path: Vec<Seg>, values: &[f64]) -> Result<(), Invalid> {
+    check(values.iter().all(|v| v.is_finite()), path, "must be a finite number")
+}
+
+impl Mission {
+    pub(super) fn validate(&self) -> Result<(), Invalid> {
+        let m = &self.mission;
+        let name_ok = !m.name.is_empty()
+            && m.name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
+        check(
+            name_ok,
+            key("mission", "name"),
+            "must be non-empty letters, digits, '-', '_' or '.' (it is part of every key expression)",
+        )?;
+        check(
+            m.control_period > 0.0 && m.control_period.is_finite(),
+            key("mission", "control_period"),
+            "must be > 0",
+        )?;
+        check(
+            m.max_duration > 0.0 && m.max_duration.is_finite(),
+            key("mission", "max_duration"),
+            "must be > 0",
+        )?;
+        let p = &self.planner;
+        for (k, v) in [
+            ("tf_min", p.tf_min),
+            ("tf_max", p.tf_max),
+            ("clearance", p.clearance),
+            ("v_min", p.v_min),
+            ("v_max", p.v_max),
+            ("a_max", p.a_max),
+        ] {
+            finite(key("planner", k), &[v])?;
+        }
+        check(p.tf_min > 0.0, key("planner", "tf_min"), "must be > 0")?;
+        check(
+            p.tf_max >= p.tf_min,
+            key("planner", "tf_max"),
+            format!("must be ≥ tf_min ({})", p.tf_min),
+        )?;
+        check(p.clearance >= 0.0, key("planner", "clearance"), "must be ≥ 0")?;
+        check(p.v_min >= 0.0, key("planner", "v_min"), "must be ≥ 0")?;
+        check(
+            p.v_max > p.v_min,
+            key("planner", "v_max"),
+            format!("must be > v_min ({})", p.v_min),
+        )?;
+        check(p.a_max > 0.0, key("planner", "a_max"), "must be > 0")?;
+        let c = &self.control;
+        for (k, v) in [("k1", c.k1), ("k2", c.k2), ("k3", c.k3), ("d1", c.d1)] {
+            check(
+                v > 0.0 && v.is_finite(),
+                key("control", k),
+                "must be a finite number > 0",
+            )?;
+        }
+        check(
+            c.k2 <= 1.0,
+            key("control", "k2"),
+            "must be ≤ 1 (ζ = −arcsin(k2 y_e/(|y_e|+d1)) needs it)",
+        )?;
+        check(
+            (0.0..1.0).contains(&c.kc),
+            key("control", "kc"),
+            "must be in [0, 1) so that the commanded speed stays positive",
+        )?;
+        finite(key("current", "speed"), &[self.current.speed])?;
+        check(self.current.speed >= 0.0, key("current", "speed"), "must be ≥ 0")?;
+        finite(key("current", "direction"), &[self.current.direction])?;
+        finite(key("sideslip", "amplitude"), &[self.sideslip.amplitude])?;
+        check(
+            self.sideslip.amplitude.abs() < std::f64::consts::FRAC_PI_2,
+            key("sideslip", "amplitude"),
+            "must be below π/2 in magnitude",
+        )?;
+        check(
+            self.sideslip.period > 0.0 && self.sideslip.period.is_finite(),
+            key("sideslip", "period"),
+            "must be > 0",
+        )?;
+        let k = &self.comms;
+        check(
+            k.period > 0.0 && k.period.is_finite(),
+            key("comms", "period"),
+            "must be > 0",
+        )?;
+        let ratio = k.period / m.control_period;
+        check(
+            ratio >= 1.0 - 1e-9 && (ratio - ratio.round()).abs() < 1e-6,
+            key("comms", "period"),
+            format!(
+                "must be a whole multiple of mission.control_period ({})",
+                m.control_period
+            ),
+        )?;
+        check(
+            (0.0..=1.0).contains(&k.loss),
+            key("comms", "loss"),
+            "must be a probability in [0, 1]",
+        )?;
+        check(
+            !(k.topology.is_some() && k.edges.is_some()),
+            key("comms", "edges"),
+            "give either `topology` or `edges`, not both",
+        )?;
+
+        check(
+            !self.vehicles.is_empty(),
+            vec![Seg::Key("vehicle".into())],
+            "the mission has no [[vehicle]]",
+        )?;
+        for (i, v) in self.vehicles.iter().enumerate() {
+            check(
+                self.vehicles[..i].iter().all(|o| o.id != v.id),
+                vkey(i, "id"),
+                format!("vehicle id {} appears twice", v.id),
+            )?;
+            for (k, values) in [
+                ("start", &v.start[..]),
+                ("start_velocity", &v.start_velocity[..]),
+                ("goal", &v.goal[..]),
+                ("goal_velocity", &v.goal_velocity[..]),
+                ("start_acceleration", &v.start_acceleration[..]),
+                ("goal_acceleration", &v.goal_acceleration[..]),
+                ("initial_offset", &v.initial_offset[..]),
+            ] {
+                finite(vkey(i, k), values)?;
+            }
+            for (k, vel) in [("start_velocity", v.start_velocity), ("goal_velocity", v.goal_velocity)] {
+                check(
+                    vel[0].hypot(vel[1]) > 1e-9,
+                    vkey(i, k),
+                    "must be non-zero: it sets the path's tangent and speed (SPEC D1)",
+                )?;
+            }
+            check(v.weight > 0.0 && v.weight.is_finite(), vkey(i, "weight"), "must be > 0")?;
+        }
+        if let Some(edges) = &k.edges {
+            for e in edges {
+                for id in e {
+                    check(
+                        self.vehicles.iter().any(|v| v.id == *id),
+                        key("comms", "edges"),
+                        format!("edge {e:?} names vehicle {id}, which the mission does not have"),
+                    )?;
+                }
+                check(
+                    e[0] != e[1],
+                    key("comms", "edges"),
+                    format!("edge {e:?} joins a vehicle to itself"),
+                )?;
+            }
+        }
+        // Fleet-wide link keys first, so that a bad one is not blamed on a link that inherits it.
+        // Both come after the edges, since link overrides are checked against the graph.
+        self.validate_links()?;
+        self.validate_faults()?;
+        Ok(())
+    }
+}
+
+fn ckey(path: &[Seg]) -> Vec<Seg> {
+    let mut p = vec![Seg::Key("comms".into())];
+    p.extend_from_slice(path);
+    p
+}
+
+fn item(table: &str, i: usize, k: &str) -> Vec<Seg> {
+    ckey(&[Seg::Key(table.into()), Seg::Index(i), Seg::Key(k.into())])
+}
+
+fn probability(path: Vec<Seg>, p: f64) -> Result<(), Invalid> {
+    check((0.0..=1.0).contains(&p), path, "must be a probability in [0, 1]")
+}
+
+impl Mission {
+    /// The link fault models of `[comms]`: in range, consistent, and naming real links.
+    fn validate_faults(&self) -> Result<(), Invalid> {
+        let k = &self.comms;
+        check(
+            k.delay >= 0.0 && k.delay.is_finite(),
+            key("comms", "delay"),
+            "must be a finite number ≥ 0 (s)",
+        )?;
+        if let Some(b) = &k.burst {
+            for (name, p) in [
+                ("p_enter_bad", b.p_enter_bad),
+                ("p_leave_bad", b.p_leave_bad),
+                ("loss_good", b.loss_good),
+                ("loss_bad", b.loss_bad),
+            ] {
+                probability(ckey(&[Seg::Key("burst".into()), Seg::Key(name.into())]), p)?;
+            }
+            check(
+                k.loss == 0.0,
+                key("comms", "loss"),
+                "contradicts [comms.burst]: Gilbert–Elliott replaces Bernoulli loss; keep one",
+            )?;
+        }
+        let ids: Vec<u32> = self.vehicles.iter().map(|v| v.id).collect();
+        for (i, o) in k.outages.iter().enumerate() {
+            for (name, end) in [("from", &o.from), ("to", &o.to)] {
+                let ok = match end {
+                    Endpoint::Id(id) => ids.contains(id),
+                    Endpoint::Any(s) => s == "*",
+                };
+                check(
+                    ok,
+                    item("outage", i, name),
+                    "must be the id of a vehicle of the mission, or \"*\"",
+                )?;
+            }
+            finite(item("outage", i, "start"), &[o.start])?;
+            finite(item("outage", i, "end"), &[o.end])?;
+            check(
+                o.end > o.start,
+                item("outage", i, "end"),
+                format!("must be after start ({})", o.start),
+            )?;
+        }
+        let graph = self.graph();
+        for (i, l) in k.links.iter().enumerate() {
+            let linked = graph.get(&l.to).is_some_and(|n| n.contains(&l.from));
+            check(
+                linked,
+                item("link", i, "from"),
+                format!("{} → {} is not a link of the communication graph", l.from, l.to),
+            )?;
+            let twice = k.links[..i].iter().any(|o| (o.from, o.to) == (l.from, l.to));
+            check(
+                !twice,
+                item("link", i, "to"),
+                format!("link {} → {} is overridden twice", l.from, l.to),
+            )?;
+            check(
+                l.loss.is_some()
+                    || l.delay.is_some()
+                    || l.range.is_some()
+                    || l.loss_at_range.is_some()
+                    || l.sound_speed.is_some(),
+                item("link", i, "from"),
+                "overrides nothing: give `loss`, `delay`, `range`, `loss_at_range` or `sound_speed`",
+            )?;
+            if let Some(p) = l.loss {
+                probability(item("link", i, "loss"), p)?;
+                check(
+                    k.burst.is_none(),
+                    item("link", i, "loss"),
+                    "contradicts [comms.burst]: a link's Bernoulli loss under Gilbert–Elliott",
+                )?;
+            }
+            if let Some(d) = l.delay {
+                check(
+                    d >= 0.0 && d.is_finite(),
+                    item("link", i, "delay"),
+                    "must be a finite number ≥ 0 (s)",
+                )?;
+            }
+            self.validate_acoustic(
+                l.range.or(k.range),
+                l.loss_at_range.unwrap_or(k.loss_at_range),
+                l.sound_speed.or(k.sound_speed),
+                |name| item("link", i, name),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Event triggering (D20) and the acoustic models (D21).
+    fn validate_links(&self) -> Result<(), Invalid> {
+        let k = &self.comms;
+        check(
+            k.threshold >= 0.0 && k.threshold.is_finite(),
+            key("comms", "threshold"),
+            "must be a finite number ≥ 0 (s of γ)",
+        )?;
+        check(
+            k.heartbeat.is_finite() && k.heartbeat >= k.period,
+            key("comms", "heartbeat"),
+            format!("must be a finite number ≥ comms.period ({} s)", k.period),
+        )?;
+        self.validate_acoustic(k.range, k.loss_at_range, k.sound_speed, |name| key("comms", name))?;
+        if let Some(slot) = k.tdma_slot {
+            let ratio = slot / k.period;
+            check(
+                slot.is_finite() && ratio >= 1.0 - 1e-9 && (ratio - ratio.round()).abs() < 1e-6,
+                key("comms", "tdma_slot"),
+                format!("must be a whole multiple of comms.period ({} s)", k.period),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// One link's (or the fleet's) range, loss at range and sound speed.
+    fn validate_acoustic(
+        &self,
+        range: Option<f64>,
+        loss_at_range: f64,
+        sound_speed: Option<f64>,
+        path: impl Fn(&str) -> Vec<Seg>,
+    ) -> Result<(), Invalid> {
+        if let Some(r) = range {
+            check(
+                r > 0.0 && r.is_finite(),
+                path("range"),
+                "must be a finite number > 0 (m)",
+            )?;
+        }
+        probability(path("loss_at_range"), loss_at_range)?;
+        check(
+            loss_at_range == 0.0 || range.is_some(),
+            path("loss_at_range"),
+            "needs a `range`: the loss rises from 0 at zero distance to this at the range",
+        )?;
+        if let Some(c) = sound_speed {
+            check(
+                c > 0.0 && c.is_finite(),
+                path("sound_speed"),
+                "must be a finite number > 0 (m/s)",
+            )?;
+            check(
+                range.is_some(),
+                path("sound_speed"),
+                "needs a `range`: the largest propagation delay, range / sound_speed, caps the coordination gain (D19)",
+            )?;
+        }
+        Ok(())
+    }
+}
