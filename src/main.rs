@@ -8,9 +8,9 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
 use tcpf_bus::session::ZenohArgs;
-use tcpf_coordinator::{bench, inprocess, launcher, planner_node, rundir::RunDir, sweep, table};
+use tcpf_coordinator::{bench, inprocess, launcher, planner_node, planning, rundir::RunDir, sweep, table};
 use tcpf_core::mission::{self, Mission};
-use tcpf_core::planner::{self, Plan};
+use tcpf_core::planner::Plan;
 
 #[derive(Parser)]
 #[command(
@@ -168,7 +168,7 @@ fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
 }
 
 fn solve(mission: &Mission, file: &Path) -> Result<Plan, Failure> {
-    planner::plan(mission).map_err(|e| Failure::Failed(anyhow!("{}: infeasible plan: {e}", file.display())))
+    planning::plan(mission).map_err(|e| Failure::Failed(anyhow!("{}: infeasible plan: {e}", file.display())))
 }
 
 fn main() -> ExitCode {

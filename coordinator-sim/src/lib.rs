@@ -5,6 +5,7 @@ pub mod bench;
 pub mod inprocess;
 pub mod launcher;
 pub mod planner_node;
+pub mod planning;
 pub mod plots;
 pub mod progress;
 pub mod recording;

@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::Mission;
-use tcpf_core::planner::{self, Plan};
+use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 
 use crate::plots::{Chart, Series};
@@ -123,8 +123,8 @@ fn plans(jobs: &[Job]) -> Result<Vec<Plan>> {
         let plan = match by_value.iter().find(|(v, _)| *v == job.value) {
             Some((_, p)) => p.clone(),
             None => {
-                let p =
-                    planner::plan(&job.mission).map_err(|e| anyhow!("value {}: infeasible plan: {e}", job.value))?;
+                let p = crate::planning::plan(&job.mission)
+                    .map_err(|e| anyhow!("value {}: infeasible plan: {e}", job.value))?;
                 by_value.push((job.value.clone(), p.clone()));
                 p
             }

@@ -125,7 +125,7 @@ struct Violation {
 
 /// Everything the planner knows about one candidate t_f.
 #[derive(Debug, Clone)]
-struct Candidate {
+pub struct Candidate {
     t_f: f64,
     cost: f64,
     vehicles: Vec<VehiclePlan>,
@@ -345,43 +345,62 @@ fn boundary_between(
     (good, beyond)
 }
 
-/// Every grid point, spread over the cores; each candidate is computed on its own, so the result
-/// does not depend on how the grid is split.
-fn scan(config: &PlannerConfig, vehicles: &[VehicleConfig], grid: &[f64]) -> Vec<Candidate> {
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let chunk = grid.len().div_ceil(threads).max(1);
-    std::thread::scope(|s| {
-        let parts: Vec<_> = grid
-            .chunks(chunk)
-            .map(|part| {
-                s.spawn(move || {
-                    part.iter()
-                        .map(|&t| evaluate(config, vehicles, t, false))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        parts
-            .into_iter()
-            .flat_map(|p| p.join().expect("evaluation does not panic"))
-            .collect()
-    })
+/// Solves eq. 19 for the mission's vehicles, one candidate after the other.
+pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
+    let search = Search::new(mission);
+    let candidates: Vec<Candidate> = search.grid().iter().map(|&t| search.evaluate(t)).collect();
+    search.finish(&candidates)
 }
 
-/// Solves eq. 19 for the mission's vehicles.
-pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
-    let config = &mission.planner;
-    let vehicles = &mission.vehicles;
-    let steps = ((config.tf_max - config.tf_min) / GRID - 1e-9).ceil().max(0.0) as usize;
-    let grid: Vec<f64> = (0..=steps)
-        .map(|k| (config.tf_min + k as f64 * GRID).min(config.tf_max))
-        .collect();
-    let candidates = scan(config, vehicles, &grid);
+/// Eq. 19 as a search that its caller drives: every t_f of the grid is evaluated on its own, in
+/// any order and on any thread (`evaluate`), then `finish` refines the best and names the active
+/// constraints. The result does not depend on how the grid was spread.
+pub struct Search<'a> {
+    config: &'a PlannerConfig,
+    vehicles: &'a [VehicleConfig],
+    grid: Vec<f64>,
+}
+
+impl<'a> Search<'a> {
+    pub fn new(mission: &'a Mission) -> Search<'a> {
+        let config = &mission.planner;
+        let steps = ((config.tf_max - config.tf_min) / GRID - 1e-9).ceil().max(0.0) as usize;
+        Search {
+            config,
+            vehicles: &mission.vehicles,
+            grid: (0..=steps)
+                .map(|k| (config.tf_min + k as f64 * GRID).min(config.tf_max))
+                .collect(),
+        }
+    }
+
+    /// The candidate t_f to evaluate.
+    pub fn grid(&self) -> &[f64] {
+        &self.grid
+    }
+
+    /// One candidate of the grid.
+    pub fn evaluate(&self, t_f: f64) -> Candidate {
+        evaluate(self.config, self.vehicles, t_f, false)
+    }
+
+    /// The plan, from the candidates of every t_f of `grid`, in its order.
+    pub fn finish(&self, candidates: &[Candidate]) -> Result<Plan, Infeasible> {
+        finish(self.config, self.vehicles, &self.grid, candidates)
+    }
+}
+
+fn finish(
+    config: &PlannerConfig,
+    vehicles: &[VehicleConfig],
+    grid: &[f64],
+    candidates: &[Candidate],
+) -> Result<Plan, Infeasible> {
     let Some(best) = (0..candidates.len())
         .filter(|&k| candidates[k].feasible())
         .min_by(|&a, &b| candidates[a].cost.total_cmp(&candidates[b].cost))
     else {
-        return Err(infeasible(config, &candidates));
+        return Err(infeasible(config, candidates));
     };
 
     let mut active = Vec::new();
