@@ -6,7 +6,6 @@
 use std::collections::BTreeSet;
 
 use crate::agent::Agent;
-use crate::metrics::Metrics;
 use crate::mission::Mission;
 use crate::msg::{Command, End, Gamma, Lost, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
@@ -23,7 +22,10 @@ pub enum Reject {
 
 pub struct WorldNode {
     world: World,
-    metrics: Metrics,
+    t_f: f64,
+    /// Per vehicle: γ_i has reached t_f (the run ends when every live vehicle's has). The
+    /// metrics are the recorder's; the world needs only this.
+    arrived: Vec<bool>,
     max_ticks: u64,
     ids: Vec<u32>,
     states: Vec<State>,
@@ -37,7 +39,8 @@ impl WorldNode {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         WorldNode {
             states: world.states(),
-            metrics: Metrics::new(&ids, t_f, mission.mission.control_period),
+            t_f,
+            arrived: vec![false; ids.len()],
             max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
             ids,
@@ -75,7 +78,6 @@ impl WorldNode {
     pub fn on_lost(&mut self, id: u32) {
         if self.ids.contains(&id) && !self.world.is_lost(id) {
             self.world.mark_lost(id);
-            self.metrics.mark_lost(id);
             self.lost.push(Lost { id, tick: self.tick() });
         }
     }
@@ -100,9 +102,16 @@ impl WorldNode {
             .zip(&self.pending)
             .map(|(id, c)| c.as_ref().filter(|_| !self.world.is_lost(*id)))
             .collect();
-        self.metrics.record(tick, &self.states, &held);
+        for (arrived, c) in self.arrived.iter_mut().zip(&held) {
+            *arrived |= c.is_some_and(|c| c.gamma >= self.t_f);
+        }
         observe(&self.states, &held);
-        if self.metrics.all_arrived() || tick >= self.max_ticks {
+        let done = self
+            .ids
+            .iter()
+            .zip(&self.arrived)
+            .all(|(id, a)| *a || self.world.is_lost(*id));
+        if done || tick >= self.max_ticks {
             return Some(self.end());
         }
         self.world.step(&held);
@@ -127,10 +136,6 @@ impl WorldNode {
             ticks: self.tick(),
             lost: self.lost.clone(),
         }
-    }
-
-    pub fn metrics(&self) -> &Metrics {
-        &self.metrics
     }
 }
 
@@ -199,19 +204,19 @@ impl AgentNode {
 
     /// Live neighbours whose γ of this tick is still awaited.
     pub fn waiting_for(&self) -> Vec<u32> {
-        match self.state {
-            Some(s) if self.agent.is_comm_tick(s.tick) => self
-                .agent
-                .neighbours()
-                .filter(|j| !self.gone.contains(j) && !self.inbox.iter().any(|g| g.from == *j && g.tick == s.tick))
-                .collect(),
-            _ => Vec::new(),
-        }
+        self.awaited().collect()
+    }
+
+    fn awaited(&self) -> impl Iterator<Item = u32> + '_ {
+        let tick = self.state.filter(|s| self.agent.is_comm_tick(s.tick)).map(|s| s.tick);
+        self.agent.neighbours().filter(move |j| {
+            tick.is_some_and(|k| !self.gone.contains(j) && !self.inbox.iter().any(|g| g.from == *j && g.tick == k))
+        })
     }
 
     /// The command of this tick, once the state and every awaited γ are in.
     pub fn command(&mut self) -> Option<Command> {
-        if !self.waiting_for().is_empty() {
+        if self.awaited().next().is_some() {
             return None;
         }
         let state = self.state.take()?;

@@ -41,6 +41,7 @@ pub struct Metrics {
     ticks: u64,
     /// Previous tick's γ and positions, for interpolating at the first arrival.
     previous: Option<(Vec<f64>, Vec<[f64; 2]>)>,
+    spare: Option<(Vec<f64>, Vec<[f64; 2]>)>,
     ids: Vec<u32>,
     arrivals: Vec<Option<f64>>,
     lost: Vec<bool>,
@@ -75,6 +76,7 @@ impl Metrics {
             dt,
             ticks: 0,
             previous: None,
+            spare: None,
             ids: ids.to_vec(),
             arrivals: vec![None; ids.len()],
             lost: vec![false; ids.len()],
@@ -100,16 +102,16 @@ impl Metrics {
     /// γ is frozen at its last value.
     pub fn record(&mut self, tick: u64, states: &[State], commands: &[Option<&Command>]) {
         let t = tick as f64 * self.dt;
-        let positions: Vec<[f64; 2]> = states.iter().map(|s| s.position).collect();
-        let gammas: Vec<f64> = commands
-            .iter()
-            .enumerate()
-            .map(|(n, c)| {
-                c.map(|c| c.gamma)
-                    .or_else(|| self.previous.as_ref().map(|p| p.0[n]))
-                    .unwrap_or(0.0)
-            })
-            .collect();
+        // The buffers of the tick before last, refilled: a run allocates them once.
+        let (mut gammas, mut positions) = self.spare.take().unwrap_or_default();
+        positions.clear();
+        positions.extend(states.iter().map(|s| s.position));
+        gammas.clear();
+        gammas.extend(commands.iter().enumerate().map(|(n, c)| {
+            c.map(|c| c.gamma)
+                .or_else(|| self.previous.as_ref().map(|p| p.0[n]))
+                .unwrap_or(0.0)
+        }));
         let before_first = self.first_arrival().is_none();
         for (n, &g) in gammas.iter().enumerate() {
             if self.arrivals[n].is_none() && g >= self.t_f {
@@ -162,7 +164,7 @@ impl Metrics {
                 }
             }
         }
-        self.previous = Some((gammas, positions));
+        self.spare = self.previous.replace((gammas, positions));
         self.ticks += 1;
     }
 

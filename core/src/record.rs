@@ -16,6 +16,9 @@ pub struct Recorder {
     next: u64,
     ticks: BTreeMap<u64, Tick>,
     end: Option<End>,
+    /// Emptied ticks, kept for the next ones: a run fills one or two at a time.
+    spare: Vec<Tick>,
+    states: Vec<State>,
 }
 
 impl Recorder {
@@ -26,6 +29,8 @@ impl Recorder {
             next: 0,
             ticks: BTreeMap::new(),
             end: None,
+            spare: Vec::new(),
+            states: Vec::with_capacity(ids.len()),
         }
     }
 
@@ -35,10 +40,11 @@ impl Recorder {
             return Err(Reject::WrongTick);
         }
         let len = self.ids.len();
+        let spare = &mut self.spare;
         Ok((
             self.ticks
                 .entry(tick)
-                .or_insert_with(|| (vec![None; len], vec![None; len])),
+                .or_insert_with(|| spare.pop().unwrap_or_else(|| (vec![None; len], vec![None; len]))),
             n,
         ))
     }
@@ -82,24 +88,26 @@ impl Recorder {
             let Some((states, commands)) = self.ticks.get(&tick) else {
                 return;
             };
-            let lost: Vec<bool> = self.ids.iter().map(|&id| self.lost_at(id, tick)).collect();
+            let lost = |n: usize| self.lost_at(self.ids[n], tick);
             let complete =
-                states.iter().all(Option::is_some) && commands.iter().zip(&lost).all(|(c, lost)| c.is_some() || *lost);
+                states.iter().all(Option::is_some) && commands.iter().enumerate().all(|(n, c)| c.is_some() || lost(n));
             if !complete {
                 return;
             }
-            let (states, commands) = self.ticks.remove(&tick).expect("present");
-            let states: Vec<State> = states.into_iter().flatten().collect();
-            for (id, _) in self.ids.iter().zip(&lost).filter(|(_, l)| **l) {
-                self.metrics.mark_lost(*id);
+            let (mut states, mut commands) = self.ticks.remove(&tick).expect("present");
+            self.states.clear();
+            self.states.extend(states.iter_mut().flat_map(Option::take));
+            for n in 0..self.ids.len() {
+                if self.lost_at(self.ids[n], tick) {
+                    self.metrics.mark_lost(self.ids[n]);
+                    commands[n] = None;
+                }
             }
-            let held: Vec<Option<&Command>> = commands
-                .iter()
-                .zip(&lost)
-                .map(|(c, l)| c.as_ref().filter(|_| !l))
-                .collect();
-            self.metrics.record(tick, &states, &held);
-            emit(&states, &held);
+            let held: Vec<Option<&Command>> = commands.iter().map(Option::as_ref).collect();
+            self.metrics.record(tick, &self.states, &held);
+            emit(&self.states, &held);
+            commands.iter_mut().for_each(|c| *c = None);
+            self.spare.push((states, commands));
             self.next += 1;
         }
     }

@@ -122,7 +122,12 @@ impl World {
             let (amp, omega, current) = (self.sideslip_amplitude, self.sideslip_omega, self.current);
             // ṗ = v (cos ψ_F, sin ψ_F) + v_c (cos ψ_c, sin ψ_c), ψ_F = ψ_B + β(t), ψ̇_B = r.
             let f = |s: f64, heading: f64| {
-                let psi_f = heading + amp * (omega * (t + s)).sin();
+                // Without side-slip β is 0: no sine to evaluate.
+                let psi_f = if amp == 0.0 {
+                    heading
+                } else {
+                    heading + amp * (omega * (t + s)).sin()
+                };
                 Vec2::new(v * psi_f.cos(), v * psi_f.sin()) + current
             };
             let h0 = b.heading;
