@@ -70,13 +70,15 @@ impl Recorder {
     pub fn on_end(&mut self, end: End) {
         self.end = Some(end);
     }
+}
 
-    fn lost_at(&self, id: u32, tick: u64) -> bool {
-        self.end
-            .as_ref()
-            .is_some_and(|e| e.lost.iter().any(|l| l.id == id && l.tick <= tick))
-    }
+/// Vehicle `id` was lost by `tick`, as far as the end message (if it came yet) says.
+fn lost_at(end: &Option<End>, id: u32, tick: u64) -> bool {
+    end.as_ref()
+        .is_some_and(|e| e.lost.iter().any(|l| l.id == id && l.tick <= tick))
+}
 
+impl Recorder {
     /// Hands on every tick that is complete, in order: all states, and the commands of every
     /// vehicle not lost by then (a lost vehicle's late command is dropped, as the world did).
     pub fn drain(&mut self, mut emit: impl FnMut(&[State], &[Option<&Command>])) {
@@ -88,7 +90,7 @@ impl Recorder {
             let Some((states, commands)) = self.ticks.get(&tick) else {
                 return;
             };
-            let lost = |n: usize| self.lost_at(self.ids[n], tick);
+            let lost = |n: usize| lost_at(&self.end, self.ids[n], tick);
             let complete =
                 states.iter().all(Option::is_some) && commands.iter().enumerate().all(|(n, c)| c.is_some() || lost(n));
             if !complete {
@@ -97,10 +99,10 @@ impl Recorder {
             let (mut states, mut commands) = self.ticks.remove(&tick).expect("present");
             self.states.clear();
             self.states.extend(states.iter_mut().flat_map(Option::take));
-            for n in 0..self.ids.len() {
-                if self.lost_at(self.ids[n], tick) {
-                    self.metrics.mark_lost(self.ids[n]);
-                    commands[n] = None;
+            for (&id, command) in self.ids.iter().zip(commands.iter_mut()) {
+                if lost_at(&self.end, id, tick) {
+                    self.metrics.mark_lost(id);
+                    *command = None;
                 }
             }
             let held: Vec<Option<&Command>> = commands.iter().map(Option::as_ref).collect();
