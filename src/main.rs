@@ -8,9 +8,10 @@ use std::time::Duration;
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
 use tcpf_bus::session::ZenohArgs;
-use tcpf_coordinator::{bench, inprocess, launcher, planner_node, planning, rundir::RunDir, sweep, table};
+use tcpf_coordinator::{bench, inprocess, launcher, planner_node, planning, sweep};
 use tcpf_core::mission::{self, Mission};
 use tcpf_core::planner::Plan;
+use tcpf_report::{rundir::RunDir, table};
 
 #[derive(Parser)]
 #[command(
@@ -372,7 +373,7 @@ fn report(dir: &Path) -> Result<ExitCode, Failure> {
             dir.display()
         )));
     }
-    tcpf_coordinator::report::write(dir).map_err(Failure::Failed)?;
+    tcpf_report::report::write(dir).map_err(Failure::Failed)?;
     println!("{}", dir.join("report.html").display());
     Ok(ExitCode::SUCCESS)
 }
@@ -424,7 +425,7 @@ fn sweep(
             });
         }
     }
-    let out = out.map_or_else(|| sweep::default_out(&base), Path::to_path_buf);
+    let out = out.map_or_else(|| tcpf_report::sweep::default_out(&base), Path::to_path_buf);
     let rows = if processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
@@ -435,8 +436,8 @@ fn sweep(
         sweep::run_in_process(&jobs, threads).map_err(Failure::Failed)?
     };
     let mode = if processes { "processes" } else { "in-process" };
-    let summary = sweep::summarise(&base.mission.name, &key, seeds, mode, &rows);
-    let table = sweep::write(&out, &column, &rows, &summary).map_err(Failure::Failed)?;
+    let summary = tcpf_report::sweep::summarise(&base.mission.name, &key, seeds, mode, &rows);
+    let table = tcpf_report::sweep::write(&out, &column, &rows, &summary).map_err(Failure::Failed)?;
     print!("{table}");
     println!("sweep directory: {}", out.display());
     Ok(ExitCode::SUCCESS)

@@ -8,8 +8,8 @@ use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 
 use crate::progress::Ticks;
-use crate::rundir::RunDir;
-use crate::summary::{Clock, Mode, Summary};
+use tcpf_report::rundir::RunDir;
+use tcpf_report::summary::{Clock, Mode, Summary};
 
 pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
     dir.write_mission(mission)?;
@@ -48,6 +48,6 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
         children: Vec::new(),
     };
     dir.write_summary(&summary)?;
-    crate::report::write(&dir.path)?;
+    tcpf_report::report::write(&dir.path)?;
     Ok(summary)
 }

@@ -16,8 +16,8 @@ use tokio::process::{Child, Command};
 
 use crate::progress::Ticks;
 use crate::recording::Recording;
-use crate::rundir::RunDir;
-use crate::summary::{ChildSummary, Summary};
+use tcpf_report::rundir::RunDir;
+use tcpf_report::summary::{ChildSummary, Summary};
 
 /// How long children get to exit by themselves after the end before they are killed.
 const GRACE: Duration = Duration::from_secs(3);

@@ -1,16 +1,11 @@
-//! tcpf-coordinator: what runs around a fleet: the run directory, the recorder, the launcher,
-//! reports and the human-readable tables.
+//! tcpf-coordinator: what runs a fleet: the planner node, the launcher and supervisor, the
+//! recorder, the in-process and sweep runners, planning on every core, and the Zenoh bench.
 
 pub mod bench;
 pub mod inprocess;
 pub mod launcher;
 pub mod planner_node;
 pub mod planning;
-pub mod plots;
 pub mod progress;
 pub mod recording;
-pub mod report;
-pub mod rundir;
-pub mod summary;
 pub mod sweep;
-pub mod table;

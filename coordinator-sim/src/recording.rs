@@ -20,8 +20,8 @@ use tcpf_bus::signals::Shutdown;
 use tcpf_core::planner::Plan;
 
 use crate::progress::Ticks;
-use crate::rundir::{RunDir, Telemetry};
-use crate::summary::{ChildSummary, Clock, Mode, Summary};
+use tcpf_report::rundir::{RunDir, Telemetry};
+use tcpf_report::summary::{ChildSummary, Clock, Mode, Summary};
 
 pub struct Recording {
     pub rejected: Rejected,
@@ -162,7 +162,7 @@ impl Recording {
         };
         self.telemetry.finish()?;
         dir.write_summary(&summary)?;
-        crate::report::write(&dir.path)?;
+        tcpf_report::report::write(&dir.path)?;
         Ok(summary)
     }
 }
