@@ -235,8 +235,8 @@ mod tests {
     use crate::planner;
 
     fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
-        let file = format!("{}/../configs/paper/b-current.toml", env!("CARGO_MANIFEST_DIR"));
-        let m = mission::parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap();
+        let text = include_str!("../../configs/paper/b-current.toml");
+        let m = mission::parse("b-current.toml", text, &[]).unwrap();
         let plan = planner::plan(&m).unwrap();
         let paths = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
         (m, paths, plan.t_f)

@@ -138,8 +138,8 @@ mod tests {
     use crate::telemetry;
 
     fn recorded_run() -> (Vec<(State, Command)>, String, Results, f64, f64) {
-        let file = format!("{}/../configs/paper/d-lossy.toml", env!("CARGO_MANIFEST_DIR"));
-        let m = mission::parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap();
+        let text = include_str!("../../configs/paper/d-lossy.toml");
+        let m = mission::parse("d-lossy.toml", text, &[]).unwrap();
         let plan = planner::plan(&m).unwrap();
         let mut messages = Vec::new();
         let mut csv = String::new();
