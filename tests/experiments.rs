@@ -46,7 +46,7 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
         .collect();
     eprintln!("mean coordination error at loss 0, 0.5, 0.9: {means:?}");
     assert!(means[0] < means[1] && means[1] < means[2], "{means:?}");
-    assert!((3.3..=4.3).contains(&means[2]), "SPEC §5 (d): {}", means[2]);
+    assert!((3.3..=4.3).contains(&means[2]), "MODEL §5 (d): {}", means[2]);
     for plot in ["sweep-error.svg", "sweep-clearance.svg", "sweep.html"] {
         assert!(out.join(plot).is_file(), "{plot}");
     }

@@ -1,4 +1,4 @@
-//! The key expressions of DESIGN.md ("Wire"), in one place. `<m>` is the mission name.
+//! The key expressions of docs/PROTOCOL.md, in one place. `<m>` is the mission name.
 
 use std::fmt;
 

@@ -1,4 +1,4 @@
-//! `tcpf planner`: solves SPEC §1 and serves each vehicle's generalized path, as a queryable (an
+//! `tcpf planner`: solves MODEL §1 and serves each vehicle's generalized path, as a queryable (an
 //! agent that starts late or restarts gets its path) and once as a publication.
 
 use std::time::Duration;

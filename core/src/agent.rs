@@ -1,6 +1,6 @@
-//! The vehicle's controller as a state machine (DESIGN: sans-IO): measured state and neighbours' γ
-//! in, command and own γ out. Path following (SPEC §2) with time coordination (SPEC §3), on links
-//! that lose, delay and ration messages (SPEC §6).
+//! The vehicle's controller as a state machine (sans-IO): measured state and neighbours' γ
+//! in, command and own γ out. Path following (MODEL §2) with time coordination (MODEL §3), on links
+//! that lose, delay and ration messages (MODEL §6).
 
 use std::collections::VecDeque;
 

@@ -1,4 +1,4 @@
-//! Time coordination (SPEC §3, Theorem 2): the speed correction of eq. 25, and the gain cap that
+//! Time coordination (MODEL §3, Theorem 2): the speed correction of eq. 25, and the gain cap that
 //! keeps it stable under delay (D19).
 
 use nalgebra::DMatrix;

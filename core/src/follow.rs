@@ -1,4 +1,4 @@
-//! Path following (SPEC §2, Lemma 2): errors in the Serret–Frenet frame, the control law of
+//! Path following (MODEL §2, Lemma 2): errors in the Serret–Frenet frame, the control law of
 //! eqs. 22–23 and the error kinematics of eq. 21 it was designed against.
 
 use crate::path::{PathPoint, Vec2};

@@ -1,4 +1,4 @@
-//! tcpf-core: time-coordinated path following (SPEC.md) as deterministic state machines.
+//! tcpf-core: time-coordinated path following (docs/MODEL.md) as deterministic state machines.
 //! No I/O, no async, no clocks: the process crates only move these machines' messages.
 
 pub mod agent;

@@ -1,4 +1,4 @@
-//! Link models (SPEC D12, D21): each directed link j→i decides, at the receiver, whether the
+//! Link models (MODEL D12, D21): each directed link j→i decides, at the receiver, whether the
 //! message of each communication instant is lost and how long it travels, from a random stream of
 //! its own and the distance between the vehicles when it was sent. The stream is keyed by
 //! (mission seed, from, to) alone, so no other link and no ordering of events can change it.

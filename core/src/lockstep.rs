@@ -1,4 +1,4 @@
-//! The lockstep clock of DESIGN.md, as two machines: the world's side (publish the states of tick
+//! The lockstep clock (docs/PROTOCOL.md, "Lockstep sequence"), as two machines: the world's side (publish the states of tick
 //! k, collect every live agent's command of tick k, integrate) and the agent's side (take the state
 //! of tick k, publish γ at a communication instant, collect the live neighbours' γ of tick k,
 //! command). The shells feed them what arrives and publish what they return.

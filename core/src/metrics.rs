@@ -1,5 +1,5 @@
-//! The metrics of SPEC §4 (D16), accumulated tick by tick from what the world measured and what
-//! the agents commanded, and the run summary of DESIGN.md.
+//! The metrics of MODEL §4 (D16), accumulated tick by tick from what the world measured and what
+//! the agents commanded, and the run summary.
 
 use std::collections::BTreeMap;
 

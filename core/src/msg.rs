@@ -25,7 +25,7 @@ pub struct State {
     pub current: [f64; 2],
 }
 
-/// One receiver-side decision on a γ message (SPEC D12).
+/// One receiver-side decision on a γ message (MODEL D12).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Reception {
     pub from: u32,
@@ -55,7 +55,7 @@ pub struct Command {
     pub receptions: Vec<Reception>,
 }
 
-/// What a sender knew of itself at the instant it sampled (SPEC D19): enough for a receiver to
+/// What a sender knew of itself at the instant it sampled (MODEL D19): enough for a receiver to
 /// predict γ to its own time, and for the link to know how far the message travelled (D21).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Sample {

@@ -1,4 +1,4 @@
-//! Generalized paths (SPEC §1): a quintic p_r(τ) in the virtual arc τ, an affine speed profile
+//! Generalized paths (MODEL §1): a quintic p_r(τ) in the virtual arc τ, an affine speed profile
 //! η(τ) = dτ/dt, and the reparameterisation by virtual time γ = t_p that the agents follow.
 
 use nalgebra::{Matrix6, Vector2, Vector6};

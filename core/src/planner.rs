@@ -1,4 +1,4 @@
-//! Trajectory generation (SPEC §1): the common arrival time t_f that minimises Σ w_i J_i (eq. 19)
+//! Trajectory generation (MODEL §1): the common arrival time t_f that minimises Σ w_i J_i (eq. 19)
 //! under the speed, acceleration (eqs. 4, 20) and deconfliction constraints, found by a grid over
 //! [tf_min, tf_max] and a bounded 1-D refinement (D6).
 

@@ -1,4 +1,4 @@
-//! The world as a state machine: every vehicle's kinematics in the shared current (SPEC §2),
+//! The world as a state machine: every vehicle's kinematics in the shared current (MODEL §2),
 //! integrated by RK4 over one control period with the commands held.
 
 use crate::follow;

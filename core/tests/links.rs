@@ -1,4 +1,4 @@
-//! Coordination on underwater links (SPEC §6), in-process: delay compensated by prediction and a
+//! Coordination on underwater links (MODEL §6), in-process: delay compensated by prediction and a
 //! capped gain (D19), event-triggered broadcasting (D20) and acoustic link models (D21). Each test
 //! prints the figures it asserts.
 
@@ -102,7 +102,7 @@ fn the_paper_law_under_delay_slows_the_whole_fleet() {
         "uncompensated, delay 1 s: arrivals {a:.3?}, error {:.3} s",
         r.max_coordination_error
     );
-    // SPEC §6: 82.853 / 82.853 s, error 0.384 s.
+    // docs/LINKS.md: 82.853 / 82.853 s, error 0.384 s.
     for x in a {
         assert!((x - 82.853).abs() < 0.05, "arrival {x}");
     }
@@ -111,7 +111,7 @@ fn the_paper_law_under_delay_slows_the_whole_fleet() {
 
 #[test]
 fn compensated_delay_matches_the_independent_figures() {
-    // SPEC §6, D19 with k_c,eff: (delay, arrivals, error).
+    // docs/LINKS.md, D19 with k_c,eff: (delay, arrivals, error).
     for (delay, expected, error) in [
         (1.0, [55.454, 55.453], 0.356),
         (2.0, [55.484, 55.479], 0.661),

@@ -1,4 +1,4 @@
-//! SPEC §5: the paper's example planned and simulated in-process, against the figures an
+//! docs/MODEL.md §5: the paper's example planned and simulated in-process, against the figures an
 //! independent implementation gets. Tolerances are the ones issue 2 states.
 
 use tcpf_core::metrics::Results;

@@ -1,4 +1,4 @@
-//! `summary.json` (DESIGN.md, "Run directory").
+//! `summary.json` (the README, "Reading the results").
 
 use serde::{Deserialize, Serialize};
 use tcpf_core::metrics::Results;

@@ -46,7 +46,7 @@ pub struct MissionSection {
     pub post_arrival: PostArrival,
 }
 
-/// What a vehicle does once γ_i ≥ t_f (SPEC D11).
+/// What a vehicle does once γ_i ≥ t_f (MODEL D11).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PostArrival {
@@ -55,7 +55,7 @@ pub enum PostArrival {
     Stop,
 }
 
-/// The cost J_i of eq. 19 (SPEC D4).
+/// The cost J_i of eq. 19 (MODEL D4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CostKind {
@@ -78,7 +78,7 @@ pub struct PlannerConfig {
 
 impl Default for PlannerConfig {
     fn default() -> Self {
-        // SPEC D5 and the paper's interval.
+        // MODEL D5 and the paper's interval.
         PlannerConfig {
             tf_min: 30.0,
             tf_max: 60.0,
@@ -101,7 +101,7 @@ pub struct ControlConfig {
     pub kc: f64,
     pub coordination: bool,
     /// Predict each neighbour's γ to the present from its message's age and rate, with the gain
-    /// capped by the largest delay (SPEC D19); false: the paper's law, which delay slows down.
+    /// capped by the largest delay (MODEL D19); false: the paper's law, which delay slows down.
     pub delay_compensation: bool,
 }
 
@@ -129,7 +129,7 @@ pub struct CurrentConfig {
     pub direction: f64,
 }
 
-/// β(t) = amplitude · sin(2π t / period), the prescribed side-slip of SPEC D9.
+/// β(t) = amplitude · sin(2π t / period), the prescribed side-slip of MODEL D9.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SideslipConfig {
@@ -158,7 +158,7 @@ pub enum Topology {
     Star,
 }
 
-/// When an agent sends γ (SPEC D20).
+/// When an agent sends γ (MODEL D20).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Trigger {
@@ -277,7 +277,7 @@ impl Default for CommsConfig {
             topology: None,
             edges: None,
             loss: 0.0,
-            // SPEC D20: with these case (b) sends 95 % fewer messages at the periodic error.
+            // MODEL D20: with these case (b) sends 95 % fewer messages at the periodic error.
             trigger: Trigger::Periodic,
             threshold: 0.02,
             heartbeat: 5.0,
@@ -303,7 +303,7 @@ pub struct VehicleConfig {
     pub goal_acceleration: [f64; 2],
     #[serde(default = "defaults::weight")]
     pub weight: f64,
-    /// (x_e, y_e, ψ_e) at t = 0, in the path frame at the start (SPEC D15).
+    /// (x_e, y_e, ψ_e) at t = 0, in the path frame at the start (MODEL D15).
     #[serde(default)]
     pub initial_offset: [f64; 3],
 }

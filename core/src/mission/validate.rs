@@ -156,7 +156,7 @@ impl Mission {
                 check(
                     vel[0].hypot(vel[1]) > 1e-9,
                     vkey(i, k),
-                    "must be non-zero: it sets the path's tangent and speed (SPEC D1)",
+                    "must be non-zero: it sets the path's tangent and speed (docs/MODEL.md, D1)",
                 )?;
             }
             check(v.weight > 0.0 && v.weight.is_finite(), vkey(i, "weight"), "must be > 0")?;
