@@ -1,6 +1,7 @@
 //! `tcpf`: time-coordinated path following for fleets of vehicles. One binary, every role.
 
 use std::io::IsTerminal;
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
@@ -48,6 +49,9 @@ enum Command {
         /// Mission seed (overrides mission.seed).
         #[arg(long)]
         seed: Option<u64>,
+        /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
+        #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+        live: Option<SocketAddr>,
     },
     /// Solve the trajectory generation problem and print the plan.
     Plan {
@@ -132,6 +136,9 @@ enum Command {
         /// Run directory (default runs/<mission>-<timestamp>/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
+        #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+        live: Option<SocketAddr>,
     },
     /// Role: the agent of one vehicle.
     Agent {
@@ -192,7 +199,8 @@ fn main() -> ExitCode {
             out,
             in_process,
             seed,
-        } => run(&mission, out.as_deref(), in_process, seed),
+            live,
+        } => run(&mission, out.as_deref(), in_process, seed, live),
         Command::Bench { mission, count } => bench(&mission, count),
         Command::Report { dir } => report(&dir),
         Command::Sweep {
@@ -207,7 +215,12 @@ fn main() -> ExitCode {
             .and_then(|rt| rt.block_on(bench::pong(&zenoh, count)).map_err(Failure::Failed))
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { mission, zenoh } => planner(&mission, &zenoh),
-        Command::Record { mission, zenoh, out } => record(&mission, &zenoh, out.as_deref()),
+        Command::Record {
+            mission,
+            zenoh,
+            out,
+            live,
+        } => record(&mission, &zenoh, out.as_deref(), live),
         Command::World {
             mission,
             zenoh,
@@ -249,16 +262,22 @@ fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn run(args: &MissionArgs, out: Option<&Path>, in_process: bool, seed: Option<u64>) -> Result<ExitCode, Failure> {
+fn run(
+    args: &MissionArgs,
+    out: Option<&Path>,
+    in_process: bool,
+    seed: Option<u64>,
+    live: Option<SocketAddr>,
+) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
     let plan = solve(&mission, &args.file)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = if in_process {
-        inprocess::run(&mission, &plan, &dir).map_err(Failure::Failed)?
+        inprocess::run(&mission, &plan, &dir, live).map_err(Failure::Failed)?
     } else {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
-            .block_on(launcher::run(&mission, &plan, &dir, &exe))
+            .block_on(launcher::run(&mission, &plan, &dir, &exe, live))
             .map_err(Failure::Failed)?
     };
     print!("{}", table::summary(&summary));
@@ -345,7 +364,7 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
     let before = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
     let summary = rt
-        .block_on(launcher::run(&mission, &plan, &dir, &exe))
+        .block_on(launcher::run(&mission, &plan, &dir, &exe, None))
         .map_err(Failure::Failed)?;
     let after = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
     let _ = std::fs::remove_dir_all(&dir.path);
@@ -443,12 +462,17 @@ fn sweep(
     Ok(ExitCode::SUCCESS)
 }
 
-fn record(args: &MissionArgs, zenoh: &ZenohArgs, out: Option<&Path>) -> Result<ExitCode, Failure> {
+fn record(
+    args: &MissionArgs,
+    zenoh: &ZenohArgs,
+    out: Option<&Path>,
+    live: Option<SocketAddr>,
+) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = runtime()?
-        .block_on(tcpf_coordinator::recording::record(&mission, &plan, &dir, zenoh))
+        .block_on(tcpf_coordinator::recording::record(&mission, &plan, &dir, zenoh, live))
         .map_err(Failure::Failed)?;
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());

@@ -1,5 +1,6 @@
 //! `tcpf run --in-process`: the reference run, every machine in one loop.
 
+use std::net::SocketAddr;
 use std::time::Instant;
 
 use anyhow::Result;
@@ -11,10 +12,10 @@ use crate::progress::Ticks;
 use tcpf_report::rundir::RunDir;
 use tcpf_report::summary::{Clock, Mode, Summary};
 
-pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir) -> Result<Summary> {
+pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr>) -> Result<Summary> {
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
-    let mut telemetry = dir.telemetry()?;
+    let mut telemetry = dir.telemetry(plan, live)?;
     let mut failure = None;
     let progress = Ticks::new(mission);
     let mut ticks = 0;

@@ -2,6 +2,7 @@
 //! binary on a loopback port of their own; the launcher records them and stops them all.
 
 use std::fs::File;
+use std::net::SocketAddr;
 use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
@@ -86,7 +87,13 @@ enum Outcome {
 }
 
 /// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
-pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Result<Summary> {
+pub async fn run(
+    mission: &Mission,
+    plan: &Plan,
+    dir: &RunDir,
+    exe: &Path,
+    live: Option<SocketAddr>,
+) -> Result<Summary> {
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
@@ -100,7 +107,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path) -> Re
     .await?;
     // Where to attach another tool to the running fleet (a recorder, a testbed bridge, a probe).
     std::fs::write(dir.path.join("endpoint"), format!("{endpoint}\n"))?;
-    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry()?).await?;
+    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
 
     let common = vec![mission_file, "-e".to_string(), endpoint];
     let mut children = vec![spawn(exe, dir, Role::Planner, None, &common)?];

@@ -1,6 +1,7 @@
 //! The recorder's Zenoh shell: every state, command, end and exit report of a mission, fed to
 //! core's `Recorder`, which hands complete ticks to `telemetry.csv` in order.
 
+use std::net::SocketAddr;
 use std::time::Instant;
 
 use anyhow::{anyhow, Result};
@@ -169,12 +170,18 @@ impl Recording {
 
 /// `tcpf record`: records a fleet started elsewhere (start the world with `--recorders 1`) until
 /// the world's end or a signal, and writes the run directory.
-pub async fn record(mission: &Mission, plan: &Plan, dir: &RunDir, zenoh: &ZenohArgs) -> Result<Summary> {
+pub async fn record(
+    mission: &Mission,
+    plan: &Plan,
+    dir: &RunDir,
+    zenoh: &ZenohArgs,
+    live: Option<SocketAddr>,
+) -> Result<Summary> {
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
     let session = zenoh.open().await?;
-    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry()?).await?;
+    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
     let progress = Ticks::new(mission);
     let started = Instant::now();
     let interrupted = loop {

@@ -2,6 +2,7 @@
 
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -11,6 +12,7 @@ use tcpf_core::planner::Plan;
 use tcpf_core::telemetry;
 
 use crate::summary::Summary;
+use crate::viewer::Viewer;
 
 pub struct RunDir {
     pub path: PathBuf,
@@ -54,7 +56,10 @@ impl RunDir {
         self.write("summary.json", &(serde_json::to_string_pretty(summary)? + "\n"))
     }
 
-    pub fn telemetry(&self) -> Result<Telemetry> {
+    /// The files written tick by tick: `telemetry.csv`, `messages.csv` and `run.mcap`; with
+    /// `live`, the same channels are served to Foxglove there while the run goes on.
+    pub fn telemetry(&self, plan: &Plan, live: Option<SocketAddr>) -> Result<Telemetry> {
+        let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
         let create = |name: &str, header: &str| -> Result<BufWriter<File>> {
             let file = self.path.join(name);
             let mut out =
@@ -65,15 +70,17 @@ impl RunDir {
         Ok(Telemetry {
             out: create("telemetry.csv", telemetry::HEADER)?,
             messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
+            viewer: Viewer::create(&self.path.join("run.mcap"), &paths, live)?,
             line: String::new(),
         })
     }
 }
 
-/// `telemetry.csv` and `messages.csv`, written as the ticks come.
+/// `telemetry.csv`, `messages.csv` and `run.mcap`, written as the ticks come.
 pub struct Telemetry {
     out: BufWriter<File>,
     messages: BufWriter<File>,
+    viewer: Viewer,
     line: String,
 }
 
@@ -91,12 +98,13 @@ impl Telemetry {
             }
         }
         self.messages.write_all(self.line.as_bytes())?;
+        self.viewer.tick(states, commands);
         Ok(())
     }
 
     pub fn finish(mut self) -> Result<()> {
         self.out.flush()?;
         self.messages.flush()?;
-        Ok(())
+        self.viewer.finish()
     }
 }

@@ -41,3 +41,55 @@ pub fn text(o: &Output) -> String {
         String::from_utf8_lossy(&o.stderr)
     )
 }
+
+/// (pid, parent pid, state) of every process.
+pub fn processes() -> Vec<(u32, u32, char)> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        // The command name is in parentheses and may hold spaces: parse after the last ')'.
+        let rest: Vec<&str> = stat[stat.rfind(')').unwrap() + 2..].split(' ').collect();
+        out.push((pid, rest[1].parse().unwrap(), rest[0].chars().next().unwrap()));
+    }
+    out
+}
+
+pub fn descendants(root: u32) -> Vec<u32> {
+    let all = processes();
+    let mut found = vec![root];
+    let mut k = 0;
+    while k < found.len() {
+        let parent = found[k];
+        found.extend(all.iter().filter(|p| p.1 == parent).map(|p| p.0));
+        k += 1;
+    }
+    found.remove(0);
+    found
+}
+
+pub fn alive(pid: u32) -> bool {
+    processes().iter().any(|p| p.0 == pid && p.2 != 'Z')
+}
+
+pub fn kill(signal: &str, pid: u32) {
+    let _ = Command::new("kill").args([signal, &pid.to_string()]).status();
+}
+
+/// A child that is killed, with everything under it, when dropped: a failing test leaves no
+/// process behind.
+pub struct Reaper(pub std::process::Child);
+
+impl Drop for Reaper {
+    fn drop(&mut self) {
+        for pid in descendants(self.0.id()) {
+            kill("-9", pid);
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}

@@ -1,0 +1,240 @@
+//! A live view of a run for Foxglove and the tools that speak its WebSocket protocol
+//! (ws-protocol v1: Foxglove, Lichtblick, PlotJuggler's Foxglove bridge client). Foxglove's own
+//! SDK negotiates this protocol only under its new name, `foxglove.sdk.v1`, so a client that offers
+//! just `foxglove.websocket.v1` would be refused: this server accepts both names.
+//!
+//! The run never waits for a viewer: messages go through a bounded broadcast queue, and a client
+//! that falls behind loses the oldest (counted in the log).
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+
+use anyhow::{anyhow, Result};
+use base64::Engine;
+use futures_util::{SinkExt, StreamExt};
+use serde_json::{json, Value};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::{broadcast, oneshot};
+use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
+use tokio_tungstenite::tungstenite::http::HeaderValue;
+use tokio_tungstenite::tungstenite::Message;
+
+/// The subprotocol names a client may offer, preferred first.
+const SUBPROTOCOLS: [&str; 2] = ["foxglove.websocket.v1", "foxglove.sdk.v1"];
+/// Messages a slow client may fall behind by before it loses the oldest.
+const BACKLOG: usize = 16_384;
+
+/// A channel as the protocol advertises it.
+#[derive(Debug, Clone)]
+pub struct ChannelInfo {
+    pub topic: String,
+    /// Message encoding: "protobuf" or "json".
+    pub encoding: String,
+    pub schema_name: String,
+    /// "protobuf" (a FileDescriptorSet, sent base64-encoded) or "jsonschema".
+    pub schema_encoding: String,
+    pub schema: Vec<u8>,
+}
+
+/// One message of a channel, stamped with its log time.
+#[derive(Clone)]
+struct Data {
+    channel: u32,
+    log_time: u64,
+    payload: Arc<[u8]>,
+}
+
+struct Shared {
+    channels: Mutex<Vec<ChannelInfo>>,
+    data: broadcast::Sender<Data>,
+}
+
+/// The server, running on a thread of its own until dropped.
+pub struct Live {
+    shared: Arc<Shared>,
+    stop: Option<oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+    pub addr: SocketAddr,
+}
+
+impl Live {
+    /// Listens on `addr` (port 0: any free port) and serves from a thread of its own.
+    pub fn start(addr: SocketAddr) -> Result<Live> {
+        let shared = Arc::new(Shared {
+            channels: Mutex::new(Vec::new()),
+            data: broadcast::channel(BACKLOG).0,
+        });
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let (stop, stopped) = oneshot::channel();
+        let serving = shared.clone();
+        let thread = std::thread::Builder::new().name("tcpf-live".into()).spawn(move || {
+            let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
+                Ok(r) => r,
+                Err(e) => return drop(ready_tx.send(Err(anyhow!("live view runtime: {e}")))),
+            };
+            runtime.block_on(async move {
+                let listener = match TcpListener::bind(addr).await {
+                    Ok(l) => l,
+                    Err(e) => return drop(ready_tx.send(Err(anyhow!("cannot serve the live view on {addr}: {e}")))),
+                };
+                let _ = ready_tx.send(listener.local_addr().map_err(|e| anyhow!("{e}")));
+                tokio::select! {
+                    _ = accept(listener, serving) => {}
+                    _ = stopped => {}
+                }
+            });
+        })?;
+        let addr = ready_rx
+            .recv()
+            .map_err(|_| anyhow!("the live view's thread stopped before listening"))??;
+        tracing::info!("live view for Foxglove on ws://{addr}");
+        Ok(Live {
+            shared,
+            stop: Some(stop),
+            thread: Some(thread),
+            addr,
+        })
+    }
+
+    /// Makes a channel known; clients that connect from now on get it advertised.
+    pub fn add_channel(&self, info: ChannelInfo) -> u32 {
+        let mut channels = self.shared.channels.lock().expect("no panic while held");
+        channels.push(info);
+        channels.len() as u32
+    }
+
+    /// Hands a message to every client subscribed to `channel`, without waiting for any.
+    pub fn publish(&self, channel: u32, log_time: u64, payload: &[u8]) {
+        let _ = self.shared.data.send(Data {
+            channel,
+            log_time,
+            payload: payload.into(),
+        });
+    }
+}
+
+impl Drop for Live {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+async fn accept(listener: TcpListener, shared: Arc<Shared>) {
+    while let Ok((stream, peer)) = listener.accept().await {
+        let shared = shared.clone();
+        tokio::spawn(async move {
+            if let Err(e) = client(stream, &shared).await {
+                tracing::info!("live view: client {peer}: {e}");
+            }
+        });
+    }
+}
+
+fn advertise(channels: &[ChannelInfo]) -> Value {
+    let b64 = base64::engine::general_purpose::STANDARD;
+    let channels: Vec<Value> = channels
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let schema = if c.schema_encoding == "jsonschema" {
+                String::from_utf8_lossy(&c.schema).into_owned()
+            } else {
+                b64.encode(&c.schema)
+            };
+            json!({
+                "id": k + 1, "topic": c.topic, "encoding": c.encoding, "schemaName": c.schema_name,
+                "schema": schema, "schemaEncoding": c.schema_encoding,
+            })
+        })
+        .collect();
+    json!({"op": "advertise", "channels": channels})
+}
+
+/// Accepts the handshake of a client that offers one of `SUBPROTOCOLS`, and answers with it.
+// The error type is tungstenite's callback contract, a whole HTTP response: it cannot be boxed.
+#[allow(clippy::result_large_err)]
+fn negotiate(request: &Request, mut response: Response) -> Result<Response, ErrorResponse> {
+    let offered: Vec<String> = request
+        .headers()
+        .get_all("sec-websocket-protocol")
+        .iter()
+        .flat_map(|h| h.to_str().unwrap_or_default().split(','))
+        .map(|p| p.trim().to_string())
+        .collect();
+    match SUBPROTOCOLS.iter().find(|p| offered.iter().any(|o| o == *p)) {
+        Some(p) => {
+            response
+                .headers_mut()
+                .insert("sec-websocket-protocol", HeaderValue::from_static(p));
+            Ok(response)
+        }
+        None => Err(Response::builder()
+            .status(400)
+            .body(Some(format!("offer one of the subprotocols {SUBPROTOCOLS:?}")))
+            .expect("a valid response")),
+    }
+}
+
+/// One client: handshake, server info and advertisements, then its subscriptions' messages.
+async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
+    let mut socket = tokio_tungstenite::accept_hdr_async(stream, negotiate).await?;
+    let mut data = shared.data.subscribe();
+    let info = json!({
+        "op": "serverInfo", "name": "tcpf", "capabilities": [], "supportedEncodings": [], "metadata": {},
+    });
+    socket.send(Message::text(info.to_string())).await?;
+    let channels = shared.channels.lock().expect("no panic while held").clone();
+    socket.send(Message::text(advertise(&channels).to_string())).await?;
+    // channel id → subscription id
+    let mut subscriptions: HashMap<u32, u32> = HashMap::new();
+    let mut lost = 0u64;
+    loop {
+        tokio::select! {
+            incoming = socket.next() => {
+                let Some(message) = incoming else { break };
+                if let Message::Text(text) = message? {
+                    let op: Value = serde_json::from_str(&text).unwrap_or_default();
+                    let ids = |key: &str| -> Vec<Value> { op[key].as_array().cloned().unwrap_or_default() };
+                    match op["op"].as_str() {
+                        Some("subscribe") => {
+                            for s in ids("subscriptions") {
+                                if let (Some(id), Some(channel)) = (s["id"].as_u64(), s["channelId"].as_u64()) {
+                                    subscriptions.insert(channel as u32, id as u32);
+                                }
+                            }
+                        }
+                        Some("unsubscribe") => {
+                            let gone: Vec<u64> = ids("subscriptionIds").iter().filter_map(Value::as_u64).collect();
+                            subscriptions.retain(|_, id| !gone.contains(&u64::from(*id)));
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            message = data.recv() => match message {
+                Ok(m) => {
+                    if let Some(&subscription) = subscriptions.get(&m.channel) {
+                        let mut frame = Vec::with_capacity(13 + m.payload.len());
+                        frame.push(1);
+                        frame.extend_from_slice(&subscription.to_le_bytes());
+                        frame.extend_from_slice(&m.log_time.to_le_bytes());
+                        frame.extend_from_slice(&m.payload);
+                        socket.send(Message::binary(frame)).await?;
+                    }
+                }
+                Err(broadcast::error::RecvError::Lagged(n)) => lost += n,
+                Err(broadcast::error::RecvError::Closed) => break,
+            },
+        }
+    }
+    if lost > 0 {
+        tracing::warn!("live view: a client fell behind and lost {lost} messages");
+    }
+    Ok(())
+}

@@ -1,0 +1,217 @@
+//! What Foxglove (or any MCAP reader) sees of a run: `run.mcap`, and the same channels served
+//! live (`live`) while the run goes on. Every message is encoded once and stamped with
+//! simulated time, so a recorded run replays at its own pace and a live one shows its clock.
+//!
+//! Channels, per vehicle `<id>`:
+//! - `/vehicle/<id>/pose` (`foxglove.PoseInFrame`, frame `world`): position and heading, every tick;
+//! - `/vehicle/<id>/path` (`foxglove.PosesInFrame`): the planned path, once at t = 0;
+//! - `/vehicle/<id>/coordination` (JSON): γ, γ̇ and the command with the errors behind it;
+//!
+//! and `/links` (JSON): every γ message a link decided on, delivered or lost.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::net::SocketAddr;
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{anyhow, Context as _, Result};
+use foxglove::messages::{Pose, PoseInFrame, PosesInFrame, Quaternion, Timestamp, Vector3};
+use foxglove::{
+    Context, Encode, McapCompression, McapWriteOptions, McapWriterHandle, PartialMetadata, RawChannel, Schema,
+};
+use serde_json::json;
+use tcpf_core::msg::{Command, State};
+use tcpf_core::path::GeneralizedPath;
+
+use crate::live::{ChannelInfo, Live};
+
+const FRAME: &str = "world";
+/// Seconds of γ between two poses of a drawn path.
+const PATH_STEP: f64 = 0.5;
+
+const COORDINATION_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"gamma":{"type":"number"},"gamma_dot":{"type":"number"},"v":{"type":"number"},"r":{"type":"number"},"v_d":{"type":"number"},"x_e":{"type":"number"},"y_e":{"type":"number"},"psi_e":{"type":"number"}}}"#;
+const LINK_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"from":{"type":"integer"},"to":{"type":"integer"},"delivered":{"type":"boolean"}}}"#;
+
+/// One channel, in the file and, when live, on the server.
+struct Topic {
+    file: Arc<RawChannel>,
+    live: u32,
+}
+
+struct Vehicle {
+    pose: Topic,
+    coordination: Topic,
+}
+
+pub struct Viewer {
+    /// Owns the file's channels: they close when it goes.
+    context: Arc<Context>,
+    vehicles: Vec<Vehicle>,
+    links: Topic,
+    mcap: Option<McapWriterHandle<BufWriter<File>>>,
+    live: Option<Live>,
+    buffer: Vec<u8>,
+}
+
+fn nanos(t: f64) -> u64 {
+    (t.max(0.0) * 1e9).round() as u64
+}
+
+fn stamp(t: f64) -> Timestamp {
+    let ns = nanos(t);
+    Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32)
+}
+
+/// A planar pose: position in the plane, heading as a rotation about z.
+fn pose(x: f64, y: f64, heading: f64) -> Pose {
+    let (s, c) = (0.5 * heading).sin_cos();
+    Pose {
+        position: Some(Vector3 { x, y, z: 0.0 }),
+        orientation: Some(Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: s,
+            w: c,
+        }),
+    }
+}
+
+impl Viewer {
+    /// Opens `file` for writing and, with `live`, serves the channels there. `paths` are the
+    /// vehicles' planned paths, in the order of the states the ticks will give.
+    pub fn create(file: &Path, paths: &[(u32, GeneralizedPath)], live: Option<SocketAddr>) -> Result<Viewer> {
+        let context = Context::new();
+        // lz4 is a few kilobytes of C; zstd would compress better at the cost of a slow build.
+        let options = McapWriteOptions::new().compression(Some(McapCompression::Lz4));
+        let mcap = context
+            .mcap_writer_with_options(options)
+            .create_new_buffered_file(file)
+            .with_context(|| format!("cannot write {}", file.display()))?;
+        let live = live.map(Live::start).transpose()?;
+        let mut viewer = Viewer {
+            vehicles: Vec::with_capacity(paths.len()),
+            links: topic(&context, &live, "/links", json_schema("tcpf.Link", LINK_SCHEMA))?,
+            context,
+            mcap: Some(mcap),
+            live,
+            buffer: Vec::new(),
+        };
+        for (id, path) in paths {
+            let drawn = viewer.topic::<PosesInFrame>(&format!("/vehicle/{id}/path"))?;
+            let steps = (path.t_f() / PATH_STEP).ceil() as usize;
+            let poses = (0..=steps)
+                .map(|k| {
+                    let p = path.at((k as f64 * PATH_STEP).min(path.t_f()));
+                    pose(p.position.x, p.position.y, p.heading)
+                })
+                .collect();
+            let message = PosesInFrame {
+                timestamp: Some(stamp(0.0)),
+                frame_id: FRAME.into(),
+                poses,
+            };
+            viewer.log_encoded(&drawn, &message, 0.0);
+            let vehicle = Vehicle {
+                pose: viewer.topic::<PoseInFrame>(&format!("/vehicle/{id}/pose"))?,
+                coordination: topic(
+                    &viewer.context,
+                    &viewer.live,
+                    &format!("/vehicle/{id}/coordination"),
+                    json_schema("tcpf.Coordination", COORDINATION_SCHEMA),
+                )?,
+            };
+            viewer.vehicles.push(vehicle);
+        }
+        Ok(viewer)
+    }
+
+    /// A channel of one of Foxglove's message types.
+    fn topic<T: Encode>(&self, name: &str) -> Result<Topic> {
+        let schema = T::get_schema().ok_or_else(|| anyhow!("{name}: no schema"))?;
+        topic(&self.context, &self.live, name, (schema, T::get_message_encoding()))
+    }
+
+    fn log(&self, topic: &Topic, bytes: &[u8], t: f64) {
+        topic
+            .file
+            .log_with_meta(bytes, PartialMetadata::with_log_time(nanos(t)));
+        if let Some(live) = &self.live {
+            live.publish(topic.live, nanos(t), bytes);
+        }
+    }
+
+    fn log_encoded<T: Encode>(&mut self, topic: &Topic, message: &T, t: f64) {
+        let mut buffer = std::mem::take(&mut self.buffer);
+        buffer.clear();
+        if message.encode(&mut buffer).is_ok() {
+            self.log(topic, &buffer, t);
+        }
+        self.buffer = buffer;
+    }
+
+    /// One tick: every vehicle's state, and the commands of those that are not lost.
+    pub fn tick(&mut self, states: &[State], commands: &[Option<&Command>]) {
+        let vehicles = std::mem::take(&mut self.vehicles);
+        for ((vehicle, s), c) in vehicles.iter().zip(states).zip(commands) {
+            let message = PoseInFrame {
+                timestamp: Some(stamp(s.t)),
+                frame_id: FRAME.into(),
+                pose: Some(pose(s.position[0], s.position[1], s.heading + s.sideslip)),
+            };
+            self.log_encoded(&vehicle.pose, &message, s.t);
+            let Some(c) = c else { continue };
+            let coordination = json!({
+                "t": s.t, "gamma": c.gamma, "gamma_dot": c.gamma_dot, "v": c.v, "r": c.r,
+                "v_d": c.v_d, "x_e": c.x_e, "y_e": c.y_e, "psi_e": c.psi_e,
+            });
+            self.log(&vehicle.coordination, coordination.to_string().as_bytes(), s.t);
+            for r in &c.receptions {
+                let link = json!({"t": s.t, "from": r.from, "to": c.id, "delivered": r.delivered});
+                self.log(&self.links, link.to_string().as_bytes(), s.t);
+            }
+        }
+        self.vehicles = vehicles;
+    }
+
+    /// Closes `run.mcap` and stops serving.
+    pub fn finish(mut self) -> Result<()> {
+        self.live.take();
+        if let Some(mcap) = self.mcap.take() {
+            mcap.close().map_err(|e| anyhow!("run.mcap: {e}"))?;
+        }
+        drop(self.context);
+        Ok(())
+    }
+}
+
+fn json_schema(name: &str, schema: &str) -> (Schema, String) {
+    (
+        Schema::new(name, "jsonschema", schema.as_bytes().to_vec()),
+        "json".into(),
+    )
+}
+
+fn topic(
+    context: &Arc<Context>,
+    live: &Option<Live>,
+    name: &str,
+    (schema, encoding): (Schema, String),
+) -> Result<Topic> {
+    let live = live.as_ref().map_or(0, |l| {
+        l.add_channel(ChannelInfo {
+            topic: name.into(),
+            encoding: encoding.clone(),
+            schema_name: schema.name.clone(),
+            schema_encoding: schema.encoding.clone(),
+            schema: schema.data.to_vec(),
+        })
+    });
+    let file = context
+        .channel_builder(name)
+        .message_encoding(encoding)
+        .schema(schema)
+        .build_raw()
+        .map_err(|e| anyhow!("channel {name}: {e}"))?;
+    Ok(Topic { file, live })
+}

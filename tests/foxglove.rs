@@ -1,0 +1,171 @@
+//! Runs open in Foxglove: `run.mcap` read back by an independent reader (Python's `mcap`
+//! package), and `--live` served over Foxglove's WebSocket protocol to a client that connects
+//! while the fleet runs.
+
+use std::net::TcpListener;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use futures_util::{SinkExt, StreamExt};
+use serde_json::Value;
+use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use tokio_tungstenite::tungstenite::Message;
+
+mod common;
+use common::{paper, scratch, Reaper};
+
+const READ_MCAP: &str = r#"
+import json, sys
+from collections import Counter
+from mcap.reader import make_reader
+with open(sys.argv[1], "rb") as f:
+    reader = make_reader(f)
+    counts, schemas, times = Counter(), {}, {}
+    for schema, channel, message in reader.iter_messages():
+        counts[channel.topic] += 1
+        schemas[channel.topic] = schema.name if schema else None
+        times.setdefault(channel.topic, []).append(message.log_time)
+print(json.dumps({t: {"count": counts[t], "schema": schemas[t], "first": times[t][0], "last": times[t][-1]} for t in counts}))
+"#;
+
+#[test]
+fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
+    let dir = scratch("mcap");
+    let status = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = Command::new("python3")
+        .args(["-c", READ_MCAP, dir.join("run.mcap").to_str().unwrap()])
+        .output()
+        .expect("python3 runs");
+    assert!(
+        out.status.success(),
+        "reading run.mcap with Python's mcap package (pip install mcap; .ci/run installs it): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let channels: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let ticks = summary["ticks"].as_u64().unwrap();
+    let dt = 0.01;
+    for id in [1, 2] {
+        let pose = &channels[format!("/vehicle/{id}/pose")];
+        assert_eq!(pose["count"], ticks, "one pose per tick: {channels}");
+        assert_eq!(pose["schema"], "foxglove.PoseInFrame");
+        assert_eq!(pose["first"], 0, "stamped with simulated time, from 0");
+        let last = pose["last"].as_u64().unwrap() as f64 * 1e-9;
+        assert!(
+            (last - (ticks - 1) as f64 * dt).abs() < 1e-6,
+            "the last tick's time, {last} s"
+        );
+        assert_eq!(
+            channels[format!("/vehicle/{id}/path")]["schema"],
+            "foxglove.PosesInFrame"
+        );
+        assert_eq!(channels[format!("/vehicle/{id}/coordination")]["count"], ticks);
+    }
+    let sent: u64 = summary["links"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["sent"].as_u64().unwrap())
+        .sum();
+    assert_eq!(channels["/links"]["count"], sent, "one link event per γ message");
+}
+
+/// A port nobody listens on now.
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn live_serves_the_fleet_over_foxglove_websocket() {
+    let dir = scratch("live");
+    let port = free_port();
+    let mut run = Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
+            .args(["--live", &format!("127.0.0.1:{port}")])
+            // Long enough for a client to join while it runs.
+            .args(["--set", "mission.control_period=0.005"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let mut request = format!("ws://127.0.0.1:{port}").into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.websocket.v1".parse().unwrap());
+    let (mut socket, response) = loop {
+        match tokio_tungstenite::connect_async(request.clone()).await {
+            Ok(connected) => break connected,
+            Err(e) => {
+                assert!(Instant::now() < deadline, "no live server on port {port}: {e}");
+                assert!(
+                    run.0.try_wait().unwrap().is_none(),
+                    "the run ended before a client could join"
+                );
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        }
+    };
+    assert_eq!(response.headers()["Sec-WebSocket-Protocol"], "foxglove.websocket.v1");
+
+    let mut channels: Vec<Value> = Vec::new();
+    let mut server_info = false;
+    let mut subscribed: Option<u64> = None;
+    let mut poses = 0;
+    while poses < 10 {
+        let message = tokio::time::timeout(Duration::from_secs(30), socket.next())
+            .await
+            .expect("the server speaks within 30 s")
+            .expect("the connection stays open")
+            .unwrap();
+        match message {
+            Message::Text(text) => {
+                let op: Value = serde_json::from_str(&text).unwrap();
+                match op["op"].as_str() {
+                    Some("serverInfo") => server_info = true,
+                    Some("advertise") => channels.extend(op["channels"].as_array().unwrap().iter().cloned()),
+                    _ => {}
+                }
+                if subscribed.is_none() {
+                    if let Some(pose) = channels.iter().find(|c| c["topic"] == "/vehicle/1/pose") {
+                        let id = pose["id"].as_u64().unwrap();
+                        let subscribe =
+                            serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": id}]});
+                        socket.send(Message::text(subscribe.to_string())).await.unwrap();
+                        subscribed = Some(id);
+                    }
+                }
+            }
+            // Message data: opcode 1, u32 subscription id, u64 log time, payload.
+            Message::Binary(data) if data.first() == Some(&1) => {
+                assert_eq!(u32::from_le_bytes(data[1..5].try_into().unwrap()), 7);
+                poses += 1;
+            }
+            _ => {}
+        }
+    }
+    assert!(server_info, "serverInfo first");
+    let topics: Vec<&str> = channels.iter().map(|c| c["topic"].as_str().unwrap()).collect();
+    for topic in [
+        "/vehicle/1/pose",
+        "/vehicle/2/pose",
+        "/vehicle/1/path",
+        "/vehicle/1/coordination",
+        "/links",
+    ] {
+        assert!(topics.contains(&topic), "{topic} advertised: {topics:?}");
+    }
+    let pose = channels.iter().find(|c| c["topic"] == "/vehicle/2/pose").unwrap();
+    assert_eq!(pose["schemaName"], "foxglove.PoseInFrame");
+    drop(socket);
+    let status = run.0.wait().unwrap();
+    assert!(status.success(), "the run completes with a client attached");
+}
