@@ -114,7 +114,12 @@ fn assert_none_left(summary: &Value) {
 
 #[test]
 fn processes_and_in_process_are_bit_identical() {
-    for (case, seed) in [("b-current", "1"), ("d-lossy", "1")] {
+    for (case, seed) in [
+        ("a-nominal", "1"),
+        ("b-current", "1"),
+        ("c-uncoordinated", "1"),
+        ("d-lossy", "1"),
+    ] {
         let dir = scratch(&format!("identical-{case}"));
         let mut launch = Launch::start(&paper(case), &dir.join("p"), &["--seed", seed]);
         assert!(launch.wait(Duration::from_secs(180)).success());

@@ -59,11 +59,36 @@ impl Quintic {
 
 /// The affine speed profile η(τ) = η0 + (ηf − η0) τ/τ_f over [0, t_f].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(from = "ProfileOnTheWire")]
 pub struct SpeedProfile {
     pub eta0: f64,
     pub etaf: f64,
     pub t_f: f64,
     pub tau_f: f64,
+    /// ln(ηf/η0), which τ(t) needs at every call: kept rather than recomputed, and not sent.
+    #[serde(skip)]
+    lambda: f64,
+}
+
+/// The fields a `SpeedProfile` is sent with.
+#[derive(Deserialize)]
+struct ProfileOnTheWire {
+    eta0: f64,
+    etaf: f64,
+    t_f: f64,
+    tau_f: f64,
+}
+
+impl From<ProfileOnTheWire> for SpeedProfile {
+    fn from(p: ProfileOnTheWire) -> SpeedProfile {
+        SpeedProfile {
+            lambda: (p.etaf / p.eta0).ln(),
+            eta0: p.eta0,
+            etaf: p.etaf,
+            t_f: p.t_f,
+            tau_f: p.tau_f,
+        }
+    }
 }
 
 /// Below this |ln(ηf/η0)| the profile is treated as constant (eqs. 17–18, first branch).
@@ -78,16 +103,18 @@ impl SpeedProfile {
         } else {
             (etaf - eta0) * t_f / lambda
         };
-        SpeedProfile { eta0, etaf, t_f, tau_f }
-    }
-
-    fn lambda(&self) -> f64 {
-        (self.etaf / self.eta0).ln()
+        SpeedProfile {
+            eta0,
+            etaf,
+            t_f,
+            tau_f,
+            lambda,
+        }
     }
 
     /// τ(t), eq. 18, written with expm1 so that it is accurate as ηf → η0.
     pub fn tau(&self, t: f64) -> f64 {
-        let lambda = self.lambda();
+        let lambda = self.lambda;
         if lambda.abs() < EQUAL_ETA {
             self.eta0 * t
         } else {

@@ -1,7 +1,7 @@
 //! The recorder as a machine: states and commands arrive from many processes in any order; it
 //! hands them on tick by tick, in order, exactly as the in-process run sees them.
 
-use std::collections::BTreeMap;
+use std::collections::VecDeque;
 
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
@@ -10,11 +10,18 @@ use crate::msg::{Command, End, State};
 /// One tick as it fills: a slot per vehicle for its state and its command.
 type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
 
+/// How far ahead of the next tick to hand on a message may be. Messages of one tick come close
+/// together, so a recorder holds a few ticks at a time even when it lags (what waits is in the
+/// transport's queue, not here); the bound keeps a message for a far future tick from costing
+/// memory.
+const WINDOW: u64 = 1 << 16;
+
 pub struct Recorder {
     ids: Vec<u32>,
     metrics: Metrics,
     next: u64,
-    ticks: BTreeMap<u64, Tick>,
+    /// Ticks next, next + 1, … as they fill.
+    ticks: VecDeque<Tick>,
     end: Option<End>,
     /// Emptied ticks, kept for the next ones: a run fills one or two at a time.
     spare: Vec<Tick>,
@@ -27,7 +34,7 @@ impl Recorder {
             ids: ids.to_vec(),
             metrics: Metrics::new(ids, t_f, dt),
             next: 0,
-            ticks: BTreeMap::new(),
+            ticks: VecDeque::new(),
             end: None,
             spare: Vec::new(),
             states: Vec::with_capacity(ids.len()),
@@ -36,17 +43,16 @@ impl Recorder {
 
     fn slot(&mut self, tick: u64, id: u32) -> Result<(&mut Tick, usize), Reject> {
         let n = self.ids.iter().position(|&i| i == id).ok_or(Reject::UnknownVehicle)?;
-        if tick < self.next || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+        if tick < self.next || tick >= self.next + WINDOW || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
             return Err(Reject::WrongTick);
         }
+        let k = (tick - self.next) as usize;
         let len = self.ids.len();
-        let spare = &mut self.spare;
-        Ok((
-            self.ticks
-                .entry(tick)
-                .or_insert_with(|| spare.pop().unwrap_or_else(|| (vec![None; len], vec![None; len]))),
-            n,
-        ))
+        while self.ticks.len() <= k {
+            let fresh = self.spare.pop().unwrap_or_else(|| (vec![None; len], vec![None; len]));
+            self.ticks.push_back(fresh);
+        }
+        Ok((&mut self.ticks[k], n))
     }
 
     pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
@@ -87,7 +93,7 @@ impl Recorder {
             if self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
                 return;
             }
-            let Some((states, commands)) = self.ticks.get(&tick) else {
+            let Some((states, commands)) = self.ticks.front() else {
                 return;
             };
             let lost = |n: usize| lost_at(&self.end, self.ids[n], tick);
@@ -96,7 +102,7 @@ impl Recorder {
             if !complete {
                 return;
             }
-            let (mut states, mut commands) = self.ticks.remove(&tick).expect("present");
+            let (mut states, mut commands) = self.ticks.pop_front().expect("present");
             self.states.clear();
             self.states.extend(states.iter_mut().flat_map(Option::take));
             for (&id, command) in self.ids.iter().zip(commands.iter_mut()) {
@@ -212,5 +218,27 @@ mod tests {
         assert!(recorder.complete());
         let r = recorder.results();
         assert!(r.vehicles[1].lost && !r.vehicles[0].lost);
+    }
+
+    #[test]
+    fn a_message_for_a_far_future_tick_is_refused_and_costs_nothing() {
+        let (messages, ..) = recorded_run();
+        let mut recorder = Recorder::new(&[1, 2], 45.0, 0.01);
+        let (state, command) = messages[0].clone();
+        let far = State { tick: WINDOW, ..state };
+        assert_eq!(recorder.on_state(far), Err(Reject::WrongTick));
+        assert_eq!(
+            recorder.on_command(Command {
+                tick: u64::MAX,
+                ..command.clone()
+            }),
+            Err(Reject::WrongTick)
+        );
+        assert!(recorder.ticks.is_empty(), "nothing was held for them");
+        let near = State {
+            tick: WINDOW - 1,
+            ..state
+        };
+        assert_eq!(recorder.on_state(near), Ok(()), "the edge of the window is in it");
     }
 }
