@@ -26,6 +26,8 @@ pub struct WorldNode {
     /// Per vehicle: γ_i has reached t_f (the run ends when every live vehicle's has). The
     /// metrics are the recorder's; the world needs only this.
     arrived: Vec<bool>,
+    /// Per vehicle: its agent is gone (the world's bodies know it too; this is the fast look-up).
+    gone: Vec<bool>,
     max_ticks: u64,
     ids: Vec<u32>,
     states: Vec<State>,
@@ -41,6 +43,7 @@ impl WorldNode {
             states: world.states(),
             t_f,
             arrived: vec![false; ids.len()],
+            gone: vec![false; ids.len()],
             max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
             ids,
@@ -64,7 +67,7 @@ impl WorldNode {
             .iter()
             .position(|&i| i == command.id)
             .ok_or(Reject::UnknownVehicle)?;
-        if command.tick != self.tick() || self.world.is_lost(command.id) {
+        if command.tick != self.tick() || self.gone[n] {
             return Err(Reject::WrongTick);
         }
         if self.pending[n].is_some() {
@@ -76,7 +79,8 @@ impl WorldNode {
 
     /// The agent of `id` is gone: its vehicle drifts from this tick on, and nobody waits for it.
     pub fn on_lost(&mut self, id: u32) {
-        if self.ids.contains(&id) && !self.world.is_lost(id) {
+        if let Some(n) = self.ids.iter().position(|&i| i == id).filter(|&n| !self.gone[n]) {
+            self.gone[n] = true;
             self.world.mark_lost(id);
             self.lost.push(Lost { id, tick: self.tick() });
         }
@@ -87,8 +91,9 @@ impl WorldNode {
         self.ids
             .iter()
             .zip(&self.pending)
-            .filter(|(id, c)| c.is_none() && !self.world.is_lost(**id))
-            .map(|(id, _)| *id)
+            .zip(&self.gone)
+            .filter(|((_, c), gone)| c.is_none() && !**gone)
+            .map(|((id, _), _)| *id)
             .collect()
     }
 
@@ -97,20 +102,16 @@ impl WorldNode {
     pub fn advance(&mut self, observe: impl FnOnce(&[State], &[Option<&Command>])) -> Option<End> {
         let tick = self.tick();
         let held: Vec<Option<&Command>> = self
-            .ids
+            .pending
             .iter()
-            .zip(&self.pending)
-            .map(|(id, c)| c.as_ref().filter(|_| !self.world.is_lost(*id)))
+            .zip(&self.gone)
+            .map(|(c, gone)| c.as_ref().filter(|_| !gone))
             .collect();
         for (arrived, c) in self.arrived.iter_mut().zip(&held) {
             *arrived |= c.is_some_and(|c| c.gamma >= self.t_f);
         }
         observe(&self.states, &held);
-        let done = self
-            .ids
-            .iter()
-            .zip(&self.arrived)
-            .all(|(id, a)| *a || self.world.is_lost(*id));
+        let done = self.arrived.iter().zip(&self.gone).all(|(a, gone)| *a || *gone);
         if done || tick >= self.max_ticks {
             return Some(self.end());
         }
