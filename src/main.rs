@@ -77,7 +77,7 @@ enum Command {
         #[arg(long, value_name = "KEY=V1,V2,...")]
         param: Option<String>,
         /// Seeds 1..=N for every value.
-        #[arg(long)]
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         seeds: u64,
         /// Run each as a real fleet of processes (one after the other) instead of in-process.
         #[arg(long)]
@@ -96,7 +96,7 @@ enum Command {
         #[command(flatten)]
         mission: MissionArgs,
         /// Round trips to time.
-        #[arg(long, default_value_t = 2000)]
+        #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..))]
         count: u64,
     },
     /// The echo side of `tcpf bench`.
@@ -104,7 +104,7 @@ enum Command {
     Pong {
         #[command(flatten)]
         zenoh: ZenohArgs,
-        #[arg(long)]
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         count: u64,
     },
     /// Role: plan and serve every vehicle's path.
@@ -124,8 +124,8 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         recorders: usize,
         /// Seconds to wait for the planner and the agents.
-        #[arg(long, default_value_t = 60.0)]
-        startup_timeout: f64,
+        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Duration,
     },
     /// Role: record a fleet started by hand (start its world with --recorders 1).
     Record {
@@ -150,11 +150,11 @@ enum Command {
         #[arg(long)]
         id: u32,
         /// Seconds to wait for the planner, the world and the neighbours.
-        #[arg(long, default_value_t = 60.0)]
-        startup_timeout: f64,
+        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Duration,
         /// Seconds after which a silent neighbour stops being counted.
-        #[arg(long, default_value_t = 3.0)]
-        stale_timeout: f64,
+        #[arg(long, default_value = "3", value_parser = seconds, allow_hyphen_values = true)]
+        stale_timeout: Duration,
     },
 }
 
@@ -173,6 +173,40 @@ fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
         sets.push(format!("mission.seed={seed}"));
     }
     mission::parse(&name, &text, &sets).map_err(|e| Failure::Input(e.into()))
+}
+
+/// A duration on the command line: seconds, finite, positive and at most a day.
+fn seconds(text: &str) -> Result<Duration, String> {
+    let s: f64 = text
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number of seconds"))?;
+    if s.is_finite() && s > 0.0 && s <= 86_400.0 {
+        Ok(Duration::from_secs_f64(s))
+    } else {
+        Err(format!("{text} s: give a number of seconds in (0, 86400]"))
+    }
+}
+
+/// A run directory to create: a new or empty directory, so that a run never mixes its files
+/// with another's.
+fn fresh_out(out: Option<&Path>) -> Result<(), Failure> {
+    let Some(out) = out.filter(|o| o.exists()) else {
+        return Ok(());
+    };
+    let empty = out.is_dir() && std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_none());
+    if empty {
+        Ok(())
+    } else if out.is_dir() {
+        Err(Failure::Input(anyhow!(
+            "--out {}: the directory already holds files; give a new or empty one",
+            out.display()
+        )))
+    } else {
+        Err(Failure::Input(anyhow!(
+            "--out {}: is a file, not a directory",
+            out.display()
+        )))
+    }
 }
 
 fn solve(mission: &Mission, file: &Path) -> Result<Plan, Failure> {
@@ -271,6 +305,7 @@ fn run(
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
     let plan = solve(&mission, &args.file)?;
+    fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = if in_process {
         inprocess::run(&mission, &plan, &dir, live).map_err(Failure::Failed)?
@@ -315,10 +350,15 @@ fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
     ))
 }
 
-fn world(args: &MissionArgs, zenoh: &ZenohArgs, recorders: usize, startup_timeout: f64) -> Result<ExitCode, Failure> {
+fn world(
+    args: &MissionArgs,
+    zenoh: &ZenohArgs,
+    recorders: usize,
+    startup_timeout: Duration,
+) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let options = tcpf_world::Options {
-        startup_timeout: Duration::from_secs_f64(startup_timeout),
+        startup_timeout,
         recorders,
     };
     let exit = runtime()?
@@ -334,13 +374,13 @@ fn agent(
     args: &MissionArgs,
     zenoh: &ZenohArgs,
     id: u32,
-    startup_timeout: f64,
-    stale_timeout: f64,
+    startup_timeout: Duration,
+    stale_timeout: Duration,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let options = tcpf_agent::Options {
-        startup_timeout: Duration::from_secs_f64(startup_timeout),
-        stale_timeout: Duration::from_secs_f64(stale_timeout),
+        startup_timeout,
+        stale_timeout,
     };
     let exit = runtime()?
         .block_on(tcpf_agent::run(&mission, id, zenoh, &options))
@@ -470,6 +510,7 @@ fn record(
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
+    fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = runtime()?
         .block_on(tcpf_coordinator::recording::record(&mission, &plan, &dir, zenoh, live))

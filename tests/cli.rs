@@ -140,3 +140,62 @@ fn a_run_that_does_not_finish_exits_1() {
     assert_eq!(s["completed"], false);
     assert!(s["vehicles"][0]["arrival_time"].is_null());
 }
+
+#[test]
+fn command_line_misuse_exits_2_with_a_clear_message() {
+    let mission = paper("b-current");
+    let dir = scratch("misuse");
+    let file = dir.join("a-file");
+    std::fs::write(&file, "not a directory").unwrap();
+    let full = dir.join("full");
+    std::fs::create_dir_all(&full).unwrap();
+    std::fs::write(full.join("telemetry.csv"), "another run's").unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["agent", &mission, "--id", "1", "--stale-timeout", "-1"],
+            "(0, 86400]",
+        ),
+        (
+            vec!["agent", &mission, "--id", "1", "--stale-timeout", "NaN"],
+            "(0, 86400]",
+        ),
+        (
+            vec!["agent", &mission, "--id", "1", "--startup-timeout", "inf"],
+            "(0, 86400]",
+        ),
+        (
+            vec!["agent", &mission, "--id", "1", "--stale-timeout", "1e300"],
+            "(0, 86400]",
+        ),
+        (
+            vec!["world", &mission, "--startup-timeout", "soon"],
+            "not a number of seconds",
+        ),
+        (vec!["bench", &mission, "--count", "0"], "--count"),
+        (vec!["sweep", &mission, "--loss", "0,0.5", "--seeds", "0"], "--seeds"),
+        (
+            vec!["sweep", &mission, "--param", "comms.nonsense=1,2", "--seeds", "1"],
+            "comms.nonsense",
+        ),
+        (
+            vec!["run", &mission, "--in-process", "--out", file.to_str().unwrap()],
+            "is a file",
+        ),
+        (
+            vec!["run", &mission, "--in-process", "--out", full.to_str().unwrap()],
+            "already holds files",
+        ),
+    ];
+    for (args, says) in cases {
+        let o = tcpf(&args);
+        let out = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {out}");
+        assert!(out.contains(says), "{args:?} should say {says:?}: {out}");
+        assert!(!out.contains("panicked"), "{args:?}: {out}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(full.join("telemetry.csv")).unwrap(),
+        "another run's",
+        "nothing was overwritten"
+    );
+}
