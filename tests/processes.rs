@@ -244,6 +244,37 @@ fn a_killed_agent_is_lost_and_the_others_arrive() {
     assert!(descendants(launch.child.id()).is_empty());
 }
 
+/// Processes whose parent is gone, killed when the test ends however it ends.
+struct Orphans(Vec<u32>);
+
+impl Drop for Orphans {
+    fn drop(&mut self) {
+        for &pid in &self.0 {
+            kill("-9", pid);
+        }
+    }
+}
+
+#[test]
+fn no_child_outlives_a_launcher_killed_with_sigkill() {
+    let dir = scratch("orphans");
+    let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.002"]);
+    launch.wait_for("logs/world.log", "starting");
+    let children = Orphans(descendants(launch.child.id()));
+    assert!(children.0.len() >= 4, "planner, world and agents run: {:?}", children.0);
+    kill("-9", launch.child.id());
+    let _ = launch.child.wait();
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while children.0.iter().any(|&pid| alive(pid)) {
+        let left: Vec<u32> = children.0.iter().copied().filter(|&pid| alive(pid)).collect();
+        assert!(
+            Instant::now() < deadline,
+            "children {left:?} outlived their launcher by 3 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 #[test]
 fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     let dir = scratch("sigint");

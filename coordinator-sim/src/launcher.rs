@@ -63,6 +63,23 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String])
     if let Some(id) = id {
         command.args(["--id", &id.to_string()]);
     }
+    let launcher = std::process::id();
+    // SAFETY: between fork and exec the closure makes only async-signal-safe calls (prctl,
+    // getppid, _exit) and allocates nothing.
+    unsafe {
+        command.pre_exec(move || {
+            // A child must never outlive its launcher, even one killed with SIGKILL: the kernel
+            // kills it when the launcher goes.
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // The launcher died before the line above: nobody would kill us.
+            if libc::getppid() as u32 != launcher {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
     let child = command
         .stdin(Stdio::null())
         .stdout(Stdio::from(log.try_clone()?))
