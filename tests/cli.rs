@@ -2,9 +2,10 @@
 
 use std::path::Path;
 use std::process::Output;
+use std::time::{Duration, Instant};
 
 mod common;
-use common::{paper, scratch, tcpf, text};
+use common::{kill, paper, scratch, tcpf, text, Reaper};
 
 #[test]
 fn plan_json_has_the_contract_fields() {
@@ -198,4 +199,45 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         "another run's",
         "nothing was overwritten"
     );
+}
+
+#[test]
+fn sigint_on_an_in_process_run_exits_130_with_summary_and_report() {
+    let out = scratch("in-process-sigint");
+    let mut run = Reaper(
+        std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args([
+                "run",
+                &paper("b-current"),
+                "--in-process",
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            // Long enough to be interrupted: 277 000 ticks.
+            .args(["--set", "mission.control_period=0.0002"])
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while std::fs::metadata(out.join("telemetry.csv")).map_or(0, |m| m.len()) < 100_000 {
+        assert!(Instant::now() < deadline, "the run never started writing");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    kill("-INT", run.0.id());
+    let status = run.0.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["interrupted"], true);
+    assert_eq!(summary["completed"], false);
+    let ticks = summary["ticks"].as_u64().unwrap();
+    assert!(ticks > 0 && ticks < 277_000, "stopped part-way: {ticks} ticks");
+    let rows = std::fs::read_to_string(out.join("telemetry.csv"))
+        .unwrap()
+        .lines()
+        .count() as u64;
+    assert_eq!(rows, 1 + 2 * ticks, "whole ticks only");
+    assert!(out.join("report.html").is_file());
+    assert!(out.join("run.mcap").is_file());
 }

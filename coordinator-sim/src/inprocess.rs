@@ -1,9 +1,12 @@
 //! `tcpf run --in-process`: the reference run, every machine in one loop.
 
 use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
+use signal_hook::consts::{SIGINT, SIGTERM};
 use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
@@ -12,7 +15,13 @@ use crate::progress::Ticks;
 use tcpf_report::rundir::RunDir;
 use tcpf_report::summary::{Clock, Mode, Summary};
 
+/// Runs the mission in one loop and writes the run directory. SIGINT or SIGTERM stop it after
+/// the tick under way, with the summary and report of the ticks run.
 pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr>) -> Result<Summary> {
+    let interrupted = Arc::new(AtomicBool::new(false));
+    for signal in [SIGINT, SIGTERM] {
+        signal_hook::flag::register(signal, interrupted.clone()).context("cannot handle SIGINT and SIGTERM")?;
+    }
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
     let mut telemetry = dir.telemetry(plan, live)?;
@@ -20,13 +29,16 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
     let progress = Ticks::new(mission);
     let mut ticks = 0;
     let started = Instant::now();
-    let results = Fleet::new(mission, plan).run(|states, commands| {
-        ticks += 1;
-        progress.set(ticks);
-        if failure.is_none() {
-            failure = telemetry.tick(states, commands).err();
-        }
-    });
+    let results = Fleet::new(mission, plan).run_until(
+        |states, commands| {
+            ticks += 1;
+            progress.set(ticks);
+            if failure.is_none() {
+                failure = telemetry.tick(states, commands).err();
+            }
+        },
+        || interrupted.load(Ordering::Relaxed),
+    );
     let wall_time_s = started.elapsed().as_secs_f64();
     progress.finish();
     if let Some(e) = failure {
@@ -34,13 +46,14 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
     }
     telemetry.finish()?;
     let ticks = results.ticks;
+    let interrupted = interrupted.load(Ordering::Relaxed);
     let summary = Summary {
         mission: mission.mission.name.clone(),
         seed: mission.mission.seed,
         mode: Mode::InProcess,
         clock: Clock::Lockstep,
-        completed: Summary::all_arrived(&results),
-        interrupted: false,
+        completed: !interrupted && Summary::all_arrived(&results),
+        interrupted,
         sim_time_s: results.ticks as f64 * mission.mission.control_period,
         results,
         tick_wall_time_us: 1e6 * wall_time_s / ticks.max(1) as f64,

@@ -45,9 +45,22 @@ impl Fleet {
 
     /// Runs to the end (every vehicle arrived, or max_duration); `observe` sees every tick as the
     /// recorder hands it on.
-    pub fn run(mut self, mut observe: impl FnMut(&[State], &[Option<&Command>])) -> Results {
+    pub fn run(self, observe: impl FnMut(&[State], &[Option<&Command>])) -> Results {
+        self.run_until(observe, || false)
+    }
+
+    /// `run`, but asking `stop` before each tick: when it says so, the results are those of the
+    /// whole ticks run so far.
+    pub fn run_until(
+        mut self,
+        mut observe: impl FnMut(&[State], &[Option<&Command>]),
+        mut stop: impl FnMut() -> bool,
+    ) -> Results {
         let mut sent: Vec<(usize, Gamma)> = Vec::with_capacity(self.agents.len());
         loop {
+            if stop() {
+                return self.recorder.results();
+            }
             // The world publishes the states of the tick; each agent answers its own.
             for (n, (agent, &state)) in self.agents.iter_mut().zip(self.world.states()).enumerate() {
                 self.recorder.on_state(state).expect("one state per vehicle and tick");
