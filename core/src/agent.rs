@@ -52,6 +52,8 @@ pub struct Agent {
     /// k_c, capped by the largest delay when delay is compensated (D19).
     kc: f64,
     dt: f64,
+    /// T_c, s, and in ticks.
+    comm_period: f64,
     comm_every: u64,
     post_arrival: PostArrival,
     compensate: bool,
@@ -75,6 +77,12 @@ pub struct Agent {
     stopped: bool,
 }
 
+/// Ticks for `seconds`, rounded up to whole communication periods: γ is used at communication
+/// instants only, so a delay or a heartbeat counts from one to the next.
+fn in_ticks(seconds: f64, period: f64, comm_every: u64) -> u64 {
+    (seconds / period - 1e-9).ceil().max(0.0) as u64 * comm_every
+}
+
 /// What a sample says of its sender's γ at time t: predicted from its age and rate (D19), or
 /// taken as it was sent.
 fn estimate(sample: &Sample, t: f64, compensate: bool) -> f64 {
@@ -92,7 +100,7 @@ impl Agent {
         let k = &mission.comms;
         let graph = mission.graph();
         let comm_every = mission.comm_every();
-        let whole_periods = |seconds: f64| (seconds / k.period - 1e-9).ceil().max(0.0) as u64 * comm_every;
+        let whole_periods = |seconds: f64| in_ticks(seconds, k.period, comm_every);
         let dt = mission.mission.control_period;
         // The largest delay any link can impose, as the receivers will count it.
         let max_delay = graph
@@ -132,6 +140,7 @@ impl Agent {
             },
             kc,
             dt,
+            comm_period: k.period,
             comm_every,
             post_arrival: mission.mission.post_arrival,
             compensate: c.delay_compensation,
@@ -239,8 +248,8 @@ impl Agent {
                     receptions.push(Reception { from, delivered });
                     if delivered {
                         let delay = inbound.link.spec().delay(distance.unwrap_or(0.0));
-                        let periods = (delay / (self.comm_every as f64 * self.dt) - 1e-9).ceil().max(0.0) as u64;
-                        inbound.in_flight.push_back((tick + periods * self.comm_every, s));
+                        let arrives = tick + in_ticks(delay, self.comm_period, self.comm_every);
+                        inbound.in_flight.push_back((arrives, s));
                     }
                 }
                 // Delays differ by distance, so a later message may overtake an earlier one.
