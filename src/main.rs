@@ -317,13 +317,7 @@ fn run(
     };
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());
-    Ok(if summary.interrupted {
-        ExitCode::from(130)
-    } else if summary.completed {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
+    Ok(code(summary.completed && summary.reproducible, summary.interrupted))
 }
 
 fn runtime() -> Result<tokio::runtime::Runtime, Failure> {
@@ -517,5 +511,5 @@ fn record(
         .map_err(Failure::Failed)?;
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());
-    Ok(code(summary.completed, summary.interrupted))
+    Ok(code(summary.completed && summary.reproducible, summary.interrupted))
 }

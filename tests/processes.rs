@@ -220,15 +220,7 @@ fn a_killed_agent_is_lost_and_the_others_arrive() {
     let dir = scratch("kill");
     let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
     launch.wait_for("logs/world.log", "starting");
-    let agent = descendants(launch.child.id())
-        .into_iter()
-        .find(|pid| {
-            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-            let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
-            args.windows(2).any(|w| w[0] == b"--id" && w[1] == b"2")
-        })
-        .expect("agent 2 runs");
-    kill("-9", agent);
+    kill("-9", agent_pid(&launch, 2));
     let status = launch.wait(Duration::from_secs(120));
     assert_eq!(status.code(), Some(1), "a lost vehicle fails the run");
     let s = launch.summary();
@@ -242,6 +234,52 @@ fn a_killed_agent_is_lost_and_the_others_arrive() {
     );
     assert_none_left(&s);
     assert!(descendants(launch.child.id()).is_empty());
+}
+
+#[test]
+fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run() {
+    let dir = scratch("sigstop");
+    let comms = ["--set", "comms.period=0.01"];
+    let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &comms);
+    launch.wait_for("logs/world.log", "starting");
+    let agent = agent_pid(&launch, 2);
+    kill("-STOP", agent);
+    std::thread::sleep(Duration::from_secs(5));
+    kill("-CONT", agent);
+    let status = launch.wait(Duration::from_secs(120));
+    run_in_process(&paper("b-current"), &dir.join("i"), &comms);
+    let s = launch.summary();
+    let same =
+        std::fs::read(dir.join("p/telemetry.csv")).unwrap() == std::fs::read(dir.join("i/telemetry.csv")).unwrap();
+    eprintln!(
+        "stopped 5 s: exit {:?}, reproducible {}, identical telemetry {same}, reasons {}",
+        status.code(),
+        s["reproducible"],
+        s["reproducible_reasons"]
+    );
+    if s["reproducible"] == true {
+        assert!(same, "a run that calls itself reproducible is the in-process run");
+        assert!(status.success());
+    } else {
+        assert_ne!(status.code(), Some(0), "an irreproducible run does not exit 0");
+        let reasons = s["reproducible_reasons"].to_string();
+        assert!(reasons.contains("agent 1"), "the agent that gave up says so: {reasons}");
+    }
+    assert_eq!(s["reproducible"], false, "a 5 s stop outlasts the 3 s stale timeout");
+    assert_none_left(&s);
+}
+
+/// The pid of `tcpf agent --id <id>` under a launch.
+fn agent_pid(launch: &Launch, id: u32) -> u32 {
+    descendants(launch.child.id())
+        .into_iter()
+        .find(|pid| {
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
+            args.windows(2)
+                .any(|w| w[0] == b"--id" && w[1] == id.to_string().as_bytes())
+        })
+        .unwrap_or_else(|| panic!("agent {id} runs"))
 }
 
 /// Processes whose parent is gone, killed when the test ends however it ends.

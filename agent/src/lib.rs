@@ -138,14 +138,17 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             _ = shutdown.recv() => break Exit::Interrupted,
             _ = stale, if !waiting.is_empty() => {
                 for j in waiting {
-                    tracing::warn!("agent {id}: neighbour {j} silent for {:?}; no longer counted", options.stale_timeout);
-                    node.set_gone(j, true);
+                    tracing::warn!(
+                        "agent {id}: neighbour {j} silent for {:?}; going on without it until it speaks again (the run is no longer reproducible)",
+                        options.stale_timeout
+                    );
+                    node.on_stale(j);
                 }
             }
         }
     };
     tracing::info!("agent {id}: {exit:?} at γ = {:.3}", node.agent().gamma());
-    report(&session, &keys, Role::Agent, id, &rejected).await?;
+    report(&session, &keys, Role::Agent, id, &rejected, node.timing()).await?;
     drop(gamma_subscribers);
     let _ = token.undeclare().await;
     let _ = session.close().await;

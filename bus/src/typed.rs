@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
+use tcpf_core::lockstep::Timing;
 use tcpf_core::msg::{Checked, PathMsg, Report, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tokio::sync::mpsc;
@@ -182,13 +183,22 @@ pub async fn fetch_paths(
 }
 
 /// Tells the recorder who this process was and what it refused, as it exits.
-pub async fn report(session: &Session, keys: &Keys, role: Role, id: u32, rejected: &Rejected) -> Result<()> {
+pub async fn report(
+    session: &Session,
+    keys: &Keys,
+    role: Role,
+    id: u32,
+    rejected: &Rejected,
+    timing: Timing,
+) -> Result<()> {
     let report = Report {
         version: PROTOCOL_VERSION,
         role: role.as_str().into(),
         id,
         pid: std::process::id(),
         rejected: rejected.total(),
+        stale_timeouts: timing.stale_timeouts,
+        late_gammas: timing.late_gammas,
     };
     Outlet::new(session, keys.report(role, id)).await?.put(&report).await
 }

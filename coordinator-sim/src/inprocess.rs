@@ -54,6 +54,8 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         clock: Clock::Lockstep,
         completed: !interrupted && Summary::all_arrived(&results),
         interrupted,
+        reproducible: true,
+        reproducible_reasons: Vec::new(),
         sim_time_s: results.ticks as f64 * mission.mission.control_period,
         results,
         tick_wall_time_us: 1e6 * wall_time_s / ticks.max(1) as f64,

@@ -9,6 +9,7 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{presence, report, subscribe, Rejected};
+use tcpf_core::lockstep::Timing;
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
@@ -89,7 +90,7 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
         }
     };
     tracing::info!("planner: {exit:?}");
-    report(&session, &keys, Role::Planner, 0, &rejected).await?;
+    report(&session, &keys, Role::Planner, 0, &rejected, Timing::default()).await?;
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)

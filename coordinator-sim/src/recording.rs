@@ -147,6 +147,7 @@ impl Recording {
         children: Vec<ChildSummary>,
     ) -> Result<Summary> {
         let results = self.results();
+        let reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
         let summary = Summary {
             mission: mission.mission.name.clone(),
             seed: mission.mission.seed,
@@ -154,6 +155,8 @@ impl Recording {
             clock: Clock::Lockstep,
             completed: ended && Summary::all_arrived(&results),
             interrupted,
+            reproducible: reproducible_reasons.is_empty(),
+            reproducible_reasons,
             sim_time_s: results.ticks as f64 * mission.mission.control_period,
             tick_wall_time_us: 1e6 * self.tick_wall_time().unwrap_or(wall_time_s),
             results,

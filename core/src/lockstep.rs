@@ -140,12 +140,26 @@ impl WorldNode {
     }
 }
 
+/// Counts of what wall-clock rules changed in a lockstep agent: any of them makes its run differ
+/// from the in-process one.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Timing {
+    /// Times a neighbour was given up on at an instant (the stale timeout fired).
+    pub stale_timeouts: u64,
+    /// Neighbours' γ that arrived after their instant had passed, and were not used.
+    pub late_gammas: u64,
+}
+
 pub struct AgentNode {
     agent: Agent,
     next_tick: u64,
     state: Option<State>,
     inbox: Vec<Gamma>,
+    /// Neighbours whose agent is gone (liveliness).
     gone: BTreeSet<u32>,
+    /// Live neighbours not waited for since the stale timeout fired, until they speak again.
+    stale: BTreeSet<u32>,
+    timing: Timing,
 }
 
 impl AgentNode {
@@ -156,6 +170,8 @@ impl AgentNode {
             state: None,
             inbox: Vec::new(),
             gone: BTreeSet::new(),
+            stale: BTreeSet::new(),
+            timing: Timing::default(),
         }
     }
 
@@ -179,7 +195,11 @@ impl AgentNode {
         if !self.agent.neighbours().any(|j| j == gamma.from) {
             return Err(Reject::NotANeighbour);
         }
+        // A neighbour that was not waited for speaks again: wait for it from now on.
+        self.stale.remove(&gamma.from);
         if gamma.tick < self.next_tick {
+            // Its instant is past: this γ was never used.
+            self.timing.late_gammas += 1;
             return Err(Reject::WrongTick);
         }
         if self.inbox.iter().any(|g| g.from == gamma.from && g.tick == gamma.tick) {
@@ -189,7 +209,7 @@ impl AgentNode {
         Ok(())
     }
 
-    /// Stop (or resume) waiting for neighbour `id`: its agent is gone, or stale.
+    /// Stop (or resume) waiting for neighbour `id`: its agent is gone (or back).
     pub fn set_gone(&mut self, id: u32, gone: bool) {
         if gone {
             self.gone.insert(id);
@@ -198,9 +218,23 @@ impl AgentNode {
         }
     }
 
-    /// Every neighbour is counted (none gone or stale).
+    /// Every neighbour is counted (none gone).
     pub fn all_present(&self) -> bool {
         self.gone.is_empty()
+    }
+
+    /// The shell's wall-clock rule: live neighbour `id` has been silent too long, so this tick
+    /// goes on without its γ, and so do the next ones until it speaks again. A lockstep run in
+    /// which this fires is no longer reproducible, and `timing` says so.
+    pub fn on_stale(&mut self, id: u32) {
+        if self.stale.insert(id) {
+            self.timing.stale_timeouts += 1;
+        }
+    }
+
+    /// What wall-clock rules did to this node.
+    pub fn timing(&self) -> Timing {
+        self.timing
     }
 
     /// Live neighbours whose γ of this tick is still awaited.
@@ -211,7 +245,11 @@ impl AgentNode {
     fn awaited(&self) -> impl Iterator<Item = u32> + '_ {
         let tick = self.state.filter(|s| self.agent.is_comm_tick(s.tick)).map(|s| s.tick);
         self.agent.neighbours().filter(move |j| {
-            tick.is_some_and(|k| !self.gone.contains(j) && !self.inbox.iter().any(|g| g.from == *j && g.tick == k))
+            tick.is_some_and(|k| {
+                !self.gone.contains(j)
+                    && !self.stale.contains(j)
+                    && !self.inbox.iter().any(|g| g.from == *j && g.tick == k)
+            })
         })
     }
 
@@ -286,6 +324,39 @@ mod tests {
         assert!(!node.all_present());
         let command = node.command().expect("nobody to wait for");
         assert!(command.receptions.is_empty(), "nothing heard, nothing counted");
+    }
+
+    #[test]
+    fn a_stale_neighbour_is_waited_for_again_once_it_speaks_and_the_rule_is_counted() {
+        let (m, paths, t_f) = case_b();
+        let world = WorldNode::new(&m, &paths, t_f);
+        let mut node = AgentNode::new(Agent::new(&m, 1, paths[0].1));
+        let gamma = node.on_state(world.states()[0]).unwrap().unwrap();
+        assert_eq!(node.waiting_for(), vec![2]);
+        node.on_stale(2);
+        node.on_stale(2);
+        assert!(node.waiting_for().is_empty(), "a stale neighbour is not waited for");
+        node.command().expect("goes on without it");
+        assert_eq!(
+            node.timing(),
+            Timing {
+                stale_timeouts: 1,
+                late_gammas: 0
+            }
+        );
+        // Its γ of the instant that went by comes late: not used, counted, and it counts again.
+        assert_eq!(node.on_gamma(Gamma { from: 2, ..gamma }), Err(Reject::WrongTick));
+        assert_eq!(node.timing().late_gammas, 1);
+        let state = State {
+            tick: 10,
+            ..world.states()[0]
+        };
+        for tick in 1..10 {
+            node.on_state(State { tick, ..state }).unwrap();
+            node.command().unwrap();
+        }
+        node.on_state(state).unwrap();
+        assert_eq!(node.waiting_for(), vec![2], "waited for again at the next instant");
     }
 
     #[test]

@@ -208,6 +208,10 @@ pub struct Report {
     pub id: u32,
     pub pid: u32,
     pub rejected: u64,
+    /// Agents: times the stale timeout made it go on without a live neighbour's γ.
+    pub stale_timeouts: u64,
+    /// Agents: neighbours' γ that came after their instant and were not used.
+    pub late_gammas: u64,
 }
 
 impl Checked for Report {

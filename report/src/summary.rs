@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 use tcpf_core::metrics::Results;
+use tcpf_core::msg::Report;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -41,6 +42,10 @@ pub struct Summary {
     pub completed: bool,
     /// Stopped by a signal before the end.
     pub interrupted: bool,
+    /// Whether the run is what the in-process run of the same mission and seed gives. False
+    /// when a wall-clock rule changed a lockstep run; `reproducible_reasons` says which.
+    pub reproducible: bool,
+    pub reproducible_reasons: Vec<String>,
     #[serde(flatten)]
     pub results: Results,
     /// Simulated seconds, ticks × control period.
@@ -55,6 +60,26 @@ pub struct Summary {
 }
 
 impl Summary {
+    /// Why a lockstep process run is not the in-process run, from the roles' exit reports.
+    pub fn irreproducible_because(reports: &[Report]) -> Vec<String> {
+        let mut reasons = Vec::new();
+        for r in reports {
+            if r.stale_timeouts > 0 {
+                reasons.push(format!(
+                    "{} {}: went on without a silent neighbour's γ {} time(s) (--stale-timeout)",
+                    r.role, r.id, r.stale_timeouts
+                ));
+            }
+            if r.late_gammas > 0 {
+                reasons.push(format!(
+                    "{} {}: {} γ message(s) came after their instant and were not used",
+                    r.role, r.id, r.late_gammas
+                ));
+            }
+        }
+        reasons
+    }
+
     /// Every vehicle arrived and none was lost.
     pub fn all_arrived(results: &Results) -> bool {
         results.vehicles.iter().all(|v| v.arrival_time.is_some() && !v.lost)

@@ -60,6 +60,9 @@ pub fn summary(summary: &Summary) -> String {
             "NOT completed"
         }
     );
+    for reason in &summary.reproducible_reasons {
+        let _ = writeln!(s, "NOT reproducible: {reason}");
+    }
     let _ = writeln!(s, "{:>4} {:>12} {:>6}", "id", "arrival s", "lost");
     for v in &r.vehicles {
         let arrival = v.arrival_time.map_or("-".to_string(), |a| format!("{a:.3}"));

@@ -9,7 +9,7 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{fetch_paths, presence, report, subscribe, Outlet, Presence, Rejected};
-use tcpf_core::lockstep::WorldNode;
+use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::Command;
 
@@ -118,7 +118,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         }
     };
     tracing::info!("world: {exit:?}");
-    report(&session, &keys, Role::World, 0, &rejected).await?;
+    report(&session, &keys, Role::World, 0, &rejected, Timing::default()).await?;
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)
