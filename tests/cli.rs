@@ -241,3 +241,37 @@ fn sigint_on_an_in_process_run_exits_130_with_summary_and_report() {
     assert!(out.join("report.html").is_file());
     assert!(out.join("run.mcap").is_file());
 }
+
+#[test]
+fn roles_waiting_at_startup_honour_sigterm_and_sigint() {
+    for (args, signal) in [
+        (vec!["agent", "--id", "1"], "-TERM"),
+        (vec!["world"], "-TERM"),
+        (vec!["agent", "--id", "2"], "-INT"),
+        (vec!["world"], "-INT"),
+    ] {
+        // Alone, each waits for a planner that never comes (up to --startup-timeout, 60 s).
+        let mut role = Reaper(
+            std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+                .args(&args[..1])
+                .arg(paper("b-current"))
+                .args(&args[1..])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .unwrap(),
+        );
+        std::thread::sleep(Duration::from_millis(800));
+        assert!(role.0.try_wait().unwrap().is_none(), "{args:?} waits at startup");
+        kill(signal, role.0.id());
+        let deadline = Instant::now() + Duration::from_secs(2);
+        let status = loop {
+            if let Some(status) = role.0.try_wait().unwrap() {
+                break status;
+            }
+            assert!(Instant::now() < deadline, "{args:?} ignored {signal} at startup");
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        assert_eq!(status.code(), Some(130), "{args:?} after {signal}");
+    }
+}

@@ -44,7 +44,12 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let session = zenoh.open().await?;
     let rejected = Rejected::default();
     let (_presence, mut presence) = presence(&session, &keys).await?;
-    let path = fetch_paths(&session, &keys, &[id], options.startup_timeout, &rejected).await?[0].1;
+    let ids = [id];
+    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
+    let Some(paths) = fetched.await else {
+        return Ok(Exit::Interrupted);
+    };
+    let path = paths?[0].1;
     let agent = Agent::new(mission, id, path);
     let neighbours: Vec<u32> = agent.neighbours().collect();
     let mut node = AgentNode::new(agent);
@@ -77,7 +82,13 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let (mut world, mut planner) = (false, false);
     let deadline = tokio::time::Instant::now() + options.startup_timeout;
     while !(world && planner && node.all_present()) {
-        match tokio::time::timeout_at(deadline, presence.recv()).await {
+        let Some(arrived) = shutdown
+            .unless(tokio::time::timeout_at(deadline, presence.recv()))
+            .await
+        else {
+            return Ok(Exit::Interrupted);
+        };
+        match arrived {
             Ok(Some(p)) => match p.role {
                 Role::World => world = p.alive,
                 Role::Planner => planner = p.alive,

@@ -17,6 +17,15 @@ impl Shutdown {
         })
     }
 
+    /// Runs `work` unless a signal comes first, which gives `None`: a role honours SIGINT and
+    /// SIGTERM while it waits at startup too.
+    pub async fn unless<T>(&mut self, work: impl std::future::Future<Output = T>) -> Option<T> {
+        tokio::select! {
+            done = work => Some(done),
+            _ = self.recv() => None,
+        }
+    }
+
     /// Resolves when either signal arrives.
     pub async fn recv(&mut self) {
         tokio::select! {

@@ -38,7 +38,11 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let rejected = Rejected::default();
     let (_presence, mut presence) = presence(&session, &keys).await?;
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
-    let paths = fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected).await?;
+    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
+    let Some(paths) = fetched.await else {
+        return Ok(Exit::Interrupted);
+    };
+    let paths = paths?;
     let t_f = paths[0].1.t_f();
     let mut node = WorldNode::new(mission, &paths, t_f);
     let (_commands, mut commands) = subscribe::<Command>(&session, &keys.cmd("*"), &rejected).await?;
@@ -69,7 +73,13 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         if ids.iter().all(|i| agent(i, &present)) && recorders(&present) >= options.recorders {
             break;
         }
-        match tokio::time::timeout_at(deadline, presence.recv()).await {
+        let Some(arrived) = shutdown
+            .unless(tokio::time::timeout_at(deadline, presence.recv()))
+            .await
+        else {
+            return Ok(Exit::Interrupted);
+        };
+        match arrived {
             Ok(Some(p)) => track(p, &mut present),
             Ok(None) => return Err(anyhow!("liveliness subscription closed")),
             Err(_) => {
