@@ -269,6 +269,74 @@ fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run()
     assert_none_left(&s);
 }
 
+#[test]
+fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicles_after() {
+    let dir = scratch("long-loss");
+    let mut launch = Launch::start(&config("long3"), &dir, &[]);
+    launch.wait_for("logs/world.log", "starting");
+    let agent = agent_pid(&launch, 2);
+    // 10 s of simulated time: 1000 ticks of three rows each.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while std::fs::read_to_string(dir.join("telemetry.csv")).map_or(0, |t| t.lines().count()) < 3000 {
+        assert!(Instant::now() < deadline, "the run never reached 10 s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    kill("-9", agent);
+    launch.wait_for("logs/world.log", "is gone at t = ");
+    let log = std::fs::read_to_string(dir.join("logs/world.log")).unwrap();
+    let at = log.split("is gone at t = ").nth(1).unwrap();
+    let lost_tick = (at[..at.find(' ').unwrap()].parse::<f64>().unwrap() / 0.01).round() as usize;
+    // The recorder learns of the loss as it happens and goes on writing, 30 s past it, before the
+    // run ends (before, it held every tick after a loss until the end).
+    while std::fs::read_to_string(dir.join("telemetry.csv")).map_or(0, |t| t.lines().count()) < 3 * (lost_tick + 3000) {
+        let world = std::fs::read_to_string(dir.join("logs/world.log")).unwrap();
+        assert!(
+            !world.contains("world: Ended"),
+            "the world ended before the recorder wrote past the loss"
+        );
+        assert!(Instant::now() < deadline, "the recording stalls after the loss");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let status = launch.wait(Duration::from_secs(180));
+    assert_eq!(status.code(), Some(1), "a lost vehicle fails the run");
+    let s = launch.summary();
+    let ticks = s["ticks"].as_u64().unwrap();
+    assert!(
+        ticks > 25_000,
+        "it ran to the others' arrival, not to the loss: {ticks} ticks"
+    );
+    let telemetry = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
+    assert_eq!(telemetry.lines().count() as u64, 1 + 3 * ticks, "every tick recorded");
+    assert_eq!(s["vehicles"][1]["lost"], true);
+    for v in [0, 2] {
+        assert!(
+            s["vehicles"][v]["arrival_time"].as_f64().is_some(),
+            "vehicle {} arrives",
+            v + 1
+        );
+    }
+    // The coordination error is over the vehicles that still have a command at each tick.
+    let mut live_error = 0.0f64;
+    let mut tick_rows: Vec<Vec<&str>> = Vec::new();
+    for line in telemetry.lines().skip(1) {
+        tick_rows.push(line.split(',').collect());
+        if tick_rows.len() == 3 {
+            let gammas: Vec<f64> = tick_rows.iter().filter_map(|r| r[6].parse().ok()).collect();
+            for a in &gammas {
+                for b in &gammas {
+                    live_error = live_error.max((a - b).abs());
+                }
+            }
+            tick_rows.clear();
+        }
+    }
+    let reported = s["max_coordination_error_to_last_arrival"].as_f64().unwrap();
+    eprintln!("lost at ~10 s of {ticks} ticks: coordination error {reported:.3} s over live vehicles");
+    assert_eq!(reported, live_error, "only live vehicles count after the loss");
+    assert!(reported < 2.0, "not the frozen γ of the lost vehicle: {reported}");
+    assert_none_left(&s);
+}
+
 /// The pid of `tcpf agent --id <id>` under a launch.
 fn agent_pid(launch: &Launch, id: u32) -> u32 {
     descendants(launch.child.id())

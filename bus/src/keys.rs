@@ -69,6 +69,10 @@ impl Keys {
         format!("{}/alive/**", self.root)
     }
     /// The world's announcement that the run is over.
+    pub fn lost(&self, id: impl fmt::Display) -> String {
+        self.key("lost", id)
+    }
+
     pub fn end(&self) -> String {
         format!("{}/end", self.root)
     }

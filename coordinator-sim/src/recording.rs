@@ -9,7 +9,7 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{subscribe, Received, Rejected};
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::Mission;
-use tcpf_core::msg::{Command, End, Report, State};
+use tcpf_core::msg::{Command, End, Loss, Lost, Report, State};
 use tcpf_core::record::Recorder;
 use tokio::sync::mpsc::UnboundedReceiver;
 use zenoh::liveliness::LivelinessToken;
@@ -31,6 +31,7 @@ pub struct Recording {
     states: UnboundedReceiver<Received<State>>,
     commands: UnboundedReceiver<Received<Command>>,
     ends: UnboundedReceiver<Received<End>>,
+    losses: UnboundedReceiver<Received<Loss>>,
     reports: UnboundedReceiver<Received<Report>>,
     pub exit_reports: Vec<Report>,
     pub end: Option<End>,
@@ -64,6 +65,7 @@ impl Recording {
         let (s1, states) = subscribe::<State>(session, &keys.state("*"), &rejected).await?;
         let (s2, commands) = subscribe::<Command>(session, &keys.cmd("*"), &rejected).await?;
         let (s3, ends) = subscribe::<End>(session, &keys.end(), &rejected).await?;
+        let (s5, losses) = subscribe::<Loss>(session, &keys.lost("*"), &rejected).await?;
         let (s4, reports) =
             subscribe::<Report>(session, &format!("tcpf/{}/report/**", mission.mission.name), &rejected).await?;
         let token = session
@@ -79,12 +81,13 @@ impl Recording {
             states,
             commands,
             ends,
+            losses,
             reports,
             exit_reports: Vec::new(),
             end: None,
             progress: Instant::now(),
             first: None,
-            _subscribers: vec![s1, s2, s3, s4],
+            _subscribers: vec![s1, s2, s3, s4, s5],
             _token: token,
         })
     }
@@ -99,6 +102,10 @@ impl Recording {
                 self.recorder.on_end(e.message);
             }
             Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
+            Some(l) = self.losses.recv() => {
+                let lost = Lost { id: l.message.id, tick: l.message.tick };
+                check(&l.key, l.message.id, self.recorder.on_lost(lost), &self.rejected);
+            }
         }
         let before = self.recorder.ticks_recorded();
         let mut failure = Ok(());

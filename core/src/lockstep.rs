@@ -78,12 +78,14 @@ impl WorldNode {
     }
 
     /// The agent of `id` is gone: its vehicle drifts from this tick on, and nobody waits for it.
-    pub fn on_lost(&mut self, id: u32) {
-        if let Some(n) = self.ids.iter().position(|&i| i == id).filter(|&n| !self.gone[n]) {
-            self.gone[n] = true;
-            self.world.mark_lost(id);
-            self.lost.push(Lost { id, tick: self.tick() });
-        }
+    /// Returns the loss to announce, the first time.
+    pub fn on_lost(&mut self, id: u32) -> Option<Lost> {
+        let n = self.ids.iter().position(|&i| i == id).filter(|&n| !self.gone[n])?;
+        self.gone[n] = true;
+        self.world.mark_lost(id);
+        let lost = Lost { id, tick: self.tick() };
+        self.lost.push(lost);
+        Some(lost)
     }
 
     /// Live vehicles whose command of this tick has not come yet.

@@ -53,12 +53,15 @@ pub struct Metrics {
     sent_at: Vec<Option<u64>>,
 }
 
-/// max |γ_i − γ_j| and min |p_i − p_j| over all pairs.
-fn spread(gammas: &[f64], positions: &[[f64; 2]]) -> (f64, f64) {
+/// max |γ_i − γ_j| over pairs of live vehicles (a lost vehicle's γ is frozen: it coordinates
+/// with nobody), and min |p_i − p_j| over all pairs (a drifting vehicle can still be hit).
+fn spread(gammas: &[f64], positions: &[[f64; 2]], live: impl Fn(usize) -> bool) -> (f64, f64) {
     let (mut err, mut clr) = (0.0f64, f64::INFINITY);
     for i in 0..gammas.len() {
         for j in i + 1..gammas.len() {
-            err = err.max((gammas[i] - gammas[j]).abs());
+            if live(i) && live(j) {
+                err = err.max((gammas[i] - gammas[j]).abs());
+            }
             clr = clr.min((positions[i][0] - positions[j][0]).hypot(positions[i][1] - positions[j][1]));
         }
     }
@@ -122,7 +125,8 @@ impl Metrics {
                 });
             }
         }
-        let now = spread(&gammas, &positions);
+        let live = |n: usize| commands[n].is_some();
+        let now = spread(&gammas, &positions, live);
         self.to_last = (self.to_last.0.max(now.0), self.to_last.1.min(now.1));
         match (before_first, self.first_arrival(), &self.previous) {
             (true, None, _) => self.en_route = (self.en_route.0.max(now.0), self.en_route.1.min(now.1)),
@@ -135,7 +139,7 @@ impl Metrics {
                     .zip(&positions)
                     .map(|(a, b)| [lerp(a[0], b[0], s), lerp(a[1], b[1], s)])
                     .collect();
-                let at = spread(&g, &p);
+                let at = spread(&g, &p, live);
                 self.en_route = (self.en_route.0.max(at.0), self.en_route.1.min(at.1));
             }
             _ => {}

@@ -183,6 +183,24 @@ pub struct Lost {
     pub tick: u64,
 }
 
+/// World → recorders, the moment it gives up on a vehicle's agent: from `tick` on that vehicle
+/// has no command (it drifts) and nobody waits for one. `End` repeats every loss.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Loss {
+    pub version: u16,
+    pub id: u32,
+    pub tick: u64,
+}
+
+impl Checked for Loss {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn numbers(&self) -> Vec<f64> {
+        Vec::new()
+    }
+}
+
 /// World → everyone: the run is over after `ticks` ticks (0..ticks were run).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct End {

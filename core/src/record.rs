@@ -5,7 +5,7 @@ use std::collections::VecDeque;
 
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
-use crate::msg::{Command, End, State};
+use crate::msg::{Command, End, Lost, State};
 
 /// One tick as it fills: a slot per vehicle for its state and its command.
 type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
@@ -23,6 +23,8 @@ pub struct Recorder {
     /// Ticks next, next + 1, … as they fill.
     ticks: VecDeque<Tick>,
     end: Option<End>,
+    /// Vehicles the world gave up on, and from which tick, as it announced them.
+    losses: Vec<Lost>,
     /// Emptied ticks, kept for the next ones: a run fills one or two at a time.
     spare: Vec<Tick>,
     states: Vec<State>,
@@ -36,6 +38,7 @@ impl Recorder {
             next: 0,
             ticks: VecDeque::new(),
             end: None,
+            losses: Vec::new(),
             spare: Vec::new(),
             states: Vec::with_capacity(ids.len()),
         }
@@ -74,14 +77,28 @@ impl Recorder {
     }
 
     pub fn on_end(&mut self, end: End) {
+        for &lost in &end.lost {
+            let _ = self.on_lost(lost);
+        }
         self.end = Some(end);
+    }
+
+    /// The world gave up on a vehicle's agent from `lost.tick` on: its ticks from then on are
+    /// complete without its command, so recording goes on without waiting for the end.
+    pub fn on_lost(&mut self, lost: Lost) -> Result<(), Reject> {
+        if !self.ids.contains(&lost.id) {
+            return Err(Reject::UnknownVehicle);
+        }
+        if !self.losses.iter().any(|l| l.id == lost.id) {
+            self.losses.push(lost);
+        }
+        Ok(())
     }
 }
 
-/// Vehicle `id` was lost by `tick`, as far as the end message (if it came yet) says.
-fn lost_at(end: &Option<End>, id: u32, tick: u64) -> bool {
-    end.as_ref()
-        .is_some_and(|e| e.lost.iter().any(|l| l.id == id && l.tick <= tick))
+/// Vehicle `id` was lost by `tick`, as far as the world has said.
+fn lost_at(losses: &[Lost], id: u32, tick: u64) -> bool {
+    losses.iter().any(|l| l.id == id && l.tick <= tick)
 }
 
 impl Recorder {
@@ -96,7 +113,7 @@ impl Recorder {
             let Some((states, commands)) = self.ticks.front() else {
                 return;
             };
-            let lost = |n: usize| lost_at(&self.end, self.ids[n], tick);
+            let lost = |n: usize| lost_at(&self.losses, self.ids[n], tick);
             let complete =
                 states.iter().all(Option::is_some) && commands.iter().enumerate().all(|(n, c)| c.is_some() || lost(n));
             if !complete {
@@ -106,7 +123,7 @@ impl Recorder {
             self.states.clear();
             self.states.extend(states.iter_mut().flat_map(Option::take));
             for (&id, command) in self.ids.iter().zip(commands.iter_mut()) {
-                if lost_at(&self.end, id, tick) {
+                if lost_at(&self.losses, id, tick) {
                     self.metrics.mark_lost(id);
                     *command = None;
                 }
@@ -138,7 +155,7 @@ impl Recorder {
 mod tests {
     use super::*;
     use crate::mission;
-    use crate::msg::{Lost, PROTOCOL_VERSION};
+    use crate::msg::PROTOCOL_VERSION;
     use crate::planner;
     use crate::sim::Fleet;
     use crate::telemetry;

@@ -11,7 +11,7 @@ use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{fetch_paths, presence, report, subscribe, Outlet, Presence, Rejected};
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::Mission;
-use tcpf_core::msg::Command;
+use tcpf_core::msg::{Command, Loss, PROTOCOL_VERSION};
 
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -110,7 +110,10 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
                 Some(p) = presence.recv() => {
                     if p.role == Role::Agent && !p.alive && ids.contains(&p.id) {
                         tracing::warn!("world: agent {} is gone at t = {:.2} s; its vehicle drifts", p.id, node.states()[0].t);
-                        node.on_lost(p.id);
+                        if let Some(lost) = node.on_lost(p.id) {
+                            let loss = Loss { version: PROTOCOL_VERSION, id: lost.id, tick: lost.tick };
+                            Outlet::new(&session, keys.lost(lost.id)).await?.put(&loss).await?;
+                        }
                     }
                 }
                 _ = shutdown.recv() => {
