@@ -186,11 +186,6 @@ impl Agent {
         !self.links.is_empty() && tick.is_multiple_of(self.comm_every)
     }
 
-    /// The coordination gain in use (k_c,eff of D19).
-    pub fn gain(&self) -> f64 {
-        self.kc
-    }
-
     /// At a communication instant, what goes to the neighbours: a sample of γ_i if the trigger
     /// fires (every instant when periodic; D20 when event-triggered; in its own slot only under
     /// TDMA, D21), else a message without one. Call once per tick, before `step`.

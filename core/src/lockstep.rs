@@ -1,7 +1,8 @@
-//! The lockstep clock (docs/PROTOCOL.md, "Lockstep sequence"), as two machines: the world's side (publish the states of tick
-//! k, collect every live agent's command of tick k, integrate) and the agent's side (take the state
-//! of tick k, publish γ at a communication instant, collect the live neighbours' γ of tick k,
-//! command). The shells feed them what arrives and publish what they return.
+//! The lockstep clock (docs/PROTOCOL.md, "Lockstep sequence"), as two machines: the world's side
+//! (publish the states of tick k, collect every live agent's command of tick k, integrate) and
+//! the agent's side (take the state of tick k, publish γ at a communication instant, collect the
+//! live neighbours' γ of tick k, command). The shells feed them what arrives and publish what they
+//! return.
 
 use std::collections::BTreeSet;
 
@@ -26,8 +27,6 @@ pub struct WorldNode {
     /// Per vehicle: γ_i has reached t_f (the run ends when every live vehicle's has). The
     /// metrics are the recorder's; the world needs only this.
     arrived: Vec<bool>,
-    /// Per vehicle: its agent is gone (the world's bodies know it too; this is the fast look-up).
-    gone: Vec<bool>,
     max_ticks: u64,
     ids: Vec<u32>,
     states: Vec<State>,
@@ -43,7 +42,6 @@ impl WorldNode {
             states: world.states(),
             t_f,
             arrived: vec![false; ids.len()],
-            gone: vec![false; ids.len()],
             max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
             ids,
@@ -67,7 +65,7 @@ impl WorldNode {
             .iter()
             .position(|&i| i == command.id)
             .ok_or(Reject::UnknownVehicle)?;
-        if command.tick != self.tick() || self.gone[n] {
+        if command.tick != self.tick() || self.world.is_lost(n) {
             return Err(Reject::WrongTick);
         }
         if self.pending[n].is_some() {
@@ -80,9 +78,12 @@ impl WorldNode {
     /// The agent of `id` is gone: its vehicle drifts from this tick on, and nobody waits for it.
     /// Returns the loss to announce, the first time.
     pub fn on_lost(&mut self, id: u32) -> Option<Lost> {
-        let n = self.ids.iter().position(|&i| i == id).filter(|&n| !self.gone[n])?;
-        self.gone[n] = true;
-        self.world.mark_lost(id);
+        let n = self
+            .ids
+            .iter()
+            .position(|&i| i == id)
+            .filter(|&n| !self.world.is_lost(n))?;
+        self.world.mark_lost(n);
         let lost = Lost { id, tick: self.tick() };
         self.lost.push(lost);
         Some(lost)
@@ -93,9 +94,9 @@ impl WorldNode {
         self.ids
             .iter()
             .zip(&self.pending)
-            .zip(&self.gone)
-            .filter(|((_, c), gone)| c.is_none() && !**gone)
-            .map(|((id, _), _)| *id)
+            .enumerate()
+            .filter(|(n, (_, c))| c.is_none() && !self.world.is_lost(*n))
+            .map(|(_, (id, _))| *id)
             .collect()
     }
 
@@ -106,14 +107,18 @@ impl WorldNode {
         let held: Vec<Option<&Command>> = self
             .pending
             .iter()
-            .zip(&self.gone)
-            .map(|(c, gone)| c.as_ref().filter(|_| !gone))
+            .enumerate()
+            .map(|(n, c)| c.as_ref().filter(|_| !self.world.is_lost(n)))
             .collect();
         for (arrived, c) in self.arrived.iter_mut().zip(&held) {
             *arrived |= c.is_some_and(|c| c.gamma >= self.t_f);
         }
         observe(&self.states, &held);
-        let done = self.arrived.iter().zip(&self.gone).all(|(a, gone)| *a || *gone);
+        let done = self
+            .arrived
+            .iter()
+            .enumerate()
+            .all(|(n, a)| *a || self.world.is_lost(n));
         if done || tick >= self.max_ticks {
             return Some(self.end());
         }

@@ -94,14 +94,7 @@ impl Recorder {
         }
         Ok(())
     }
-}
 
-/// Vehicle `id` was lost by `tick`, as far as the world has said.
-fn lost_at(losses: &[Lost], id: u32, tick: u64) -> bool {
-    losses.iter().any(|l| l.id == id && l.tick <= tick)
-}
-
-impl Recorder {
     /// Hands on every tick that is complete, in order: all states, and the commands of every
     /// vehicle not lost by then (a lost vehicle's late command is dropped, as the world did).
     pub fn drain(&mut self, mut emit: impl FnMut(&[State], &[Option<&Command>])) {
@@ -149,6 +142,11 @@ impl Recorder {
     pub fn results(&self) -> Results {
         self.metrics.results()
     }
+}
+
+/// Vehicle `id` was lost by `tick`, as far as the world has said.
+fn lost_at(losses: &[Lost], id: u32, tick: u64) -> bool {
+    losses.iter().any(|l| l.id == id && l.tick <= tick)
 }
 
 #[cfg(test)]

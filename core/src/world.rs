@@ -77,15 +77,15 @@ impl World {
         self.bodies.iter().map(|b| b.id)
     }
 
-    /// A vehicle whose agent is gone: from now on it drifts with the current, thrusters off.
-    pub fn mark_lost(&mut self, id: u32) {
-        if let Some(b) = self.bodies.iter_mut().find(|b| b.id == id) {
-            b.lost = true;
-        }
+    /// The n-th vehicle (in the order of `paths` given to `new`) has lost its agent: from now on
+    /// it drifts with the current, thrusters off.
+    pub fn mark_lost(&mut self, n: usize) {
+        self.bodies[n].lost = true;
     }
 
-    pub fn is_lost(&self, id: u32) -> bool {
-        self.bodies.iter().any(|b| b.id == id && b.lost)
+    /// Whether the n-th vehicle has lost its agent.
+    pub fn is_lost(&self, n: usize) -> bool {
+        self.bodies[n].lost
     }
 
     /// The measured states of tick k, in the order of `paths` given to `new`.
