@@ -40,11 +40,13 @@ fn bench(c: &mut Criterion) {
             psi_e: 0.0,
             receptions: Vec::new(),
         };
-        let held = vec![Some(&command); paths.len()];
+        let held = vec![Some(command); paths.len()];
+        let mut states = Vec::with_capacity(paths.len());
         b.iter(|| {
             let mut world = World::new(&m, &paths);
             for _ in 0..ticks {
-                black_box(world.states());
+                world.states(&mut states);
+                black_box(&states);
                 world.step(&held);
             }
             world

@@ -263,7 +263,8 @@ impl Agent {
 
         let point = self.path.at(self.gamma);
         let position = Vec2::from(state.position);
-        let errors = follow::errors(position, state.heading + state.sideslip, &point);
+        let t_frame = follow::Frame::new(point.heading);
+        let errors = follow::errors(position, state.heading + state.sideslip, &point, &t_frame);
         let gamma = self.gamma;
         if !self.stopped && self.post_arrival == PostArrival::Stop && gamma >= self.path.t_f() {
             self.stopped = true;
@@ -272,7 +273,7 @@ impl Agent {
             (0.0, 0.0, 0.0)
         } else {
             let v = coord::speed(point.speed, errors.psi_e, self.kc, self.sum); // eq. 25
-            let current = follow::to_frame(point.heading, Vec2::from(state.current));
+            let current = t_frame.of(Vec2::from(state.current));
             let law = follow::control(&self.gains, &point, &errors, v, current, state.sideslip_rate);
             (law.v, law.r, law.gamma_dot)
         };

@@ -28,9 +28,12 @@ pub struct Law {
 }
 
 pub fn wrap(angle: f64) -> f64 {
-    let a = (angle + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if a == -std::f64::consts::PI {
-        std::f64::consts::PI
+    use std::f64::consts::{PI, TAU};
+    let x = angle + PI;
+    // rem_euclid returns x itself in [0, 2π), bit for bit: the common case needs no fmod.
+    let a = if (0.0..TAU).contains(&x) { x } else { x.rem_euclid(TAU) } - PI;
+    if a == -PI {
+        PI
     } else {
         a
     }
@@ -41,14 +44,29 @@ pub fn sat(x: f64) -> f64 {
     x.clamp(-1.0, 1.0)
 }
 
-/// R(ψ)ᵀ w: an inertial vector in a frame rotated by ψ.
-pub fn to_frame(psi: f64, w: Vec2) -> Vec2 {
-    let (s, c) = psi.sin_cos();
-    Vec2::new(c * w.x + s * w.y, -s * w.x + c * w.y)
+/// A frame rotated by ψ, with R(ψ)ᵀ evaluated once for every vector brought into it.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame {
+    sin: f64,
+    cos: f64,
 }
 
-pub fn errors(position: Vec2, psi_f: f64, point: &PathPoint) -> Errors {
-    let e = to_frame(point.heading, position - point.position);
+impl Frame {
+    pub fn new(psi: f64) -> Frame {
+        let (sin, cos) = psi.sin_cos();
+        Frame { sin, cos }
+    }
+
+    /// R(ψ)ᵀ w: an inertial vector in this frame.
+    pub fn of(&self, w: Vec2) -> Vec2 {
+        Vec2::new(self.cos * w.x + self.sin * w.y, -self.sin * w.x + self.cos * w.y)
+    }
+}
+
+/// The errors of a vehicle at `position` with course ψ_F, against `point` whose frame {T} is
+/// `t_frame` (`Frame::new(point.heading)`).
+pub fn errors(position: Vec2, psi_f: f64, point: &PathPoint, t_frame: &Frame) -> Errors {
+    let e = t_frame.of(position - point.position);
     Errors {
         x_e: e.x,
         y_e: e.y,

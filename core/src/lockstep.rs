@@ -38,8 +38,10 @@ impl WorldNode {
     pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)], t_f: f64) -> WorldNode {
         let world = World::new(mission, paths);
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
+        let mut states = Vec::with_capacity(ids.len());
+        world.states(&mut states);
         WorldNode {
-            states: world.states(),
+            states,
             t_f,
             arrived: vec![false; ids.len()],
             max_ticks: mission.max_ticks(),
@@ -84,6 +86,7 @@ impl WorldNode {
             .position(|&i| i == id)
             .filter(|&n| !self.world.is_lost(n))?;
         self.world.mark_lost(n);
+        self.pending[n] = None;
         let lost = Lost { id, tick: self.tick() };
         self.lost.push(lost);
         Some(lost)
@@ -102,18 +105,13 @@ impl WorldNode {
 
     /// Closes the tick (`observe` sees it), then either ends the run or integrates to the next.
     /// Call when `waiting_for` is empty.
-    pub fn advance(&mut self, observe: impl FnOnce(&[State], &[Option<&Command>])) -> Option<End> {
+    pub fn advance(&mut self, observe: impl FnOnce(&[State], &[Option<Command>])) -> Option<End> {
         let tick = self.tick();
-        let held: Vec<Option<&Command>> = self
-            .pending
-            .iter()
-            .enumerate()
-            .map(|(n, c)| c.as_ref().filter(|_| !self.world.is_lost(n)))
-            .collect();
-        for (arrived, c) in self.arrived.iter_mut().zip(&held) {
-            *arrived |= c.is_some_and(|c| c.gamma >= self.t_f);
+        // A lost vehicle's pending command was dropped when it was lost: what is pending is held.
+        for (arrived, c) in self.arrived.iter_mut().zip(&self.pending) {
+            *arrived |= c.as_ref().is_some_and(|c| c.gamma >= self.t_f);
         }
-        observe(&self.states, &held);
+        observe(&self.states, &self.pending);
         let done = self
             .arrived
             .iter()
@@ -122,9 +120,9 @@ impl WorldNode {
         if done || tick >= self.max_ticks {
             return Some(self.end());
         }
-        self.world.step(&held);
+        self.world.step(&self.pending);
         self.pending.iter_mut().for_each(|c| *c = None);
-        self.states = self.world.states();
+        self.world.states(&mut self.states);
         None
     }
 
@@ -269,7 +267,9 @@ impl AgentNode {
         let command = self.agent.step(&state, &self.inbox);
         self.next_tick = state.tick + 1;
         let next = self.next_tick;
-        self.inbox.retain(|g| g.tick >= next);
+        if !self.inbox.is_empty() {
+            self.inbox.retain(|g| g.tick >= next);
+        }
         Some(command)
     }
 }

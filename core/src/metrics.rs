@@ -103,7 +103,7 @@ impl Metrics {
 
     /// One tick: `states` and `commands` in the order of `ids`. A lost vehicle has no command; its
     /// γ is frozen at its last value.
-    pub fn record(&mut self, tick: u64, states: &[State], commands: &[Option<&Command>]) {
+    pub fn record(&mut self, tick: u64, states: &[State], commands: &[Option<Command>]) {
         let t = tick as f64 * self.dt;
         // The buffers of the tick before last, refilled: a run allocates them once.
         let (mut gammas, mut positions) = self.spare.take().unwrap_or_default();
@@ -111,7 +111,8 @@ impl Metrics {
         positions.extend(states.iter().map(|s| s.position));
         gammas.clear();
         gammas.extend(commands.iter().enumerate().map(|(n, c)| {
-            c.map(|c| c.gamma)
+            c.as_ref()
+                .map(|c| c.gamma)
                 .or_else(|| self.previous.as_ref().map(|p| p.0[n]))
                 .unwrap_or(0.0)
         }));

@@ -44,6 +44,7 @@ impl Recorder {
         }
     }
 
+    #[inline]
     fn slot(&mut self, tick: u64, id: u32) -> Result<(&mut Tick, usize), Reject> {
         let n = self.ids.iter().position(|&i| i == id).ok_or(Reject::UnknownVehicle)?;
         if tick < self.next || tick >= self.next + WINDOW || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
@@ -97,7 +98,7 @@ impl Recorder {
 
     /// Hands on every tick that is complete, in order: all states, and the commands of every
     /// vehicle not lost by then (a lost vehicle's late command is dropped, as the world did).
-    pub fn drain(&mut self, mut emit: impl FnMut(&[State], &[Option<&Command>])) {
+    pub fn drain(&mut self, mut emit: impl FnMut(&[State], &[Option<Command>])) {
         loop {
             let tick = self.next;
             if self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
@@ -121,9 +122,8 @@ impl Recorder {
                     *command = None;
                 }
             }
-            let held: Vec<Option<&Command>> = commands.iter().map(Option::as_ref).collect();
-            self.metrics.record(tick, &self.states, &held);
-            emit(&self.states, &held);
+            self.metrics.record(tick, &self.states, &commands);
+            emit(&self.states, &commands);
             commands.iter_mut().for_each(|c| *c = None);
             self.spare.push((states, commands));
             self.next += 1;
@@ -166,8 +166,8 @@ mod tests {
         let mut csv = String::new();
         let results = Fleet::new(&m, &plan).run(|states, commands| {
             for (s, c) in states.iter().zip(commands) {
-                telemetry::row(&mut csv, s, *c);
-                messages.push((*s, (*c).unwrap().clone()));
+                telemetry::row(&mut csv, s, c.as_ref());
+                messages.push((*s, c.clone().unwrap()));
             }
         });
         (messages, csv, results, plan.t_f, m.mission.control_period)
@@ -187,7 +187,11 @@ mod tests {
         }
         for &k in &order {
             recorder.on_state(messages[k].0).unwrap();
-            recorder.drain(|s, c| s.iter().zip(c).for_each(|(s, c)| telemetry::row(&mut out, s, *c)));
+            recorder.drain(|s, c| {
+                s.iter()
+                    .zip(c)
+                    .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref()))
+            });
         }
         assert!(!recorder.complete(), "not before the end is known");
         assert_eq!(

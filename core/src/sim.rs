@@ -45,7 +45,7 @@ impl Fleet {
 
     /// Runs to the end (every vehicle arrived, or max_duration); `observe` sees every tick as the
     /// recorder hands it on.
-    pub fn run(self, observe: impl FnMut(&[State], &[Option<&Command>])) -> Results {
+    pub fn run(self, observe: impl FnMut(&[State], &[Option<Command>])) -> Results {
         self.run_until(observe, || false)
     }
 
@@ -53,7 +53,7 @@ impl Fleet {
     /// whole ticks run so far.
     pub fn run_until(
         mut self,
-        mut observe: impl FnMut(&[State], &[Option<&Command>]),
+        mut observe: impl FnMut(&[State], &[Option<Command>]),
         mut stop: impl FnMut() -> bool,
     ) -> Results {
         let mut sent: Vec<(usize, Gamma)> = Vec::with_capacity(self.agents.len());

@@ -88,33 +88,32 @@ impl World {
         self.bodies[n].lost
     }
 
-    /// The measured states of tick k, in the order of `paths` given to `new`.
-    pub fn states(&self) -> Vec<State> {
+    /// The measured states of tick k, in the order of `paths` given to `new`, into `out` (whose
+    /// allocation a run reuses tick after tick).
+    pub fn states(&self, out: &mut Vec<State>) {
         let t = self.time();
         let (beta, beta_dot) = self.sideslip(t);
-        self.bodies
-            .iter()
-            .map(|b| State {
-                version: PROTOCOL_VERSION,
-                tick: self.tick,
-                id: b.id,
-                t,
-                position: b.position.into(),
-                heading: b.heading,
-                sideslip: beta,
-                sideslip_rate: beta_dot,
-                current: self.current.into(),
-            })
-            .collect()
+        out.clear();
+        out.extend(self.bodies.iter().map(|b| State {
+            version: PROTOCOL_VERSION,
+            tick: self.tick,
+            id: b.id,
+            t,
+            position: b.position.into(),
+            heading: b.heading,
+            sideslip: beta,
+            sideslip_rate: beta_dot,
+            current: self.current.into(),
+        }));
     }
 
     /// Integrates tick k → k+1. `commands[n]` is the held command of the n-th vehicle; `None`
     /// (or a lost vehicle) means thrusters off.
-    pub fn step(&mut self, commands: &[Option<&Command>]) {
+    pub fn step(&mut self, commands: &[Option<Command>]) {
         let t = self.time();
         let dt = self.dt;
         for (n, b) in self.bodies.iter_mut().enumerate() {
-            let command = commands.get(n).copied().flatten().filter(|_| !b.lost);
+            let command = commands.get(n).and_then(Option::as_ref).filter(|_| !b.lost);
             if command.is_some_and(|c| c.hold) {
                 continue;
             }

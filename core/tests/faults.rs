@@ -24,7 +24,10 @@ fn gap(m: &Mission) -> (Vec<(f64, f64)>, Results) {
     let plan = planner::plan(m).unwrap();
     let mut gaps = Vec::new();
     let results = Fleet::new(m, &plan).run(|states, commands| {
-        gaps.push((states[0].t, commands[0].unwrap().gamma - commands[1].unwrap().gamma));
+        gaps.push((
+            states[0].t,
+            commands[0].as_ref().unwrap().gamma - commands[1].as_ref().unwrap().gamma,
+        ));
     });
     (gaps, results)
 }

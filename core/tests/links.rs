@@ -29,7 +29,7 @@ type Tick = (Vec<State>, Vec<Command>);
 fn trace(m: &Mission) -> (Vec<Tick>, Results) {
     let mut ticks = Vec::new();
     let r = Fleet::new(m, &planner::plan(m).unwrap()).run(|s, c| {
-        ticks.push((s.to_vec(), c.iter().map(|c| (*c).unwrap().clone()).collect()));
+        ticks.push((s.to_vec(), c.iter().map(|c| c.clone().unwrap()).collect()));
     });
     (ticks, r)
 }

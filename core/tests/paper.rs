@@ -149,7 +149,7 @@ fn same_seed_same_bits() {
         let mut out = String::new();
         Fleet::new(&m, &plan).run(|states, commands| {
             for (s, c) in states.iter().zip(commands) {
-                tcpf_core::telemetry::row(&mut out, s, *c);
+                tcpf_core::telemetry::row(&mut out, s, c.as_ref());
             }
         });
         out
@@ -163,7 +163,7 @@ fn post_arrival_stop_freezes_each_vehicle_where_it_arrives() {
     let plan = planner::plan(&m).unwrap();
     let mut first: Vec<[f64; 2]> = Vec::new();
     let r = Fleet::new(&m, &plan).run(|states, commands| {
-        if commands[0].unwrap().hold {
+        if commands[0].as_ref().unwrap().hold {
             first.push(states[0].position);
         }
     });

@@ -85,10 +85,10 @@ pub struct Telemetry {
 }
 
 impl Telemetry {
-    pub fn tick(&mut self, states: &[State], commands: &[Option<&Command>]) -> Result<()> {
+    pub fn tick(&mut self, states: &[State], commands: &[Option<Command>]) -> Result<()> {
         self.line.clear();
         for (s, c) in states.iter().zip(commands) {
-            telemetry::row(&mut self.line, s, *c);
+            telemetry::row(&mut self.line, s, c.as_ref());
         }
         self.out.write_all(self.line.as_bytes())?;
         self.line.clear();

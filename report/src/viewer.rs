@@ -151,7 +151,7 @@ impl Viewer {
     }
 
     /// One tick: every vehicle's state, and the commands of those that are not lost.
-    pub fn tick(&mut self, states: &[State], commands: &[Option<&Command>]) {
+    pub fn tick(&mut self, states: &[State], commands: &[Option<Command>]) {
         let vehicles = std::mem::take(&mut self.vehicles);
         for ((vehicle, s), c) in vehicles.iter().zip(states).zip(commands) {
             let message = PoseInFrame {
