@@ -46,8 +46,8 @@ enum Command {
         /// Drive every machine in one loop instead of one process per role (the reference).
         #[arg(long)]
         in_process: bool,
-        /// Mission seed (overrides mission.seed).
-        #[arg(long)]
+        /// Mission seed (overrides mission.seed); a TOML integer, so at most 2^63 − 1.
+        #[arg(long, value_parser = clap::value_parser!(u64).range(..=i64::MAX as u64))]
         seed: Option<u64>,
         /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
         #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
@@ -372,6 +372,12 @@ fn agent(
     stale_timeout: Duration,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
+    if !mission.vehicles.iter().any(|v| v.id == id) {
+        return Err(Failure::Input(anyhow!(
+            "--id {id}: {} has no vehicle with that id",
+            args.file.display()
+        )));
+    }
     let options = tcpf_agent::Options {
         startup_timeout,
         stale_timeout,

@@ -186,6 +186,16 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["run", &mission, "--in-process", "--out", full.to_str().unwrap()],
             "already holds files",
         ),
+        (
+            vec!["run", &mission, "--in-process", "--seed", "18446744073709551615"],
+            "--seed",
+        ),
+        (vec!["agent", &mission, "--id", "9"], "--id 9"),
+        (
+            vec!["plan", &mission, "--set", "vehicle.7.weight=2"],
+            "no vehicle with id 7",
+        ),
+        (vec!["plan", &mission, "--set", "vehicle.1.colour=2"], "colour"),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);

@@ -357,6 +357,8 @@ pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
 /// constraints. The result does not depend on how the grid was spread.
 pub struct Search<'a> {
     config: &'a PlannerConfig,
+    /// m/s: a path is followable only where it is faster than the current.
+    current: f64,
     vehicles: &'a [VehicleConfig],
     grid: Vec<f64>,
 }
@@ -367,6 +369,7 @@ impl<'a> Search<'a> {
         let steps = ((config.tf_max - config.tf_min) / GRID - 1e-9).ceil().max(0.0) as usize;
         Search {
             config,
+            current: mission.current.speed,
             vehicles: &mission.vehicles,
             grid: (0..=steps)
                 .map(|k| (config.tf_min + k as f64 * GRID).min(config.tf_max))
@@ -386,7 +389,16 @@ impl<'a> Search<'a> {
 
     /// The plan, from the candidates of every t_f of `grid`, in its order.
     pub fn finish(&self, candidates: &[Candidate]) -> Result<Plan, Infeasible> {
-        finish(self.config, self.vehicles, &self.grid, candidates)
+        let plan = finish(self.config, self.vehicles, &self.grid, candidates)?;
+        match plan.vehicles.iter().find(|v| v.min_speed <= self.current) {
+            Some(v) => Err(Infeasible {
+                message: format!(
+                    "current.speed ({} m/s) is not below vehicle {}'s slowest planned speed ({:.4} m/s): it could not hold its path; raise planner.v_min above the current",
+                    self.current, v.id, v.min_speed
+                ),
+            }),
+            None => Ok(plan),
+        }
     }
 }
 

@@ -72,8 +72,8 @@ mod tests {
         assert_eq!(g[&4], vec![1]);
         let g = build(&fleet(3, ""));
         assert_eq!(g[&2], vec![1, 3]);
-        let g = build(&fleet(3, "edges = [[3, 1]]"));
-        assert_eq!(g[&1], vec![3]);
-        assert!(g[&2].is_empty());
+        let g = build(&fleet(3, "edges = [[3, 1], [2, 1]]"));
+        assert_eq!(g[&1], vec![2, 3]);
+        assert_eq!(g[&2], vec![1]);
     }
 }

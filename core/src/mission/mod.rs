@@ -177,7 +177,7 @@ pub struct CommsConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub topology: Option<Topology>,
     /// Explicit undirected edges, instead of `topology`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none", deserialize_with = "exact_pairs")]
     pub edges: Option<Vec<[u32; 2]>>,
     /// Probability that a message on a directed link is lost (Bernoulli).
     pub loss: f64,
@@ -293,19 +293,48 @@ impl Default for CommsConfig {
 #[serde(deny_unknown_fields)]
 pub struct VehicleConfig {
     pub id: u32,
+    #[serde(deserialize_with = "exact")]
     pub start: [f64; 2],
+    #[serde(deserialize_with = "exact")]
     pub start_velocity: [f64; 2],
+    #[serde(deserialize_with = "exact")]
     pub goal: [f64; 2],
+    #[serde(deserialize_with = "exact")]
     pub goal_velocity: [f64; 2],
-    #[serde(default)]
+    #[serde(default, deserialize_with = "exact")]
     pub start_acceleration: [f64; 2],
-    #[serde(default)]
+    #[serde(default, deserialize_with = "exact")]
     pub goal_acceleration: [f64; 2],
     #[serde(default = "defaults::weight")]
     pub weight: f64,
     /// (x_e, y_e, ψ_e) at t = 0, in the path frame at the start (MODEL D15).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "exact")]
     pub initial_offset: [f64; 3],
+}
+
+/// A fixed-size array that refuses a longer or shorter one in the file (serde's own arrays stop
+/// reading at their length and let the rest through).
+fn exact<'de, D, T, const N: usize>(d: D) -> Result<[T; N], D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    let values = Vec::<T>::deserialize(d)?;
+    let len = values.len();
+    values
+        .try_into()
+        .map_err(|_| serde::de::Error::invalid_length(len, &format!("exactly {N} values").as_str()))
+}
+
+/// `edges`: pairs of exactly two ids.
+fn exact_pairs<'de, D>(d: D) -> Result<Option<Vec<[u32; 2]>>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+{
+    #[derive(Deserialize)]
+    struct Pair(#[serde(deserialize_with = "exact")] [u32; 2]);
+    let pairs = Vec::<Pair>::deserialize(d)?;
+    Ok(Some(pairs.into_iter().map(|p| p.0).collect()))
 }
 
 mod defaults {
@@ -354,7 +383,13 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
     };
     let spanned = DeTable::parse(text).map_err(|e| {
         let line = e.span().map(|s| line_of(text, s.start));
-        err(line, None, e.message().trim().to_string())
+        // The parser's own words name the problem but not the key it found twice.
+        let key = e
+            .span()
+            .filter(|_| e.message().contains("duplicate key"))
+            .and_then(|s| text.get(s))
+            .map(|k| k.trim().trim_matches(['"', '\'']).to_string());
+        err(line, key, e.message().trim().to_string())
     })?;
     let table = spanned.get_ref();
     let mission: Mission = toml::from_str(text).map_err(|e| {
@@ -544,7 +579,7 @@ goal_velocity = [0.75, 0.0]
             "round trip"
         );
         for (set, key, says) in [
-            ("comms.heartbeat=0.05", "comms.heartbeat", "≥ comms.period"),
+            ("comms.heartbeat=0.05", "comms.heartbeat", "between comms.period"),
             ("comms.threshold=-1", "comms.threshold", "≥ 0"),
             ("comms.tdma_slot=0.25", "comms.tdma_slot", "whole multiple"),
             ("comms.loss_at_range=1.5", "comms.loss_at_range", "probability"),

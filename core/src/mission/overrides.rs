@@ -34,7 +34,7 @@ pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Miss
             .and_then(|mut t| t.remove("v"))
             .unwrap_or_else(|| toml::Value::String(raw.trim().to_string()));
         let parts: Vec<&str> = key.trim().split('.').collect();
-        let slot = match parts.as_slice() {
+        let (table, k) = match parts.as_slice() {
             ["vehicle", id, k] => {
                 let id: i64 = id.parse().map_err(|_| bad(format!("`{id}` is not a vehicle id")))?;
                 let vehicles = root.get_mut("vehicle").and_then(|v| v.as_array_mut());
@@ -45,18 +45,20 @@ pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Miss
                     })
                     .and_then(|v| v.as_table_mut())
                     .ok_or_else(|| bad(format!("no vehicle with id {id}")))?;
-                vehicle.insert(k.to_string(), value);
-                continue;
+                (vehicle, *k)
             }
-            [section, k] => (section.to_string(), k.to_string()),
+            [section, k] => {
+                let table = root
+                    .entry(section.to_string())
+                    .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+                    .as_table_mut()
+                    .ok_or_else(|| bad(format!("`{section}` is not a section")))?;
+                (table, *k)
+            }
             _ => return Err(bad("keys are `section.key` or `vehicle.<id>.key`".into())),
         };
-        let section = root
-            .entry(slot.0.clone())
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
-            .as_table_mut()
-            .ok_or_else(|| bad(format!("`{}` is not a section", slot.0)))?;
-        section.insert(slot.1, value);
+        table.insert(k.to_string(), value);
+        // Each override is checked as it is applied, so that an error names the one at fault.
         toml::Value::Table(root.clone())
             .try_into::<Mission>()
             .map_err(|e| bad(e.message().trim().to_string()))?;

@@ -3,6 +3,18 @@
 use super::diagnostics::Seg;
 use super::{Endpoint, Mission};
 
+/// The planner evaluates every t_f of [tf_min, tf_max] on a 0.01 s grid (D6): this many at most,
+/// a 200 s window, so that a plan takes a fraction of a second and tens of MB.
+const MAX_CANDIDATES: f64 = 20_000.0;
+/// Ticks of one run: 5.5 h at the paper's 100 Hz; the telemetry of a longer run is gigabytes.
+const MAX_TICKS: f64 = 2_000_000.0;
+/// Shortest path duration the planner considers: a path of a few control periods is no path.
+const MIN_TF: f64 = 1.0;
+/// A fleet larger than this is a typo, not a mission.
+const MAX_VEHICLES: usize = 1000;
+/// A mission name is part of every key expression and file name.
+const MAX_NAME: usize = 64;
+
 pub(super) type Invalid = (Vec<Seg>, String);
 
 fn key(section: &str, k: &str) -> Vec<Seg> {
@@ -21,6 +33,15 @@ fn check(ok: bool, path: Vec<Seg>, message: impl Into<String>) -> Result<(), Inv
     }
 }
 
+/// A number as a person would write it: 0.01 and 120, but 1e-300 and 1e9.
+fn num(x: f64) -> String {
+    if x != 0.0 && (x.abs() < 1e-3 || x.abs() >= 1e6) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 fn finite(path: Vec<Seg>, values: &[f64]) -> Result<(), Invalid> {
     check(values.iter().all(|v| v.is_finite()), path, "must be a finite number")
 }
@@ -29,13 +50,14 @@ impl Mission {
     pub(super) fn validate(&self) -> Result<(), Invalid> {
         let m = &self.mission;
         let name_ok = !m.name.is_empty()
+            && m.name.len() <= MAX_NAME
             && m.name
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
         check(
             name_ok,
             key("mission", "name"),
-            "must be non-empty letters, digits, '-', '_' or '.' (it is part of every key expression)",
+            format!("must be 1 to {MAX_NAME} letters, digits, '-', '_' or '.' (it is part of every key expression)"),
         )?;
         check(
             m.control_period > 0.0 && m.control_period.is_finite(),
@@ -46,6 +68,28 @@ impl Mission {
             m.max_duration > 0.0 && m.max_duration.is_finite(),
             key("mission", "max_duration"),
             "must be > 0",
+        )?;
+        let ticks = m.max_duration / m.control_period;
+        // Blame the value that is out of the ordinary: a long mission, or a short period.
+        let (culprit, other) = if m.max_duration > MAX_TICKS * 0.01 {
+            (
+                "max_duration",
+                format!("mission.control_period = {} s", m.control_period),
+            )
+        } else {
+            ("control_period", format!("mission.max_duration = {} s", m.max_duration))
+        };
+        check(
+            ticks <= MAX_TICKS,
+            key("mission", culprit),
+            format!(
+                "{} gives {ticks:.3e} ticks with {other}; a run has at most {MAX_TICKS:.0}",
+                num(if culprit == "max_duration" {
+                    m.max_duration
+                } else {
+                    m.control_period
+                })
+            ),
         )?;
         let p = &self.planner;
         for (k, v) in [
@@ -58,14 +102,32 @@ impl Mission {
         ] {
             finite(key("planner", k), &[v])?;
         }
-        check(p.tf_min > 0.0, key("planner", "tf_min"), "must be > 0")?;
+        check(
+            p.tf_min >= MIN_TF,
+            key("planner", "tf_min"),
+            format!("must be ≥ {MIN_TF} s"),
+        )?;
         check(
             p.tf_max >= p.tf_min,
             key("planner", "tf_max"),
             format!("must be ≥ tf_min ({})", p.tf_min),
         )?;
+        let candidates = (p.tf_max - p.tf_min) / 0.01;
+        check(
+            candidates <= MAX_CANDIDATES,
+            key("planner", "tf_max"),
+            format!(
+                "[tf_min, tf_max] = [{}, {}] holds {candidates:.3e} candidates of t_f on the planner's 0.01 s grid; at most {MAX_CANDIDATES:.0} (a window of 200 s)",
+                num(p.tf_min),
+                num(p.tf_max)
+            ),
+        )?;
         check(p.clearance >= 0.0, key("planner", "clearance"), "must be ≥ 0")?;
-        check(p.v_min >= 0.0, key("planner", "v_min"), "must be ≥ 0")?;
+        check(
+            p.v_min > 0.0,
+            key("planner", "v_min"),
+            "must be > 0: the law divides by the path speed",
+        )?;
         check(
             p.v_max > p.v_min,
             key("planner", "v_max"),
@@ -92,6 +154,14 @@ impl Mission {
         )?;
         finite(key("current", "speed"), &[self.current.speed])?;
         check(self.current.speed >= 0.0, key("current", "speed"), "must be ≥ 0")?;
+        check(
+            self.current.speed < p.v_max,
+            key("current", "speed"),
+            format!(
+                "must be below planner.v_max ({} m/s): a vehicle slower than the current cannot hold its path",
+                p.v_max
+            ),
+        )?;
         finite(key("current", "direction"), &[self.current.direction])?;
         finite(key("sideslip", "amplitude"), &[self.sideslip.amplitude])?;
         check(
@@ -120,6 +190,14 @@ impl Mission {
             ),
         )?;
         check(
+            k.period <= m.max_duration,
+            key("comms", "period"),
+            format!(
+                "must be at most mission.max_duration ({} s): no γ would ever be exchanged",
+                m.max_duration
+            ),
+        )?;
+        check(
             (0.0..=1.0).contains(&k.loss),
             key("comms", "loss"),
             "must be a probability in [0, 1]",
@@ -134,6 +212,11 @@ impl Mission {
             !self.vehicles.is_empty(),
             vec![Seg::Key("vehicle".into())],
             "the mission has no [[vehicle]]",
+        )?;
+        check(
+            self.vehicles.len() <= MAX_VEHICLES,
+            vec![Seg::Key("vehicle".into())],
+            format!("{} vehicles; a mission has at most {MAX_VEHICLES}", self.vehicles.len()),
         )?;
         for (i, v) in self.vehicles.iter().enumerate() {
             check(
@@ -160,6 +243,20 @@ impl Mission {
                 )?;
             }
             check(v.weight > 0.0 && v.weight.is_finite(), vkey(i, "weight"), "must be > 0")?;
+            let offset = v.initial_offset[0].hypot(v.initial_offset[1]);
+            let length = (v.goal[0] - v.start[0]).hypot(v.goal[1] - v.start[1]);
+            check(
+                offset < 0.5 * length,
+                vkey(i, "initial_offset"),
+                format!(
+                    "puts the vehicle {offset:.3} m from its path's start, not under half the distance from start to goal ({length:.3} m): γ would race ahead of a vehicle that has not reached its path"
+                ),
+            )?;
+            check(
+                v.initial_offset[2].abs() <= std::f64::consts::PI,
+                vkey(i, "initial_offset"),
+                "ψ_e, the third value, must be an angle in [−π, π]",
+            )?;
         }
         if let Some(edges) = &k.edges {
             for e in edges {
@@ -177,11 +274,42 @@ impl Mission {
                 )?;
             }
         }
+        self.validate_graph()?;
         // Fleet-wide link keys first, so that a bad one is not blamed on a link that inherits it.
         // Both come after the edges, since link overrides are checked against the graph.
         self.validate_links()?;
         self.validate_faults()?;
         Ok(())
+    }
+}
+
+impl Mission {
+    /// Coordination needs every vehicle to hear, at least indirectly, every other: a graph in
+    /// pieces would let the pieces drift apart while the run says "coordinated".
+    fn validate_graph(&self) -> Result<(), Invalid> {
+        if !self.control.coordination || self.vehicles.len() < 2 {
+            return Ok(());
+        }
+        let graph = self.graph();
+        let first = *graph.keys().next().expect("vehicles are checked first");
+        let mut reached = vec![first];
+        let mut k = 0;
+        while k < reached.len() {
+            for &j in &graph[&reached[k]] {
+                if !reached.contains(&j) {
+                    reached.push(j);
+                }
+            }
+            k += 1;
+        }
+        let unreached: Vec<u32> = graph.keys().filter(|j| !reached.contains(j)).copied().collect();
+        check(
+            unreached.is_empty(),
+            key("comms", "edges"),
+            format!(
+                "the communication graph is in pieces: vehicles {unreached:?} never hear from vehicle {first}, so they would not coordinate (control.coordination = false runs a fleet uncoordinated on purpose)"
+            ),
+        )
     }
 }
 
@@ -203,10 +331,11 @@ impl Mission {
     /// The link fault models of `[comms]`: in range, consistent, and naming real links.
     fn validate_faults(&self) -> Result<(), Invalid> {
         let k = &self.comms;
+        let max_delay = self.mission.max_duration;
         check(
-            k.delay >= 0.0 && k.delay.is_finite(),
+            k.delay >= 0.0 && k.delay < max_delay,
             key("comms", "delay"),
-            "must be a finite number ≥ 0 (s)",
+            format!("must be a number of seconds ≥ 0 and below mission.max_duration ({max_delay} s)"),
         )?;
         if let Some(b) = &k.burst {
             for (name, p) in [
@@ -277,9 +406,9 @@ impl Mission {
             }
             if let Some(d) = l.delay {
                 check(
-                    d >= 0.0 && d.is_finite(),
+                    d >= 0.0 && d < max_delay,
                     item("link", i, "delay"),
-                    "must be a finite number ≥ 0 (s)",
+                    format!("must be a number of seconds ≥ 0 and below mission.max_duration ({max_delay} s)"),
                 )?;
             }
             self.validate_acoustic(
@@ -301,9 +430,12 @@ impl Mission {
             "must be a finite number ≥ 0 (s of γ)",
         )?;
         check(
-            k.heartbeat.is_finite() && k.heartbeat >= k.period,
+            k.heartbeat >= k.period && k.heartbeat <= self.mission.max_duration,
             key("comms", "heartbeat"),
-            format!("must be a finite number ≥ comms.period ({} s)", k.period),
+            format!(
+                "must be between comms.period ({} s) and mission.max_duration ({} s)",
+                k.period, self.mission.max_duration
+            ),
         )?;
         self.validate_acoustic(k.range, k.loss_at_range, k.sound_speed, |name| key("comms", name))?;
         if let Some(slot) = k.tdma_slot {
@@ -312,6 +444,16 @@ impl Mission {
                 slot.is_finite() && ratio >= 1.0 - 1e-9 && (ratio - ratio.round()).abs() < 1e-6,
                 key("comms", "tdma_slot"),
                 format!("must be a whole multiple of comms.period ({} s)", k.period),
+            )?;
+            let cycle = slot * self.vehicles.len() as f64;
+            check(
+                cycle <= self.mission.max_duration,
+                key("comms", "tdma_slot"),
+                format!(
+                    "gives a cycle of {cycle} s for {} vehicles, longer than mission.max_duration ({} s)",
+                    self.vehicles.len(),
+                    self.mission.max_duration
+                ),
             )?;
         }
         Ok(())
