@@ -52,6 +52,10 @@ enum Command {
         /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
         #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
         live: Option<SocketAddr>,
+        /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
+        /// More than the agents' stale timeout (3 s).
+        #[arg(long, default_value = "10", value_parser = seconds, allow_hyphen_values = true)]
+        command_timeout: Duration,
     },
     /// Solve the trajectory generation problem and print the plan.
     Plan {
@@ -126,6 +130,9 @@ enum Command {
         /// Seconds to wait for the planner and the agents.
         #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
         startup_timeout: Duration,
+        /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
+        #[arg(long, default_value = "10", value_parser = seconds, allow_hyphen_values = true)]
+        command_timeout: Duration,
     },
     /// Role: record a fleet started by hand (start its world with --recorders 1).
     Record {
@@ -234,7 +241,8 @@ fn main() -> ExitCode {
             in_process,
             seed,
             live,
-        } => run(&mission, out.as_deref(), in_process, seed, live),
+            command_timeout,
+        } => run(&mission, out.as_deref(), in_process, seed, live, command_timeout),
         Command::Bench { mission, count } => bench(&mission, count),
         Command::Report { dir } => report(&dir),
         Command::Sweep {
@@ -260,7 +268,8 @@ fn main() -> ExitCode {
             zenoh,
             recorders,
             startup_timeout,
-        } => world(&mission, &zenoh, recorders, startup_timeout),
+            command_timeout,
+        } => world(&mission, &zenoh, recorders, startup_timeout, command_timeout),
         Command::Agent {
             mission,
             zenoh,
@@ -302,8 +311,17 @@ fn run(
     in_process: bool,
     seed: Option<u64>,
     live: Option<SocketAddr>,
+    command_timeout: Duration,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
+    // The agents' default stale timeout: a neighbour waiting for a silent agent gives up on it
+    // first, so that only the silent one is lost.
+    if command_timeout <= Duration::from_secs(3) {
+        return Err(Failure::Input(anyhow!(
+            "--command-timeout {:?}: must exceed the agents' stale timeout (3 s), or an agent waiting for a silent neighbour would be lost with it",
+            command_timeout
+        )));
+    }
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
@@ -312,7 +330,7 @@ fn run(
     } else {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
-            .block_on(launcher::run(&mission, &plan, &dir, &exe, live))
+            .block_on(launcher::run(&mission, &plan, &dir, &exe, live, command_timeout))
             .map_err(Failure::Failed)?
     };
     print!("{}", table::summary(&summary));
@@ -349,11 +367,13 @@ fn world(
     zenoh: &ZenohArgs,
     recorders: usize,
     startup_timeout: Duration,
+    command_timeout: Duration,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let options = tcpf_world::Options {
         startup_timeout,
         recorders,
+        command_timeout,
     };
     let exit = runtime()?
         .block_on(tcpf_world::run(&mission, zenoh, &options))
@@ -404,7 +424,14 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
     let before = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
     let summary = rt
-        .block_on(launcher::run(&mission, &plan, &dir, &exe, None))
+        .block_on(launcher::run(
+            &mission,
+            &plan,
+            &dir,
+            &exe,
+            None,
+            launcher::COMMAND_TIMEOUT,
+        ))
         .map_err(Failure::Failed)?;
     let after = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
     let _ = std::fs::remove_dir_all(&dir.path);

@@ -192,6 +192,10 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         ),
         (vec!["agent", &mission, "--id", "9"], "--id 9"),
         (
+            vec!["run", &mission, "--command-timeout", "2"],
+            "must exceed the agents' stale timeout",
+        ),
+        (
             vec!["plan", &mission, "--set", "vehicle.7.weight=2"],
             "no vehicle with id 7",
         ),

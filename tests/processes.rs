@@ -270,6 +270,32 @@ fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run()
 }
 
 #[test]
+fn an_agent_stopped_past_the_worlds_bound_is_lost_as_silent_and_nothing_hangs() {
+    let dir = scratch("sigstop-long");
+    let bound = ["--command-timeout", "4"];
+    let mut launch = Launch::start(&paper("b-current"), &dir, &bound);
+    launch.wait_for("logs/world.log", "starting");
+    let agent = agent_pid(&launch, 2);
+    kill("-STOP", agent);
+    std::thread::sleep(Duration::from_secs(7));
+    kill("-CONT", agent);
+    let status = launch.wait(Duration::from_secs(120));
+    assert_eq!(status.code(), Some(1), "a run that lost a vehicle failed");
+    let s = launch.summary();
+    let v2 = &s["vehicles"][1];
+    assert_eq!(v2["id"], 2);
+    assert_eq!(v2["lost"], true, "{s}");
+    assert_eq!(v2["lost_reason"], "silent", "{s}");
+    assert!(s["vehicles"][0]["arrival_time"].is_number(), "vehicle 1 arrives: {s}");
+    let world = std::fs::read_to_string(dir.join("logs/world.log")).unwrap();
+    assert!(world.contains("agent 2 sent no command"), "{world}");
+    let agent2 = std::fs::read_to_string(dir.join("logs/agent-2.log")).unwrap();
+    assert!(agent2.contains("the world gave up on this vehicle"), "{agent2}");
+    assert_none_left(&s);
+    assert!(descendants(launch.child.id()).is_empty());
+}
+
+#[test]
 fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicles_after() {
     let dir = scratch("long-loss");
     let mut launch = Launch::start(&config("long3"), &dir, &[]);

@@ -11,7 +11,7 @@ use tcpf_bus::typed::{fetch_paths, presence, report, subscribe, subscribe_into, 
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::AgentNode;
 use tcpf_core::mission::Mission;
-use tcpf_core::msg::{End, Gamma, State};
+use tcpf_core::msg::{End, Gamma, Loss, State};
 use tokio::sync::mpsc;
 
 /// How long to wait for the end message after the world or the planner went away.
@@ -32,6 +32,8 @@ pub enum Exit {
     Ended,
     /// The world or the planner is gone: nobody to act for.
     Orphaned,
+    /// The world gave up on this vehicle (its agent was too slow to answer).
+    Lost,
     Interrupted,
 }
 
@@ -65,6 +67,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         gamma_subscribers.push(subscribe_into::<Gamma>(&session, &keys.gamma(j), &rejected, gamma_tx.clone()).await?);
     }
     let (_ends, mut ends) = subscribe::<End>(&session, &keys.end(), &rejected).await?;
+    let (_losses, mut losses) = subscribe::<Loss>(&session, &keys.lost("*"), &rejected).await?;
     let commands = Outlet::new(&session, keys.cmd(id)).await?;
     let gamma_out = Outlet::new(&session, keys.gamma(id)).await?;
     let token = session
@@ -146,6 +149,21 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 _ => {}
             },
             Some(_) = ends.recv() => break Exit::Ended,
+            Some(l) = losses.recv() => {
+                if Keys::id_of(&l.key) != Some(l.message.id) {
+                    rejected.count("vehicle differs from key", &l.key);
+                } else if l.message.id == id {
+                    tracing::warn!(
+                        "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
+                        l.message.tick,
+                        l.message.reason
+                    );
+                    break Exit::Lost;
+                } else if neighbours.contains(&l.message.id) {
+                    // Nobody waits for a lost vehicle's agent: neither the world nor its neighbours.
+                    node.set_gone(l.message.id, true);
+                }
+            }
             _ = shutdown.recv() => break Exit::Interrupted,
             _ = stale, if !waiting.is_empty() => {
                 for j in waiting {

@@ -103,6 +103,10 @@ enum Outcome {
     Failed(String),
 }
 
+/// How long the world waits for an agent's command of a tick, unless told otherwise: well past
+/// the agents' stale timeout (3 s), so that a neighbour given up on is not also lost at once.
+pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
+
 /// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
 pub async fn run(
     mission: &Mission,
@@ -110,6 +114,7 @@ pub async fn run(
     dir: &RunDir,
     exe: &Path,
     live: Option<SocketAddr>,
+    command_timeout: Duration,
 ) -> Result<Summary> {
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
@@ -129,7 +134,12 @@ pub async fn run(
     let common = vec![mission_file, "-e".to_string(), endpoint];
     let mut children = vec![spawn(exe, dir, Role::Planner, None, &common)?];
     let mut world_args = common.clone();
-    world_args.extend(["--recorders".to_string(), "1".to_string()]);
+    world_args.extend([
+        "--recorders".to_string(),
+        "1".to_string(),
+        "--command-timeout".to_string(),
+        command_timeout.as_secs_f64().to_string(),
+    ]);
     children.push(spawn(exe, dir, Role::World, None, &world_args)?);
     for v in &mission.vehicles {
         children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common)?);

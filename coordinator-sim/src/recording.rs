@@ -103,7 +103,7 @@ impl Recording {
             }
             Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
             Some(l) = self.losses.recv() => {
-                let lost = Lost { id: l.message.id, tick: l.message.tick };
+                let lost = Lost { id: l.message.id, tick: l.message.tick, reason: l.message.reason };
                 check(&l.key, l.message.id, self.recorder.on_lost(lost), &self.rejected);
             }
         }

@@ -86,7 +86,8 @@ pub async fn run_processes(jobs: &[Job], out: &Path, exe: &Path) -> Result<Vec<R
     for (job, plan) in jobs.iter().zip(&plans) {
         let name = format!("{}-seed{}", job.value.replace(['/', ' ', '"'], "_"), job.seed);
         let dir = RunDir::create(Some(&out.join("runs").join(name)), &job.mission)?;
-        let summary = crate::launcher::run(&job.mission, plan, &dir, exe, None).await?;
+        let summary =
+            crate::launcher::run(&job.mission, plan, &dir, exe, None, crate::launcher::COMMAND_TIMEOUT).await?;
         rows.push(Row::new(
             &job.value,
             job.seed,

@@ -8,7 +8,7 @@ use std::collections::BTreeSet;
 
 use crate::agent::Agent;
 use crate::mission::Mission;
-use crate::msg::{Command, End, Gamma, Lost, State, PROTOCOL_VERSION};
+use crate::msg::{Command, End, Gamma, LossReason, Lost, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::world::World;
 
@@ -77,9 +77,9 @@ impl WorldNode {
         Ok(())
     }
 
-    /// The agent of `id` is gone: its vehicle drifts from this tick on, and nobody waits for it.
-    /// Returns the loss to announce, the first time.
-    pub fn on_lost(&mut self, id: u32) -> Option<Lost> {
+    /// The agent of `id` is given up on, for `reason`: its vehicle drifts from this tick on, and
+    /// nobody waits for it. Returns the loss to announce, the first time.
+    pub fn on_lost(&mut self, id: u32, reason: LossReason) -> Option<Lost> {
         let n = self
             .ids
             .iter()
@@ -87,7 +87,11 @@ impl WorldNode {
             .filter(|&n| !self.world.is_lost(n))?;
         self.world.mark_lost(n);
         self.pending[n] = None;
-        let lost = Lost { id, tick: self.tick() };
+        let lost = Lost {
+            id,
+            tick: self.tick(),
+            reason,
+        };
         self.lost.push(lost);
         Some(lost)
     }
@@ -391,11 +395,18 @@ mod tests {
         world.on_command(commands[0].clone()).unwrap();
         assert_eq!(world.on_command(commands[0].clone()), Err(Reject::Duplicate));
         assert_eq!(world.waiting_for(), vec![2]);
-        world.on_lost(2);
+        world.on_lost(2, LossReason::Gone);
         assert!(world.waiting_for().is_empty());
         assert!(world.advance(|_, held| assert!(held[1].is_none())).is_none());
         assert_eq!(world.tick(), 1);
         assert_eq!(world.waiting_for(), vec![1], "a lost vehicle is never waited for again");
-        assert_eq!(world.interrupted().lost, vec![Lost { id: 2, tick: 0 }]);
+        assert_eq!(
+            world.interrupted().lost,
+            vec![Lost {
+                id: 2,
+                tick: 0,
+                reason: LossReason::Gone
+            }]
+        );
     }
 }

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::links::LinkStats;
-use crate::msg::{Command, State};
+use crate::msg::{Command, LossReason, State};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VehicleSummary {
@@ -14,6 +14,9 @@ pub struct VehicleSummary {
     /// First t with γ_i(t) ≥ t_f; `None` if it never arrived.
     pub arrival_time: Option<f64>,
     pub lost: bool,
+    /// Why the world gave up on its agent, if it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lost_reason: Option<LossReason>,
     /// γ messages this vehicle broadcast (one per instant, whatever the number of neighbours).
     pub gamma_sent: u64,
 }
@@ -44,7 +47,7 @@ pub struct Metrics {
     spare: Option<(Vec<f64>, Vec<[f64; 2]>)>,
     ids: Vec<u32>,
     arrivals: Vec<Option<f64>>,
-    lost: Vec<bool>,
+    lost: Vec<Option<LossReason>>,
     en_route: (f64, f64),
     to_last: (f64, f64),
     links: BTreeMap<(u32, u32), LinkStats>,
@@ -82,7 +85,7 @@ impl Metrics {
             spare: None,
             ids: ids.to_vec(),
             arrivals: vec![None; ids.len()],
-            lost: vec![false; ids.len()],
+            lost: vec![None; ids.len()],
             en_route: (0.0, f64::INFINITY),
             to_last: (0.0, f64::INFINITY),
             links: BTreeMap::new(),
@@ -91,9 +94,9 @@ impl Metrics {
         }
     }
 
-    pub fn mark_lost(&mut self, id: u32) {
+    pub fn mark_lost(&mut self, id: u32, reason: LossReason) {
         if let Some(n) = self.ids.iter().position(|&i| i == id) {
-            self.lost[n] = true;
+            self.lost[n] = Some(reason);
         }
     }
 
@@ -177,7 +180,7 @@ impl Metrics {
         self.arrivals
             .iter()
             .zip(&self.lost)
-            .all(|(a, lost)| a.is_some() || *lost)
+            .all(|(a, lost)| a.is_some() || lost.is_some())
     }
 
     pub fn results(&self) -> Results {
@@ -193,7 +196,8 @@ impl Metrics {
                 .map(|(((&id, &arrival_time), &lost), &gamma_sent)| VehicleSummary {
                     id,
                     arrival_time,
-                    lost,
+                    lost: lost.is_some(),
+                    lost_reason: lost,
                     gamma_sent,
                 })
                 .collect(),

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::path::GeneralizedPath;
 
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -176,11 +176,22 @@ impl Checked for PathMsg {
     }
 }
 
-/// A vehicle whose agent the world stopped waiting for, and from which tick on.
+/// Why the world stopped waiting for a vehicle's agent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LossReason {
+    /// Its liveliness token went away: the process died or closed its session.
+    Gone,
+    /// It sent no command of a tick within the world's bound (`--command-timeout`).
+    Silent,
+}
+
+/// A vehicle whose agent the world stopped waiting for, from which tick on, and why.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Lost {
     pub id: u32,
     pub tick: u64,
+    pub reason: LossReason,
 }
 
 /// World → recorders, the moment it gives up on a vehicle's agent: from `tick` on that vehicle
@@ -190,6 +201,7 @@ pub struct Loss {
     pub version: u16,
     pub id: u32,
     pub tick: u64,
+    pub reason: LossReason,
 }
 
 impl Checked for Loss {

@@ -118,7 +118,8 @@ impl Recorder {
             self.states.extend(states.iter_mut().flat_map(Option::take));
             for (&id, command) in self.ids.iter().zip(commands.iter_mut()) {
                 if lost_at(&self.losses, id, tick) {
-                    self.metrics.mark_lost(id);
+                    let reason = self.losses.iter().find(|l| l.id == id).map(|l| l.reason);
+                    self.metrics.mark_lost(id, reason.expect("lost_at found it"));
                     *command = None;
                 }
             }
@@ -227,7 +228,11 @@ mod tests {
         recorder.on_end(End {
             version: PROTOCOL_VERSION,
             ticks: 200,
-            lost: vec![Lost { id: 2, tick: lost_at }],
+            lost: vec![Lost {
+                id: 2,
+                tick: lost_at,
+                reason: crate::msg::LossReason::Gone,
+            }],
         });
         recorder.drain(|_, c| {
             assert!(c[0].is_some() && c[1].is_none());

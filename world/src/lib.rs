@@ -11,7 +11,7 @@ use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{fetch_paths, presence, report, subscribe, Outlet, Presence, Rejected};
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::Mission;
-use tcpf_core::msg::{Command, Loss, PROTOCOL_VERSION};
+use tcpf_core::msg::{Command, Loss, LossReason, Lost, PROTOCOL_VERSION};
 
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -19,6 +19,8 @@ pub struct Options {
     pub startup_timeout: Duration,
     /// Recorders to wait for before the first tick, so that they miss nothing.
     pub recorders: usize,
+    /// How long a tick waits for a live agent's command before that vehicle is lost (silent).
+    pub command_timeout: Duration,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -95,10 +97,23 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     }
     tracing::info!("world: {} agents present, starting", ids.len());
 
+    let announce = |lost: Lost| {
+        let (session, key) = (&session, keys.lost(lost.id));
+        async move {
+            let loss = Loss {
+                version: PROTOCOL_VERSION,
+                id: lost.id,
+                tick: lost.tick,
+                reason: lost.reason,
+            };
+            Outlet::new(session, key).await?.put(&loss).await
+        }
+    };
     let exit = 'run: loop {
         for (outlet, state) in outlets.iter().zip(node.states()) {
             outlet.put(state).await?;
         }
+        let deadline = tokio::time::Instant::now() + options.command_timeout;
         while !node.waiting_for().is_empty() {
             tokio::select! {
                 Some(c) = commands.recv() => {
@@ -110,9 +125,20 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
                 Some(p) = presence.recv() => {
                     if p.role == Role::Agent && !p.alive && ids.contains(&p.id) {
                         tracing::warn!("world: agent {} is gone at t = {:.2} s; its vehicle drifts", p.id, node.states()[0].t);
-                        if let Some(lost) = node.on_lost(p.id) {
-                            let loss = Loss { version: PROTOCOL_VERSION, id: lost.id, tick: lost.tick };
-                            Outlet::new(&session, keys.lost(lost.id)).await?.put(&loss).await?;
+                        if let Some(lost) = node.on_lost(p.id, LossReason::Gone) {
+                            announce(lost).await?;
+                        }
+                    }
+                }
+                _ = tokio::time::sleep_until(deadline) => {
+                    for id in node.waiting_for() {
+                        tracing::warn!(
+                            "world: agent {id} sent no command of t = {:.2} s within {:?}; its vehicle is lost and drifts",
+                            node.states()[0].t,
+                            options.command_timeout
+                        );
+                        if let Some(lost) = node.on_lost(id, LossReason::Silent) {
+                            announce(lost).await?;
                         }
                     }
                 }
