@@ -494,39 +494,43 @@ fn sweep(
             "a sweep needs non-empty values and --seeds ≥ 1"
         )));
     }
+    if let Some(v) = values
+        .iter()
+        .enumerate()
+        .find_map(|(i, v)| values[..i].contains(v).then_some(v))
+    {
+        return Err(Failure::Input(anyhow!("the value {v} is swept twice")));
+    }
     let base = load(args, None)?;
-    let mut jobs = Vec::new();
+    let mut grid = sweep::Grid {
+        values: Vec::with_capacity(values.len()),
+        seeds,
+    };
     for value in &values {
-        for seed in 1..=seeds {
-            let mut one = MissionArgs {
-                file: args.file.clone(),
-                set: args.set.clone(),
-            };
-            one.set.push(format!("{key}={value}"));
-            let mission = load(&one, Some(seed))?;
-            jobs.push(sweep::Job {
-                value: value.clone(),
-                seed,
-                mission,
-            });
-        }
+        let mut one = MissionArgs {
+            file: args.file.clone(),
+            set: args.set.clone(),
+        };
+        one.set.push(format!("{key}={value}"));
+        grid.values.push((value.clone(), load(&one, None)?));
     }
     let out = out.map_or_else(|| tcpf_report::sweep::default_out(&base), Path::to_path_buf);
-    let rows = if processes {
+    let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values).map_err(Failure::Failed)?;
+    let interrupted = if processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
-            .block_on(sweep::run_processes(&jobs, &out, &exe))
+            .block_on(sweep::run_processes(&grid, &out, &exe, &mut rows))
             .map_err(Failure::Failed)?
     } else {
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        sweep::run_in_process(&jobs, threads).map_err(Failure::Failed)?
+        sweep::run_in_process(&grid, threads, &mut rows).map_err(Failure::Failed)?
     };
     let mode = if processes { "processes" } else { "in-process" };
-    let summary = tcpf_report::sweep::summarise(&base.mission.name, &key, seeds, mode, &rows);
-    let table = tcpf_report::sweep::write(&out, &column, &rows, &summary).map_err(Failure::Failed)?;
+    let summary = rows.summary(&base.mission.name, &key, seeds, mode);
+    let table = tcpf_report::sweep::write(&out, &summary).map_err(Failure::Failed)?;
     print!("{table}");
     println!("sweep directory: {}", out.display());
-    Ok(ExitCode::SUCCESS)
+    Ok(code(true, interrupted))
 }
 
 fn record(

@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 mod common;
-use common::{config, scratch, tcpf};
+use common::{config, kill, scratch, tcpf, Reaper};
 
 fn ok(o: Output) -> Output {
     assert!(
@@ -97,6 +97,65 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
             arrivals.iter().copied().fold(f64::MIN, f64::max) - arrivals.iter().copied().fold(f64::MAX, f64::min)
         );
     }
+}
+
+#[test]
+fn a_huge_sweep_streams_its_rows_in_bounded_memory_and_keeps_them_when_interrupted() {
+    let out = scratch("sweep-huge").join("sweep");
+    let mut sweep = Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["sweep", &config("paper/d-lossy"), "--loss", "0,0.5"])
+            .args(["--seeds", "1000000", "--out", out.to_str().unwrap()])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let csv = out.join("sweep.csv");
+    let lines = || std::fs::read_to_string(&csv).map_or(0, |s| s.lines().count());
+    let started = std::time::Instant::now();
+    while lines() < 200 {
+        assert!(started.elapsed().as_secs() < 60, "rows reach sweep.csv as runs finish");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let status = std::fs::read_to_string(format!("/proc/{}/status", sweep.0.id())).unwrap();
+    let peak_kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|l| l.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap();
+    kill("-INT", sweep.0.id());
+    let status = sweep.0.wait().unwrap();
+    let mut stdout = String::new();
+    std::io::Read::read_to_string(sweep.0.stdout.as_mut().unwrap(), &mut stdout).unwrap();
+    eprintln!("peak RSS of a sweep of 2 000 000 runs: {peak_kb} kB\n{stdout}");
+    assert!(
+        peak_kb < 100_000,
+        "2 million runs planned, {peak_kb} kB: the grid is not held in memory"
+    );
+    assert_eq!(status.code(), Some(130), "an interrupted sweep exits 130");
+
+    let summary = json(&out.join("sweep.json"));
+    assert_eq!(summary["interrupted"], true);
+    assert_eq!(summary["planned_runs"], 2_000_000);
+    let done = summary["done_runs"].as_u64().unwrap();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let seeds: Vec<u64> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(
+        seeds.len() as u64,
+        done,
+        "every finished run is in sweep.csv, and only those"
+    );
+    assert!(seeds.iter().copied().eq(1..=done), "rows in grid order, none missing");
+    assert_eq!(summary["values"][0]["runs"].as_u64(), Some(done));
+    assert!(
+        stdout.contains(&format!("interrupted: {done} of 2000000 runs done")),
+        "{stdout}"
+    );
 }
 
 #[test]

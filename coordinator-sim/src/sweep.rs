@@ -1,101 +1,143 @@
 //! `tcpf sweep`: one mission over a grid of (value, seed), as in-process runs in parallel over
-//! the cores or as real fleets one after the other. What the rows become is `tcpf_report::sweep`.
+//! the cores or as real fleets one after the other. Rows go to sweep.csv in grid order as soon
+//! as they are known; what they become is `tcpf_report::sweep`.
 
+use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{mpsc, Arc};
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use signal_hook::consts::{SIGINT, SIGTERM};
 use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 use tcpf_report::rundir::RunDir;
-use tcpf_report::sweep::Row;
+use tcpf_report::sweep::{Row, Sweep};
 
-/// One run of the sweep: the mission with the swept key and the seed set.
-pub struct Job {
-    pub value: String,
-    pub seed: u64,
-    pub mission: Mission,
+/// The runs of a sweep: every value's mission, each with seeds 1..=`seeds`. Run `k` is value
+/// `k / seeds` with seed `k % seeds + 1`; a mission is made for a run only when it starts.
+pub struct Grid {
+    pub values: Vec<(String, Mission)>,
+    pub seeds: u64,
 }
 
-fn progress(total: usize) -> ProgressBar {
-    let bar = ProgressBar::new(total as u64);
+impl Grid {
+    fn runs(&self) -> Result<u64> {
+        (self.values.len() as u64).checked_mul(self.seeds).ok_or_else(|| {
+            anyhow!(
+                "{} values × {} seeds: too many runs to count",
+                self.values.len(),
+                self.seeds
+            )
+        })
+    }
+
+    fn run(&self, k: u64) -> (usize, u64, Mission) {
+        let v = (k / self.seeds) as usize;
+        let seed = k % self.seeds + 1;
+        let mut mission = self.values[v].1.clone();
+        mission.mission.seed = seed;
+        (v, seed, mission)
+    }
+
+    /// One plan per value: the plan does not depend on the seed.
+    fn plans(&self) -> Result<Vec<Plan>> {
+        self.values
+            .iter()
+            .map(|(value, mission)| {
+                crate::planning::plan(mission).map_err(|e| anyhow!("value {value}: infeasible plan: {e}"))
+            })
+            .collect()
+    }
+}
+
+fn progress(total: u64) -> ProgressBar {
+    let bar = ProgressBar::new(total);
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs {elapsed} (eta {eta})").expect("valid template"),
     );
     bar
 }
 
-/// Plans once per value (the plan does not depend on the seed).
-fn plans(jobs: &[Job]) -> Result<Vec<Plan>> {
-    let mut by_value: Vec<(String, Plan)> = Vec::new();
-    let mut out = Vec::with_capacity(jobs.len());
-    for job in jobs {
-        let plan = match by_value.iter().find(|(v, _)| *v == job.value) {
-            Some((_, p)) => p.clone(),
-            None => {
-                let p = crate::planning::plan(&job.mission)
-                    .map_err(|e| anyhow!("value {}: infeasible plan: {e}", job.value))?;
-                by_value.push((job.value.clone(), p.clone()));
-                p
-            }
-        };
-        out.push(plan);
+/// A flag that SIGINT and SIGTERM raise: the sweep then starts no new run.
+fn interrupt_flag() -> Result<Arc<AtomicBool>> {
+    let flag = Arc::new(AtomicBool::new(false));
+    for signal in [SIGINT, SIGTERM] {
+        signal_hook::flag::register(signal, flag.clone()).context("cannot handle SIGINT and SIGTERM")?;
     }
-    Ok(out)
+    Ok(flag)
 }
 
-/// Every job in-process, spread over `threads` threads.
-pub fn run_in_process(jobs: &[Job], threads: usize) -> Result<Vec<Row>> {
-    let plans = plans(jobs)?;
-    let next = AtomicUsize::new(0);
-    let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; jobs.len()]);
-    let bar = progress(jobs.len());
-    std::thread::scope(|s| {
+/// Every run in-process, spread over `threads` threads, each row pushed into `sweep` in grid
+/// order. Returns whether a signal cut the sweep short (the rows finished are kept).
+pub fn run_in_process(grid: &Grid, threads: usize, sweep: &mut Sweep) -> Result<bool> {
+    let plans = grid.plans()?;
+    let runs = grid.runs()?;
+    let stop = interrupt_flag()?;
+    let next = AtomicU64::new(0);
+    let bar = progress(runs);
+    let (tx, rx) = mpsc::sync_channel::<(u64, Row)>(threads.max(1) * 4);
+    let written = std::thread::scope(|s| -> Result<()> {
         for _ in 0..threads.max(1) {
-            s.spawn(|| loop {
+            let tx = tx.clone();
+            let (next, stop, plans) = (&next, &stop, &plans);
+            s.spawn(move || loop {
+                if stop.load(Ordering::Relaxed) {
+                    break;
+                }
                 let k = next.fetch_add(1, Ordering::Relaxed);
-                let Some(job) = jobs.get(k) else { break };
-                let results = Fleet::new(&job.mission, &plans[k]).run(|_, _| {});
-                rows.lock().expect("no worker panics")[k] = Some(Row::new(
-                    &job.value,
-                    job.seed,
-                    &results,
-                    job.mission.mission.control_period,
-                ));
-                bar.inc(1);
+                if k >= runs {
+                    break;
+                }
+                let (v, seed, mission) = grid.run(k);
+                let results = Fleet::new(&mission, &plans[v]).run(|_, _| {});
+                let row = Row::new(&grid.values[v].0, seed, &results, mission.mission.control_period);
+                if tx.send((k, row)).is_err() {
+                    break;
+                }
             });
         }
+        drop(tx);
+        // Rows arrive in the order runs finish; hold the few that overtook an earlier run.
+        let mut early = BTreeMap::new();
+        let mut due = 0;
+        for (k, row) in rx {
+            early.insert(k, row);
+            while let Some(row) = early.remove(&due) {
+                sweep.push(&row)?;
+                bar.inc(1);
+                due += 1;
+            }
+        }
+        Ok(())
     });
     bar.finish_and_clear();
-    Ok(rows
-        .into_inner()
-        .expect("no worker panics")
-        .into_iter()
-        .map(|r| r.expect("every job ran"))
-        .collect())
+    written?;
+    Ok(stop.load(Ordering::Relaxed))
 }
 
-/// Every job as a real fleet of processes, one after the other, each with its run directory.
-pub async fn run_processes(jobs: &[Job], out: &Path, exe: &Path) -> Result<Vec<Row>> {
-    let plans = plans(jobs)?;
-    let bar = progress(jobs.len());
-    let mut rows = Vec::with_capacity(jobs.len());
-    for (job, plan) in jobs.iter().zip(&plans) {
-        let name = format!("{}-seed{}", job.value.replace(['/', ' ', '"'], "_"), job.seed);
-        let dir = RunDir::create(Some(&out.join("runs").join(name)), &job.mission)?;
+/// Every run as a real fleet of processes, one after the other, each with its run directory.
+/// Returns whether a signal cut the sweep short.
+pub async fn run_processes(grid: &Grid, out: &Path, exe: &Path, sweep: &mut Sweep) -> Result<bool> {
+    let plans = grid.plans()?;
+    let runs = grid.runs()?;
+    let bar = progress(runs);
+    for k in 0..runs {
+        let (v, seed, mission) = grid.run(k);
+        let value = &grid.values[v].0;
+        let name = format!("{}-seed{seed}", value.replace(['/', ' ', '"'], "_"));
+        let dir = RunDir::create(Some(&out.join("runs").join(name)), &mission)?;
         let summary =
-            crate::launcher::run(&job.mission, plan, &dir, exe, None, crate::launcher::COMMAND_TIMEOUT).await?;
-        rows.push(Row::new(
-            &job.value,
-            job.seed,
-            &summary.results,
-            job.mission.mission.control_period,
-        ));
+            crate::launcher::run(&mission, &plans[v], &dir, exe, None, crate::launcher::COMMAND_TIMEOUT).await?;
+        if summary.interrupted {
+            bar.finish_and_clear();
+            return Ok(true);
+        }
+        sweep.push(&Row::new(value, seed, &summary.results, mission.mission.control_period))?;
         bar.inc(1);
     }
     bar.finish_and_clear();
-    Ok(rows)
+    Ok(false)
 }

@@ -1,7 +1,8 @@
 //! A sweep's results: one row per run, statistics per value, `sweep.csv`, `sweep.json`, the
 //! plots and `sweep.html`, and the table printed at the end.
 
-use std::fmt::Write;
+use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
@@ -53,25 +54,53 @@ pub struct Stats {
     pub max: f64,
 }
 
-impl Stats {
-    fn of(xs: &[f64]) -> Option<Stats> {
-        if xs.is_empty() {
-            return None;
+/// Mean, standard deviation and range of a stream of numbers in constant memory (Welford's
+/// update), so that a sweep of a million runs holds one accumulator per value, not its rows.
+#[derive(Debug, Clone, Copy, Default)]
+struct Running {
+    n: u64,
+    mean: f64,
+    m2: f64,
+    min: f64,
+    max: f64,
+}
+
+impl Running {
+    fn push(&mut self, x: Option<f64>) {
+        let Some(x) = x.filter(|x| x.is_finite()) else { return };
+        if self.n == 0 {
+            (self.min, self.max) = (x, x);
         }
-        let n = xs.len() as f64;
-        let mean = xs.iter().sum::<f64>() / n;
-        let var = if xs.len() > 1 {
-            xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)
-        } else {
-            0.0
-        };
-        Some(Stats {
-            mean,
-            std: var.sqrt(),
-            min: xs.iter().copied().fold(f64::INFINITY, f64::min),
-            max: xs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        self.n += 1;
+        let d = x - self.mean;
+        self.mean += d / self.n as f64;
+        self.m2 += d * (x - self.mean);
+        self.min = self.min.min(x);
+        self.max = self.max.max(x);
+    }
+
+    fn stats(&self) -> Option<Stats> {
+        (self.n > 0).then(|| Stats {
+            mean: self.mean,
+            std: if self.n > 1 {
+                (self.m2 / (self.n - 1) as f64).sqrt()
+            } else {
+                0.0
+            },
+            min: self.min,
+            max: self.max,
         })
     }
+}
+
+#[derive(Debug, Clone, Default)]
+struct PerValue {
+    runs: usize,
+    max_coordination_error: Running,
+    min_clearance: Running,
+    arrival_spread: Running,
+    delivered_fraction: Running,
+    messages_per_vehicle_s: Running,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -91,62 +120,42 @@ pub struct SweepSummary {
     pub parameter: String,
     pub seeds: u64,
     pub mode: String,
+    /// Runs planned and runs done: fewer are done when the sweep was interrupted.
+    pub planned_runs: u64,
+    pub done_runs: u64,
+    pub interrupted: bool,
     pub values: Vec<ValueSummary>,
 }
 
-pub fn summarise(mission: &str, parameter: &str, seeds: u64, mode: &str, rows: &[Row]) -> SweepSummary {
-    let mut values: Vec<String> = Vec::new();
-    for r in rows {
-        if !values.contains(&r.value) {
-            values.push(r.value.clone());
-        }
-    }
-    let values = values
-        .into_iter()
-        .map(|value| {
-            let these: Vec<&Row> = rows.iter().filter(|r| r.value == value).collect();
-            let pick = |f: &dyn Fn(&Row) -> Option<f64>| {
-                Stats::of(
-                    &these
-                        .iter()
-                        .filter_map(|r| f(r))
-                        .filter(|x| x.is_finite())
-                        .collect::<Vec<f64>>(),
-                )
-            };
-            ValueSummary {
-                runs: these.len(),
-                max_coordination_error: pick(&|r| Some(r.max_coordination_error)),
-                min_clearance: pick(&|r| Some(r.min_clearance)),
-                arrival_spread: pick(&|r| r.arrival_spread),
-                delivered_fraction: pick(&|r| r.delivered_fraction),
-                messages_per_vehicle_s: pick(&|r| Some(r.messages_per_vehicle_s)),
-                value,
-            }
-        })
-        .collect();
-    SweepSummary {
-        mission: mission.into(),
-        parameter: parameter.into(),
-        seeds,
-        mode: mode.into(),
-        values,
-    }
+/// A sweep as it runs: each row is appended to sweep.csv (and flushed) the moment it is known
+/// and folded into its value's statistics, so memory stays bounded however many runs there are
+/// and an interrupted sweep keeps every row it finished.
+pub struct Sweep {
+    csv: std::io::BufWriter<std::fs::File>,
+    values: Vec<(String, PerValue)>,
+    done: u64,
 }
 
-fn cell(x: Option<f64>) -> String {
-    x.map_or(String::new(), |x| x.to_string())
-}
-
-/// Writes sweep.csv, sweep.json, the two plots and sweep.html into `out`; returns the table.
-pub fn write(out: &Path, column: &str, rows: &[Row], summary: &SweepSummary) -> Result<String> {
-    std::fs::create_dir_all(out)?;
-    let mut csv = format!(
-        "{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s\n"
-    );
-    for r in rows {
-        let _ = writeln!(
+impl Sweep {
+    /// Creates `out` and sweep.csv with its header; `values` in the order they are swept.
+    pub fn create(out: &Path, column: &str, values: &[String]) -> Result<Sweep> {
+        std::fs::create_dir_all(out)?;
+        let mut csv = std::io::BufWriter::new(std::fs::File::create(out.join("sweep.csv"))?);
+        writeln!(
             csv,
+            "{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s"
+        )?;
+        csv.flush()?;
+        Ok(Sweep {
+            csv,
+            values: values.iter().map(|v| (v.clone(), PerValue::default())).collect(),
+            done: 0,
+        })
+    }
+
+    pub fn push(&mut self, r: &Row) -> Result<()> {
+        writeln!(
+            self.csv,
             "{},{},{},{},{},{},{}",
             r.value,
             r.seed,
@@ -155,9 +164,57 @@ pub fn write(out: &Path, column: &str, rows: &[Row], summary: &SweepSummary) -> 
             cell(r.arrival_spread),
             cell(r.delivered_fraction),
             r.messages_per_vehicle_s
-        );
+        )?;
+        self.csv.flush()?;
+        let v = match self.values.iter_mut().find(|(v, _)| *v == r.value) {
+            Some((_, v)) => v,
+            None => anyhow::bail!("row for value {} which the sweep does not have", r.value),
+        };
+        v.runs += 1;
+        v.max_coordination_error.push(Some(r.max_coordination_error));
+        v.min_clearance.push(Some(r.min_clearance));
+        v.arrival_spread.push(r.arrival_spread);
+        v.delivered_fraction.push(r.delivered_fraction);
+        v.messages_per_vehicle_s.push(Some(r.messages_per_vehicle_s));
+        self.done += 1;
+        Ok(())
     }
-    std::fs::write(out.join("sweep.csv"), csv)?;
+
+    /// The statistics per value of the rows pushed so far (values with no row are left out).
+    pub fn summary(&self, mission: &str, parameter: &str, seeds: u64, mode: &str) -> SweepSummary {
+        SweepSummary {
+            mission: mission.into(),
+            parameter: parameter.into(),
+            seeds,
+            mode: mode.into(),
+            planned_runs: seeds * self.values.len() as u64,
+            done_runs: self.done,
+            interrupted: self.done < seeds * self.values.len() as u64,
+            values: self
+                .values
+                .iter()
+                .filter(|(_, v)| v.runs > 0)
+                .map(|(value, v)| ValueSummary {
+                    value: value.clone(),
+                    runs: v.runs,
+                    max_coordination_error: v.max_coordination_error.stats(),
+                    min_clearance: v.min_clearance.stats(),
+                    arrival_spread: v.arrival_spread.stats(),
+                    delivered_fraction: v.delivered_fraction.stats(),
+                    messages_per_vehicle_s: v.messages_per_vehicle_s.stats(),
+                })
+                .collect(),
+        }
+    }
+}
+
+fn cell(x: Option<f64>) -> String {
+    x.map_or(String::new(), |x| x.to_string())
+}
+
+/// Writes sweep.json, the plots and sweep.html into `out` (sweep.csv is already there, written
+/// row by row); returns the table.
+pub fn write(out: &Path, summary: &SweepSummary) -> Result<String> {
     std::fs::write(out.join("sweep.json"), serde_json::to_string_pretty(summary)? + "\n")?;
 
     let numeric: Option<Vec<f64>> = summary.values.iter().map(|v| v.value.parse::<f64>().ok()).collect();
@@ -236,6 +293,13 @@ pub fn table(summary: &SweepSummary) -> String {
             m(v.arrival_spread),
             m(v.delivered_fraction),
             m(v.messages_per_vehicle_s)
+        );
+    }
+    if summary.interrupted {
+        let _ = writeln!(
+            s,
+            "interrupted: {} of {} runs done; sweep.csv holds every one of them",
+            summary.done_runs, summary.planned_runs
         );
     }
     s
