@@ -264,6 +264,13 @@ fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run()
         assert_ne!(status.code(), Some(0), "an irreproducible run does not exit 0");
         let reasons = s["reproducible_reasons"].to_string();
         assert!(reasons.contains("agent 1"), "the agent that gave up says so: {reasons}");
+        let unused = s["links"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|l| l["from"] == 2 && l["to"] == 1)
+            .map(|l| l["unused"].as_u64().unwrap());
+        assert!(unused > Some(0), "the link table counts the γ that came too late: {unused:?}");
     }
     assert_eq!(s["reproducible"], false, "a 5 s stop outlasts the 3 s stale timeout");
     assert_none_left(&s);

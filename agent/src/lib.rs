@@ -7,12 +7,11 @@ use anyhow::{anyhow, Result};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::typed::{fetch_paths, presence, report, subscribe, subscribe_into, Outlet, Rejected};
+use tcpf_bus::typed::{fetch_paths, presence, queue, report, subscribe, subscribe_into, Outlet, Rejected};
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::AgentNode;
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{End, Gamma, Loss, State};
-use tokio::sync::mpsc;
 
 /// How long to wait for the end message after the world or the planner went away.
 const END_GRACE: Duration = Duration::from_millis(500);
@@ -61,7 +60,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     }
 
     let (_states, mut states) = subscribe::<State>(&session, &keys.state(id), &rejected).await?;
-    let (gamma_tx, mut gammas) = mpsc::unbounded_channel();
+    let (gamma_tx, mut gammas) = queue();
     let mut gamma_subscribers = Vec::new();
     for &j in &neighbours {
         gamma_subscribers.push(subscribe_into::<Gamma>(&session, &keys.gamma(j), &rejected, gamma_tx.clone()).await?);
@@ -128,19 +127,22 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             Some(s) = states.recv() => match node.on_state(s.message) {
                 Ok(Some(gamma)) => gamma_out.put(&gamma).await?,
                 Ok(None) => {}
-                Err(e) => rejected.count(&format!("{e:?}"), &s.key),
+                Err(e) => rejected.reject(e, &s.key),
             },
             Some(g) = gammas.recv() => {
-                let result = if Keys::id_of(&g.key) == Some(g.message.from) { node.on_gamma(g.message).map_err(|e| format!("{e:?}")) } else { Err("sender differs from key".into()) };
-                if let Err(e) = result {
-                    rejected.count(&e, &g.key);
+                if Keys::id_of(&g.key) != Some(g.message.from) {
+                    rejected.wrong_sender(&g.key);
+                } else if let Err(e) = node.on_gamma(g.message) {
+                    rejected.reject(e, &g.key);
                 }
             }
             Some(p) = presence.recv() => match p.role {
                 Role::World | Role::Planner if !p.alive => {
                     // At the end the planner may leave before the world's end message reaches us.
-                    if tokio::time::timeout(END_GRACE, ends.recv()).await.is_ok_and(|e| e.is_some()) {
-                        break Exit::Ended;
+                    if let Ok(Some(e)) = tokio::time::timeout(END_GRACE, ends.recv()).await {
+                        if node.on_end(&e.message).is_ok() {
+                            break Exit::Ended;
+                        }
                     }
                     tracing::warn!("agent {id}: the {} is gone; stopping", p.role);
                     break Exit::Orphaned;
@@ -148,10 +150,13 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 Role::Agent if neighbours.contains(&p.id) => node.set_gone(p.id, !p.alive),
                 _ => {}
             },
-            Some(_) = ends.recv() => break Exit::Ended,
+            Some(e) = ends.recv() => match node.on_end(&e.message) {
+                Ok(()) => break Exit::Ended,
+                Err(why) => rejected.reject(why, &e.key),
+            },
             Some(l) = losses.recv() => {
                 if Keys::id_of(&l.key) != Some(l.message.id) {
-                    rejected.count("vehicle differs from key", &l.key);
+                    rejected.wrong_sender(&l.key);
                 } else if l.message.id == id {
                     tracing::warn!(
                         "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",

@@ -2,15 +2,14 @@
 //! with a message is the core machines' business. Refused payloads are counted, never fatal.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
-use tcpf_core::lockstep::Timing;
-use tcpf_core::msg::{Checked, PathMsg, Report, PROTOCOL_VERSION};
+use tcpf_core::lockstep::{Reject, Timing};
+use tcpf_core::msg::{Checked, PathMsg, Rejections, Report, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tokio::sync::mpsc;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -18,22 +17,99 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
 use zenoh::Session;
 
-use crate::codec::{decode, encode};
+use crate::codec::{decode, encode, Invalid};
 use crate::keys::{Keys, Role};
 
-/// Messages refused by this process: undecodable, wrong version, non-finite or out of protocol.
+/// How many messages a subscription may hold before the next are dropped (and counted). Lockstep
+/// has a few per tick in flight; the bound is for floods.
+pub const QUEUE: usize = 8192;
+
+/// How often refusals are logged: a flood costs one line per interval, not one per message.
+const LOG_INTERVAL: Duration = Duration::from_secs(1);
+
+#[derive(Debug, Default)]
+struct Tally {
+    total: Rejections,
+    logged: Rejections,
+    last_log: Option<Instant>,
+    last_key: String,
+}
+
+/// Messages refused by this process, by kind (`Rejections`), logged as counts per interval.
 #[derive(Debug, Clone, Default)]
-pub struct Rejected(Arc<AtomicU64>);
+pub struct Rejected(Arc<Mutex<Tally>>);
 
 impl Rejected {
-    pub fn count(&self, what: &str, key: &str) {
-        self.0.fetch_add(1, Ordering::Relaxed);
-        tracing::warn!("dropped a message on {key}: {what}");
+    /// A payload that `decode` refused.
+    pub fn invalid(&self, why: Invalid, key: &str) {
+        self.bump(key, |r| match why {
+            Invalid::Undecodable => r.undecodable += 1,
+            Invalid::Version => r.wrong_version += 1,
+            Invalid::NonFinite => r.non_finite += 1,
+        });
     }
 
-    pub fn total(&self) -> u64 {
-        self.0.load(Ordering::Relaxed)
+    /// A message that a core machine refused.
+    pub fn reject(&self, why: Reject, key: &str) {
+        self.bump(key, |r| why.count(r));
     }
+
+    /// A message whose contents name another sender than its key.
+    pub fn wrong_sender(&self, key: &str) {
+        self.bump(key, |r| r.wrong_sender += 1);
+    }
+
+    fn overflow(&self, key: &str) {
+        self.bump(key, |r| r.overflow += 1);
+    }
+
+    fn bump(&self, key: &str, count: impl FnOnce(&mut Rejections)) {
+        let mut tally = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        count(&mut tally.total);
+        if tally.last_key != key {
+            tally.last_key = key.to_string();
+        }
+        if tally.last_log.is_none_or(|t| t.elapsed() >= LOG_INTERVAL) {
+            tally.log();
+        }
+    }
+
+    /// Logs what was refused since the last line, if anything (call as the process ends).
+    pub fn flush(&self) {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).log();
+    }
+
+    pub fn totals(&self) -> Rejections {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).total
+    }
+}
+
+impl Tally {
+    fn log(&mut self) {
+        let fresh: Vec<String> = self
+            .total
+            .kinds()
+            .iter()
+            .zip(self.logged.kinds())
+            .filter(|(now, then)| now.1 > then.1)
+            .map(|(now, then)| format!("{} {}", now.1 - then.1, now.0))
+            .collect();
+        if !fresh.is_empty() {
+            tracing::warn!(
+                "refused messages: {} (the last on {}; {} in all)",
+                fresh.join(", "),
+                self.last_key,
+                self.total.total()
+            );
+        }
+        self.logged = self.total;
+        self.last_log = Some(Instant::now());
+    }
+}
+
+/// A bounded queue for `subscribe_into`.
+pub fn queue<T>() -> (mpsc::Sender<Received<T>>, mpsc::Receiver<Received<T>>) {
+    mpsc::channel(QUEUE)
 }
 
 /// A message and the key it came on.
@@ -47,11 +123,11 @@ pub async fn subscribe<T>(
     session: &Session,
     key: &str,
     rejected: &Rejected,
-) -> Result<(Subscriber<()>, mpsc::UnboundedReceiver<Received<T>>)>
+) -> Result<(Subscriber<()>, mpsc::Receiver<Received<T>>)>
 where
     T: DeserializeOwned + Checked + Send + 'static,
 {
-    let (tx, rx) = mpsc::unbounded_channel();
+    let (tx, rx) = queue();
     Ok((subscribe_into(session, key, rejected, tx).await?, rx))
 }
 
@@ -60,7 +136,7 @@ pub async fn subscribe_into<T>(
     session: &Session,
     key: &str,
     rejected: &Rejected,
-    tx: mpsc::UnboundedSender<Received<T>>,
+    tx: mpsc::Sender<Received<T>>,
 ) -> Result<Subscriber<()>>
 where
     T: DeserializeOwned + Checked + Send + 'static,
@@ -69,12 +145,18 @@ where
     let subscriber = session
         .declare_subscriber(key)
         .callback(move |sample| {
-            let key = sample.key_expr().as_str().to_string();
+            let key = sample.key_expr().as_str();
             match decode::<T>(&sample.payload().to_bytes()) {
                 Ok(message) => {
-                    let _ = tx.send(Received { key, message });
+                    let received = Received {
+                        key: key.to_string(),
+                        message,
+                    };
+                    if let Err(mpsc::error::TrySendError::Full(_)) = tx.try_send(received) {
+                        rejected.overflow(key);
+                    }
                 }
-                Err(e) => rejected.count(&format!("{e:?}"), &key),
+                Err(e) => rejected.invalid(e, key),
             }
         })
         .await
@@ -164,8 +246,8 @@ pub async fn fetch_paths(
                 Ok(m) if Keys::id_of(&key) == Some(m.id) => {
                     found.insert(m.id, m.path);
                 }
-                Ok(_) => rejected.count("path for another vehicle", &key),
-                Err(e) => rejected.count(&format!("{e:?}"), &key),
+                Ok(_) => rejected.wrong_sender(&key),
+                Err(e) => rejected.invalid(e, &key),
             }
         }
         let missing: Vec<u32> = ids.iter().copied().filter(|i| !found.contains_key(i)).collect();
@@ -189,16 +271,17 @@ pub async fn report(
     role: Role,
     id: u32,
     rejected: &Rejected,
-    timing: Timing,
+    timing: &Timing,
 ) -> Result<()> {
+    rejected.flush();
     let report = Report {
         version: PROTOCOL_VERSION,
         role: role.as_str().into(),
         id,
         pid: std::process::id(),
-        rejected: rejected.total(),
+        rejected: rejected.totals(),
         stale_timeouts: timing.stale_timeouts,
-        late_gammas: timing.late_gammas,
+        late_gammas: timing.late_gammas.clone(),
     };
     Outlet::new(session, keys.report(role, id)).await?.put(&report).await
 }

@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use signal_hook::consts::{SIGINT, SIGTERM};
 use tcpf_core::mission::Mission;
+use tcpf_core::msg::Rejections;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 
@@ -61,6 +62,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         tick_wall_time_us: 1e6 * wall_time_s / ticks.max(1) as f64,
         wall_time_s,
         rejected_messages: 0,
+        rejections: Rejections::default(),
         children: Vec::new(),
     };
     dir.write_summary(&summary)?;

@@ -210,7 +210,7 @@ pub async fn run(
             id: c.id,
             pid: c.pid,
             exit_code: c.exit_code.flatten(),
-            rejected: report(c).map(|r| r.rejected),
+            rejected: report(c).map(|r| r.rejected.total()),
             reported_pid: report(c).map(|r| r.pid),
         })
         .collect();

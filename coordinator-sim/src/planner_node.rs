@@ -22,7 +22,7 @@ pub enum Exit {
     Interrupted,
 }
 
-/// Serves `plan` until the world announces the end, the world goes away, or a signal.
+/// Serves `plan` until the world goes away (having announced the end, or not), or a signal.
 pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
@@ -68,6 +68,9 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
     );
 
     let mut world_seen = false;
+    // An end message says the run is over, but only the world's going away lets the planner go:
+    // an end from anyone else must not take the paths away from a running fleet.
+    let mut ended = false;
     let exit = loop {
         tokio::select! {
             Ok(query) = queryable.recv_async() => {
@@ -81,16 +84,19 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
                 if p.alive {
                     world_seen = true;
                 } else if world_seen {
-                    let end = tokio::time::timeout(Duration::from_millis(500), ends.recv()).await;
-                    break if end.is_ok_and(|e| e.is_some()) { Exit::Ended } else { Exit::WorldGone };
+                    if !ended {
+                        let end = tokio::time::timeout(Duration::from_millis(500), ends.recv()).await;
+                        ended = end.is_ok_and(|e| e.is_some());
+                    }
+                    break if ended { Exit::Ended } else { Exit::WorldGone };
                 }
             },
-            Some(_) = ends.recv() => break Exit::Ended,
+            Some(_) = ends.recv() => ended = true,
             _ = shutdown.recv() => break Exit::Interrupted,
         }
     };
     tracing::info!("planner: {exit:?}");
-    report(&session, &keys, Role::Planner, 0, &rejected, Timing::default()).await?;
+    report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default()).await?;
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)

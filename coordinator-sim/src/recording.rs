@@ -7,11 +7,13 @@ use std::time::Instant;
 use anyhow::{anyhow, Result};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{subscribe, Received, Rejected};
+use tcpf_core::links::LinkStats;
+use tcpf_core::lockstep::Reject;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{Command, End, Loss, Lost, Report, State};
 use tcpf_core::record::Recorder;
-use tokio::sync::mpsc::UnboundedReceiver;
+use tokio::sync::mpsc::Receiver;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
@@ -28,11 +30,11 @@ pub struct Recording {
     pub rejected: Rejected,
     recorder: Recorder,
     telemetry: Telemetry,
-    states: UnboundedReceiver<Received<State>>,
-    commands: UnboundedReceiver<Received<Command>>,
-    ends: UnboundedReceiver<Received<End>>,
-    losses: UnboundedReceiver<Received<Loss>>,
-    reports: UnboundedReceiver<Received<Report>>,
+    states: Receiver<Received<State>>,
+    commands: Receiver<Received<Command>>,
+    ends: Receiver<Received<End>>,
+    losses: Receiver<Received<Loss>>,
+    reports: Receiver<Received<Report>>,
     pub exit_reports: Vec<Report>,
     pub end: Option<End>,
     /// When the last tick was written.
@@ -43,17 +45,12 @@ pub struct Recording {
     _token: LivelinessToken,
 }
 
-fn check<T>(key: &str, id: u32, result: Result<(), T>, rejected: &Rejected)
-where
-    T: std::fmt::Debug,
-{
-    let result = if Keys::id_of(key) == Some(id) {
-        result.map_err(|e| format!("{e:?}"))
-    } else {
-        Err("vehicle differs from key".into())
-    };
-    if let Err(e) = result {
-        rejected.count(&e, key);
+/// Hands a message on to the recorder if it comes on its vehicle's key; counts it if refused.
+fn check(key: &str, id: u32, rejected: &Rejected, take: impl FnOnce() -> Result<(), Reject>) {
+    if Keys::id_of(key) != Some(id) {
+        rejected.wrong_sender(key);
+    } else if let Err(e) = take() {
+        rejected.reject(e, key);
     }
 }
 
@@ -95,16 +92,16 @@ impl Recording {
     /// Takes one message, and writes every tick it completes.
     pub async fn step(&mut self) -> Result<()> {
         tokio::select! {
-            Some(s) = self.states.recv() => check(&s.key, s.message.id, self.recorder.on_state(s.message), &self.rejected),
-            Some(c) = self.commands.recv() => check(&c.key, c.message.id, self.recorder.on_command(c.message), &self.rejected),
-            Some(e) = self.ends.recv() => {
-                self.end = Some(e.message.clone());
-                self.recorder.on_end(e.message);
-            }
+            Some(s) = self.states.recv() => check(&s.key, s.message.id, &self.rejected, || self.recorder.on_state(s.message)),
+            Some(c) = self.commands.recv() => check(&c.key, c.message.id, &self.rejected, || self.recorder.on_command(c.message)),
+            Some(e) = self.ends.recv() => match self.recorder.on_end(e.message.clone()) {
+                Ok(()) => self.end = Some(e.message),
+                Err(why) => self.rejected.reject(why, &e.key),
+            },
             Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
             Some(l) = self.losses.recv() => {
                 let lost = Lost { id: l.message.id, tick: l.message.tick, reason: l.message.reason };
-                check(&l.key, l.message.id, self.recorder.on_lost(lost), &self.rejected);
+                check(&l.key, l.message.id, &self.rejected, || self.recorder.on_lost(lost));
             }
         }
         let before = self.recorder.ticks_recorded();
@@ -153,8 +150,25 @@ impl Recording {
         wall_time_s: f64,
         children: Vec<ChildSummary>,
     ) -> Result<Summary> {
-        let results = self.results();
+        let mut results = self.results();
+        for r in self.exit_reports.iter().filter(|r| r.role == Role::Agent.as_str()) {
+            for &(from, n) in &r.late_gammas {
+                match results.links.iter_mut().find(|l| (l.from, l.to) == (from, r.id)) {
+                    Some(link) => link.unused += n,
+                    None => results.links.push(LinkStats {
+                        from,
+                        to: r.id,
+                        sent: 0,
+                        delivered: 0,
+                        dropped: 0,
+                        unused: n,
+                    }),
+                }
+            }
+        }
         let reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
+        let mut rejections = self.rejected.totals();
+        self.exit_reports.iter().for_each(|r| rejections.add(&r.rejected));
         let summary = Summary {
             mission: mission.mission.name.clone(),
             seed: mission.mission.seed,
@@ -168,7 +182,8 @@ impl Recording {
             tick_wall_time_us: 1e6 * self.tick_wall_time().unwrap_or(wall_time_s),
             results,
             wall_time_s,
-            rejected_messages: self.rejected.total() + self.exit_reports.iter().map(|r| r.rejected).sum::<u64>(),
+            rejected_messages: rejections.total(),
+            rejections,
             children,
         };
         self.telemetry.finish()?;

@@ -151,6 +151,10 @@ pub struct LinkStats {
     pub sent: u64,
     pub delivered: u64,
     pub dropped: u64,
+    /// Delivered γ that reached the agent after their instant, when a wall-clock rule had gone on
+    /// without them: never used. Always 0 in-process.
+    #[serde(default)]
+    pub unused: u64,
 }
 
 #[cfg(test)]

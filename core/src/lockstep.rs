@@ -8,17 +8,55 @@ use std::collections::BTreeSet;
 
 use crate::agent::Agent;
 use crate::mission::Mission;
-use crate::msg::{Command, End, Gamma, LossReason, Lost, State, PROTOCOL_VERSION};
+use crate::msg::{Command, End, Gamma, LossReason, Lost, Rejections, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::world::World;
 
-/// Why a well-formed message was not used.
+/// Why a well-formed message was not used. In lockstep a genuine message is always for the tick
+/// under way, and each sender sends one per tick: anything else is a fault or an intruder, and
+/// the first message for a (sender, tick) is the one used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Reject {
     UnknownVehicle,
-    WrongTick,
-    Duplicate,
     NotANeighbour,
+    Past,
+    Future,
+    Duplicate,
+    Conflict,
+    LostVehicle,
+}
+
+impl Reject {
+    pub fn count(self, into: &mut Rejections) {
+        let n = match self {
+            Reject::UnknownVehicle => &mut into.wrong_sender,
+            Reject::NotANeighbour => &mut into.not_a_neighbour,
+            Reject::Past => &mut into.past,
+            Reject::Future => &mut into.future,
+            Reject::Duplicate => &mut into.duplicate,
+            Reject::Conflict => &mut into.conflict,
+            Reject::LostVehicle => &mut into.lost_vehicle,
+        };
+        *n += 1;
+    }
+
+    /// `tick` against the one tick the protocol allows now.
+    fn tick(tick: u64, now: u64) -> Result<(), Reject> {
+        match tick.cmp(&now) {
+            std::cmp::Ordering::Less => Err(Reject::Past),
+            std::cmp::Ordering::Greater => Err(Reject::Future),
+            std::cmp::Ordering::Equal => Ok(()),
+        }
+    }
+
+    /// A second message where one was taken: harmless if the same, a conflict if not.
+    fn again<T: PartialEq>(first: &T, second: &T) -> Reject {
+        if first == second {
+            Reject::Duplicate
+        } else {
+            Reject::Conflict
+        }
+    }
 }
 
 pub struct WorldNode {
@@ -67,11 +105,12 @@ impl WorldNode {
             .iter()
             .position(|&i| i == command.id)
             .ok_or(Reject::UnknownVehicle)?;
-        if command.tick != self.tick() || self.world.is_lost(n) {
-            return Err(Reject::WrongTick);
+        if self.world.is_lost(n) {
+            return Err(Reject::LostVehicle);
         }
-        if self.pending[n].is_some() {
-            return Err(Reject::Duplicate);
+        Reject::tick(command.tick, self.tick())?;
+        if let Some(first) = &self.pending[n] {
+            return Err(Reject::again(first, &command));
         }
         self.pending[n] = Some(command);
         Ok(())
@@ -151,12 +190,12 @@ impl WorldNode {
 
 /// Counts of what wall-clock rules changed in a lockstep agent: any of them makes its run differ
 /// from the in-process one.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Timing {
     /// Times a neighbour was given up on at an instant (the stale timeout fired).
     pub stale_timeouts: u64,
-    /// Neighbours' γ that arrived after their instant had passed, and were not used.
-    pub late_gammas: u64,
+    /// Per neighbour, its γ that arrived after their instant had passed, and were not used.
+    pub late_gammas: Vec<(u32, u64)>,
 }
 
 pub struct AgentNode {
@@ -193,8 +232,9 @@ impl AgentNode {
         if state.id != self.agent.id() {
             return Err(Reject::UnknownVehicle);
         }
-        if state.tick != self.next_tick || self.state.is_some() {
-            return Err(Reject::WrongTick);
+        Reject::tick(state.tick, self.next_tick)?;
+        if let Some(first) = &self.state {
+            return Err(Reject::again(first, &state));
         }
         self.state = Some(state);
         Ok(self.agent.broadcast(&state))
@@ -208,14 +248,31 @@ impl AgentNode {
         self.stale.remove(&gamma.from);
         if gamma.tick < self.next_tick {
             // Its instant is past: this γ was never used.
-            self.timing.late_gammas += 1;
-            return Err(Reject::WrongTick);
+            match self.timing.late_gammas.iter_mut().find(|l| l.0 == gamma.from) {
+                Some(l) => l.1 += 1,
+                None => self.timing.late_gammas.push((gamma.from, 1)),
+            }
         }
-        if self.inbox.iter().any(|g| g.from == gamma.from && g.tick == gamma.tick) {
-            return Err(Reject::Duplicate);
+        // No neighbour can be past the tick this agent is at: the world waits for this one.
+        Reject::tick(gamma.tick, self.next_tick)?;
+        if let Some(first) = self.inbox.iter().find(|g| g.from == gamma.from) {
+            return Err(Reject::again(first, &gamma));
         }
         self.inbox.push(gamma);
         Ok(())
+    }
+
+    /// The world's end of the run. It comes after this agent's command of the last tick (so for
+    /// `next_tick`), or, when the run is interrupted, for the tick under way (before or after
+    /// this agent's command of it); any other end is not the world's.
+    pub fn on_end(&self, end: &End) -> Result<(), Reject> {
+        if end.ticks + 1 < self.next_tick {
+            Err(Reject::Past)
+        } else if end.ticks > self.next_tick {
+            Err(Reject::Future)
+        } else {
+            Ok(())
+        }
     }
 
     /// Stop (or resume) waiting for neighbour `id`: its agent is gone (or back).
@@ -242,8 +299,8 @@ impl AgentNode {
     }
 
     /// What wall-clock rules did to this node.
-    pub fn timing(&self) -> Timing {
-        self.timing
+    pub fn timing(&self) -> &Timing {
+        &self.timing
     }
 
     /// Live neighbours whose γ of this tick is still awaited.
@@ -270,10 +327,7 @@ impl AgentNode {
         let state = self.state.take()?;
         let command = self.agent.step(&state, &self.inbox);
         self.next_tick = state.tick + 1;
-        let next = self.next_tick;
-        if !self.inbox.is_empty() {
-            self.inbox.retain(|g| g.tick >= next);
-        }
+        self.inbox.clear();
         Some(command)
     }
 }
@@ -282,6 +336,7 @@ impl AgentNode {
 mod tests {
     use super::*;
     use crate::mission;
+    use crate::msg::Sample;
     use crate::planner;
 
     fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
@@ -307,11 +362,33 @@ mod tests {
         assert_eq!(node.on_gamma(Gamma { from: 3, ..gamma }), Err(Reject::NotANeighbour));
         node.on_gamma(Gamma { from: 2, ..gamma }).unwrap();
         assert_eq!(node.on_gamma(Gamma { from: 2, ..gamma }), Err(Reject::Duplicate));
+        let other = Gamma {
+            from: 2,
+            sample: gamma.sample.map(|s| Sample {
+                gamma: s.gamma + 1.0,
+                ..s
+            }),
+            ..gamma
+        };
+        assert_eq!(
+            node.on_gamma(other),
+            Err(Reject::Conflict),
+            "the first γ of a tick is used"
+        );
+        assert_eq!(
+            node.on_gamma(Gamma {
+                from: 2,
+                tick: 1,
+                ..gamma
+            }),
+            Err(Reject::Future),
+            "no neighbour is ahead of an agent the world waits for"
+        );
         let command = node.command().expect("all in");
         assert_eq!(command.receptions.len(), 1);
         assert_eq!(
             node.on_gamma(Gamma { from: 2, ..gamma }),
-            Err(Reject::WrongTick),
+            Err(Reject::Past),
             "tick 0 is over"
         );
 
@@ -319,8 +396,32 @@ mod tests {
             tick: 1,
             ..world.states()[0]
         };
-        assert_eq!(node.on_state(State { tick: 5, ..state }), Err(Reject::WrongTick));
+        assert_eq!(node.on_state(State { tick: 5, ..state }), Err(Reject::Future));
+        assert_eq!(node.on_state(State { tick: 0, ..state }), Err(Reject::Past));
         assert_eq!(node.on_state(state), Ok(None), "tick 1 is no communication instant");
+        assert_eq!(node.on_state(state), Err(Reject::Duplicate));
+        assert_eq!(node.on_state(State { heading: 3.0, ..state }), Err(Reject::Conflict));
+        let end = End {
+            version: PROTOCOL_VERSION,
+            ticks: 2,
+            lost: vec![],
+        };
+        assert_eq!(
+            node.on_end(&End {
+                ticks: 1_000_000,
+                ..end.clone()
+            }),
+            Err(Reject::Future)
+        );
+        assert_eq!(node.on_end(&end), Err(Reject::Future), "tick 1 is not closed");
+        assert_eq!(
+            node.on_end(&End {
+                ticks: 1,
+                ..end.clone()
+            }),
+            Ok(()),
+            "interrupted at tick 1"
+        );
         assert!(node.command().is_some_and(|c| c.receptions.is_empty()));
     }
 
@@ -349,15 +450,15 @@ mod tests {
         assert!(node.waiting_for().is_empty(), "a stale neighbour is not waited for");
         node.command().expect("goes on without it");
         assert_eq!(
-            node.timing(),
+            *node.timing(),
             Timing {
                 stale_timeouts: 1,
-                late_gammas: 0
+                late_gammas: vec![]
             }
         );
         // Its γ of the instant that went by comes late: not used, counted, and it counts again.
-        assert_eq!(node.on_gamma(Gamma { from: 2, ..gamma }), Err(Reject::WrongTick));
-        assert_eq!(node.timing().late_gammas, 1);
+        assert_eq!(node.on_gamma(Gamma { from: 2, ..gamma }), Err(Reject::Past));
+        assert_eq!(node.timing().late_gammas, vec![(2, 1)]);
         let state = State {
             tick: 10,
             ..world.states()[0]
@@ -368,6 +469,12 @@ mod tests {
         }
         node.on_state(state).unwrap();
         assert_eq!(node.waiting_for(), vec![2], "waited for again at the next instant");
+        let end = End {
+            version: PROTOCOL_VERSION,
+            ticks: 3,
+            lost: vec![],
+        };
+        assert_eq!(node.on_end(&end), Err(Reject::Past), "the run went past tick 3");
     }
 
     #[test]
@@ -390,16 +497,31 @@ mod tests {
                 tick: 1,
                 ..commands[0].clone()
             }),
-            Err(Reject::WrongTick)
+            Err(Reject::Future)
         );
         world.on_command(commands[0].clone()).unwrap();
         assert_eq!(world.on_command(commands[0].clone()), Err(Reject::Duplicate));
+        assert_eq!(
+            world.on_command(Command {
+                v: 0.0,
+                ..commands[0].clone()
+            }),
+            Err(Reject::Conflict),
+            "the first command of a tick is held"
+        );
         assert_eq!(world.waiting_for(), vec![2]);
         world.on_lost(2, LossReason::Gone);
         assert!(world.waiting_for().is_empty());
         assert!(world.advance(|_, held| assert!(held[1].is_none())).is_none());
         assert_eq!(world.tick(), 1);
         assert_eq!(world.waiting_for(), vec![1], "a lost vehicle is never waited for again");
+        assert_eq!(
+            world.on_command(Command {
+                tick: 1,
+                ..commands[1].clone()
+            }),
+            Err(Reject::LostVehicle)
+        );
         assert_eq!(
             world.interrupted().lost,
             vec![Lost {

@@ -156,6 +156,7 @@ impl Metrics {
                     sent: 0,
                     delivered: 0,
                     dropped: 0,
+                    unused: 0,
                 });
                 s.sent += 1;
                 // Each neighbour reports the same broadcast: count it once.

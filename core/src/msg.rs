@@ -230,6 +230,68 @@ impl Checked for End {
     }
 }
 
+/// Messages a process refused, by why. The first three are found by decoding, the rest by the
+/// protocol's rules (`lockstep::Reject`), `overflow` by the shell when a queue was full.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Rejections {
+    pub undecodable: u64,
+    pub wrong_version: u64,
+    pub non_finite: u64,
+    /// The message names another vehicle than its key, or a vehicle the mission does not have.
+    pub wrong_sender: u64,
+    /// γ from a vehicle that is not a neighbour in the communication graph.
+    pub not_a_neighbour: u64,
+    /// For a tick already closed.
+    pub past: u64,
+    /// For a tick beyond the next one the protocol allows.
+    pub future: u64,
+    /// A second copy, identical to the first: harmless.
+    pub duplicate: u64,
+    /// A second message for the same sender and tick with other contents: the first was used.
+    pub conflict: u64,
+    /// A command of a vehicle the world had already given up on.
+    pub lost_vehicle: u64,
+    /// Dropped because the process's queue was full.
+    pub overflow: u64,
+}
+
+impl Rejections {
+    /// Every kind with its count, in a fixed order, for logs and summaries.
+    pub fn kinds(&self) -> [(&'static str, u64); 11] {
+        [
+            ("undecodable", self.undecodable),
+            ("wrong_version", self.wrong_version),
+            ("non_finite", self.non_finite),
+            ("wrong_sender", self.wrong_sender),
+            ("not_a_neighbour", self.not_a_neighbour),
+            ("past", self.past),
+            ("future", self.future),
+            ("duplicate", self.duplicate),
+            ("conflict", self.conflict),
+            ("lost_vehicle", self.lost_vehicle),
+            ("overflow", self.overflow),
+        ]
+    }
+
+    pub fn total(&self) -> u64 {
+        self.kinds().iter().map(|k| k.1).sum()
+    }
+
+    pub fn add(&mut self, other: &Rejections) {
+        self.undecodable += other.undecodable;
+        self.wrong_version += other.wrong_version;
+        self.non_finite += other.non_finite;
+        self.wrong_sender += other.wrong_sender;
+        self.not_a_neighbour += other.not_a_neighbour;
+        self.past += other.past;
+        self.future += other.future;
+        self.duplicate += other.duplicate;
+        self.conflict += other.conflict;
+        self.lost_vehicle += other.lost_vehicle;
+        self.overflow += other.overflow;
+    }
+}
+
 /// Any process → recorder, as it exits: who it was and what it refused.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Report {
@@ -237,11 +299,11 @@ pub struct Report {
     pub role: String,
     pub id: u32,
     pub pid: u32,
-    pub rejected: u64,
+    pub rejected: Rejections,
     /// Agents: times the stale timeout made it go on without a live neighbour's γ.
     pub stale_timeouts: u64,
     /// Agents: neighbours' γ that came after their instant and were not used.
-    pub late_gammas: u64,
+    pub late_gammas: Vec<(u32, u64)>,
 }
 
 impl Checked for Report {

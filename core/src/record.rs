@@ -10,11 +10,11 @@ use crate::msg::{Command, End, Lost, State};
 /// One tick as it fills: a slot per vehicle for its state and its command.
 type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
 
-/// How far ahead of the next tick to hand on a message may be. Messages of one tick come close
-/// together, so a recorder holds a few ticks at a time even when it lags (what waits is in the
-/// transport's queue, not here); the bound keeps a message for a far future tick from costing
-/// memory.
-const WINDOW: u64 = 1 << 16;
+/// How far ahead of the next tick to write a message may be. The world publishes tick k + 1 only
+/// once it has every command of tick k, so genuine messages are at most a tick or two ahead of
+/// the first incomplete one (what waits while the recorder lags is in its queue, not here); the
+/// bound keeps messages for far future ticks from costing memory or taking a genuine one's slot.
+const WINDOW: u64 = 256;
 
 pub struct Recorder {
     ids: Vec<u32>,
@@ -47,8 +47,11 @@ impl Recorder {
     #[inline]
     fn slot(&mut self, tick: u64, id: u32) -> Result<(&mut Tick, usize), Reject> {
         let n = self.ids.iter().position(|&i| i == id).ok_or(Reject::UnknownVehicle)?;
-        if tick < self.next || tick >= self.next + WINDOW || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
-            return Err(Reject::WrongTick);
+        if tick < self.next {
+            return Err(Reject::Past);
+        }
+        if tick >= self.next + WINDOW || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+            return Err(Reject::Future);
         }
         let k = (tick - self.next) as usize;
         let len = self.ids.len();
@@ -61,8 +64,12 @@ impl Recorder {
 
     pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
         let (t, n) = self.slot(state.tick, state.id)?;
-        if t.0[n].is_some() {
-            return Err(Reject::Duplicate);
+        if let Some(first) = &t.0[n] {
+            return Err(if *first == state {
+                Reject::Duplicate
+            } else {
+                Reject::Conflict
+            });
         }
         t.0[n] = Some(state);
         Ok(())
@@ -70,18 +77,38 @@ impl Recorder {
 
     pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
         let (t, n) = self.slot(command.tick, command.id)?;
-        if t.1[n].is_some() {
-            return Err(Reject::Duplicate);
+        if let Some(first) = &t.1[n] {
+            return Err(if *first == command {
+                Reject::Duplicate
+            } else {
+                Reject::Conflict
+            });
         }
         t.1[n] = Some(command);
         Ok(())
     }
 
-    pub fn on_end(&mut self, end: End) {
+    /// The world's end: the first one is kept. An end before ticks already written, or beyond
+    /// the window, is not the world's.
+    pub fn on_end(&mut self, end: End) -> Result<(), Reject> {
+        if let Some(first) = &self.end {
+            return Err(if *first == end {
+                Reject::Duplicate
+            } else {
+                Reject::Conflict
+            });
+        }
+        if end.ticks < self.next {
+            return Err(Reject::Past);
+        }
+        if end.ticks > self.next + WINDOW {
+            return Err(Reject::Future);
+        }
         for &lost in &end.lost {
             let _ = self.on_lost(lost);
         }
         self.end = Some(end);
+        Ok(())
     }
 
     /// The world gave up on a vehicle's agent from `lost.tick` on: its ticks from then on are
@@ -180,31 +207,47 @@ mod tests {
         let ticks = results.ticks;
         let mut recorder = Recorder::new(&[1, 2], t_f, dt);
         let mut out = String::new();
-        // Commands before states, the second vehicle first, ticks in a scrambled order.
-        let mut order: Vec<usize> = (0..messages.len()).rev().collect();
-        order.sort_by_key(|&k| (k * 7919) % 1000);
-        for &k in &order {
-            recorder.on_command(messages[k].1.clone()).unwrap();
-        }
-        for &k in &order {
-            recorder.on_state(messages[k].0).unwrap();
-            recorder.drain(|s, c| {
-                s.iter()
-                    .zip(c)
-                    .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref()))
-            });
+        // Commands before states, the second vehicle first, the ticks of each stretch of 100 (less
+        // than the window) in a scrambled order.
+        for chunk in (0..messages.len()).collect::<Vec<_>>().chunks(200) {
+            let mut order: Vec<usize> = chunk.iter().rev().copied().collect();
+            order.sort_by_key(|&k| (k * 7919) % 200);
+            for &k in &order {
+                recorder.on_command(messages[k].1.clone()).unwrap();
+            }
+            for &k in &order {
+                recorder.on_state(messages[k].0).unwrap();
+                recorder.drain(|s, c| {
+                    s.iter()
+                        .zip(c)
+                        .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref()))
+                });
+            }
         }
         assert!(!recorder.complete(), "not before the end is known");
-        assert_eq!(
-            recorder.on_state(messages[0].0),
-            Err(Reject::WrongTick),
-            "tick 0 is written"
-        );
-        recorder.on_end(End {
+        assert_eq!(recorder.on_state(messages[0].0), Err(Reject::Past), "tick 0 is written");
+        let end = End {
             version: PROTOCOL_VERSION,
             ticks,
             lost: vec![],
-        });
+        };
+        assert_eq!(
+            recorder.on_end(End {
+                ticks: ticks - 1,
+                ..end.clone()
+            }),
+            Err(Reject::Past),
+            "an end before ticks already written is not the world's"
+        );
+        recorder.on_end(end.clone()).unwrap();
+        assert_eq!(recorder.on_end(end.clone()), Err(Reject::Duplicate));
+        assert_eq!(
+            recorder.on_end(End {
+                ticks: ticks + 1,
+                ..end
+            }),
+            Err(Reject::Conflict)
+        );
         recorder.drain(|_, _| panic!("nothing left"));
         assert!(recorder.complete());
         assert_eq!(out, csv);
@@ -225,15 +268,17 @@ mod tests {
         let mut ticks = 0;
         recorder.drain(|_, _| ticks += 1);
         assert_eq!(ticks, lost_at, "stuck where vehicle 2's commands stop");
-        recorder.on_end(End {
-            version: PROTOCOL_VERSION,
-            ticks: 200,
-            lost: vec![Lost {
-                id: 2,
-                tick: lost_at,
-                reason: crate::msg::LossReason::Gone,
-            }],
-        });
+        recorder
+            .on_end(End {
+                version: PROTOCOL_VERSION,
+                ticks: 200,
+                lost: vec![Lost {
+                    id: 2,
+                    tick: lost_at,
+                    reason: crate::msg::LossReason::Gone,
+                }],
+            })
+            .unwrap();
         recorder.drain(|_, c| {
             assert!(c[0].is_some() && c[1].is_none());
             ticks += 1;
@@ -250,15 +295,22 @@ mod tests {
         let mut recorder = Recorder::new(&[1, 2], 45.0, 0.01);
         let (state, command) = messages[0].clone();
         let far = State { tick: WINDOW, ..state };
-        assert_eq!(recorder.on_state(far), Err(Reject::WrongTick));
+        assert_eq!(recorder.on_state(far), Err(Reject::Future));
         assert_eq!(
             recorder.on_command(Command {
                 tick: u64::MAX,
                 ..command.clone()
             }),
-            Err(Reject::WrongTick)
+            Err(Reject::Future)
         );
-        assert!(recorder.ticks.is_empty(), "nothing was held for them");
+        recorder.on_state(state).unwrap();
+        assert_eq!(
+            recorder.on_state(State { heading: 1.0, ..state }),
+            Err(Reject::Conflict),
+            "the first state of a tick is kept"
+        );
+        assert_eq!(recorder.ticks[0].0[0], Some(state));
+        assert_eq!(recorder.ticks.len(), 1, "nothing was held for them");
         let near = State {
             tick: WINDOW - 1,
             ..state

@@ -82,7 +82,7 @@ impl Fleet {
             let end = self.world.advance(|_, _| {});
             self.recorder.drain(&mut observe);
             if let Some(end) = end {
-                self.recorder.on_end(end);
+                self.recorder.on_end(end).expect("the world's end, once");
                 return self.recorder.results();
             }
         }

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 use tcpf_core::metrics::Results;
-use tcpf_core::msg::Report;
+use tcpf_core::msg::{Rejections, Report};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -54,8 +54,9 @@ pub struct Summary {
     /// Mean wall time of one tick in steady state, µs.
     pub tick_wall_time_us: f64,
     /// Payloads dropped because they did not decode, had the wrong version, non-finite numbers or
-    /// broke the protocol, summed over every process.
+    /// broke the protocol, summed over every process; `rejections` by kind.
     pub rejected_messages: u64,
+    pub rejections: Rejections,
     pub children: Vec<ChildSummary>,
 }
 
@@ -70,10 +71,11 @@ impl Summary {
                     r.role, r.id, r.stale_timeouts
                 ));
             }
-            if r.late_gammas > 0 {
+            let late: u64 = r.late_gammas.iter().map(|l| l.1).sum();
+            if late > 0 {
                 reasons.push(format!(
                     "{} {}: {} γ message(s) came after their instant and were not used",
-                    r.role, r.id, r.late_gammas
+                    r.role, r.id, late
                 ));
             }
         }

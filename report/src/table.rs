@@ -80,8 +80,32 @@ pub fn summary(summary: &Summary) -> String {
     for l in &r.links {
         let _ = writeln!(
             s,
-            "link {}→{}: sent {}, delivered {}, dropped {}",
-            l.from, l.to, l.sent, l.delivered, l.dropped
+            "link {}→{}: sent {}, delivered {}, dropped {}{}",
+            l.from,
+            l.to,
+            l.sent,
+            l.delivered,
+            l.dropped,
+            if l.unused > 0 {
+                format!(", came too late to be used {}", l.unused)
+            } else {
+                String::new()
+            }
+        );
+    }
+    if summary.rejected_messages > 0 {
+        let kinds: Vec<String> = summary
+            .rejections
+            .kinds()
+            .iter()
+            .filter(|k| k.1 > 0)
+            .map(|(kind, n)| format!("{n} {kind}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "refused messages: {} ({})",
+            summary.rejected_messages,
+            kinds.join(", ")
         );
     }
     let _ = writeln!(

@@ -117,9 +117,10 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         while !node.waiting_for().is_empty() {
             tokio::select! {
                 Some(c) = commands.recv() => {
-                    let result = if Keys::id_of(&c.key) == Some(c.message.id) { node.on_command(c.message).map_err(|e| format!("{e:?}")) } else { Err("vehicle differs from key".into()) };
-                    if let Err(e) = result {
-                        rejected.count(&e, &c.key);
+                    if Keys::id_of(&c.key) != Some(c.message.id) {
+                        rejected.wrong_sender(&c.key);
+                    } else if let Err(e) = node.on_command(c.message) {
+                        rejected.reject(e, &c.key);
                     }
                 }
                 Some(p) = presence.recv() => {
@@ -157,7 +158,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         }
     };
     tracing::info!("world: {exit:?}");
-    report(&session, &keys, Role::World, 0, &rejected, Timing::default()).await?;
+    report(&session, &keys, Role::World, 0, &rejected, &Timing::default()).await?;
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)
