@@ -1,116 +1,14 @@
 //! `tcpf run` as a fleet of processes over Zenoh, spawned as a user would. Every test kills what
 //! it started, whatever happens, and checks that no process is left behind.
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use serde_json::Value;
-
 mod common;
-use common::{alive, config, descendants, kill, paper, scratch};
-
-/// A `tcpf run` that is killed with everything under it when dropped.
-struct Launch {
-    child: Child,
-    out: PathBuf,
-}
-
-impl Launch {
-    fn start(mission: &str, out: &Path, extra: &[&str]) -> Launch {
-        let child = Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(["run", mission, "--out", out.to_str().unwrap()])
-            .args(extra)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        Launch {
-            child,
-            out: out.to_path_buf(),
-        }
-    }
-
-    fn wait(&mut self, limit: Duration) -> ExitStatus {
-        let deadline = Instant::now() + limit;
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                return status;
-            }
-            assert!(Instant::now() < deadline, "tcpf run did not finish within {limit:?}");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    /// Waits until `file` in the run directory contains `text`.
-    fn wait_for(&self, file: &str, text: &str) {
-        let deadline = Instant::now() + Duration::from_secs(60);
-        while !std::fs::read_to_string(self.out.join(file)).is_ok_and(|s| s.contains(text)) {
-            assert!(Instant::now() < deadline, "{file} never said {text:?}");
-            std::thread::sleep(Duration::from_millis(5));
-        }
-    }
-
-    fn summary(&self) -> Value {
-        serde_json::from_str(&std::fs::read_to_string(self.out.join("summary.json")).unwrap()).unwrap()
-    }
-}
-
-impl Drop for Launch {
-    fn drop(&mut self) {
-        for pid in descendants(self.child.id()) {
-            kill("-9", pid);
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn run_in_process(mission: &str, out: &Path, extra: &[&str]) {
-    let status = Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(["run", mission, "--in-process", "--out", out.to_str().unwrap()])
-        .args(extra)
-        .stdout(Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success());
-}
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
-}
-
-const METRICS: [&str; 6] = [
-    "t_f",
-    "ticks",
-    "max_coordination_error",
-    "min_clearance",
-    "max_coordination_error_to_last_arrival",
-    "min_clearance_to_last_arrival",
-];
-
-fn assert_same_run(processes: &Path, in_process: &Path) {
-    for file in ["telemetry.csv", "messages.csv"] {
-        let a = std::fs::read(processes.join(file)).unwrap();
-        let b = std::fs::read(in_process.join(file)).unwrap();
-        assert!(a == b, "{file} differs between processes and in-process");
-    }
-    let (sa, sb) = (summary(processes), summary(in_process));
-    for key in METRICS {
-        assert_eq!(sa[key], sb[key], "{key}");
-    }
-    assert_eq!(sa["vehicles"], sb["vehicles"]);
-    assert_eq!(sa["links"], sb["links"]);
-    assert_eq!(sa["mode"], "processes");
-    assert_eq!(sb["mode"], "in-process");
-}
-
-fn assert_none_left(summary: &Value) {
-    for c in summary["children"].as_array().unwrap() {
-        let pid = c["pid"].as_u64().unwrap() as u32;
-        assert!(!alive(pid), "{} {} (pid {pid}) still running", c["role"], c["id"]);
-    }
-}
+use common::{
+    alive, assert_none_left, assert_same_run, config, descendants, kill, paper, run_in_process, scratch, Launch,
+};
 
 #[test]
 fn processes_and_in_process_are_bit_identical() {
@@ -270,7 +168,10 @@ fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run()
             .iter()
             .find(|l| l["from"] == 2 && l["to"] == 1)
             .map(|l| l["unused"].as_u64().unwrap());
-        assert!(unused > Some(0), "the link table counts the γ that came too late: {unused:?}");
+        assert!(
+            unused > Some(0),
+            "the link table counts the γ that came too late: {unused:?}"
+        );
     }
     assert_eq!(s["reproducible"], false, "a 5 s stop outlasts the 3 s stale timeout");
     assert_none_left(&s);
@@ -443,97 +344,6 @@ fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     assert_eq!(rows, 1 + 2 * s["ticks"].as_u64().unwrap(), "whole ticks only");
     assert!(rows > 1);
     toml::from_str::<toml::Table>(&std::fs::read_to_string(dir.join("mission.toml")).unwrap()).unwrap();
-}
-
-#[tokio::test(flavor = "multi_thread")]
-async fn garbage_on_the_bus_is_counted_and_dropped() {
-    use tcpf_core::msg::{Command as Cmd, Gamma, Sample, PROTOCOL_VERSION};
-    use zenoh::Wait;
-
-    let dir = scratch("garbage");
-    let mut launch = Launch::start(
-        &paper("b-current"),
-        &dir.join("p"),
-        &["--set", "mission.control_period=0.005"],
-    );
-    launch.wait_for("endpoint", "tcp/");
-    let endpoint = std::fs::read_to_string(dir.join("p/endpoint"))
-        .unwrap()
-        .trim()
-        .to_string();
-    let mut config = zenoh::Config::default();
-    config.insert_json5("mode", "\"peer\"").unwrap();
-    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-    config
-        .insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
-        .unwrap();
-    config
-        .insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
-        .unwrap();
-    let session = zenoh::open(config).await.unwrap();
-    launch.wait_for("logs/world.log", "starting");
-
-    let wrong_version = Cmd {
-        version: PROTOCOL_VERSION + 7,
-        tick: 3,
-        id: 1,
-        v: 1.0,
-        r: 0.0,
-        hold: false,
-        gamma: 0.0,
-        gamma_dot: 1.0,
-        v_d: 1.0,
-        x_e: 0.0,
-        y_e: 0.0,
-        psi_e: 0.0,
-        receptions: vec![],
-    };
-    let nan = Gamma {
-        version: PROTOCOL_VERSION,
-        tick: 10,
-        from: 1,
-        sample: Some(Sample {
-            t: 0.1,
-            gamma: f64::NAN,
-            gamma_dot: 1.0,
-            position: [0.0, 0.0],
-        }),
-    };
-    let payloads: Vec<Vec<u8>> = vec![
-        b"\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff garbage".to_vec(),
-        Vec::new(),
-        postcard::to_stdvec(&wrong_version).unwrap(),
-        postcard::to_stdvec(&nan).unwrap(),
-    ];
-    let mut sent = 0;
-    while launch.child.try_wait().unwrap().is_none() {
-        for key in ["gamma/1", "gamma/2", "cmd/1", "cmd/2"] {
-            for p in &payloads {
-                session
-                    .put(format!("tcpf/paper-b-current/{key}"), p.clone())
-                    .wait()
-                    .unwrap();
-                sent += 1;
-            }
-        }
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
-    session.close().await.unwrap();
-    assert!(launch.wait(Duration::from_secs(1)).success());
-    let s = launch.summary();
-    let rejected = s["rejected_messages"].as_u64().unwrap();
-    eprintln!("sent {sent} bad payloads, {rejected} counted as rejected");
-    assert!(rejected > 0, "the garbage was counted");
-    assert!(
-        rejected <= sent * 2,
-        "at most the world and the recorder see each cmd, one agent each gamma"
-    );
-    run_in_process(
-        &paper("b-current"),
-        &dir.join("i"),
-        &["--set", "mission.control_period=0.005"],
-    );
-    assert_same_run(&dir.join("p"), &dir.join("i"));
 }
 
 /// Children started by a test, killed when it ends whatever happens.

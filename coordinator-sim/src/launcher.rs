@@ -121,17 +121,26 @@ pub async fn run(
     dir.write_plan(plan)?;
     let mission_file = dir.path.join("mission.toml").display().to_string();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
-    let session = ZenohArgs {
+    // How another tool (a recorder, a testbed bridge, a probe) joins the running fleet: with the
+    // run's credential, which only the run directory's owner can read.
+    let zenoh_file = crate::access::create(&dir.path, &endpoint)?;
+    let mut config = ZenohArgs {
+        config: Some(zenoh_file.clone()),
         listen: vec![endpoint.clone()],
+        mode: Some("router".into()),
         ..ZenohArgs::default()
     }
-    .open()
-    .await?;
-    // Where to attach another tool to the running fleet (a recorder, a testbed bridge, a probe).
-    std::fs::write(dir.path.join("endpoint"), format!("{endpoint}\n"))?;
+    .config()?;
+    config
+        .insert_json5("connect/endpoints", "[]")
+        .map_err(|e| anyhow!("zenoh connect/endpoints: {e}"))?;
+    let session = zenoh::open(config)
+        .await
+        .map_err(|e| anyhow!("cannot open the Zenoh session: {e}"))?;
+    crate::access::announce(&dir.path, &endpoint)?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
 
-    let common = vec![mission_file, "-e".to_string(), endpoint];
+    let common = vec![mission_file, "-c".to_string(), zenoh_file.display().to_string()];
     let mut children = vec![spawn(exe, dir, Role::Planner, None, &common)?];
     let mut world_args = common.clone();
     world_args.extend([

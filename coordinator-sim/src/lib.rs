@@ -1,6 +1,7 @@
 //! tcpf-coordinator: what runs a fleet: the planner node, the launcher and supervisor, the
 //! recorder, the in-process and sweep runners, planning on every core, and the Zenoh bench.
 
+pub mod access;
 pub mod bench;
 pub mod inprocess;
 pub mod launcher;

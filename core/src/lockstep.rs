@@ -207,6 +207,8 @@ pub struct AgentNode {
     gone: BTreeSet<u32>,
     /// Live neighbours not waited for since the stale timeout fired, until they speak again.
     stale: BTreeSet<u32>,
+    /// Per neighbour, the latest tick of which a γ came: a copy of one already heard is not late.
+    heard: Vec<(u32, u64)>,
     timing: Timing,
 }
 
@@ -219,6 +221,7 @@ impl AgentNode {
             inbox: Vec::new(),
             gone: BTreeSet::new(),
             stale: BTreeSet::new(),
+            heard: Vec::new(),
             timing: Timing::default(),
         }
     }
@@ -244,17 +247,33 @@ impl AgentNode {
         if !self.agent.neighbours().any(|j| j == gamma.from) {
             return Err(Reject::NotANeighbour);
         }
+        // No neighbour can be past the tick this agent is at: the world waits for this one.
+        if gamma.tick > self.next_tick {
+            return Err(Reject::Future);
+        }
         // A neighbour that was not waited for speaks again: wait for it from now on.
         self.stale.remove(&gamma.from);
-        if gamma.tick < self.next_tick {
-            // Its instant is past: this γ was never used.
-            match self.timing.late_gammas.iter_mut().find(|l| l.0 == gamma.from) {
-                Some(l) => l.1 += 1,
-                None => self.timing.late_gammas.push((gamma.from, 1)),
+        let first = match self.heard.iter_mut().find(|h| h.0 == gamma.from) {
+            Some(h) if h.1 >= gamma.tick => false,
+            Some(h) => {
+                h.1 = gamma.tick;
+                true
             }
+            None => {
+                self.heard.push((gamma.from, gamma.tick));
+                true
+            }
+        };
+        if gamma.tick < self.next_tick {
+            // Its instant is past: the first copy of it was never used.
+            if first {
+                match self.timing.late_gammas.iter_mut().find(|l| l.0 == gamma.from) {
+                    Some(l) => l.1 += 1,
+                    None => self.timing.late_gammas.push((gamma.from, 1)),
+                }
+            }
+            return Err(Reject::Past);
         }
-        // No neighbour can be past the tick this agent is at: the world waits for this one.
-        Reject::tick(gamma.tick, self.next_tick)?;
         if let Some(first) = self.inbox.iter().find(|g| g.from == gamma.from) {
             return Err(Reject::again(first, &gamma));
         }
@@ -459,6 +478,12 @@ mod tests {
         // Its γ of the instant that went by comes late: not used, counted, and it counts again.
         assert_eq!(node.on_gamma(Gamma { from: 2, ..gamma }), Err(Reject::Past));
         assert_eq!(node.timing().late_gammas, vec![(2, 1)]);
+        assert_eq!(node.on_gamma(Gamma { from: 2, ..gamma }), Err(Reject::Past));
+        assert_eq!(
+            node.timing().late_gammas,
+            vec![(2, 1)],
+            "a copy of a late γ is not late again"
+        );
         let state = State {
             tick: 10,
             ..world.states()[0]

@@ -2,8 +2,11 @@
 // Each test crate uses its own subset of these.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
 
 pub fn tcpf(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tcpf"))
@@ -91,5 +94,107 @@ impl Drop for Reaper {
         }
         let _ = self.0.kill();
         let _ = self.0.wait();
+    }
+}
+
+/// A `tcpf run` that is killed with everything under it when dropped.
+pub struct Launch {
+    pub child: Child,
+    pub out: PathBuf,
+}
+
+impl Launch {
+    pub fn start(mission: &str, out: &Path, extra: &[&str]) -> Launch {
+        let child = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["run", mission, "--out", out.to_str().unwrap()])
+            .args(extra)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        Launch {
+            child,
+            out: out.to_path_buf(),
+        }
+    }
+
+    pub fn wait(&mut self, limit: Duration) -> ExitStatus {
+        let deadline = Instant::now() + limit;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(Instant::now() < deadline, "tcpf run did not finish within {limit:?}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Waits until `file` in the run directory contains `text`.
+    pub fn wait_for(&self, file: &str, text: &str) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !std::fs::read_to_string(self.out.join(file)).is_ok_and(|s| s.contains(text)) {
+            assert!(Instant::now() < deadline, "{file} never said {text:?}");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    pub fn summary(&self) -> Value {
+        serde_json::from_str(&std::fs::read_to_string(self.out.join("summary.json")).unwrap()).unwrap()
+    }
+}
+
+impl Drop for Launch {
+    fn drop(&mut self) {
+        for pid in descendants(self.child.id()) {
+            kill("-9", pid);
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+pub fn run_in_process(mission: &str, out: &Path, extra: &[&str]) {
+    let status = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["run", mission, "--in-process", "--out", out.to_str().unwrap()])
+        .args(extra)
+        .stdout(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
+pub fn summary(dir: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
+pub const METRICS: [&str; 6] = [
+    "t_f",
+    "ticks",
+    "max_coordination_error",
+    "min_clearance",
+    "max_coordination_error_to_last_arrival",
+    "min_clearance_to_last_arrival",
+];
+
+pub fn assert_same_run(processes: &Path, in_process: &Path) {
+    for file in ["telemetry.csv", "messages.csv"] {
+        let a = std::fs::read(processes.join(file)).unwrap();
+        let b = std::fs::read(in_process.join(file)).unwrap();
+        assert!(a == b, "{file} differs between processes and in-process");
+    }
+    let (sa, sb) = (summary(processes), summary(in_process));
+    for key in METRICS {
+        assert_eq!(sa[key], sb[key], "{key}");
+    }
+    assert_eq!(sa["vehicles"], sb["vehicles"]);
+    assert_eq!(sa["links"], sb["links"]);
+    assert_eq!(sa["mode"], "processes");
+    assert_eq!(sb["mode"], "in-process");
+}
+
+pub fn assert_none_left(summary: &Value) {
+    for c in summary["children"].as_array().unwrap() {
+        let pid = c["pid"].as_u64().unwrap() as u32;
+        assert!(!alive(pid), "{} {} (pid {pid}) still running", c["role"], c["id"]);
     }
 }

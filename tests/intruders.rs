@@ -1,0 +1,405 @@
+//! Other processes on the bus of a running fleet: one without the run's credential (an outsider
+//! that found the port), and one with it that floods the bus (a buggy insider). Neither may change
+//! a lockstep run's bits; what the insider sends is refused, counted by kind, and logged as counts.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use tcpf_core::msg::{Command, End, Gamma, State, PROTOCOL_VERSION};
+use zenoh::qos::CongestionControl;
+
+mod common;
+use common::{assert_none_left, assert_same_run, descendants, paper, run_in_process, scratch, Launch};
+
+const MISSION: &str = "paper-b-current";
+const SLOWER: [&str; 2] = ["--set", "mission.control_period=0.005"];
+
+fn key(rest: &str) -> String {
+    format!("tcpf/{MISSION}/{rest}")
+}
+
+fn endpoint(launch: &Launch) -> String {
+    launch.wait_for("endpoint", "tcp/");
+    std::fs::read_to_string(launch.out.join("endpoint"))
+        .unwrap()
+        .trim()
+        .to_string()
+}
+
+/// A peer on loopback that connects to `endpoint`, with nothing else: no credential.
+fn outsider(endpoint: &str) -> zenoh::Config {
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", "\"peer\"").unwrap();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    config
+        .insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
+        .unwrap();
+    config
+        .insert_json5("connect/endpoints", &format!("[\"{endpoint}\"]"))
+        .unwrap();
+    config
+}
+
+/// What one tick of case (b) looks like on the bus, to forge from.
+fn samples() -> (State, Command, Gamma) {
+    let state = State {
+        version: PROTOCOL_VERSION,
+        tick: 0,
+        id: 1,
+        t: 0.0,
+        position: [0.0, 0.0],
+        heading: 0.0,
+        sideslip: 0.0,
+        sideslip_rate: 0.0,
+        current: [0.0, 0.0],
+    };
+    let command = Command {
+        version: PROTOCOL_VERSION,
+        tick: 0,
+        id: 1,
+        v: 0.0,
+        r: 1.0,
+        hold: false,
+        gamma: 40.0,
+        gamma_dot: 3.0,
+        v_d: 0.0,
+        x_e: 0.0,
+        y_e: 0.0,
+        psi_e: 0.0,
+        receptions: vec![],
+    };
+    let gamma = Gamma {
+        version: PROTOCOL_VERSION,
+        tick: 0,
+        from: 1,
+        sample: Some(tcpf_core::msg::Sample {
+            t: 0.0,
+            gamma: 40.0,
+            gamma_dot: 3.0,
+            position: [0.0, 0.0],
+        }),
+    };
+    (state, command, gamma)
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
+    let dir = scratch("outsider");
+    let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &SLOWER);
+    let endpoint = endpoint(&launch);
+    let session = zenoh::open(outsider(&endpoint)).await.unwrap();
+    // A session of its own, so as not to hear the forgeries below.
+    let listener = zenoh::open(outsider(&endpoint)).await.unwrap();
+    let heard = Arc::new(Mutex::new(0u64));
+    let counter = heard.clone();
+    let _listen = listener
+        .declare_subscriber(key("**"))
+        .callback(move |_| *counter.lock().unwrap() += 1)
+        .await
+        .unwrap();
+    launch.wait_for("logs/world.log", "starting");
+
+    // What steered a run before it had a credential: an end, γ for ticks to come, commands raced
+    // against the agents', for every tick of the run.
+    let (_, command, gamma) = samples();
+    let put = |k: String, bytes: Vec<u8>| {
+        let session = &session;
+        async move {
+            session
+                .put(k, bytes)
+                .congestion_control(CongestionControl::Block)
+                .await
+                .unwrap()
+        }
+    };
+    let mut sent = 0u64;
+    for tick in 0..12_000u64 {
+        if launch.child.try_wait().unwrap().is_some() {
+            break;
+        }
+        if tick % 1000 == 0 {
+            let end = End {
+                version: PROTOCOL_VERSION,
+                ticks: tick + 1,
+                lost: vec![],
+            };
+            put(key("end"), postcard::to_stdvec(&end).unwrap()).await;
+        }
+        for id in [1, 2] {
+            let g = Gamma {
+                tick,
+                from: id,
+                ..gamma
+            };
+            put(key(&format!("gamma/{id}")), postcard::to_stdvec(&g).unwrap()).await;
+            let c = Command {
+                tick,
+                id,
+                ..command.clone()
+            };
+            put(key(&format!("cmd/{id}")), postcard::to_stdvec(&c).unwrap()).await;
+        }
+        sent += 5;
+        if tick % 100 == 0 {
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+    }
+    let status = launch.wait(Duration::from_secs(120));
+    session.close().await.unwrap();
+    let heard = *heard.lock().unwrap();
+    let s = launch.summary();
+    eprintln!(
+        "outsider: sent {sent}, heard {heard}, the run refused {}",
+        s["rejected_messages"]
+    );
+    assert!(status.success(), "{s}");
+    assert_eq!(heard, 0, "without the credential nothing of the run is heard");
+    assert_eq!(s["rejected_messages"], 0, "and nothing reaches it");
+    run_in_process(&paper("b-current"), &dir.join("i"), &SLOWER);
+    assert_same_run(&dir.join("p"), &dir.join("i"));
+    let modes = |f: &str| std::fs::metadata(dir.join("p").join(f)).unwrap().permissions();
+    for file in ["credentials", "zenoh.json5", "endpoint"] {
+        use std::os::unix::fs::PermissionsExt;
+        assert_eq!(modes(file).mode() & 0o777, 0o600, "{file} is the owner's only");
+    }
+    assert_none_left(&s);
+}
+
+/// Peak resident memory (kB) of the launcher (which records) and of each child, by role, polled
+/// until the launcher exits.
+fn peaks(launch: &mut Launch, mut meanwhile: impl FnMut()) -> BTreeMap<String, u64> {
+    let mut peak: BTreeMap<String, u64> = BTreeMap::new();
+    let hwm = |pid: u32| -> Option<(String, u64)> {
+        let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).ok()?;
+        let args: Vec<String> = cmdline
+            .split(|b| *b == 0)
+            .map(|a| String::from_utf8_lossy(a).into_owned())
+            .collect();
+        let role = match args.get(1).map(String::as_str) {
+            Some("agent") => format!("agent {}", args[args.iter().position(|a| a == "--id")? + 1]),
+            Some("run") => "launcher and recorder".into(),
+            Some(other) => other.to_string(),
+            None => return None,
+        };
+        let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+        let kb = status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmHWM:"))?
+            .trim()
+            .trim_end_matches("kB")
+            .trim()
+            .parse()
+            .ok()?;
+        Some((role, kb))
+    };
+    while launch.child.try_wait().unwrap().is_none() {
+        let root = launch.child.id();
+        for pid in std::iter::once(root).chain(descendants(root)) {
+            if let Some((role, kb)) = hwm(pid) {
+                let p = peak.entry(role).or_default();
+                *p = (*p).max(kb);
+            }
+        }
+        meanwhile();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    peak
+}
+
+/// A deterministic stream of junk.
+struct Junk(u64);
+
+impl Junk {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    fn bytes(&mut self) -> Vec<u8> {
+        let n = (self.next() % 64) as usize;
+        (0..n).map(|_| self.next() as u8).collect()
+    }
+}
+
+const FLOOD: u64 = 100_000;
+
+/// The insider: joins with the run's own Zenoh configuration, copies every genuine state,
+/// command and γ it hears once as is and once with other values (for the tick under way), and
+/// in between sends junk: random bytes, messages for ticks far ahead, NaN. Stops at FLOOD.
+async fn flood(config: PathBuf, sent: Arc<Mutex<u64>>) {
+    let session = zenoh::open(zenoh::Config::from_file(&config).unwrap()).await.unwrap();
+    let (tx, rx) = std::sync::mpsc::channel::<(String, Vec<u8>)>();
+    let _copies = session
+        .declare_subscriber(key("*/*"))
+        .callback(move |s| {
+            let _ = tx.send((s.key_expr().as_str().to_string(), s.payload().to_bytes().to_vec()));
+        })
+        .await
+        .unwrap();
+    let (state, command, gamma) = samples();
+    let keys: Vec<String> = [
+        "gamma/1", "gamma/2", "cmd/1", "cmd/2", "state/1", "state/2", "end", "lost/1",
+    ]
+    .iter()
+    .map(|k| key(k))
+    .collect();
+    let mut junk = Junk(0x9e37_79b9_7f4a_7c15);
+    let mut count = 0u64;
+    let put = |k: &str, bytes: Vec<u8>| {
+        let session = &session;
+        let k = k.to_string();
+        async move {
+            session
+                .put(k, bytes)
+                .congestion_control(CongestionControl::Block)
+                .await
+                .is_ok()
+        }
+    };
+    let far = 1_000_000_000;
+    // The last tick copied per key: the flooder hears its own copies too, and copies each
+    // genuine message once.
+    let mut copied: BTreeMap<String, u64> = BTreeMap::new();
+    let mut fresh = |k: &str, tick: u64| {
+        let last = copied.entry(k.to_string()).or_insert(u64::MAX);
+        let new = tick < far && (*last == u64::MAX || tick > *last);
+        if new {
+            *last = tick;
+        }
+        new
+    };
+    while count < FLOOD {
+        // Other values for the tick under way, right behind each genuine message.
+        while let Ok((k, bytes)) = rx.try_recv() {
+            let other = if k.contains("/gamma/") {
+                postcard::from_bytes::<Gamma>(&bytes)
+                    .ok()
+                    .filter(|g| fresh(&k, g.tick))
+                    .map(|g| {
+                        let sample = g.sample.map(|s| tcpf_core::msg::Sample {
+                            gamma: s.gamma + 0.5,
+                            ..s
+                        });
+                        postcard::to_stdvec(&Gamma { sample, ..g }).unwrap()
+                    })
+            } else if k.contains("/cmd/") {
+                postcard::from_bytes::<Command>(&bytes)
+                    .ok()
+                    .filter(|c| fresh(&k, c.tick))
+                    .map(|c| postcard::to_stdvec(&Command { v: c.v + 0.25, ..c }).unwrap())
+            } else if k.contains("/state/") {
+                postcard::from_bytes::<State>(&bytes)
+                    .ok()
+                    .filter(|s| fresh(&k, s.tick))
+                    .map(|s| {
+                        let position = [s.position[0] + 1.0, s.position[1]];
+                        postcard::to_stdvec(&State { position, ..s }).unwrap()
+                    })
+            } else {
+                None
+            };
+            if let Some(other) = other {
+                put(&k, bytes).await;
+                put(&k, other).await;
+                count += 2;
+            }
+        }
+        for _ in 0..40 {
+            let k = &keys[(junk.next() % keys.len() as u64) as usize];
+            let n = junk.next() % 4;
+            let id = if k.ends_with('2') { 2 } else { 1 };
+            let bytes = match n {
+                0 => junk.bytes(),
+                1 => postcard::to_stdvec(&Gamma {
+                    tick: far + junk.next() % far,
+                    from: id,
+                    ..gamma
+                })
+                .unwrap(),
+                2 => postcard::to_stdvec(&State {
+                    tick: far + junk.next() % far,
+                    id,
+                    heading: f64::NAN,
+                    ..state
+                })
+                .unwrap(),
+                _ => postcard::to_stdvec(&Command {
+                    tick: far + junk.next() % far,
+                    id,
+                    ..command.clone()
+                })
+                .unwrap(),
+            };
+            let bytes = if k.ends_with("/end") {
+                postcard::to_stdvec(&End {
+                    version: PROTOCOL_VERSION,
+                    ticks: far,
+                    lost: vec![],
+                })
+                .unwrap()
+            } else {
+                bytes
+            };
+            put(k, bytes).await;
+            count += 1;
+        }
+        *sent.lock().unwrap() = count;
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    session.close().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
+    let dir = scratch("flood");
+    let mut quiet = Launch::start(&paper("b-current"), &dir.join("quiet"), &SLOWER);
+    let baseline = peaks(&mut quiet, || {});
+    assert!(quiet.wait(Duration::from_secs(1)).success());
+
+    let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &SLOWER);
+    endpoint(&launch);
+    let sent = Arc::new(Mutex::new(0u64));
+    let flooder = tokio::spawn(flood(dir.join("p/zenoh.json5"), sent.clone()));
+    let flooded = tokio::task::block_in_place(|| peaks(&mut launch, || {}));
+    let status = launch.wait(Duration::from_secs(1));
+    let sent = *sent.lock().unwrap();
+    flooder.abort();
+    let s = launch.summary();
+    eprintln!(
+        "flood: {sent} messages sent; refused {}: {}",
+        s["rejected_messages"], s["rejections"]
+    );
+    eprintln!("peak RSS kB without the flood {baseline:?}, with it {flooded:?}");
+    assert!(status.success(), "{s}");
+    assert!(sent >= FLOOD, "the whole flood was sent while the run lasted ({sent})");
+    run_in_process(&paper("b-current"), &dir.join("i"), &SLOWER);
+    assert_same_run(&dir.join("p"), &dir.join("i"));
+
+    let kinds = &s["rejections"];
+    for kind in ["undecodable", "non_finite", "future", "duplicate", "conflict"] {
+        assert!(kinds[kind].as_u64().unwrap() > 0, "{kind} counted: {kinds}");
+    }
+    for (role, kb) in &flooded {
+        if role.starts_with("agent") || role.starts_with("launcher") {
+            assert!(
+                *kb <= 2 * baseline[role],
+                "{role}: {kb} kB against {} kB",
+                baseline[role]
+            );
+        }
+    }
+    let logs: u64 = std::fs::read_dir(dir.join("p/logs"))
+        .unwrap()
+        .map(|e| e.unwrap().metadata().unwrap().len())
+        .sum();
+    eprintln!("logs: {logs} bytes");
+    assert!(
+        logs < 1_000_000,
+        "refusals are logged as counts, not one line each: {logs} bytes"
+    );
+    assert_none_left(&s);
+}
