@@ -11,7 +11,7 @@ use tcpf_bus::typed::{fetch_paths, presence, queue, report, subscribe, subscribe
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::AgentNode;
 use tcpf_core::mission::Mission;
-use tcpf_core::msg::{End, Gamma, Loss, State};
+use tcpf_core::msg::{Checked, End, Gamma, Loss, State};
 
 /// How long to wait for the end message after the world or the planner went away.
 const END_GRACE: Duration = Duration::from_millis(500);
@@ -115,6 +115,12 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let mut waiting_since: Option<Instant> = None;
     let exit = loop {
         while let Some(command) = node.command() {
+            if !command.finite() {
+                tracing::error!(
+                    "agent {id}: the command of tick {} holds a non-finite number; the world refuses it and will give up on this vehicle",
+                    command.tick
+                );
+            }
             commands.put(&command).await?;
         }
         let waiting = node.waiting_for();

@@ -8,7 +8,7 @@ use std::collections::BTreeSet;
 
 use crate::agent::Agent;
 use crate::mission::Mission;
-use crate::msg::{Command, End, Gamma, LossReason, Lost, Rejections, State, PROTOCOL_VERSION};
+use crate::msg::{Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::world::World;
 
@@ -17,6 +17,9 @@ use crate::world::World;
 /// the first message for a (sender, tick) is the one used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Reject {
+    /// A number in it is NaN or infinite. Over Zenoh such a message is refused as it is
+    /// decoded; in-process the machines refuse it the same way, so both runs go on alike.
+    NonFinite,
     UnknownVehicle,
     NotANeighbour,
     Past,
@@ -29,6 +32,7 @@ pub enum Reject {
 impl Reject {
     pub fn count(self, into: &mut Rejections) {
         let n = match self {
+            Reject::NonFinite => &mut into.non_finite,
             Reject::UnknownVehicle => &mut into.wrong_sender,
             Reject::NotANeighbour => &mut into.not_a_neighbour,
             Reject::Past => &mut into.past,
@@ -107,6 +111,9 @@ impl WorldNode {
             .ok_or(Reject::UnknownVehicle)?;
         if self.world.is_lost(n) {
             return Err(Reject::LostVehicle);
+        }
+        if !command.finite() {
+            return Err(Reject::NonFinite);
         }
         Reject::tick(command.tick, self.tick())?;
         if let Some(first) = &self.pending[n] {
@@ -235,6 +242,9 @@ impl AgentNode {
         if state.id != self.agent.id() {
             return Err(Reject::UnknownVehicle);
         }
+        if !state.finite() {
+            return Err(Reject::NonFinite);
+        }
         Reject::tick(state.tick, self.next_tick)?;
         if let Some(first) = &self.state {
             return Err(Reject::again(first, &state));
@@ -246,6 +256,9 @@ impl AgentNode {
     pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {
         if !self.agent.neighbours().any(|j| j == gamma.from) {
             return Err(Reject::NotANeighbour);
+        }
+        if !gamma.finite() {
+            return Err(Reject::NonFinite);
         }
         // No neighbour can be past the tick this agent is at: the world waits for this one.
         if gamma.tick > self.next_tick {

@@ -5,7 +5,7 @@ use std::collections::VecDeque;
 
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
-use crate::msg::{Command, End, Lost, State};
+use crate::msg::{Checked, Command, End, Lost, State};
 
 /// One tick as it fills: a slot per vehicle for its state and its command.
 type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
@@ -63,6 +63,9 @@ impl Recorder {
     }
 
     pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
+        if !state.finite() {
+            return Err(Reject::NonFinite);
+        }
         let (t, n) = self.slot(state.tick, state.id)?;
         if let Some(first) = &t.0[n] {
             return Err(if *first == state {
@@ -76,6 +79,9 @@ impl Recorder {
     }
 
     pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
+        if !command.finite() {
+            return Err(Reject::NonFinite);
+        }
         let (t, n) = self.slot(command.tick, command.id)?;
         if let Some(first) = &t.1[n] {
             return Err(if *first == command {

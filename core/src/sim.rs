@@ -7,7 +7,7 @@ use crate::agent::Agent;
 use crate::lockstep::{AgentNode, WorldNode};
 use crate::metrics::Results;
 use crate::mission::Mission;
-use crate::msg::{Command, Gamma, State};
+use crate::msg::{Command, Gamma, LossReason, State};
 use crate::planner::Plan;
 use crate::record::Recorder;
 
@@ -17,6 +17,8 @@ pub struct Fleet {
     recorder: Recorder,
     /// Per agent, the agents that hear its γ: its neighbours' subscriptions.
     listeners: Vec<Vec<usize>>,
+    /// Agents the world still waits for.
+    live: Vec<bool>,
 }
 
 impl Fleet {
@@ -38,8 +40,23 @@ impl Fleet {
         Fleet {
             world: WorldNode::new(mission, &paths, plan.t_f),
             recorder: Recorder::new(&ids, plan.t_f, mission.mission.control_period),
+            live: vec![true; agents.len()],
             agents,
             listeners,
+        }
+    }
+
+    /// The world gives up on agent `n`, as it does over Zenoh when a command never comes (one
+    /// with a non-finite number is refused there as it is decoded): its vehicle drifts and its
+    /// neighbours stop waiting for it.
+    fn silence(&mut self, n: usize) {
+        self.live[n] = false;
+        let id = self.agents[n].agent().id();
+        if let Some(lost) = self.world.on_lost(id, LossReason::Silent) {
+            self.recorder.on_lost(lost).expect("one of the mission's vehicles");
+        }
+        for &i in &self.listeners[n] {
+            self.agents[i].set_gone(id, true);
         }
     }
 
@@ -62,23 +79,33 @@ impl Fleet {
                 return self.recorder.results();
             }
             // The world publishes the states of the tick; each agent answers its own.
-            for (n, (agent, &state)) in self.agents.iter_mut().zip(self.world.states()).enumerate() {
-                self.recorder.on_state(state).expect("one state per vehicle and tick");
-                let gamma = agent.on_state(state).expect("the state of the agent's next tick");
-                sent.extend(gamma.map(|g| (n, g)));
-            }
-            for (n, gamma) in sent.drain(..) {
-                for &i in &self.listeners[n] {
-                    self.agents[i].on_gamma(gamma).expect("a neighbour's γ of this tick");
+            let mut refused = Vec::new();
+            for (n, &state) in self.world.states().iter().enumerate() {
+                // What the recorder and agents refuse here, the processes drop as they decode.
+                let _ = self.recorder.on_state(state);
+                if self.live[n] {
+                    match self.agents[n].on_state(state) {
+                        Ok(gamma) => sent.extend(gamma.map(|g| (n, g))),
+                        Err(_) => refused.push(n),
+                    }
                 }
             }
-            for agent in &mut self.agents {
-                let command = agent.command().expect("the state and every γ of the tick are in");
-                self.recorder
-                    .on_command(command.clone())
-                    .expect("one command per vehicle and tick");
-                self.world.on_command(command).expect("a command of this tick");
+            refused.drain(..).for_each(|n| self.silence(n));
+            for (n, gamma) in sent.drain(..) {
+                for &i in self.listeners[n].iter().filter(|&&i| self.live[i]) {
+                    let _ = self.agents[i].on_gamma(gamma);
+                }
             }
+            for n in (0..self.agents.len()).filter(|&n| self.live[n]) {
+                let command = self.agents[n]
+                    .command()
+                    .expect("the state and every γ of the tick are in");
+                let _ = self.recorder.on_command(command.clone());
+                if self.world.on_command(command).is_err() {
+                    refused.push(n);
+                }
+            }
+            refused.drain(..).for_each(|n| self.silence(n));
             let end = self.world.advance(|_, _| {});
             self.recorder.drain(&mut observe);
             if let Some(end) = end {
@@ -86,5 +113,35 @@ impl Fleet {
                 return self.recorder.results();
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mission;
+    use crate::msg::Checked;
+    use crate::planner;
+
+    #[test]
+    fn an_agent_whose_command_is_not_finite_is_lost_as_silent_and_the_others_go_on() {
+        let text = include_str!("../../configs/paper/b-current.toml");
+        let m = mission::parse("b-current.toml", text, &[]).unwrap();
+        let plan = planner::plan(&m).unwrap();
+        let mut fleet = Fleet::new(&m, &plan);
+        // A control law gone wrong in vehicle 2's agent only: its first command holds a NaN.
+        let mut broken = m.clone();
+        broken.control.k1 = f64::NAN;
+        fleet.agents[1] = AgentNode::new(Agent::new(&broken, 2, plan.vehicles[1].path));
+        let mut rows = 0;
+        let results = fleet.run(|states, commands| {
+            assert!(states.iter().all(|s| s.finite()), "no NaN reaches the world");
+            rows += 1;
+            assert!(commands[1].is_none(), "vehicle 2 has no command from the first tick on");
+        });
+        assert_eq!(rows, results.ticks, "the recorder wrote every tick");
+        let (one, two) = (&results.vehicles[0], &results.vehicles[1]);
+        assert!(two.lost && two.lost_reason == Some(LossReason::Silent), "{two:?}");
+        assert!(!one.lost && one.arrival_time.is_some(), "{one:?}");
     }
 }
