@@ -42,6 +42,15 @@ fn outsider(endpoint: &str) -> zenoh::Config {
     config
 }
 
+/// Publishes without dropping: every message of the test reaches whoever can hear it.
+async fn put(session: &zenoh::Session, key: &str, bytes: Vec<u8>) {
+    session
+        .put(key, bytes)
+        .congestion_control(CongestionControl::Block)
+        .await
+        .unwrap();
+}
+
 /// What one tick of case (b) looks like on the bus, to forge from.
 fn samples() -> (State, Command, Gamma) {
     let state = State {
@@ -104,16 +113,6 @@ async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
     // What steered a run before it had a credential: an end, γ for ticks to come, commands raced
     // against the agents', for every tick of the run.
     let (_, command, gamma) = samples();
-    let put = |k: String, bytes: Vec<u8>| {
-        let session = &session;
-        async move {
-            session
-                .put(k, bytes)
-                .congestion_control(CongestionControl::Block)
-                .await
-                .unwrap()
-        }
-    };
     let mut sent = 0u64;
     for tick in 0..12_000u64 {
         if launch.child.try_wait().unwrap().is_some() {
@@ -125,7 +124,7 @@ async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
                 ticks: tick + 1,
                 lost: vec![],
             };
-            put(key("end"), postcard::to_stdvec(&end).unwrap()).await;
+            put(&session, &key("end"), postcard::to_stdvec(&end).unwrap()).await;
         }
         for id in [1, 2] {
             let g = Gamma {
@@ -133,13 +132,13 @@ async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
                 from: id,
                 ..gamma
             };
-            put(key(&format!("gamma/{id}")), postcard::to_stdvec(&g).unwrap()).await;
+            put(&session, &key(&format!("gamma/{id}")), postcard::to_stdvec(&g).unwrap()).await;
             let c = Command {
                 tick,
                 id,
                 ..command.clone()
             };
-            put(key(&format!("cmd/{id}")), postcard::to_stdvec(&c).unwrap()).await;
+            put(&session, &key(&format!("cmd/{id}")), postcard::to_stdvec(&c).unwrap()).await;
         }
         sent += 5;
         if tick % 100 == 0 {
@@ -249,17 +248,6 @@ async fn flood(config: PathBuf, sent: Arc<Mutex<u64>>) {
     .collect();
     let mut junk = Junk(0x9e37_79b9_7f4a_7c15);
     let mut count = 0u64;
-    let put = |k: &str, bytes: Vec<u8>| {
-        let session = &session;
-        let k = k.to_string();
-        async move {
-            session
-                .put(k, bytes)
-                .congestion_control(CongestionControl::Block)
-                .await
-                .is_ok()
-        }
-    };
     let far = 1_000_000_000;
     // The last tick copied per key: the flooder hears its own copies too, and copies each
     // genuine message once.
@@ -303,8 +291,8 @@ async fn flood(config: PathBuf, sent: Arc<Mutex<u64>>) {
                 None
             };
             if let Some(other) = other {
-                put(&k, bytes).await;
-                put(&k, other).await;
+                put(&session, &k, bytes).await;
+                put(&session, &k, other).await;
                 count += 2;
             }
         }
@@ -344,7 +332,7 @@ async fn flood(config: PathBuf, sent: Arc<Mutex<u64>>) {
             } else {
                 bytes
             };
-            put(k, bytes).await;
+            put(&session, k, bytes).await;
             count += 1;
         }
         *sent.lock().unwrap() = count;
