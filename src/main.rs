@@ -35,6 +35,26 @@ struct MissionArgs {
 }
 
 #[derive(Subcommand)]
+enum Generated {
+    /// Vehicles in parallel lanes 4 m apart on a ring, against a cross current (ring5 grown).
+    Lanes {
+        #[arg(long, value_parser = clap::value_parser!(u32).range(2..=i64::from(mission::generate::MAX_VEHICLES)))]
+        vehicles: u32,
+        /// Loss probability of every link.
+        #[arg(long, default_value_t = 0.2, value_parser = probability)]
+        loss: f64,
+    },
+}
+
+/// A probability on the command line: a number in [0, 1].
+fn probability(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(p) if (0.0..=1.0).contains(&p) => Ok(p),
+        _ => Err(format!("{text}: give a probability in [0, 1]")),
+    }
+}
+
+#[derive(Subcommand)]
 enum Command {
     /// Launch a mission, record it and write the run directory.
     Run {
@@ -89,6 +109,11 @@ enum Command {
         /// Output directory (default runs/<mission>-sweep-<timestamp>/).
         #[arg(long)]
         out: Option<PathBuf>,
+    },
+    /// Print a generated mission file, for fleets of any size.
+    Gen {
+        #[command(subcommand)]
+        mission: Generated,
     },
     /// Write (again) a run directory's report.html from its recorded files.
     Report {
@@ -245,6 +270,12 @@ fn main() -> ExitCode {
         } => run(&mission, out.as_deref(), in_process, seed, live, command_timeout),
         Command::Bench { mission, count } => bench(&mission, count),
         Command::Report { dir } => report(&dir),
+        Command::Gen {
+            mission: Generated::Lanes { vehicles, loss },
+        } => {
+            print!("{}", mission::generate::lanes(vehicles, loss));
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Sweep {
             mission,
             loss,

@@ -143,6 +143,34 @@ fn a_run_that_does_not_finish_exits_1() {
 }
 
 #[test]
+fn a_generated_fleet_of_ten_plans_and_arrives() {
+    let dir = scratch("gen");
+    let o = tcpf(&["gen", "lanes", "--vehicles", "10"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let file = dir.join("lanes10.toml");
+    std::fs::write(&file, &o.stdout).unwrap();
+    let out = dir.join("run");
+    let o = tcpf(&[
+        "run",
+        file.to_str().unwrap(),
+        "--in-process",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let vehicles = s["vehicles"].as_array().unwrap();
+    assert_eq!(vehicles.len(), 10);
+    assert!(vehicles.iter().all(|v| v["arrival_time"].is_f64()), "{s}");
+    assert_eq!(
+        s["links"].as_array().unwrap().len(),
+        20,
+        "a ring of ten: both ways on ten edges"
+    );
+}
+
+#[test]
 fn command_line_misuse_exits_2_with_a_clear_message() {
     let mission = paper("b-current");
     let dir = scratch("misuse");
@@ -200,6 +228,12 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "no vehicle with id 7",
         ),
         (vec!["plan", &mission, "--set", "vehicle.1.colour=2"], "colour"),
+        (vec!["gen", "lanes", "--vehicles", "1"], "2..=1000"),
+        (vec!["gen", "lanes", "--vehicles", "3", "--loss", "1.5"], "[0, 1]"),
+        (
+            vec!["sweep", &mission, "--loss", "0.5,0.5", "--seeds", "1"],
+            "swept twice",
+        ),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);

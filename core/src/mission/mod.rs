@@ -3,6 +3,7 @@
 //! checks every value, `graph` builds the communication graph from the checked mission.
 
 mod diagnostics;
+pub mod generate;
 mod graph;
 mod overrides;
 mod validate;
