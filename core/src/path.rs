@@ -191,22 +191,7 @@ impl GeneralizedPath {
     /// p_d(γ), dp_d/dγ and d²p_d/dγ² (eq. 16 with γ as time), with the straight-line
     /// extensions of D11 outside [0, t_f].
     pub fn at(&self, gamma: f64) -> PathPoint {
-        let (position, tangent, second) = if gamma < 0.0 {
-            let v0 = Vec2::from(self.start_velocity);
-            (Vec2::from(self.start) + v0 * gamma, v0, Vec2::zeros())
-        } else if gamma > self.profile.t_f {
-            let vf = Vec2::from(self.goal_velocity);
-            (
-                Vec2::from(self.goal) + vf * (gamma - self.profile.t_f),
-                vf,
-                Vec2::zeros(),
-            )
-        } else {
-            let tau = self.profile.tau(gamma);
-            let eta = self.profile.eta(tau);
-            let [p, d1, d2] = self.quintic.eval(tau);
-            (p, eta * d1, eta * self.profile.deta() * d1 + eta * eta * d2)
-        };
+        let [position, tangent, second] = self.derivatives(gamma);
         let speed = tangent.norm();
         PathPoint {
             position,
@@ -215,6 +200,27 @@ impl GeneralizedPath {
             heading: tangent.y.atan2(tangent.x),
             curvature: (tangent.x * second.y - tangent.y * second.x) / (speed * speed * speed),
             speed,
+        }
+    }
+
+    /// p_d(γ), dp_d/dγ and d²p_d/dγ² alone: what the planner samples, without the heading's
+    /// arctangent that `at` adds for the path-following law.
+    pub fn derivatives(&self, gamma: f64) -> [Vec2; 3] {
+        if gamma < 0.0 {
+            let v0 = Vec2::from(self.start_velocity);
+            [Vec2::from(self.start) + v0 * gamma, v0, Vec2::zeros()]
+        } else if gamma > self.profile.t_f {
+            let vf = Vec2::from(self.goal_velocity);
+            [
+                Vec2::from(self.goal) + vf * (gamma - self.profile.t_f),
+                vf,
+                Vec2::zeros(),
+            ]
+        } else {
+            let tau = self.profile.tau(gamma);
+            let eta = self.profile.eta(tau);
+            let [p, d1, d2] = self.quintic.eval(tau);
+            [p, eta * d1, eta * self.profile.deta() * d1 + eta * eta * d2]
         }
     }
 }
