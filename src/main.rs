@@ -34,6 +34,35 @@ struct MissionArgs {
     set: Vec<String>,
 }
 
+/// Which clock the fleet runs on; on top of the mission's `[mission] clock` and `time_scale`.
+#[derive(Args, Clone)]
+struct ClockArgs {
+    /// lockstep (the world waits for every command: reproducible) or realtime (the wall clock).
+    #[arg(long, value_parser = ["lockstep", "realtime"])]
+    clock: Option<String>,
+    /// Realtime: simulated seconds per wall second (1: real time).
+    #[arg(long, value_name = "X")]
+    time_scale: Option<f64>,
+}
+
+impl ClockArgs {
+    /// The mission keys these flags stand for.
+    fn sets(&self) -> Vec<String> {
+        let clock = self.clock.iter().map(|c| format!("mission.clock={c}"));
+        let scale = self.time_scale.iter().map(|x| format!("mission.time_scale={x:?}"));
+        clock.chain(scale).collect()
+    }
+}
+
+/// What `tcpf run` does when an agent dies.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Restart {
+    /// Its vehicle is lost and drifts.
+    Never,
+    /// The agent is started again and rejoins.
+    OnFailure,
+}
+
 #[derive(Subcommand)]
 enum Generated {
     /// Vehicles in parallel lanes 4 m apart on a ring, against a cross current (ring5 grown).
@@ -60,6 +89,11 @@ enum Command {
     Run {
         #[command(flatten)]
         mission: MissionArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
+        /// Start a dead agent again (it rejoins the run), or never (its vehicle is lost).
+        #[arg(long, value_enum, default_value = "never")]
+        restart: Restart,
         /// Run directory (default runs/<mission>-<timestamp>/).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -149,6 +183,16 @@ enum Command {
         mission: MissionArgs,
         #[command(flatten)]
         zenoh: ZenohArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
+        /// Realtime: simulate only these vehicles (ids, comma-separated); other processes play
+        /// the others by publishing their State and taking their Command.
+        #[arg(long, value_delimiter = ',', value_name = "IDS")]
+        vehicles: Option<Vec<u32>>,
+        /// Lockstep: seconds a tick waits for a gone agent to come back before its vehicle is
+        /// lost (default: lost at once).
+        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
+        rejoin_timeout: Option<Duration>,
         /// Recorders to wait for before the first tick.
         #[arg(long, default_value_t = 0)]
         recorders: usize,
@@ -165,6 +209,8 @@ enum Command {
         mission: MissionArgs,
         #[command(flatten)]
         zenoh: ZenohArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
         /// Run directory (default runs/<mission>-<timestamp>/).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -178,6 +224,8 @@ enum Command {
         mission: MissionArgs,
         #[command(flatten)]
         zenoh: ZenohArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
         /// The vehicle's id.
         #[arg(long)]
         id: u32,
@@ -194,6 +242,23 @@ enum Command {
 enum Failure {
     Input(anyhow::Error),
     Failed(anyhow::Error),
+}
+
+/// The mission arguments with the clock flags as the `--set`s they stand for.
+fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
+    MissionArgs {
+        file: args.file.clone(),
+        set: args.set.iter().cloned().chain(clock.sets()).collect(),
+    }
+}
+
+/// A role's failure: a clock the fleet does not run is bad input, anything else a failed run.
+fn role_failure(e: anyhow::Error) -> Failure {
+    if e.downcast_ref::<tcpf_agent::WrongClock>().is_some() {
+        Failure::Input(e)
+    } else {
+        Failure::Failed(e)
+    }
 }
 
 fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
@@ -262,12 +327,22 @@ fn main() -> ExitCode {
         Command::Plan { mission, json } => plan(&mission, json),
         Command::Run {
             mission,
+            clock,
+            restart,
             out,
             in_process,
             seed,
             live,
             command_timeout,
-        } => run(&mission, out.as_deref(), in_process, seed, live, command_timeout),
+        } => run(
+            &clocked(&mission, &clock),
+            out.as_deref(),
+            in_process,
+            seed,
+            live,
+            command_timeout,
+            restart == Restart::OnFailure,
+        ),
         Command::Bench { mission, count } => bench(&mission, count),
         Command::Report { dir } => report(&dir),
         Command::Gen {
@@ -291,23 +366,38 @@ fn main() -> ExitCode {
         Command::Record {
             mission,
             zenoh,
+            clock,
             out,
             live,
-        } => record(&mission, &zenoh, out.as_deref(), live),
+        } => record(&clocked(&mission, &clock), &zenoh, out.as_deref(), live),
         Command::World {
             mission,
             zenoh,
+            clock,
+            vehicles,
+            rejoin_timeout,
             recorders,
             startup_timeout,
             command_timeout,
-        } => world(&mission, &zenoh, recorders, startup_timeout, command_timeout),
+        } => world(
+            &clocked(&mission, &clock),
+            &zenoh,
+            tcpf_world::Options {
+                startup_timeout,
+                recorders,
+                command_timeout,
+                rejoin_timeout,
+                vehicles,
+            },
+        ),
         Command::Agent {
             mission,
             zenoh,
+            clock,
             id,
             startup_timeout,
             stale_timeout,
-        } => agent(&mission, &zenoh, id, startup_timeout, stale_timeout),
+        } => agent(&clocked(&mission, &clock), &zenoh, id, startup_timeout, stale_timeout),
     };
     match outcome {
         Ok(code) => code,
@@ -343,8 +433,20 @@ fn run(
     seed: Option<u64>,
     live: Option<SocketAddr>,
     command_timeout: Duration,
+    restart: bool,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
+    let realtime = mission.mission.clock == mission::ClockKind::Realtime;
+    if in_process && realtime {
+        return Err(Failure::Input(anyhow!(
+            "--in-process runs lockstep only: the realtime clock is for fleets of processes"
+        )));
+    }
+    if in_process && restart {
+        return Err(Failure::Input(anyhow!(
+            "--restart: an in-process run has no agent processes to start again"
+        )));
+    }
     // The agents' default stale timeout: a neighbour waiting for a silent agent gives up on it
     // first, so that only the silent one is lost.
     if command_timeout <= Duration::from_secs(3) {
@@ -361,12 +463,26 @@ fn run(
     } else {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
-            .block_on(launcher::run(&mission, &plan, &dir, &exe, live, command_timeout))
+            .block_on(launcher::run(
+                &mission,
+                &plan,
+                &dir,
+                &exe,
+                launcher::Options {
+                    live,
+                    command_timeout,
+                    restart,
+                },
+            ))
             .map_err(Failure::Failed)?
     };
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());
-    Ok(code(summary.completed && summary.reproducible, summary.interrupted))
+    // A realtime run is not meant to be reproducible: it succeeds by arriving.
+    Ok(code(
+        summary.completed && (summary.reproducible || realtime),
+        summary.interrupted,
+    ))
 }
 
 fn runtime() -> Result<tokio::runtime::Runtime, Failure> {
@@ -393,19 +509,24 @@ fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
     ))
 }
 
-fn world(
-    args: &MissionArgs,
-    zenoh: &ZenohArgs,
-    recorders: usize,
-    startup_timeout: Duration,
-    command_timeout: Duration,
-) -> Result<ExitCode, Failure> {
+fn world(args: &MissionArgs, zenoh: &ZenohArgs, options: tcpf_world::Options) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
-    let options = tcpf_world::Options {
-        startup_timeout,
-        recorders,
-        command_timeout,
-    };
+    if let Some(vehicles) = &options.vehicles {
+        if mission.mission.clock != mission::ClockKind::Realtime {
+            return Err(Failure::Input(anyhow!(
+                "--vehicles: other processes can play vehicles only in realtime (--clock realtime); lockstep waits for every state"
+            )));
+        }
+        if let Some(id) = vehicles
+            .iter()
+            .find(|&&id| !mission.vehicles.iter().any(|v| v.id == id))
+        {
+            return Err(Failure::Input(anyhow!(
+                "--vehicles: {} has no vehicle with id {id}",
+                args.file.display()
+            )));
+        }
+    }
     let exit = runtime()?
         .block_on(tcpf_world::run(&mission, zenoh, &options))
         .map_err(Failure::Failed)?;
@@ -435,7 +556,7 @@ fn agent(
     };
     let exit = runtime()?
         .block_on(tcpf_agent::run(&mission, id, zenoh, &options))
-        .map_err(Failure::Failed)?;
+        .map_err(role_failure)?;
     Ok(code(
         exit == tcpf_agent::Exit::Ended,
         exit == tcpf_agent::Exit::Interrupted,
@@ -460,8 +581,11 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
             &plan,
             &dir,
             &exe,
-            None,
-            launcher::COMMAND_TIMEOUT,
+            launcher::Options {
+                live: None,
+                command_timeout: launcher::COMMAND_TIMEOUT,
+                restart: false,
+            },
         ))
         .map_err(Failure::Failed)?;
     let after = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
@@ -579,5 +703,9 @@ fn record(
         .map_err(Failure::Failed)?;
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());
-    Ok(code(summary.completed && summary.reproducible, summary.interrupted))
+    let realtime = mission.mission.clock == mission::ClockKind::Realtime;
+    Ok(code(
+        summary.completed && (summary.reproducible || realtime),
+        summary.interrupted,
+    ))
 }

@@ -31,7 +31,7 @@ pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tcpf_core::msg::{Gamma, Loss, LossReason, Sample, State, PROTOCOL_VERSION};
+    use tcpf_core::msg::{Clock, Gamma, Loss, LossReason, Sample, State, PROTOCOL_VERSION};
 
     fn state() -> State {
         State {
@@ -62,7 +62,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x03, 0xac, 0x02, 0x02, 0x01,
+            0x04, 0xac, 0x02, 0x02, 0x01,
             0, 0, 0, 0, 0, 0, 0x08, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
@@ -71,14 +71,29 @@ mod tests {
         ];
         assert_eq!(encode(&g), bytes);
         let silent = Gamma { sample: None, ..g };
-        assert_eq!(encode(&silent), [0x03, 0xac, 0x02, 0x02, 0x00]);
+        assert_eq!(encode(&silent), [0x04, 0xac, 0x02, 0x02, 0x00]);
         let loss = Loss {
             version: PROTOCOL_VERSION,
             id: 2,
             tick: 300,
             reason: LossReason::Silent,
         };
-        assert_eq!(encode(&loss), [0x03, 0x02, 0xac, 0x02, 0x01]);
+        assert_eq!(encode(&loss), [0x04, 0x02, 0xac, 0x02, 0x01]);
+        let clock = Clock {
+            version: PROTOCOL_VERSION,
+            realtime: true,
+            time_scale: 10.0,
+            epoch: 1.5,
+            tick: 300,
+        };
+        #[rustfmt::skip]
+        let bytes = [
+            0x04, 0x01,
+            0, 0, 0, 0, 0, 0, 0x24, 0x40,
+            0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
+            0xac, 0x02,
+        ];
+        assert_eq!(encode(&clock), bytes);
     }
 
     #[test]

@@ -68,9 +68,14 @@ impl Keys {
     pub fn alive_all(&self) -> String {
         format!("{}/alive/**", self.root)
     }
-    /// The world's announcement that the run is over.
+    /// The world's announcement that it gave up on a vehicle's agent.
     pub fn lost(&self, id: impl fmt::Display) -> String {
         self.key("lost", id)
+    }
+
+    /// The world's clock (a queryable, once the run has started).
+    pub fn clock(&self) -> String {
+        format!("{}/clock", self.root)
     }
 
     pub fn end(&self) -> String {

@@ -9,13 +9,13 @@ use anyhow::{anyhow, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tcpf_core::lockstep::{Reject, Timing};
-use tcpf_core::msg::{Checked, PathMsg, Rejections, Report, PROTOCOL_VERSION};
+use tcpf_core::msg::{Checked, Clock, PathMsg, PeriodTiming, Rejections, Report, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tokio::sync::mpsc;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
-use zenoh::Session;
+use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode, Invalid};
 use crate::keys::{Keys, Role};
@@ -164,16 +164,32 @@ where
     Ok(subscriber)
 }
 
-/// A publisher that never drops: lockstep waits for every message.
+/// A publisher: one that never drops for lockstep, which waits for every message; one that
+/// drops under congestion for realtime, where the freshest message wins and a late one is
+/// worth nothing.
 pub struct Outlet {
     publisher: Publisher<'static>,
 }
 
 impl Outlet {
     pub async fn new(session: &Session, key: String) -> Result<Outlet> {
+        Outlet::with(session, key, CongestionControl::Block).await
+    }
+
+    /// `Outlet::new` in lockstep, `Outlet::freshest` in realtime.
+    pub async fn for_clock(session: &Session, key: String, realtime: bool) -> Result<Outlet> {
+        let congestion = if realtime {
+            CongestionControl::Drop
+        } else {
+            CongestionControl::Block
+        };
+        Outlet::with(session, key, congestion).await
+    }
+
+    async fn with(session: &Session, key: String, congestion: CongestionControl) -> Result<Outlet> {
         let publisher = session
             .declare_publisher(key.clone())
-            .congestion_control(CongestionControl::Block)
+            .congestion_control(congestion)
             .express(true)
             .await
             .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
@@ -264,6 +280,60 @@ pub async fn fetch_paths(
     }
 }
 
+/// The world's side of the clock: a queryable that answers once the run has started, with the
+/// tick under way.
+pub struct ClockServer {
+    clock: Arc<Mutex<Option<Clock>>>,
+    _queryable: zenoh::query::Queryable<()>,
+}
+
+impl ClockServer {
+    /// Declare it before the world's token, so that whoever sees the world can ask it.
+    pub async fn declare(session: &Session, keys: &Keys) -> Result<ClockServer> {
+        let clock: Arc<Mutex<Option<Clock>>> = Arc::default();
+        let shared = clock.clone();
+        let key = keys.clock();
+        let queryable = session
+            .declare_queryable(key.clone())
+            .callback(move |query| {
+                let now = *shared.lock().unwrap_or_else(|e| e.into_inner());
+                if let Some(clock) = now {
+                    let _ = query.reply(query.key_expr().clone(), encode(&clock)).wait();
+                }
+            })
+            .await
+            .map_err(|e| anyhow!("cannot serve {key}: {e}"))?;
+        Ok(ClockServer {
+            clock,
+            _queryable: queryable,
+        })
+    }
+
+    /// The run has started, or is at `clock.tick`.
+    pub fn set(&self, clock: Clock) {
+        *self.clock.lock().unwrap_or_else(|e| e.into_inner()) = Some(clock);
+    }
+}
+
+/// Asks the world for its clock once: `None` if the run has not started (or no world answers).
+pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> Result<Option<Clock>> {
+    let key = keys.clock();
+    let replies = session
+        .get(key.clone())
+        .timeout(Duration::from_secs(1))
+        .await
+        .map_err(|e| anyhow!("cannot query {key}: {e}"))?;
+    let mut found = None;
+    while let Ok(reply) = replies.recv_async().await {
+        let Ok(sample) = reply.result() else { continue };
+        match decode::<Clock>(&sample.payload().to_bytes()) {
+            Ok(clock) => found = found.or(Some(clock)),
+            Err(e) => rejected.invalid(e, &key),
+        }
+    }
+    Ok(found)
+}
+
 /// Tells the recorder who this process was and what it refused, as it exits.
 pub async fn report(
     session: &Session,
@@ -272,6 +342,7 @@ pub async fn report(
     id: u32,
     rejected: &Rejected,
     timing: &Timing,
+    realtime: Option<PeriodTiming>,
 ) -> Result<()> {
     rejected.flush();
     let report = Report {
@@ -282,6 +353,7 @@ pub async fn report(
         rejected: rejected.totals(),
         stale_timeouts: timing.stale_timeouts,
         late_gammas: timing.late_gammas.clone(),
+        timing: realtime,
     };
     Outlet::new(session, keys.report(role, id)).await?.put(&report).await
 }

@@ -64,6 +64,9 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         rejected_messages: 0,
         rejections: Rejections::default(),
         children: Vec::new(),
+        time_scale: None,
+        timing: Vec::new(),
+        restarts: Vec::new(),
     };
     dir.write_summary(&summary)?;
     tcpf_report::report::write(&dir.path)?;

@@ -16,14 +16,16 @@ use tcpf_core::planner::Plan;
 use tokio::process::{Child, Command};
 
 use crate::progress::Ticks;
-use crate::recording::Recording;
+use crate::recording::{Closing, Recording};
 use tcpf_report::rundir::RunDir;
-use tcpf_report::summary::{ChildSummary, Summary};
+use tcpf_report::summary::{ChildSummary, Restarts, Summary};
 
 /// How long children get to exit by themselves after the end before they are killed.
 const GRACE: Duration = Duration::from_secs(3);
 /// A run in which no tick completes for this long has stalled.
 const STALL: Duration = Duration::from_secs(60);
+/// With `--restart on-failure`, how long a lockstep tick waits for an agent started again.
+const REJOIN_TIMEOUT: Duration = Duration::from_secs(20);
 
 struct Process {
     role: Role,
@@ -31,6 +33,7 @@ struct Process {
     pid: u32,
     child: Child,
     exit_code: Option<Option<i32>>,
+    args: Vec<String>,
 }
 
 impl Process {
@@ -57,7 +60,12 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String])
         Some(id) => format!("{role}-{id}.log"),
         None => format!("{role}.log"),
     };
-    let log = File::create(logs.join(&name)).with_context(|| format!("cannot create logs/{name}"))?;
+    // Appended to: an agent started again writes on in the same log.
+    let log = File::options()
+        .create(true)
+        .append(true)
+        .open(logs.join(&name))
+        .with_context(|| format!("cannot create logs/{name}"))?;
     let mut command = Command::new(exe);
     command.arg(role.as_str()).args(args);
     if let Some(id) = id {
@@ -94,6 +102,7 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String])
         pid,
         child,
         exit_code: None,
+        args: args.to_vec(),
     })
 }
 
@@ -107,15 +116,24 @@ enum Outcome {
 /// the agents' stale timeout (3 s), so that a neighbour given up on is not also lost at once.
 pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
 
+/// How `tcpf run` runs its children.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Serve the run to Foxglove live.
+    pub live: Option<SocketAddr>,
+    /// How long the world waits for an agent's command of a tick.
+    pub command_timeout: Duration,
+    /// Start an agent that died again, so that it rejoins.
+    pub restart: bool,
+}
+
 /// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
-pub async fn run(
-    mission: &Mission,
-    plan: &Plan,
-    dir: &RunDir,
-    exe: &Path,
-    live: Option<SocketAddr>,
-    command_timeout: Duration,
-) -> Result<Summary> {
+pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, options: Options) -> Result<Summary> {
+    let Options {
+        live,
+        command_timeout,
+        restart,
+    } = options;
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
@@ -149,6 +167,9 @@ pub async fn run(
         "--command-timeout".to_string(),
         command_timeout.as_secs_f64().to_string(),
     ]);
+    if restart {
+        world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
+    }
     children.push(spawn(exe, dir, Role::World, None, &world_args)?);
     for v in &mission.vehicles {
         children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common)?);
@@ -156,6 +177,9 @@ pub async fn run(
     let progress = Ticks::new(mission);
     let started = Instant::now();
     let mut check = tokio::time::interval(Duration::from_millis(100));
+    let mut restarts: Vec<Restarts> = Vec::new();
+    // Agents that died and were started again: their exits are part of the run's record.
+    let mut retired: Vec<Process> = Vec::new();
 
     let outcome = loop {
         if recording.complete() {
@@ -175,6 +199,20 @@ pub async fn run(
                 if let Some(why) = dead {
                     if recording.end.is_none() {
                         break Outcome::Failed(why);
+                    }
+                }
+                if restart && recording.end.is_none() {
+                    for c in children.iter_mut() {
+                        if c.role != Role::Agent || c.poll().is_none_or(|code| code == Some(0)) {
+                            continue;
+                        }
+                        tracing::warn!("agent {} died ({:?}); starting it again", c.id, c.exit_code.flatten());
+                        let again = spawn(exe, dir, Role::Agent, Some(c.id), &c.args)?;
+                        match restarts.iter_mut().find(|r| r.id == again.id) {
+                            Some(r) => r.restarts += 1,
+                            None => restarts.push(Restarts { id: again.id, restarts: 1 }),
+                        }
+                        retired.push(std::mem::replace(c, again));
                     }
                 }
                 if recording.progress.elapsed() > STALL {
@@ -210,10 +248,11 @@ pub async fn run(
         recording
             .exit_reports
             .iter()
-            .find(|r| r.role == c.role.as_str() && r.id == c.id)
+            .find(|r| r.role == c.role.as_str() && r.id == c.id && r.pid == c.pid)
     };
-    let children: Vec<ChildSummary> = children
+    let children: Vec<ChildSummary> = retired
         .iter()
+        .chain(&children)
         .map(|c| ChildSummary {
             role: c.role.as_str().into(),
             id: c.id,
@@ -227,10 +266,13 @@ pub async fn run(
     let summary = recording.close(
         mission,
         dir,
-        ended,
-        matches!(outcome, Outcome::Interrupted),
-        wall_time_s,
-        children,
+        Closing {
+            ended,
+            interrupted: matches!(outcome, Outcome::Interrupted),
+            wall_time_s,
+            children,
+            restarts,
+        },
     )?;
     match outcome {
         Outcome::Failed(why) => Err(anyhow!("{why} (run directory {})", dir.path.display())),

@@ -96,7 +96,7 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
         }
     };
     tracing::info!("planner: {exit:?}");
-    report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default()).await?;
+    report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default(), None).await?;
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)

@@ -1,17 +1,21 @@
 //! The recorder's Zenoh shell: every state, command, end and exit report of a mission, fed to
-//! core's `Recorder`, which hands complete ticks to `telemetry.csv` in order.
+//! core's `Recorder` (lockstep), which hands complete ticks to `telemetry.csv` in order, or to its
+//! `Sampler` (realtime), which a metronome samples once a period on the fleet's clock.
 
 use std::net::SocketAddr;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::clock::{metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
+use tcpf_bus::typed::ask_clock;
 use tcpf_bus::typed::{subscribe, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::lockstep::Reject;
 use tcpf_core::metrics::Results;
-use tcpf_core::mission::Mission;
+use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Command, End, Loss, Lost, Report, State};
+use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
 use tokio::sync::mpsc::Receiver;
 use zenoh::liveliness::LivelinessToken;
@@ -24,11 +28,43 @@ use tcpf_core::planner::Plan;
 
 use crate::progress::Ticks;
 use tcpf_report::rundir::{RunDir, Telemetry};
-use tcpf_report::summary::{ChildSummary, Clock, Mode, Summary};
+use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
+
+/// Where in its period the realtime recorder samples: after the agents' commands of the period
+/// (at half of it), before the world's next states.
+const RECORDER_PHASE: f64 = 0.9;
+/// How long `tcpf record` waits after the end for the roles' exit reports.
+const REPORT_GRACE: Duration = Duration::from_secs(2);
+/// How often the realtime recorder asks for the clock before the world has started.
+const CLOCK_POLL: Duration = Duration::from_millis(50);
+
+enum Machine {
+    Lockstep(Recorder),
+    Realtime {
+        sampler: Sampler,
+        /// Once the world has started its clock.
+        beats: Option<Receiver<Beat>>,
+        /// Until then, when to ask for it next.
+        ask_at: tokio::time::Instant,
+        control_period: f64,
+    },
+}
+
+/// How a recorded run ended, and who ran it.
+pub struct Closing {
+    /// The run reached its end.
+    pub ended: bool,
+    pub interrupted: bool,
+    pub wall_time_s: f64,
+    pub children: Vec<ChildSummary>,
+    pub restarts: Vec<Restarts>,
+}
 
 pub struct Recording {
     pub rejected: Rejected,
-    recorder: Recorder,
+    machine: Machine,
+    session: Session,
+    keys: Keys,
     telemetry: Telemetry,
     states: Receiver<Received<State>>,
     commands: Receiver<Received<Command>>,
@@ -71,9 +107,21 @@ impl Recording {
             .await
             .map_err(|e| anyhow!("liveliness token: {e}"))?;
         let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+        let dt = mission.mission.control_period;
+        let machine = match mission.mission.clock {
+            ClockKind::Lockstep => Machine::Lockstep(Recorder::new(&ids, t_f, dt)),
+            ClockKind::Realtime => Machine::Realtime {
+                sampler: Sampler::new(&ids, t_f, dt),
+                beats: None,
+                ask_at: tokio::time::Instant::now(),
+                control_period: dt,
+            },
+        };
         Ok(Recording {
             rejected,
-            recorder: Recorder::new(&ids, t_f, mission.mission.control_period),
+            machine,
+            session: session.clone(),
+            keys,
             telemetry,
             states,
             commands,
@@ -89,30 +137,63 @@ impl Recording {
         })
     }
 
-    /// Takes one message, and writes every tick it completes.
+    /// Takes one message (or, in realtime, one beat of the clock), and writes every tick it
+    /// completes.
     pub async fn step(&mut self) -> Result<()> {
-        tokio::select! {
-            Some(s) = self.states.recv() => check(&s.key, s.message.id, &self.rejected, || self.recorder.on_state(s.message)),
-            Some(c) = self.commands.recv() => check(&c.key, c.message.id, &self.rejected, || self.recorder.on_command(c.message)),
-            Some(e) = self.ends.recv() => match self.recorder.on_end(e.message.clone()) {
-                Ok(()) => self.end = Some(e.message),
-                Err(why) => self.rejected.reject(why, &e.key),
+        let before = self.ticks();
+        match &mut self.machine {
+            Machine::Lockstep(recorder) => tokio::select! {
+                Some(s) = self.states.recv() => check(&s.key, s.message.id, &self.rejected, || recorder.on_state(s.message)),
+                Some(c) = self.commands.recv() => check(&c.key, c.message.id, &self.rejected, || recorder.on_command(c.message)),
+                Some(e) = self.ends.recv() => match recorder.on_end(e.message.clone()) {
+                    Ok(()) => self.end = Some(e.message),
+                    Err(why) => self.rejected.reject(why, &e.key),
+                },
+                Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
+                Some(l) = self.losses.recv() => {
+                    let lost = Lost { id: l.message.id, tick: l.message.tick, reason: l.message.reason };
+                    check(&l.key, l.message.id, &self.rejected, || recorder.on_lost(lost));
+                }
             },
-            Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
-            Some(l) = self.losses.recv() => {
-                let lost = Lost { id: l.message.id, tick: l.message.tick, reason: l.message.reason };
-                check(&l.key, l.message.id, &self.rejected, || self.recorder.on_lost(lost));
-            }
+            Machine::Realtime {
+                sampler,
+                beats,
+                ask_at,
+                control_period,
+            } => tokio::select! {
+                Some(beat) = async { beats.as_mut()?.recv().await }, if beats.is_some() => {
+                    let mut failure = Ok(());
+                    let telemetry = &mut self.telemetry;
+                    sampler.sample(beat.tick, |states, commands| failure = telemetry.tick(states, commands));
+                    failure?;
+                }
+                _ = tokio::time::sleep_until(*ask_at), if beats.is_none() => {
+                    *ask_at = tokio::time::Instant::now() + CLOCK_POLL;
+                    if let Some(clock) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
+                        let fleet = FleetClock::new(&clock, *control_period);
+                        *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
+                    }
+                }
+                Some(s) = self.states.recv() => check(&s.key, s.message.id, &self.rejected, || sampler.on_state(s.message)),
+                Some(c) = self.commands.recv() => check(&c.key, c.message.id, &self.rejected, || sampler.on_command(c.message)),
+                Some(e) = self.ends.recv() => match sampler.on_end(e.message.clone()) {
+                    Ok(()) => self.end = Some(e.message),
+                    Err(why) => self.rejected.reject(why, &e.key),
+                },
+                Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
+                Some(_) = self.losses.recv() => {}
+            },
         }
-        let before = self.recorder.ticks_recorded();
         let mut failure = Ok(());
-        let telemetry = &mut self.telemetry;
-        self.recorder.drain(|states, commands| {
-            if failure.is_ok() {
-                failure = telemetry.tick(states, commands);
-            }
-        });
-        if self.recorder.ticks_recorded() > before {
+        if let Machine::Lockstep(recorder) = &mut self.machine {
+            let telemetry = &mut self.telemetry;
+            recorder.drain(|states, commands| {
+                if failure.is_ok() {
+                    failure = telemetry.tick(states, commands);
+                }
+            });
+        }
+        if self.ticks() > before {
             self.progress = Instant::now();
             self.first.get_or_insert(self.progress);
         }
@@ -121,35 +202,42 @@ impl Recording {
 
     /// The world announced the end and every tick up to it is written.
     pub fn complete(&self) -> bool {
-        self.recorder.complete()
+        match &self.machine {
+            Machine::Lockstep(recorder) => recorder.complete(),
+            Machine::Realtime { sampler, .. } => sampler.ended(),
+        }
     }
 
     pub fn ticks(&self) -> u64 {
-        self.recorder.ticks_recorded()
+        match &self.machine {
+            Machine::Lockstep(recorder) => recorder.ticks_recorded(),
+            Machine::Realtime { sampler, .. } => sampler.ticks_recorded(),
+        }
     }
 
     /// Mean wall time of a tick in steady state, from the first tick written to the last.
     pub fn tick_wall_time(&self) -> Option<f64> {
         let first = self.first?;
-        let ticks = self.recorder.ticks_recorded();
+        let ticks = self.ticks();
         (ticks > 1).then(|| (self.progress - first).as_secs_f64() / (ticks - 1) as f64)
     }
 
     pub fn results(&self) -> Results {
-        self.recorder.results()
+        match &self.machine {
+            Machine::Lockstep(recorder) => recorder.results(),
+            Machine::Realtime { sampler, .. } => sampler.results(),
+        }
     }
 
     /// Ends the recording: flushes telemetry.csv and writes summary.json and report.html.
-    /// `ended` says whether the run reached its end, `children` who ran it.
-    pub fn close(
-        self,
-        mission: &Mission,
-        dir: &RunDir,
-        ended: bool,
-        interrupted: bool,
-        wall_time_s: f64,
-        children: Vec<ChildSummary>,
-    ) -> Result<Summary> {
+    pub fn close(self, mission: &Mission, dir: &RunDir, how: Closing) -> Result<Summary> {
+        let Closing {
+            ended,
+            interrupted,
+            wall_time_s,
+            children,
+            restarts,
+        } = how;
         let mut results = self.results();
         for r in self.exit_reports.iter().filter(|r| r.role == Role::Agent.as_str()) {
             for &(from, n) in &r.late_gammas {
@@ -166,14 +254,23 @@ impl Recording {
                 }
             }
         }
-        let reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
+        let realtime = mission.mission.clock == ClockKind::Realtime;
+        let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
+        if realtime {
+            reproducible_reasons.push("the realtime clock: what happens depends on timing".into());
+        }
+        reproducible_reasons.extend(
+            restarts
+                .iter()
+                .map(|r| format!("agent {} was started again {} time(s)", r.id, r.restarts)),
+        );
         let mut rejections = self.rejected.totals();
         self.exit_reports.iter().for_each(|r| rejections.add(&r.rejected));
         let summary = Summary {
             mission: mission.mission.name.clone(),
             seed: mission.mission.seed,
             mode: Mode::Processes,
-            clock: Clock::Lockstep,
+            clock: if realtime { Clock::Realtime } else { Clock::Lockstep },
             completed: ended && Summary::all_arrived(&results),
             interrupted,
             reproducible: reproducible_reasons.is_empty(),
@@ -185,6 +282,9 @@ impl Recording {
             rejected_messages: rejections.total(),
             rejections,
             children,
+            time_scale: realtime.then_some(mission.mission.time_scale),
+            timing: Summary::timing_of(&self.exit_reports),
+            restarts,
         };
         self.telemetry.finish()?;
         dir.write_summary(&summary)?;
@@ -223,6 +323,32 @@ pub async fn record(
     };
     progress.finish();
     let wall_time_s = started.elapsed().as_secs_f64();
+    // The world and the agents report as they exit, just after the end: a moment for them.
+    let roles = 1 + mission.vehicles.len();
+    let _ = tokio::time::timeout(REPORT_GRACE, async {
+        let reported = |r: &Recording| {
+            r.exit_reports
+                .iter()
+                .filter(|r| r.role != Role::Planner.as_str())
+                .count()
+        };
+        while !interrupted && reported(&recording) < roles {
+            if recording.step().await.is_err() {
+                break;
+            }
+        }
+    })
+    .await;
     let _ = session.close().await;
-    recording.close(mission, dir, !interrupted, interrupted, wall_time_s, Vec::new())
+    recording.close(
+        mission,
+        dir,
+        Closing {
+            ended: !interrupted,
+            interrupted,
+            wall_time_s,
+            children: Vec::new(),
+            restarts: Vec::new(),
+        },
+    )
 }

@@ -75,6 +75,8 @@ pub struct Agent {
     /// the next (D12, D19); `None` when none was heard.
     sum: Option<f64>,
     stopped: bool,
+    /// The tick of the last `step`: a realtime agent may skip periods, a lockstep one never does.
+    last_tick: Option<u64>,
 }
 
 /// Ticks for `seconds`, rounded up to whole communication periods: γ is used at communication
@@ -163,7 +165,14 @@ impl Agent {
             sent: None,
             sum: None,
             stopped: false,
+            last_tick: None,
         }
+    }
+
+    /// An agent started again while its vehicle is under way takes up its path where the vehicle
+    /// is: γ_i of the path point nearest to `position` (as D15 starts every vehicle on its path).
+    pub fn rejoin(&mut self, position: [f64; 2]) {
+        self.gamma = self.path.nearest(Vec2::from(position));
     }
 
     pub fn id(&self) -> u32 {
@@ -182,15 +191,20 @@ impl Agent {
         self.links.iter().map(|l| l.link.from)
     }
 
+    /// Whether `tick`, the next after the last `step`, is a communication instant: a multiple of
+    /// the period, or the first tick past one that a realtime agent skipped.
     pub fn is_comm_tick(&self, tick: u64) -> bool {
-        !self.links.is_empty() && tick.is_multiple_of(self.comm_every)
+        !self.links.is_empty()
+            && (tick.is_multiple_of(self.comm_every)
+                || self
+                    .last_tick
+                    .is_some_and(|l| l / self.comm_every < tick / self.comm_every))
     }
 
     /// At a communication instant, what goes to the neighbours: a sample of γ_i if the trigger
     /// fires (every instant when periodic; D20 when event-triggered; in its own slot only under
     /// TDMA, D21), else a message without one. Call once per tick, before `step`.
-    pub fn broadcast(&mut self, state: &State) -> Option<Gamma> {
-        let tick = state.tick;
+    pub fn broadcast(&mut self, tick: u64, state: &State) -> Option<Gamma> {
         if !self.is_comm_tick(tick) {
             return None;
         }
@@ -222,10 +236,15 @@ impl Agent {
         })
     }
 
-    /// One control period: `inbox` holds the neighbours' messages of this tick (at a
-    /// communication instant; others are ignored). Returns the command to hold until the next.
-    pub fn step(&mut self, state: &State, inbox: &[Gamma]) -> Command {
-        let tick = state.tick;
+    /// One control period: `inbox` holds at most one message per neighbour, the newest since the
+    /// last instant (used at a communication instant; else ignored). `state` is the freshest
+    /// measurement, of this tick in lockstep, possibly older in realtime. Returns the command to
+    /// hold until the next tick.
+    pub fn step(&mut self, tick: u64, state: &State, inbox: &[Gamma]) -> Command {
+        // Periods skipped since the last step (realtime only): γ went on at the rate it had.
+        if let Some(skipped) = self.last_tick.map(|l| tick.saturating_sub(l + 1)).filter(|&n| n > 0) {
+            self.gamma += skipped as f64 * self.dt * self.gamma_dot;
+        }
         let mut receptions = Vec::new();
         if self.is_comm_tick(tick) {
             let mut sum = None;
@@ -233,10 +252,7 @@ impl Agent {
             let here = Vec2::from(state.position);
             for inbound in &mut self.links {
                 let from = inbound.link.from;
-                let sample = inbox
-                    .iter()
-                    .find(|m| m.from == from && m.tick == tick)
-                    .and_then(|m| m.sample);
+                let sample = inbox.iter().find(|m| m.from == from).and_then(|m| m.sample);
                 let distance = sample.map(|s| (Vec2::from(s.position) - here).norm());
                 let delivered = inbound.link.transmit(t, distance);
                 if let Some(s) = sample {
@@ -279,6 +295,7 @@ impl Agent {
         };
         self.gamma += self.dt * gamma_dot;
         self.gamma_dot = gamma_dot;
+        self.last_tick = Some(tick);
         Command {
             version: PROTOCOL_VERSION,
             tick,

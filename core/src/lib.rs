@@ -11,6 +11,7 @@ pub mod mission;
 pub mod msg;
 pub mod path;
 pub mod planner;
+pub mod realtime;
 pub mod record;
 pub mod sim;
 pub mod telemetry;

@@ -217,6 +217,8 @@ pub struct AgentNode {
     /// Per neighbour, the latest tick of which a γ came: a copy of one already heard is not late.
     heard: Vec<(u32, u64)>,
     timing: Timing,
+    /// Started again while the run was under way: its first state sets its tick.
+    rejoining: bool,
 }
 
 impl AgentNode {
@@ -230,7 +232,16 @@ impl AgentNode {
             stale: BTreeSet::new(),
             heard: Vec::new(),
             timing: Timing::default(),
+            rejoining: false,
         }
+    }
+
+    /// This agent was started again while the run is under way (its vehicle was waited for):
+    /// the first state of its vehicle, whatever its tick, is where it takes up its path, and its
+    /// neighbours, who sent their γ of that tick before it was back, are waited for again only
+    /// once they speak.
+    pub fn rejoin(&mut self) {
+        self.rejoining = true;
     }
 
     pub fn agent(&self) -> &Agent {
@@ -245,12 +256,17 @@ impl AgentNode {
         if !state.finite() {
             return Err(Reject::NonFinite);
         }
+        if std::mem::take(&mut self.rejoining) {
+            self.next_tick = state.tick;
+            self.agent.rejoin(state.position);
+            self.stale.extend(self.agent.neighbours());
+        }
         Reject::tick(state.tick, self.next_tick)?;
         if let Some(first) = &self.state {
             return Err(Reject::again(first, &state));
         }
         self.state = Some(state);
-        Ok(self.agent.broadcast(&state))
+        Ok(self.agent.broadcast(state.tick, &state))
     }
 
     pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {
@@ -357,7 +373,7 @@ impl AgentNode {
             return None;
         }
         let state = self.state.take()?;
-        let command = self.agent.step(&state, &self.inbox);
+        let command = self.agent.step(state.tick, &state, &self.inbox);
         self.next_tick = state.tick + 1;
         self.inbox.clear();
         Some(command)
@@ -521,7 +537,11 @@ mod tests {
         let mut world = WorldNode::new(&m, &paths, t_f);
         let mut agents: Vec<Agent> = paths.iter().map(|&(id, p)| Agent::new(&m, id, p)).collect();
         let states = world.states().to_vec();
-        let commands: Vec<Command> = agents.iter_mut().zip(&states).map(|(a, s)| a.step(s, &[])).collect();
+        let commands: Vec<Command> = agents
+            .iter_mut()
+            .zip(&states)
+            .map(|(a, s)| a.step(s.tick, s, &[]))
+            .collect();
         assert_eq!(world.waiting_for(), vec![1, 2]);
         assert_eq!(
             world.on_command(Command {

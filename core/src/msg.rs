@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 use crate::path::GeneralizedPath;
 
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
-pub const PROTOCOL_VERSION: u16 = 3;
+/// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`.
+pub const PROTOCOL_VERSION: u16 = 4;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -298,8 +299,62 @@ impl Rejections {
     }
 }
 
+/// World → anyone who asks, once the run has started (a queryable): which clock the fleet runs
+/// on, and where it is. A realtime process turns its wall clock into simulated time with it; an
+/// agent that finds the run under way rejoins it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Clock {
+    pub version: u16,
+    pub realtime: bool,
+    /// Simulated seconds per wall second (realtime).
+    pub time_scale: f64,
+    /// Unix time, s, of simulated t = 0 (realtime).
+    pub epoch: f64,
+    /// The world's tick when it answered.
+    pub tick: u64,
+}
+
+impl Checked for Clock {
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn finite(&self) -> bool {
+        all_finite([self.time_scale, self.epoch])
+    }
+}
+
+/// How a realtime role kept its period (docs/PROTOCOL.md, "Realtime"): lateness is how long after
+/// its deadline a period started, in wall milliseconds.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PeriodTiming {
+    pub periods: u64,
+    pub lateness_p50_ms: f64,
+    pub lateness_p99_ms: f64,
+    pub lateness_max_ms: f64,
+    /// Periods that started more than one period late.
+    pub overruns: u64,
+    /// Periods not run at all: the next deadline had passed too.
+    pub skipped: u64,
+    /// World: vehicle-periods integrated with the command of an earlier tick held, because this
+    /// tick's had not come.
+    pub late_commands: u64,
+    /// Agent: periods in which the freshest state was older than one period.
+    pub stale_states: u64,
+    /// World: per vehicle, periods integrated with no command at all (none yet, or its agent gone).
+    pub without_command: Vec<(u32, u64)>,
+    /// World: per vehicle, times its agent came back after it had gone.
+    pub rejoins: Vec<(u32, u64)>,
+}
+
+impl PeriodTiming {
+    /// Whether the role kept its period: nothing overran, was skipped, late or stale.
+    pub fn kept(&self) -> bool {
+        self.overruns == 0 && self.skipped == 0 && self.late_commands == 0 && self.stale_states == 0
+    }
+}
+
 /// Any process → recorder, as it exits: who it was and what it refused.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
     pub version: u16,
     pub role: String,
@@ -310,6 +365,8 @@ pub struct Report {
     pub stale_timeouts: u64,
     /// Agents: neighbours' γ that came after their instant and were not used.
     pub late_gammas: Vec<(u32, u64)>,
+    /// Realtime roles: how they kept their period.
+    pub timing: Option<PeriodTiming>,
 }
 
 impl Checked for Report {
@@ -317,6 +374,8 @@ impl Checked for Report {
         self.version
     }
     fn finite(&self) -> bool {
-        true
+        self.timing
+            .as_ref()
+            .is_none_or(|t| all_finite([t.lateness_p50_ms, t.lateness_p99_ms, t.lateness_max_ms]))
     }
 }

@@ -223,6 +223,31 @@ impl GeneralizedPath {
             [p, eta * d1, eta * self.profile.deta() * d1 + eta * eta * d2]
         }
     }
+
+    /// The γ in [0, t_f] of the path point nearest to `position`: the best of a scan at 1000
+    /// points, refined by golden-section search between its neighbours (the distance is
+    /// unimodal there for any path a vehicle can follow).
+    pub fn nearest(&self, position: Vec2) -> f64 {
+        const SCAN: usize = 1000;
+        let t_f = self.profile.t_f;
+        let h = t_f / SCAN as f64;
+        let distance = |g: f64| (self.derivatives(g)[0] - position).norm_squared();
+        let best = (0..=SCAN)
+            .map(|n| n as f64 * h)
+            .min_by(|a, b| distance(*a).total_cmp(&distance(*b)))
+            .unwrap_or(0.0);
+        let (mut a, mut b) = ((best - h).max(0.0), (best + h).min(t_f));
+        let ratio = (5f64.sqrt() - 1.0) / 2.0;
+        for _ in 0..60 {
+            let (c, d) = (b - ratio * (b - a), a + ratio * (b - a));
+            if distance(c) < distance(d) {
+                b = d;
+            } else {
+                a = c;
+            }
+        }
+        0.5 * (a + b)
+    }
 }
 
 #[cfg(test)]
@@ -326,6 +351,18 @@ mod tests {
             let turn = (path.at(gamma + h).heading - path.at(gamma - h).heading) / (2.0 * h);
             let point = path.at(gamma);
             assert!((turn - point.curvature * point.speed).abs() < 1e-7, "γ={gamma}");
+        }
+    }
+
+    #[test]
+    fn the_nearest_point_of_a_path_is_found_from_off_the_path() {
+        let path = paper_vehicle_1(45.0);
+        for gamma in [0.0, 3.3, 20.0, 44.9] {
+            let point = path.at(gamma);
+            // 0.3 m to the left of the path, across its tangent.
+            let normal = Vec2::new(-point.tangent.y, point.tangent.x) / point.speed;
+            let found = path.nearest(point.position + 0.3 * normal);
+            assert!((found - gamma).abs() < 1e-6, "γ = {gamma}: found {found}");
         }
     }
 }

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 use tcpf_core::metrics::Results;
-use tcpf_core::msg::{Rejections, Report};
+use tcpf_core::msg::{PeriodTiming, Rejections, Report};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -32,6 +32,22 @@ pub struct ChildSummary {
     pub reported_pid: Option<u32>,
 }
 
+/// How one realtime role kept its period (`PeriodTiming`, from its exit report).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RoleTiming {
+    pub role: String,
+    pub id: u32,
+    #[serde(flatten)]
+    pub timing: PeriodTiming,
+}
+
+/// A vehicle whose agent `tcpf run --restart on-failure` started again.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Restarts {
+    pub id: u32,
+    pub restarts: u64,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     pub mission: String,
@@ -58,6 +74,15 @@ pub struct Summary {
     pub rejected_messages: u64,
     pub rejections: Rejections,
     pub children: Vec<ChildSummary>,
+    /// Realtime: simulated seconds per wall second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_scale: Option<f64>,
+    /// Realtime: how the world and each agent kept their period.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub timing: Vec<RoleTiming>,
+    /// Agents started again after they died (`--restart on-failure`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub restarts: Vec<Restarts>,
 }
 
 impl Summary {
@@ -80,6 +105,27 @@ impl Summary {
             }
         }
         reasons
+    }
+
+    /// The realtime roles' timing, from their exit reports.
+    pub fn timing_of(reports: &[Report]) -> Vec<RoleTiming> {
+        let mut timing: Vec<RoleTiming> = reports
+            .iter()
+            .filter_map(|r| {
+                Some(RoleTiming {
+                    role: r.role.clone(),
+                    id: r.id,
+                    timing: r.timing.clone()?,
+                })
+            })
+            .collect();
+        timing.sort_by(|a, b| (&a.role, a.id).cmp(&(&b.role, b.id)));
+        timing
+    }
+
+    /// Whether the run's clock was kept: every realtime role on time.
+    pub fn timing_kept(&self) -> bool {
+        self.timing.iter().all(|t| t.timing.kept())
     }
 
     /// Every vehicle arrived and none was lost.

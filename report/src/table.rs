@@ -108,11 +108,44 @@ pub fn summary(summary: &Summary) -> String {
             kinds.join(", ")
         );
     }
-    let _ = writeln!(
-        s,
-        "wall time {:.3} s, {:.1}× real time",
-        summary.wall_time_s,
-        summary.speedup()
-    );
+    for t in &summary.timing {
+        let p = &t.timing;
+        let _ = write!(
+            s,
+            "timing {} {}: lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped",
+            t.role, t.id, p.lateness_p50_ms, p.lateness_p99_ms, p.lateness_max_ms, p.overruns, p.skipped
+        );
+        if t.role == "world" {
+            let _ = write!(s, ", {} late commands", p.late_commands);
+            for (id, n) in &p.without_command {
+                let _ = write!(s, ", vehicle {id} without a command for {n} periods");
+            }
+        } else {
+            let _ = write!(s, ", {} stale states", p.stale_states);
+        }
+        let _ = writeln!(s);
+    }
+    for r in &summary.restarts {
+        let _ = writeln!(s, "agent {} restarted {} time(s)", r.id, r.restarts);
+    }
+    if !summary.timing_kept() {
+        let _ = writeln!(
+            s,
+            "TIMING VIOLATED: a realtime role overran, skipped periods or used late commands or stale states (see above)"
+        );
+    }
+    match summary.time_scale {
+        Some(scale) => {
+            let _ = writeln!(s, "wall time {:.3} s at time scale {scale}", summary.wall_time_s);
+        }
+        None => {
+            let _ = writeln!(
+                s,
+                "wall time {:.3} s, {:.1}× real time",
+                summary.wall_time_s,
+                summary.speedup()
+            );
+        }
+    }
     s
 }

@@ -1,17 +1,28 @@
-//! tcpf-world: the world process. A Zenoh shell around core's `WorldNode`: it publishes every
-//! vehicle's state, waits for every live agent's command and integrates; it is the lockstep clock.
+//! tcpf-world: the world process. A Zenoh shell around core's `WorldNode` in lockstep (it
+//! publishes every vehicle's state, waits for every live agent's command and integrates: it is
+//! the clock) or `RealtimeWorld` in realtime (it integrates on a metronome with the freshest
+//! commands, and serves the wall-clock epoch everyone keeps time by).
 
 use std::collections::BTreeSet;
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::clock::{metronome, unix_now, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::typed::{fetch_paths, presence, report, subscribe, Outlet, Presence, Rejected};
+use tcpf_bus::typed::{fetch_paths, presence, report, subscribe, ClockServer, Outlet, Presence, Received, Rejected};
 use tcpf_core::lockstep::{Timing, WorldNode};
-use tcpf_core::mission::Mission;
-use tcpf_core::msg::{Command, Loss, LossReason, Lost, PROTOCOL_VERSION};
+use tcpf_core::mission::{ClockKind, Mission};
+use tcpf_core::msg::{Clock, Command, Loss, LossReason, Lost, PROTOCOL_VERSION};
+use tcpf_core::path::GeneralizedPath;
+use tcpf_core::realtime::RealtimeWorld;
+use tokio::sync::mpsc::{Receiver, UnboundedReceiver};
+use zenoh::Session;
+
+/// How far ahead of now a realtime world sets t = 0: every process waiting for the clock (each
+/// asks a few times a second) has it before the first period, so nobody starts late.
+const REALTIME_LEAD_S: f64 = 0.5;
 
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -21,6 +32,11 @@ pub struct Options {
     pub recorders: usize,
     /// How long a tick waits for a live agent's command before that vehicle is lost (silent).
     pub command_timeout: Duration,
+    /// Lockstep: how long a tick waits for a gone agent to come back before its vehicle is lost
+    /// (none: lost at once).
+    pub rejoin_timeout: Option<Duration>,
+    /// Realtime: the vehicles this world simulates; the others are played by other processes.
+    pub vehicles: Option<Vec<u32>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,26 +49,44 @@ pub enum Exit {
     Interrupted,
 }
 
+/// What both clocks' loops work with.
+struct Shell {
+    keys: Keys,
+    session: Session,
+    shutdown: Shutdown,
+    rejected: Rejected,
+    presence: UnboundedReceiver<Presence>,
+    commands: Receiver<Received<Command>>,
+    /// One per simulated vehicle, in the mission's order.
+    outlets: Vec<Outlet>,
+    end_out: Outlet,
+    clock: ClockServer,
+}
+
 pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
+    let realtime = mission.mission.clock == ClockKind::Realtime;
+    let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+    let simulated: Vec<u32> = match &options.vehicles {
+        Some(v) => ids.iter().copied().filter(|i| v.contains(i)).collect(),
+        None => ids.clone(),
+    };
     let mut shutdown = Shutdown::new()?;
     let session = zenoh.open().await?;
     let rejected = Rejected::default();
     let (_presence, mut presence) = presence(&session, &keys).await?;
-    let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
     let Some(paths) = fetched.await else {
         return Ok(Exit::Interrupted);
     };
     let paths = paths?;
-    let t_f = paths[0].1.t_f();
-    let mut node = WorldNode::new(mission, &paths, t_f);
-    let (_commands, mut commands) = subscribe::<Command>(&session, &keys.cmd("*"), &rejected).await?;
-    let mut outlets = Vec::with_capacity(ids.len());
-    for id in &ids {
-        outlets.push(Outlet::new(&session, keys.state(id)).await?);
+    let (_commands, commands) = subscribe::<Command>(&session, &keys.cmd("*"), &rejected).await?;
+    let mut outlets = Vec::with_capacity(simulated.len());
+    for id in &simulated {
+        outlets.push(Outlet::for_clock(&session, keys.state(id), realtime).await?);
     }
     let end_out = Outlet::new(&session, keys.end()).await?;
+    let clock = ClockServer::declare(&session, &keys).await?;
     let token = session
         .liveliness()
         .declare_token(keys.alive(Role::World, 0))
@@ -95,71 +129,238 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             }
         }
     }
-    tracing::info!("world: {} agents present, starting", ids.len());
-
-    let announce = |lost: Lost| {
-        let (session, key) = (&session, keys.lost(lost.id));
-        async move {
-            let loss = Loss {
-                version: PROTOCOL_VERSION,
-                id: lost.id,
-                tick: lost.tick,
-                reason: lost.reason,
-            };
-            Outlet::new(session, key).await?.put(&loss).await
-        }
+    tracing::info!(
+        "world: {} agents present, starting ({:?} clock, simulating vehicles {simulated:?})",
+        ids.len(),
+        mission.mission.clock
+    );
+    let mut shell = Shell {
+        keys,
+        session,
+        shutdown,
+        rejected,
+        presence,
+        commands,
+        outlets,
+        end_out,
+        clock,
     };
-    let exit = 'run: loop {
-        for (outlet, state) in outlets.iter().zip(node.states()) {
-            outlet.put(state).await?;
-        }
-        let deadline = tokio::time::Instant::now() + options.command_timeout;
-        while !node.waiting_for().is_empty() {
-            tokio::select! {
-                Some(c) = commands.recv() => {
-                    if Keys::id_of(&c.key) != Some(c.message.id) {
-                        rejected.wrong_sender(&c.key);
-                    } else if let Err(e) = node.on_command(c.message) {
-                        rejected.reject(e, &c.key);
-                    }
-                }
-                Some(p) = presence.recv() => {
-                    if p.role == Role::Agent && !p.alive && ids.contains(&p.id) {
-                        tracing::warn!("world: agent {} is gone at t = {:.2} s; its vehicle drifts", p.id, node.states()[0].t);
-                        if let Some(lost) = node.on_lost(p.id, LossReason::Gone) {
-                            announce(lost).await?;
-                        }
-                    }
-                }
-                _ = tokio::time::sleep_until(deadline) => {
-                    for id in node.waiting_for() {
-                        tracing::warn!(
-                            "world: agent {id} sent no command of t = {:.2} s within {:?}; its vehicle is lost and drifts",
-                            node.states()[0].t,
-                            options.command_timeout
-                        );
-                        if let Some(lost) = node.on_lost(id, LossReason::Silent) {
-                            announce(lost).await?;
-                        }
-                    }
-                }
-                _ = shutdown.recv() => {
-                    end_out.put(&node.interrupted()).await?;
-                    break 'run Exit::Interrupted;
-                }
-            }
-        }
-        if let Some(end) = node.advance(|_, _| {}) {
-            end_out.put(&end).await?;
-            break Exit::Ended {
-                ticks: end.ticks,
-                lost: end.lost.len(),
-            };
-        }
+    let exit = if realtime {
+        shell.realtime(mission, &paths, &simulated).await?
+    } else {
+        shell.lockstep(mission, &paths, options).await?
     };
     tracing::info!("world: {exit:?}");
-    report(&session, &keys, Role::World, 0, &rejected, &Timing::default()).await?;
     let _ = token.undeclare().await;
-    let _ = session.close().await;
+    let _ = shell.session.close().await;
     Ok(exit)
+}
+
+impl Shell {
+    async fn announce(&self, lost: Lost) -> Result<()> {
+        let loss = Loss {
+            version: PROTOCOL_VERSION,
+            id: lost.id,
+            tick: lost.tick,
+            reason: lost.reason,
+        };
+        Outlet::new(&self.session, self.keys.lost(lost.id))
+            .await?
+            .put(&loss)
+            .await
+    }
+
+    async fn lockstep(
+        &mut self,
+        mission: &Mission,
+        paths: &[(u32, GeneralizedPath)],
+        options: &Options,
+    ) -> Result<Exit> {
+        let t_f = paths[0].1.t_f();
+        let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
+        let mut node = WorldNode::new(mission, paths, t_f);
+        let clock = Clock {
+            version: PROTOCOL_VERSION,
+            realtime: false,
+            time_scale: mission.mission.time_scale,
+            epoch: unix_now(),
+            tick: 0,
+        };
+        // Agents gone whose return is awaited, and until when.
+        let mut restarting: Vec<(u32, tokio::time::Instant)> = Vec::new();
+        let exit = 'run: loop {
+            self.clock.set(Clock {
+                tick: node.tick(),
+                ..clock
+            });
+            for (outlet, state) in self.outlets.iter().zip(node.states()) {
+                outlet.put(state).await?;
+            }
+            let deadline = tokio::time::Instant::now() + options.command_timeout;
+            while !node.waiting_for().is_empty() {
+                let back_by = restarting.iter().map(|r| r.1).min();
+                tokio::select! {
+                    Some(c) = self.commands.recv() => {
+                        if Keys::id_of(&c.key) != Some(c.message.id) {
+                            self.rejected.wrong_sender(&c.key);
+                        } else if let Err(e) = node.on_command(c.message) {
+                            self.rejected.reject(e, &c.key);
+                        }
+                    }
+                    Some(p) = self.presence.recv() => {
+                        if p.role != Role::Agent {
+                            continue;
+                        }
+                        let Some(n) = ids.iter().position(|&i| i == p.id) else { continue };
+                        let t = node.states()[0].t;
+                        match (p.alive, options.rejoin_timeout) {
+                            (false, Some(wait)) => {
+                                tracing::warn!("world: agent {} is gone at t = {t:.2} s; waiting {wait:?} for it to come back", p.id);
+                                restarting.push((p.id, tokio::time::Instant::now() + wait));
+                            }
+                            (false, None) => {
+                                tracing::warn!("world: agent {} is gone at t = {t:.2} s; its vehicle drifts", p.id);
+                                if let Some(lost) = node.on_lost(p.id, LossReason::Gone) {
+                                    self.announce(lost).await?;
+                                }
+                            }
+                            (true, _) if restarting.iter().any(|r| r.0 == p.id) => {
+                                tracing::info!("world: agent {} is back at t = {t:.2} s", p.id);
+                                restarting.retain(|r| r.0 != p.id);
+                                // It subscribed before its token: the state it missed, again.
+                                self.outlets[n].put(&node.states()[n]).await?;
+                            }
+                            (true, _) => {}
+                        }
+                    }
+                    _ = tokio::time::sleep_until(back_by.unwrap_or(deadline)), if back_by.is_some() => {
+                        let now = tokio::time::Instant::now();
+                        for (id, _) in restarting.iter().filter(|r| r.1 <= now) {
+                            tracing::warn!("world: agent {id} did not come back; its vehicle drifts");
+                            if let Some(lost) = node.on_lost(*id, LossReason::Gone) {
+                                self.announce(lost).await?;
+                            }
+                        }
+                        restarting.retain(|r| r.1 > now);
+                    }
+                    _ = tokio::time::sleep_until(deadline) => {
+                        for id in node.waiting_for() {
+                            tracing::warn!(
+                                "world: agent {id} sent no command of t = {:.2} s within {:?}; its vehicle is lost and drifts",
+                                node.states()[0].t,
+                                options.command_timeout
+                            );
+                            if let Some(lost) = node.on_lost(id, LossReason::Silent) {
+                                self.announce(lost).await?;
+                            }
+                        }
+                    }
+                    _ = self.shutdown.recv() => {
+                        self.end_out.put(&node.interrupted()).await?;
+                        break 'run Exit::Interrupted;
+                    }
+                }
+            }
+            if let Some(end) = node.advance(|_, _| {}) {
+                self.end_out.put(&end).await?;
+                break Exit::Ended {
+                    ticks: end.ticks,
+                    lost: end.lost.len(),
+                };
+            }
+        };
+        report(
+            &self.session,
+            &self.keys,
+            Role::World,
+            0,
+            &self.rejected,
+            &Timing::default(),
+            None,
+        )
+        .await?;
+        Ok(exit)
+    }
+
+    async fn realtime(
+        &mut self,
+        mission: &Mission,
+        paths: &[(u32, GeneralizedPath)],
+        simulated: &[u32],
+    ) -> Result<Exit> {
+        let t_f = paths[0].1.t_f();
+        let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
+        let mut node = RealtimeWorld::new(mission, paths, t_f, simulated);
+        let clock = Clock {
+            version: PROTOCOL_VERSION,
+            realtime: true,
+            time_scale: mission.mission.time_scale,
+            epoch: unix_now() + REALTIME_LEAD_S,
+            tick: 0,
+        };
+        self.clock.set(clock);
+        let fleet = FleetClock::new(&clock, mission.mission.control_period);
+        let period = fleet.period().as_secs_f64();
+        for (outlet, state) in self.outlets.iter().zip(node.states()) {
+            outlet.put(state).await?;
+        }
+        let mut beats = metronome(fleet, 0.0, 1);
+        let exit = loop {
+            tokio::select! {
+                Some(beat) = beats.recv() => {
+                    if let Some(end) = node.advance_to(beat.tick, beat.late_s(), period, beat.skipped) {
+                        self.end_out.put(&end).await?;
+                        break Exit::Ended { ticks: end.ticks, lost: end.lost.len() };
+                    }
+                    self.clock.set(Clock { tick: node.tick(), ..clock });
+                    for (outlet, state) in self.outlets.iter().zip(node.states()) {
+                        outlet.put(state).await?;
+                    }
+                }
+                Some(c) = self.commands.recv() => {
+                    if Keys::id_of(&c.key) != Some(c.message.id) {
+                        self.rejected.wrong_sender(&c.key);
+                    } else if let Err(e) = node.on_command(c.message) {
+                        self.rejected.reject(e, &c.key);
+                    }
+                }
+                Some(p) = self.presence.recv() => {
+                    if p.role == Role::Agent && ids.contains(&p.id) {
+                        let t = node.tick() as f64 * mission.mission.control_period;
+                        if p.alive {
+                            tracing::info!("world: agent {} is here at t = {t:.2} s", p.id);
+                        } else {
+                            tracing::warn!("world: agent {} is gone at t = {t:.2} s; its vehicle drifts until it comes back", p.id);
+                        }
+                        node.set_gone(p.id, !p.alive);
+                    }
+                }
+                _ = self.shutdown.recv() => {
+                    self.end_out.put(&node.interrupted()).await?;
+                    break Exit::Interrupted;
+                }
+            }
+        };
+        let timing = node.timing();
+        tracing::info!(
+            "world: period lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped, {} late commands",
+            timing.lateness_p50_ms,
+            timing.lateness_p99_ms,
+            timing.lateness_max_ms,
+            timing.overruns,
+            timing.skipped,
+            timing.late_commands
+        );
+        report(
+            &self.session,
+            &self.keys,
+            Role::World,
+            0,
+            &self.rejected,
+            &Timing::default(),
+            Some(timing),
+        )
+        .await?;
+        Ok(exit)
+    }
 }

@@ -45,6 +45,20 @@ pub struct MissionSection {
     pub max_duration: f64,
     #[serde(default)]
     pub post_arrival: PostArrival,
+    #[serde(default)]
+    pub clock: ClockKind,
+    /// Simulated seconds per wall second, realtime only (1: real time).
+    #[serde(default = "defaults::time_scale")]
+    pub time_scale: f64,
+}
+
+/// Who keeps time (docs/PROTOCOL.md): the world waiting for every command, or the wall clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ClockKind {
+    #[default]
+    Lockstep,
+    Realtime,
 }
 
 /// What a vehicle does once γ_i ≥ t_f (MODEL D11).
@@ -347,6 +361,9 @@ mod defaults {
     }
     pub fn max_duration() -> f64 {
         120.0
+    }
+    pub fn time_scale() -> f64 {
+        1.0
     }
     pub fn weight() -> f64 {
         1.0

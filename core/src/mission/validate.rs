@@ -14,6 +14,11 @@ const MIN_TF: f64 = 1.0;
 const MAX_VEHICLES: usize = 1000;
 /// A mission name is part of every key expression and file name.
 const MAX_NAME: usize = 64;
+/// The shortest wall-clock control period a realtime role keeps on an ordinary computer: the
+/// kernel wakes a sleeping thread some tens of microseconds late.
+const MIN_WALL_PERIOD: f64 = 0.000_5;
+/// Simulated seconds per wall second, at most.
+const MAX_TIME_SCALE: f64 = 1000.0;
 
 pub(super) type Invalid = (Vec<Seg>, String);
 
@@ -68,6 +73,22 @@ impl Mission {
             m.max_duration > 0.0 && m.max_duration.is_finite(),
             key("mission", "max_duration"),
             "must be > 0",
+        )?;
+        check(
+            m.time_scale > 0.0 && m.time_scale <= MAX_TIME_SCALE,
+            key("mission", "time_scale"),
+            format!("must be in (0, {MAX_TIME_SCALE}]"),
+        )?;
+        check(
+            m.clock == super::ClockKind::Lockstep || m.control_period / m.time_scale >= MIN_WALL_PERIOD,
+            key("mission", "time_scale"),
+            format!(
+                "{} with mission.control_period = {} s gives a wall-clock period of {} ms; realtime keeps periods of {} ms or more",
+                num(m.time_scale),
+                m.control_period,
+                num(1e3 * m.control_period / m.time_scale),
+                1e3 * MIN_WALL_PERIOD
+            ),
         )?;
         let ticks = m.max_duration / m.control_period;
         // Blame the value that is out of the ordinary: a long mission, or a short period.

@@ -1,0 +1,180 @@
+//! The realtime clock's shell: fleet time from the world's `Clock`, and a metronome that wakes a
+//! role at absolute deadlines.
+//!
+//! Deadlines are absolute (tick k is due at the epoch plus k periods, as DUNE's periodic tasks
+//! do), so an error never accumulates. A period whose deadline passed while the previous one
+//! ran is skipped and counted, never run in a burst (tokio's `MissedTickBehavior::Skip`). The
+//! metronome sleeps in a thread of its own rather than on tokio's timer, whose granularity is a
+//! millisecond: at time scale 10 the paper's 10 ms control period is a wall millisecond, and a
+//! timer that rounds up to the next one would make every period up to a period late.
+
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use tcpf_core::msg::Clock;
+use tokio::sync::mpsc;
+
+/// Unix time now, in seconds.
+pub fn unix_now() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// The fleet's simulated time on this process's monotonic clock.
+#[derive(Debug, Clone, Copy)]
+pub struct FleetClock {
+    /// This process's instant of simulated t = 0 (it may lie in the future).
+    zero: Instant,
+    behind: bool,
+    offset: Duration,
+    /// One control period of wall time.
+    period: Duration,
+}
+
+impl FleetClock {
+    /// From the world's clock message. Assumes the hosts' wall clocks agree (NTP or PTP):
+    /// docs/TESTBED.md says how well.
+    pub fn new(clock: &Clock, control_period: f64) -> FleetClock {
+        let now = Instant::now();
+        let since = unix_now() - clock.epoch;
+        FleetClock {
+            zero: now,
+            behind: since >= 0.0,
+            offset: Duration::from_secs_f64(since.abs()),
+            period: Duration::from_secs_f64(control_period / clock.time_scale),
+        }
+    }
+
+    /// The wall instant at which `periods` (possibly fractional) control periods have passed.
+    pub fn at(&self, periods: f64) -> Instant {
+        let elapsed = self.period.mul_f64(periods.max(0.0));
+        if self.behind {
+            (self.zero + elapsed).checked_sub(self.offset).unwrap_or(self.zero)
+        } else {
+            self.zero + self.offset + elapsed
+        }
+    }
+
+    /// Control periods since t = 0, now (0 before it).
+    pub fn periods_now(&self) -> f64 {
+        let now = Instant::now();
+        let start = self.at(0.0);
+        if now <= start {
+            0.0
+        } else {
+            (now - start).as_secs_f64() / self.period.as_secs_f64()
+        }
+    }
+
+    pub fn period(&self) -> Duration {
+        self.period
+    }
+}
+
+/// One wake-up: the tick to run, when it was due, and how many periods before it were skipped.
+#[derive(Debug, Clone, Copy)]
+pub struct Beat {
+    pub tick: u64,
+    pub deadline: Instant,
+    pub skipped: u64,
+}
+
+impl Beat {
+    /// How late the period starts, if the role starts it now: wall seconds past its deadline.
+    pub fn late_s(&self) -> f64 {
+        Instant::now().saturating_duration_since(self.deadline).as_secs_f64()
+    }
+}
+
+/// Beats for ticks `first`, `first + 1`, …, each at its deadline plus `phase` periods (a role
+/// acting on another's output wakes a fraction of a period after it). A beat is handed over
+/// only if the role has taken the last one: a period that comes while the role is still busy,
+/// or that passes while this thread waits to be scheduled, is skipped and counted in the next
+/// beat. The thread stops when the receiver is dropped.
+pub fn metronome(clock: FleetClock, phase: f64, first: u64) -> mpsc::Receiver<Beat> {
+    let (tx, rx) = mpsc::channel(1);
+    std::thread::spawn(move || {
+        let period = clock.period.as_secs_f64();
+        let (mut tick, mut skipped) = (first, 0);
+        loop {
+            let deadline = clock.at(tick as f64 + phase);
+            let now = Instant::now();
+            if deadline > now {
+                std::thread::sleep(deadline - now);
+            }
+            let passed = (Instant::now().saturating_duration_since(deadline).as_secs_f64() / period) as u64;
+            tick += passed;
+            skipped += passed;
+            let beat = Beat {
+                tick,
+                deadline: clock.at(tick as f64 + phase),
+                skipped,
+            };
+            match tx.try_send(beat) {
+                Ok(()) => skipped = 0,
+                Err(mpsc::error::TrySendError::Full(_)) => skipped += 1,
+                Err(mpsc::error::TrySendError::Closed(_)) => return,
+            }
+            tick += 1;
+        }
+    });
+    rx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tcpf_core::msg::PROTOCOL_VERSION;
+
+    #[test]
+    fn fleet_time_follows_the_epoch_and_the_scale() {
+        let clock = Clock {
+            version: PROTOCOL_VERSION,
+            realtime: true,
+            time_scale: 10.0,
+            epoch: unix_now() - 1.0,
+            tick: 0,
+        };
+        let fleet = FleetClock::new(&clock, 0.01);
+        assert_eq!(fleet.period(), Duration::from_millis(1));
+        // One wall second at scale 10 is 10 simulated seconds: 1000 periods of 10 ms.
+        let periods = fleet.periods_now();
+        assert!((1000.0..1100.0).contains(&periods), "{periods}");
+        let future = FleetClock::new(
+            &Clock {
+                epoch: unix_now() + 5.0,
+                ..clock
+            },
+            0.01,
+        );
+        assert_eq!(future.periods_now(), 0.0);
+        assert!(future.at(0.0) > Instant::now() + Duration::from_secs(4));
+    }
+
+    #[tokio::test]
+    async fn the_metronome_beats_on_absolute_deadlines_and_skips_what_it_missed() {
+        let clock = Clock {
+            version: PROTOCOL_VERSION,
+            realtime: true,
+            time_scale: 1.0,
+            epoch: unix_now(),
+            tick: 0,
+        };
+        let fleet = FleetClock::new(&clock, 0.005);
+        let mut beats = metronome(fleet, 0.0, 0);
+        let first = beats.recv().await.unwrap();
+        assert_eq!(first.tick, 0);
+        // A role busy for ten periods: the beats it missed are skipped, not replayed.
+        std::thread::sleep(Duration::from_millis(50));
+        let queued = beats.recv().await.unwrap();
+        assert_eq!(
+            (queued.tick, queued.skipped),
+            (1, 0),
+            "the beat that came while it was busy"
+        );
+        assert!(queued.late_s() > 0.04, "and it starts late: {:.4} s", queued.late_s());
+        let after = beats.recv().await.unwrap();
+        assert!(after.skipped >= 5, "{after:?}");
+        assert_eq!(after.tick, 2 + after.skipped, "no tick is run twice or left out");
+    }
+}

@@ -1,0 +1,613 @@
+//! The realtime clock (docs/PROTOCOL.md, "Realtime"): nobody waits. The world integrates every
+//! control period holding each vehicle's freshest command, each agent acts every control period
+//! on the freshest state it has, and a recorder samples the freshest of both. The shells keep
+//! the time (absolute deadlines on the wall clock, scaled) and tell these machines which tick it
+//! is and how late they woke; the machines decide everything else.
+
+use crate::agent::Agent;
+use crate::lockstep::Reject;
+use crate::metrics::{Metrics, Results};
+use crate::mission::Mission;
+use crate::msg::{Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
+use crate::path::GeneralizedPath;
+use crate::world::World;
+
+/// The longest a realtime world holds a vehicle's last command, in simulated seconds: a vehicle
+/// whose agent has been silent longer (its network is down, it hangs) stops its thrusters and
+/// drifts, as a vehicle's own command watchdog would make it.
+const HOLD_LIMIT_S: f64 = 1.0;
+
+/// Lateness buckets per doubling: percentiles within 9 % of the truth.
+const PER_OCTAVE: f64 = 8.0;
+/// Buckets from 1 µs to 2^32 µs (71 minutes); later is the last bucket.
+const BUCKETS: usize = 256;
+
+/// How late a role's periods started: a log-spaced histogram, so that an hour of periods costs
+/// a few kilobytes and gives p50 and p99.
+#[derive(Debug, Clone)]
+pub struct Lateness {
+    buckets: Vec<u64>,
+    periods: u64,
+    max_s: f64,
+    overruns: u64,
+    skipped: u64,
+}
+
+impl Default for Lateness {
+    fn default() -> Self {
+        Lateness {
+            buckets: vec![0; BUCKETS],
+            periods: 0,
+            max_s: 0.0,
+            overruns: 0,
+            skipped: 0,
+        }
+    }
+}
+
+impl Lateness {
+    /// One period that started `late_s` wall seconds after its deadline, after `skipped`
+    /// periods that did not run at all; `period_s` is the wall length of a period.
+    pub fn record(&mut self, late_s: f64, period_s: f64, skipped: u64) {
+        let micros = (late_s * 1e6).max(1.0);
+        let n = ((micros.log2() * PER_OCTAVE) as usize).min(BUCKETS - 1);
+        self.buckets[n] += 1;
+        self.periods += 1;
+        self.max_s = self.max_s.max(late_s);
+        self.overruns += u64::from(late_s > period_s);
+        self.skipped += skipped;
+    }
+
+    /// The upper edge of the bucket holding quantile `q`, in ms.
+    fn quantile_ms(&self, q: f64) -> f64 {
+        let rank = (q * self.periods as f64).ceil().max(1.0) as u64;
+        let mut seen = 0;
+        for (n, &count) in self.buckets.iter().enumerate() {
+            seen += count;
+            if seen >= rank {
+                return 2f64.powf((n + 1) as f64 / PER_OCTAVE) / 1e3;
+            }
+        }
+        0.0
+    }
+
+    pub fn figures(&self) -> PeriodTiming {
+        PeriodTiming {
+            periods: self.periods,
+            lateness_p50_ms: if self.periods == 0 { 0.0 } else { self.quantile_ms(0.5) },
+            lateness_p99_ms: if self.periods == 0 { 0.0 } else { self.quantile_ms(0.99) },
+            lateness_max_ms: self.max_s * 1e3,
+            overruns: self.overruns,
+            skipped: self.skipped,
+            ..PeriodTiming::default()
+        }
+    }
+}
+
+/// A second message for a sender where a newer or equal one is held.
+fn older<T: PartialEq>(held_tick: u64, tick: u64, held: &T, message: &T) -> Result<(), Reject> {
+    match tick.cmp(&held_tick) {
+        std::cmp::Ordering::Less => Err(Reject::Past),
+        std::cmp::Ordering::Equal if held == message => Err(Reject::Duplicate),
+        std::cmp::Ordering::Equal => Err(Reject::Conflict),
+        std::cmp::Ordering::Greater => Ok(()),
+    }
+}
+
+/// The agent's side: the freshest state, the newest γ of each neighbour since the last instant,
+/// and a command every period.
+pub struct RealtimeAgent {
+    agent: Agent,
+    state: Option<State>,
+    inbox: Vec<Gamma>,
+    acted: Option<u64>,
+    /// Take up the path where the vehicle is, at the first state (an agent started again).
+    rejoin: bool,
+    lateness: Lateness,
+    stale_states: u64,
+}
+
+/// What an agent does in one period.
+pub struct Action {
+    /// γ_i for the neighbours, at a communication instant whose trigger fired.
+    pub gamma: Option<Gamma>,
+    pub command: Command,
+}
+
+impl RealtimeAgent {
+    /// `rejoin`: the run was under way when this agent started, so γ_i starts from the vehicle's
+    /// position rather than from 0.
+    pub fn new(agent: Agent, rejoin: bool) -> RealtimeAgent {
+        RealtimeAgent {
+            agent,
+            state: None,
+            inbox: Vec::new(),
+            acted: None,
+            rejoin,
+            lateness: Lateness::default(),
+            stale_states: 0,
+        }
+    }
+
+    pub fn agent(&self) -> &Agent {
+        &self.agent
+    }
+
+    /// A state of this agent's vehicle: the freshest is kept.
+    pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
+        if state.id != self.agent.id() {
+            return Err(Reject::UnknownVehicle);
+        }
+        if !state.finite() {
+            return Err(Reject::NonFinite);
+        }
+        match &self.state {
+            Some(held) => older(held.tick, state.tick, held, &state)?,
+            None if self.rejoin => self.agent.rejoin(state.position),
+            None => {}
+        }
+        self.state = Some(state);
+        Ok(())
+    }
+
+    /// A neighbour's γ: the newest since the last instant is kept. One without a sample is no
+    /// transmission (lockstep's "nothing this instant"), so there is nothing to keep.
+    pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {
+        if !self.agent.neighbours().any(|j| j == gamma.from) {
+            return Err(Reject::NotANeighbour);
+        }
+        if !gamma.finite() {
+            return Err(Reject::NonFinite);
+        }
+        if gamma.sample.is_none() {
+            return Ok(());
+        }
+        match self.inbox.iter_mut().find(|g| g.from == gamma.from) {
+            Some(held) => {
+                older(held.tick, gamma.tick, held, &gamma)?;
+                *held = gamma;
+            }
+            None => self.inbox.push(gamma),
+        }
+        Ok(())
+    }
+
+    /// The period of `tick` began `late_s` wall seconds after its deadline (of `period_s`), after
+    /// `skipped` periods that never ran. Without a state yet there is nothing to act on (the
+    /// vehicle drifts with thrusters off); a tick already acted on is not acted on again.
+    pub fn act(&mut self, tick: u64, late_s: f64, period_s: f64, skipped: u64) -> Option<Action> {
+        self.lateness.record(late_s, period_s, skipped);
+        let state = self.state?;
+        if self.acted.is_some_and(|a| a >= tick) {
+            return None;
+        }
+        if tick > state.tick + 1 {
+            self.stale_states += 1;
+        }
+        // What came between two instants is used at the next one.
+        let instant = self.agent.is_comm_tick(tick);
+        let gamma = self.agent.broadcast(tick, &state).filter(|g| g.sample.is_some());
+        let command = self.agent.step(tick, &state, &self.inbox);
+        if instant {
+            self.inbox.clear();
+        }
+        self.acted = Some(tick);
+        Some(Action { gamma, command })
+    }
+
+    pub fn timing(&self) -> PeriodTiming {
+        PeriodTiming {
+            stale_states: self.stale_states,
+            ..self.lateness.figures()
+        }
+    }
+}
+
+/// The world's side: integrates the vehicles it simulates every period with each one's freshest
+/// command, and decides when the run is over from every vehicle's commands (those it does not
+/// simulate too: their γ says whether they arrived).
+pub struct RealtimeWorld {
+    world: World,
+    /// Every vehicle of the mission.
+    ids: Vec<u32>,
+    /// Per simulated body, its index in `ids`.
+    bodies: Vec<usize>,
+    held: Vec<Option<Command>>,
+    gone: Vec<bool>,
+    /// Per vehicle, whether its agent was ever gone (for `End`).
+    ever_gone: Vec<Option<u64>>,
+    arrived: Vec<bool>,
+    t_f: f64,
+    max_ticks: u64,
+    /// `HOLD_LIMIT_S` in ticks.
+    hold_ticks: u64,
+    states: Vec<State>,
+    body_commands: Vec<Option<Command>>,
+    lateness: Lateness,
+    late_commands: u64,
+    without_command: Vec<u64>,
+    rejoins: Vec<u64>,
+}
+
+impl RealtimeWorld {
+    /// The world of `mission`, simulating the vehicles of `simulated` (ids; the others are
+    /// played by processes of their own).
+    pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)], t_f: f64, simulated: &[u32]) -> RealtimeWorld {
+        let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
+        let ours: Vec<(u32, GeneralizedPath)> = paths.iter().filter(|p| simulated.contains(&p.0)).copied().collect();
+        let world = World::new(mission, &ours);
+        let bodies = ours
+            .iter()
+            .map(|p| ids.iter().position(|&i| i == p.0).expect("a vehicle of the mission"))
+            .collect();
+        let mut states = Vec::with_capacity(ours.len());
+        world.states(&mut states);
+        let n = ids.len();
+        RealtimeWorld {
+            world,
+            bodies,
+            held: vec![None; n],
+            gone: vec![false; n],
+            ever_gone: vec![None; n],
+            arrived: vec![false; n],
+            t_f,
+            max_ticks: mission.max_ticks(),
+            hold_ticks: (HOLD_LIMIT_S / mission.mission.control_period).ceil() as u64,
+            states,
+            body_commands: vec![None; ours.len()],
+            lateness: Lateness::default(),
+            late_commands: 0,
+            without_command: vec![0; n],
+            rejoins: vec![0; n],
+            ids,
+        }
+    }
+
+    pub fn tick(&self) -> u64 {
+        self.world.tick()
+    }
+
+    /// The states of the simulated vehicles at the current tick, to publish.
+    pub fn states(&self) -> &[State] {
+        &self.states
+    }
+
+    /// A vehicle's command: the freshest is held until a fresher one comes.
+    pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
+        let n = self
+            .ids
+            .iter()
+            .position(|&i| i == command.id)
+            .ok_or(Reject::UnknownVehicle)?;
+        if !command.finite() {
+            return Err(Reject::NonFinite);
+        }
+        if command.tick > self.max_ticks {
+            return Err(Reject::Future);
+        }
+        if let Some(held) = &self.held[n] {
+            older(held.tick, command.tick, held, &command)?;
+        }
+        self.arrived[n] |= command.gamma >= self.t_f;
+        self.held[n] = Some(command);
+        Ok(())
+    }
+
+    /// Vehicle `id`'s agent is gone (its token went away) or back. While it is gone its vehicle
+    /// has no command: it drifts with thrusters off, and the run does not wait for its arrival.
+    pub fn set_gone(&mut self, id: u32, gone: bool) {
+        let Some(n) = self.ids.iter().position(|&i| i == id) else {
+            return;
+        };
+        if gone && !self.gone[n] {
+            self.held[n] = None;
+            self.ever_gone[n].get_or_insert(self.world.tick());
+        } else if !gone && self.gone[n] {
+            self.rejoins[n] += 1;
+        }
+        self.gone[n] = gone;
+    }
+
+    /// The period that integrates to `tick` began `late_s` wall seconds late (of `period_s`),
+    /// `skipped` periods having been missed: integrates from the current tick to `tick`, one
+    /// control period at a time with the commands held, so that simulated time keeps up with
+    /// the wall even when a period is missed. Returns the end of the run when it is over.
+    pub fn advance_to(&mut self, tick: u64, late_s: f64, period_s: f64, skipped: u64) -> Option<End> {
+        self.lateness.record(late_s, period_s, skipped);
+        while self.world.tick() < tick {
+            let now = self.world.tick();
+            let done = self.arrived.iter().zip(&self.gone).all(|(a, g)| *a || *g);
+            if done || now >= self.max_ticks {
+                return Some(self.end());
+            }
+            for (slot, &n) in self.body_commands.iter_mut().zip(&self.bodies) {
+                let held = self.held[n].as_ref().filter(|c| c.tick + self.hold_ticks >= now);
+                match held {
+                    None => self.without_command[n] += 1,
+                    Some(c) if c.tick < now => self.late_commands += 1,
+                    Some(_) => {}
+                }
+                slot.clone_from(&held.cloned());
+            }
+            self.world.step(&self.body_commands);
+        }
+        self.world.states(&mut self.states);
+        None
+    }
+
+    fn end(&self) -> End {
+        End {
+            version: PROTOCOL_VERSION,
+            ticks: self.world.tick(),
+            lost: self
+                .ids
+                .iter()
+                .zip(&self.gone)
+                .zip(&self.ever_gone)
+                .filter(|((_, gone), _)| **gone)
+                .map(|((&id, _), at)| Lost {
+                    id,
+                    tick: at.unwrap_or(0),
+                    reason: LossReason::Gone,
+                })
+                .collect(),
+        }
+    }
+
+    /// The run stops now.
+    pub fn interrupted(&self) -> End {
+        self.end()
+    }
+
+    pub fn timing(&self) -> PeriodTiming {
+        let per_vehicle = |counts: &[u64]| {
+            self.ids
+                .iter()
+                .zip(counts)
+                .filter(|(_, &c)| c > 0)
+                .map(|(&id, &c)| (id, c))
+                .collect()
+        };
+        PeriodTiming {
+            late_commands: self.late_commands,
+            without_command: per_vehicle(&self.without_command),
+            rejoins: per_vehicle(&self.rejoins),
+            ..self.lateness.figures()
+        }
+    }
+}
+
+/// The recorder's side: the freshest state and command of every vehicle, sampled once a period
+/// into the telemetry and the metrics.
+pub struct Sampler {
+    ids: Vec<u32>,
+    states: Vec<Option<State>>,
+    commands: Vec<Option<Command>>,
+    metrics: Metrics,
+    last: Option<u64>,
+    end: Option<End>,
+    row: Vec<State>,
+}
+
+impl Sampler {
+    pub fn new(ids: &[u32], t_f: f64, dt: f64) -> Sampler {
+        Sampler {
+            ids: ids.to_vec(),
+            states: vec![None; ids.len()],
+            commands: vec![None; ids.len()],
+            metrics: Metrics::new(ids, t_f, dt),
+            last: None,
+            end: None,
+            row: Vec::with_capacity(ids.len()),
+        }
+    }
+
+    fn index(&self, id: u32) -> Result<usize, Reject> {
+        self.ids.iter().position(|&i| i == id).ok_or(Reject::UnknownVehicle)
+    }
+
+    pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
+        let n = self.index(state.id)?;
+        if !state.finite() {
+            return Err(Reject::NonFinite);
+        }
+        if let Some(held) = &self.states[n] {
+            older(held.tick, state.tick, held, &state)?;
+        }
+        self.states[n] = Some(state);
+        Ok(())
+    }
+
+    pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
+        let n = self.index(command.id)?;
+        if !command.finite() {
+            return Err(Reject::NonFinite);
+        }
+        if let Some(held) = &self.commands[n] {
+            // Receptions are cleared once sampled, so compare ticks only for what is held.
+            if held.tick >= command.tick {
+                return Err(if held.tick > command.tick {
+                    Reject::Past
+                } else {
+                    Reject::Duplicate
+                });
+            }
+        }
+        self.commands[n] = Some(command);
+        Ok(())
+    }
+
+    /// The world's end: the first one is kept; the vehicles it names were without an agent at
+    /// the end.
+    pub fn on_end(&mut self, end: End) -> Result<(), Reject> {
+        if self.end.is_some() {
+            return Err(Reject::Duplicate);
+        }
+        for lost in &end.lost {
+            self.metrics.mark_lost(lost.id, lost.reason);
+        }
+        self.end = Some(end);
+        Ok(())
+    }
+
+    /// The period of `tick`: hands on each vehicle's freshest state and command (once every
+    /// vehicle has a state). A command's receptions count once, the first time it is sampled.
+    pub fn sample(&mut self, tick: u64, emit: impl FnOnce(&[State], &[Option<Command>])) {
+        if self.last.is_some_and(|l| l >= tick) || self.states.iter().any(Option::is_none) {
+            return;
+        }
+        if self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+            return;
+        }
+        self.row.clear();
+        self.row.extend(self.states.iter().flatten());
+        self.metrics.record(tick, &self.row, &self.commands);
+        emit(&self.row, &self.commands);
+        for c in self.commands.iter_mut().flatten() {
+            c.receptions.clear();
+        }
+        self.last = Some(tick);
+    }
+
+    /// The world said the run is over.
+    pub fn ended(&self) -> bool {
+        self.end.is_some()
+    }
+
+    pub fn ticks_recorded(&self) -> u64 {
+        self.last.map_or(0, |l| l + 1)
+    }
+
+    pub fn results(&self) -> Results {
+        self.metrics.results()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mission;
+    use crate::planner;
+
+    fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
+        let text = include_str!("../../configs/paper/b-current.toml");
+        let m = mission::parse("b-current.toml", text, &[]).unwrap();
+        let plan = planner::plan(&m).unwrap();
+        let paths = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+        (m, paths, plan.t_f)
+    }
+
+    /// Case (b) with every machine on time, the agents phased half a period after the world as
+    /// the shells do: the same arrivals as lockstep (55.467 / 55.466 s) within a few periods.
+    #[test]
+    fn on_time_realtime_machines_arrive_as_lockstep_does() {
+        let (m, paths, t_f) = case_b();
+        let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]);
+        let mut agents: Vec<RealtimeAgent> = paths
+            .iter()
+            .map(|&(id, p)| RealtimeAgent::new(Agent::new(&m, id, p), false))
+            .collect();
+        let mut sampler = Sampler::new(&[1, 2], t_f, m.mission.control_period);
+        let mut tick = 0;
+        let end = loop {
+            for (agent, &state) in agents.iter_mut().zip(world.states()) {
+                agent.on_state(state).unwrap();
+                sampler.on_state(state).unwrap();
+            }
+            let actions: Vec<Action> = agents.iter_mut().filter_map(|a| a.act(tick, 0.0, 0.001, 0)).collect();
+            for action in &actions {
+                for (other, agent) in agents.iter_mut().enumerate() {
+                    if let Some(g) = action.gamma.filter(|g| g.from != paths[other].0) {
+                        agent.on_gamma(g).unwrap();
+                    }
+                }
+                world.on_command(action.command.clone()).unwrap();
+                sampler.on_command(action.command.clone()).unwrap();
+            }
+            sampler.sample(tick, |_, _| {});
+            tick += 1;
+            if let Some(end) = world.advance_to(tick, 0.0, 0.001, 0) {
+                break end;
+            }
+        };
+        sampler.on_end(end).unwrap();
+        let results = sampler.results();
+        for v in &results.vehicles {
+            let arrival = v.arrival_time.expect("arrived");
+            assert!((arrival - 55.467).abs() < 0.05, "vehicle {}: {arrival}", v.id);
+        }
+        assert!(
+            (results.max_coordination_error - 0.362).abs() < 0.05,
+            "{}",
+            results.max_coordination_error
+        );
+        assert!(world.timing().kept() && agents.iter().all(|a| a.timing().kept()));
+    }
+
+    #[test]
+    fn the_freshest_message_wins_and_older_ones_are_refused() {
+        let (m, paths, t_f) = case_b();
+        let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1]);
+        assert_eq!(world.states().len(), 1, "vehicle 2 is played by another process");
+        let mut agent = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), false);
+        assert!(
+            agent.act(0, 0.0, 0.001, 0).is_none(),
+            "nothing measured, nothing commanded"
+        );
+        let state = State {
+            version: PROTOCOL_VERSION,
+            tick: 5,
+            id: 2,
+            t: 0.05,
+            position: [0.0, 5.0],
+            heading: 0.0,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [0.0, 0.0],
+        };
+        agent.on_state(state).unwrap();
+        assert_eq!(agent.on_state(State { tick: 4, ..state }), Err(Reject::Past));
+        assert_eq!(agent.on_state(state), Err(Reject::Duplicate));
+        let command = agent.act(8, 0.0, 0.001, 0).expect("a state to act on").command;
+        assert_eq!(agent.timing().stale_states, 1, "a state three periods old");
+        assert!(agent.act(8, 0.0, 0.001, 0).is_none(), "tick 8 is done");
+        world.on_command(command.clone()).unwrap();
+        assert_eq!(
+            world.on_command(Command {
+                tick: 7,
+                ..command.clone()
+            }),
+            Err(Reject::Past)
+        );
+        world.advance_to(10, 0.0, 0.001, 0);
+        let timing = world.timing();
+        assert_eq!(timing.late_commands, 0, "vehicle 1 had no command at all");
+        assert_eq!(timing.without_command, vec![(1, 10)]);
+        world.set_gone(1, true);
+        world.set_gone(1, false);
+        assert_eq!(world.timing().rejoins, vec![(1, 1)]);
+        // A command is held one simulated second at most: then the vehicle drifts.
+        let mut one = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), false);
+        one.on_state(world.states()[0]).unwrap();
+        world.on_command(one.act(10, 0.0, 0.001, 0).unwrap().command).unwrap();
+        world.advance_to(112, 0.0, 0.001, 0);
+        let timing = world.timing();
+        assert_eq!(timing.late_commands, 100, "ticks 11 to 110 held the command of tick 10");
+        assert_eq!(timing.without_command, vec![(1, 11)], "tick 111 had none");
+    }
+
+    #[test]
+    fn lateness_gives_percentiles_overruns_and_skips() {
+        let mut l = Lateness::default();
+        for _ in 0..98 {
+            l.record(0.000_1, 0.001, 0);
+        }
+        l.record(0.002, 0.001, 1);
+        l.record(0.010, 0.001, 9);
+        let f = l.figures();
+        assert_eq!((f.periods, f.overruns, f.skipped), (100, 2, 10));
+        assert!((0.1..0.11).contains(&f.lateness_p50_ms), "{f:?}");
+        assert!((2.0..2.2).contains(&f.lateness_p99_ms), "{f:?}");
+        assert_eq!(f.lateness_max_ms, 10.0);
+    }
+}

@@ -1,0 +1,336 @@
+//! The realtime clock as a testbed uses it: a scaled wall clock, a vehicle played by another
+//! program, agents that die and come back, and a role that loses its network. Every test kills
+//! what it started, however it ends.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{assert_none_left, descendants, kill, paper, run_in_process, scratch, summary, Launch, Reaper};
+use serde_json::Value;
+
+/// The arrival times of a run's vehicles, in id order.
+fn arrivals(s: &Value) -> Vec<f64> {
+    s["vehicles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| {
+            v["arrival_time"]
+                .as_f64()
+                .unwrap_or_else(|| panic!("vehicle {} did not arrive", v["id"]))
+        })
+        .collect()
+}
+
+/// The timing entry of `role` `id` in a realtime summary.
+fn timing<'a>(s: &'a Value, role: &str, id: u64) -> &'a Value {
+    s["timing"]
+        .as_array()
+        .expect("a realtime summary has timing")
+        .iter()
+        .find(|t| t["role"] == role && t["id"] == id)
+        .unwrap_or_else(|| panic!("no timing of {role} {id}: {}", s["timing"]))
+}
+
+/// The pid of the agent of vehicle `id` under `root`.
+fn agent_pid(root: u32, id: u32) -> u32 {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        for pid in descendants(root) {
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            let args: Vec<String> = cmdline
+                .split(|&b| b == 0)
+                .map(|a| String::from_utf8_lossy(a).into_owned())
+                .collect();
+            if args.iter().any(|a| a == "agent") && args.windows(2).any(|w| w[0] == "--id" && w[1] == id.to_string()) {
+                return pid;
+            }
+        }
+        assert!(Instant::now() < deadline, "no agent {id} under {root}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Waits until the run directory's telemetry reaches simulated time `t`.
+fn wait_until_simulated(out: &Path, t: f64) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let text = std::fs::read_to_string(out.join("telemetry.csv")).unwrap_or_default();
+        let last = text
+            .lines()
+            .rev()
+            .nth(1)
+            .and_then(|l| l.split(',').nth(1)?.parse::<f64>().ok());
+        if last.is_some_and(|now| now >= t) {
+            return;
+        }
+        assert!(Instant::now() < deadline, "the run never reached t = {t} s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn free_endpoint() -> String {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    format!("tcp/127.0.0.1:{port}")
+}
+
+#[test]
+fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_timing() {
+    let dir = scratch("scale-10");
+    let mission = paper("b-current");
+    run_in_process(&mission, &dir.join("lockstep"), &[]);
+    let out = dir.join("realtime");
+    let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["run", &mission, "--clock", "realtime", "--time-scale", "10"])
+        .args(["--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let printed = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{printed}{}", String::from_utf8_lossy(&o.stderr));
+    let (lockstep, realtime) = (summary(&dir.join("lockstep")), summary(&out));
+    assert_eq!(realtime["clock"], "realtime");
+    assert_eq!(realtime["time_scale"], 10.0);
+    assert_eq!(
+        realtime["reproducible"], false,
+        "a realtime run says it is not reproducible"
+    );
+    for (l, r) in arrivals(&lockstep).iter().zip(arrivals(&realtime)) {
+        assert!((l - r).abs() < 0.3, "arrival {r:.3} s against lockstep's {l:.3} s");
+    }
+    let error = |s: &Value| s["max_coordination_error"].as_f64().unwrap();
+    assert!(
+        (error(&lockstep) - error(&realtime)).abs() < 0.15,
+        "coordination error {:.3} s against lockstep's {:.3} s",
+        error(&realtime),
+        error(&lockstep)
+    );
+    for (role, id) in [("world", 0), ("agent", 1), ("agent", 2)] {
+        let t = timing(&realtime, role, id);
+        assert!(
+            t["periods"].as_u64().unwrap() > 5000,
+            "{role} {id} ran every period: {t}"
+        );
+        for figure in ["lateness_p50_ms", "lateness_p99_ms", "lateness_max_ms"] {
+            let ms = t[figure].as_f64().unwrap();
+            assert!(ms > 0.0 && ms.is_finite(), "{role} {id} {figure} = {ms}");
+        }
+        assert!(t["lateness_p50_ms"].as_f64() <= t["lateness_p99_ms"].as_f64());
+        assert!(
+            printed.contains(&format!("timing {role} {id}: lateness p50")),
+            "{printed}"
+        );
+    }
+    assert_none_left(&realtime);
+}
+
+#[test]
+fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
+    let dir = scratch("python-vehicle");
+    let mission = paper("b-current");
+    let endpoint = free_endpoint();
+    let clock = ["--clock", "realtime", "--time-scale", "5"];
+    let logs = dir.join("logs");
+    std::fs::create_dir_all(&logs).unwrap();
+    let spawn = |name: &str, program: &str, args: &[&str]| {
+        let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
+        Reaper(
+            Command::new(program)
+                .args(args)
+                .stdout(Stdio::from(log.try_clone().unwrap()))
+                .stderr(Stdio::from(log))
+                .spawn()
+                .unwrap(),
+        )
+    };
+    let tcpf = env!("CARGO_BIN_EXE_tcpf");
+    let _planner = spawn("planner", tcpf, &["planner", &mission, "-l", &endpoint]);
+    let mut world = vec![
+        "world",
+        &mission,
+        "-e",
+        &endpoint,
+        "--recorders",
+        "1",
+        "--vehicles",
+        "1",
+    ];
+    world.extend(clock);
+    let _world = spawn("world", tcpf, &world);
+    let mut agents = Vec::new();
+    for id in ["1", "2"] {
+        let mut args = vec!["agent", mission.as_str(), "--id", id, "-e", &endpoint];
+        args.extend(clock);
+        agents.push(spawn(&format!("agent-{id}"), tcpf, &args));
+    }
+    let script = format!("{}/examples/python/vehicle.py", env!("CARGO_MANIFEST_DIR"));
+    let mut vehicle = spawn("vehicle", "python3", &[&script, &mission, "--id", "2", "-e", &endpoint]);
+    let out = dir.join("run");
+    let mut record = vec!["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()];
+    record.extend(clock);
+    let recorded = Command::new(tcpf).args(&record).output().unwrap();
+    let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
+    assert!(
+        recorded.status.success(),
+        "{}\nvehicle.py: {}\nworld: {}",
+        common::text(&recorded),
+        log("vehicle"),
+        log("world")
+    );
+    let s = summary(&out);
+    let a = arrivals(&s);
+    let error = s["max_coordination_error"].as_f64().unwrap();
+    assert!(error < 1.0, "coordination error {error:.3} s; arrivals {a:?}");
+    assert!((a[0] - a[1]).abs() < 1.0, "arrivals {a:?}");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while vehicle.0.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < deadline, "vehicle.py did not stop at the end");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(vehicle.0.wait().unwrap().success(), "{}", log("vehicle"));
+    assert!(log("world").contains("simulating vehicles [1]"), "{}", log("world"));
+    let world = timing(&s, "world", 0);
+    assert!(
+        world["without_command"].as_array().unwrap().iter().all(|v| v[0] != 2),
+        "the world integrates only vehicle 1: {world}"
+    );
+}
+
+#[test]
+fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
+    let dir = scratch("rejoin-realtime");
+    let out = dir.join("run");
+    let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
+    wait_until_simulated(&out, 20.0);
+    kill("-9", agent_pid(launch.child.id(), 2));
+    // One simulated second at time scale 5.
+    std::thread::sleep(Duration::from_millis(200));
+    let log = std::fs::File::create(dir.join("agent-2-again.log")).unwrap();
+    let mut again = Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .arg("agent")
+            .arg(out.join("mission.toml"))
+            .args(["--id", "2", "-c"])
+            .arg(out.join("zenoh.json5"))
+            .stdout(Stdio::from(log.try_clone().unwrap()))
+            .stderr(Stdio::from(log))
+            .spawn()
+            .unwrap(),
+    );
+    let status = launch.wait(Duration::from_secs(60));
+    let again_log = std::fs::read_to_string(dir.join("agent-2-again.log")).unwrap();
+    assert!(status.success(), "{again_log}");
+    assert!(again_log.contains("rejoining"), "{again_log}");
+    let s = launch.summary();
+    let a = arrivals(&s);
+    assert!((a[0] - a[1]).abs() < 0.5, "arrivals {a:?}");
+    let world = timing(&s, "world", 0);
+    assert_eq!(world["rejoins"], serde_json::json!([[2, 1]]), "{world}");
+    let gap = world["without_command"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v[0] == 2)
+        .and_then(|v| v[1].as_u64())
+        .unwrap_or(0);
+    // At least the second between the kill and the restart, 100 periods.
+    assert!(
+        gap >= 100,
+        "vehicle 2 went without a command for {gap} periods: {world}"
+    );
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while again.0.try_wait().unwrap().is_none() {
+        assert!(
+            Instant::now() < deadline,
+            "the agent started again did not stop at the end"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn lockstep_restart_on_failure_brings_a_killed_agent_back() {
+    let dir = scratch("restart-lockstep");
+    let out = dir.join("run");
+    let mut launch = Launch::start(&paper("b-current"), &out, &["--restart", "on-failure"]);
+    wait_until_simulated(&out, 15.0);
+    kill("-9", agent_pid(launch.child.id(), 2));
+    let status = launch.wait(Duration::from_secs(90));
+    let s = launch.summary();
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["restarts"], serde_json::json!([{"id": 2, "restarts": 1}]));
+    assert!(
+        s["vehicles"].as_array().unwrap().iter().all(|v| v["lost"] == false),
+        "nobody lost: {}",
+        s["vehicles"]
+    );
+    let a = arrivals(&s);
+    assert!((a[0] - a[1]).abs() < 0.5, "arrivals {a:?}");
+    // A lockstep run with a restart is not the in-process run, and says so.
+    assert_eq!(s["reproducible"], false);
+    assert!(s["reproducible_reasons"]
+        .to_string()
+        .contains("agent 2 was started again"));
+    assert_eq!(status.code(), Some(1));
+    let agents = s["children"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["role"] == "agent" && c["id"] == 2)
+        .count();
+    assert_eq!(agents, 2, "the killed agent and the one started again");
+    assert_none_left(&s);
+}
+
+#[test]
+fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
+    let dir = scratch("network-lost");
+    let out = dir.join("run");
+    let mut launch = Launch::start(
+        &paper("b-current"),
+        &out,
+        &["--clock", "realtime", "--time-scale", "10"],
+    );
+    wait_until_simulated(&out, 20.0);
+    let agent = agent_pid(launch.child.id(), 2);
+    // Abort every TCP connection of agent 2 for three wall seconds, as a cable pulled would:
+    // its session is closed under it, and every attempt to open it again fails.
+    let cut_until = Instant::now() + Duration::from_secs(3);
+    while Instant::now() < cut_until {
+        let listing = Command::new("ss").args(["-tnpH"]).output().unwrap();
+        for line in String::from_utf8_lossy(&listing.stdout).lines() {
+            if line.contains(&format!("pid={agent},")) {
+                let local = line.split_whitespace().nth(3).unwrap();
+                let port = local.rsplit(':').next().unwrap();
+                let _ = Command::new("ss")
+                    .args(["-K", "sport", "=", &format!(":{port}")])
+                    .stdout(Stdio::null())
+                    .status();
+            }
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let status = launch.wait(Duration::from_secs(60));
+    let s = launch.summary();
+    let vehicles = s["vehicles"].as_array().unwrap();
+    assert!(
+        vehicles[0]["arrival_time"].as_f64().is_some(),
+        "vehicle 1 arrives: {vehicles:?} (exit {status})"
+    );
+    let world = timing(&s, "world", 0);
+    let drifted = world["without_command"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v[0] == 2)
+        .and_then(|v| v[1].as_u64())
+        .unwrap_or(0);
+    assert!(drifted > 100, "vehicle 2 drifted with thrusters off: {world}");
+    assert_none_left(&s);
+}
