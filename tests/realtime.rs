@@ -127,6 +127,8 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
             "{printed}"
         );
     }
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(report.contains("<table id=\"timing\">"), "the report shows the timing");
     assert_none_left(&realtime);
 }
 
@@ -311,6 +313,7 @@ fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
                 let _ = Command::new("ss")
                     .args(["-K", "sport", "=", &format!(":{port}")])
                     .stdout(Stdio::null())
+                    .stderr(Stdio::null())
                     .status();
             }
         }
@@ -333,4 +336,11 @@ fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
         .unwrap_or(0);
     assert!(drifted > 100, "vehicle 2 drifted with thrusters off: {world}");
     assert_none_left(&s);
+}
+
+#[test]
+fn the_python_vehicle_encodes_the_protocol_documents_examples() {
+    let script = format!("{}/examples/python/vehicle.py", env!("CARGO_MANIFEST_DIR"));
+    let o = Command::new("python3").args([&script, "--self-test"]).output().unwrap();
+    assert!(o.status.success(), "{}", common::text(&o));
 }

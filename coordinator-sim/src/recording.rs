@@ -46,6 +46,7 @@ enum Machine {
         beats: Option<Receiver<Beat>>,
         /// Until then, when to ask for it next.
         ask_at: tokio::time::Instant,
+        time_scale: f64,
         control_period: f64,
     },
 }
@@ -114,6 +115,7 @@ impl Recording {
                 sampler: Sampler::new(&ids, t_f, dt),
                 beats: None,
                 ask_at: tokio::time::Instant::now(),
+                time_scale: mission.mission.time_scale,
                 control_period: dt,
             },
         };
@@ -159,6 +161,7 @@ impl Recording {
                 sampler,
                 beats,
                 ask_at,
+                time_scale,
                 control_period,
             } => tokio::select! {
                 Some(beat) = async { beats.as_mut()?.recv().await }, if beats.is_some() => {
@@ -170,6 +173,13 @@ impl Recording {
                 _ = tokio::time::sleep_until(*ask_at), if beats.is_none() => {
                     *ask_at = tokio::time::Instant::now() + CLOCK_POLL;
                     if let Some(clock) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
+                        if !clock.realtime || clock.time_scale != *time_scale {
+                            return Err(anyhow!(
+                                "the recorder runs realtime at time scale {time_scale} but the world runs {} at {}: start every role with the same --clock and --time-scale",
+                                if clock.realtime { "realtime" } else { "lockstep" },
+                                clock.time_scale
+                            ));
+                        }
                         let fleet = FleetClock::new(&clock, *control_period);
                         *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
                     }

@@ -396,14 +396,14 @@ def run(args):
 
 
 def self_test():
-    """PROTOCOL.md's Gamma example (its version 3 bytes), round trips, varints and refusals."""
+    """PROTOCOL.md's Gamma and Clock examples, round trips, varints and refusals."""
     def refused_as(t, data):
         try:
             decode(t, data)
         except Refused as e:
             return e.kind
 
-    gamma = {"version": 3, "tick": 300, "from": 2,
+    gamma = {"version": VERSION, "tick": 300, "from": 2,
              "sample": {"t": 3.0, "gamma": 1.5, "gamma_dot": 1.0, "position": [2.0, -0.5]}}
     state = {"version": VERSION, "tick": 42, "id": 2, "t": 0.42, "position": [1.0, -2.5], "heading": 0.1,
              "sideslip": 0.0, "sideslip_rate": 0.0, "current": [-0.1, 0.0]}
@@ -412,12 +412,14 @@ def self_test():
                "receptions": [{"from": 1, "delivered": True}, {"from": 3, "delivered": False}]}
     end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}]}
     clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12}
-    gamma_bytes = ("03ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+    gamma_bytes = ("04ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
                    "0000000000000040" "000000000000e0bf")
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("03ac020200"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("04ac020200"),
+        "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300))
+        == bytes.fromhex("0401" "0000000000002440" "000000000000f83f" "ac02"),
         "u32 overflow refused": refused_as(version_id, varint(VERSION) + varint(2**32)) == "undecodable",
         "trailing byte refused": refused_as(COMMAND, encode(COMMAND, command) + b"\0") == "undecodable",
         "version 3 refused": refused_as(STATE, encode(STATE, dict(state, version=3))) == "wrong_version",

@@ -375,6 +375,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         );
     }
     html.push_str("</table>\n");
+    timing_table(&mut html, summary);
     for (id, caption, svg) in figures {
         let _ = writeln!(
             html,
@@ -384,4 +385,41 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     }
     html.push_str("</body></html>\n");
     html
+}
+
+/// Realtime runs: how each role kept its period (`timing` in summary.json).
+fn timing_table(html: &mut String, summary: &Value) {
+    let Some(roles) = summary["timing"].as_array().filter(|t| !t.is_empty()) else {
+        return;
+    };
+    let _ = write!(
+        html,
+        "<p>Realtime at time scale {}: how late each role's control periods started (wall ms).</p>\n<table id=\"timing\"><tr><th>role</th><th>periods</th><th>p50</th><th>p99</th><th>max</th><th>overruns</th><th>skipped</th><th>late commands</th><th>stale states</th><th>periods without a command</th></tr>",
+        summary["time_scale"]
+    );
+    for t in roles {
+        let without: Vec<String> = t["without_command"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default()
+            .iter()
+            .map(|v| format!("vehicle {}: {}", v[0], v[1]))
+            .collect();
+        let _ = write!(
+            html,
+            "<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            escape(t["role"].as_str().unwrap_or("")),
+            t["id"],
+            t["periods"],
+            number(&t["lateness_p50_ms"], 3),
+            number(&t["lateness_p99_ms"], 3),
+            number(&t["lateness_max_ms"], 3),
+            t["overruns"],
+            t["skipped"],
+            t["late_commands"],
+            t["stale_states"],
+            escape(&without.join(", "))
+        );
+    }
+    html.push_str("</table>\n");
 }
