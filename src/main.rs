@@ -170,6 +170,11 @@ enum Command {
         #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         count: u64,
     },
+    /// A Zenoh router for a testbed: every role connects to it (configs/zenoh/).
+    Router {
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+    },
     /// Role: plan and serve every vehicle's path.
     Planner {
         #[command(flatten)]
@@ -314,7 +319,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let role = matches!(
         cli.command,
-        Command::Planner { .. } | Command::World { .. } | Command::Agent { .. }
+        Command::Planner { .. } | Command::World { .. } | Command::Agent { .. } | Command::Router { .. }
     );
     let filter =
         std::env::var("RUST_LOG").unwrap_or_else(|_| if role { "info,zenoh=warn" } else { "warn,zenoh=error" }.into());
@@ -363,6 +368,12 @@ fn main() -> ExitCode {
             .and_then(|rt| rt.block_on(bench::pong(&zenoh, count)).map_err(Failure::Failed))
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { mission, zenoh } => planner(&mission, &zenoh),
+        Command::Router { zenoh } => runtime()
+            .and_then(|rt| {
+                rt.block_on(tcpf_coordinator::router::run(&zenoh))
+                    .map_err(Failure::Failed)
+            })
+            .map(|_| ExitCode::SUCCESS),
         Command::Record {
             mission,
             zenoh,

@@ -8,6 +8,8 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
+pub mod testbed;
+
 pub fn tcpf(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args(args)

@@ -1,0 +1,27 @@
+//! `tcpf router`: a Zenoh router and nothing else, for a testbed's shore host. Every role of the
+//! fleet is its client; access control, when configured, is enforced here (docs/TESTBED.md).
+
+use anyhow::{anyhow, Result};
+use tcpf_bus::session::ZenohArgs;
+use tcpf_bus::signals::Shutdown;
+
+/// Routes until SIGINT or SIGTERM. Router mode unless the options say otherwise.
+pub async fn run(zenoh: &ZenohArgs) -> Result<()> {
+    let mut shutdown = Shutdown::new()?;
+    let mut config = zenoh.config()?;
+    if zenoh.mode.is_none() {
+        config
+            .insert_json5("mode", "\"router\"")
+            .map_err(|e| anyhow!("zenoh mode: {e}"))?;
+    }
+    let listening = config
+        .get_json("listen/endpoints")
+        .map_err(|e| anyhow!("zenoh listen/endpoints: {e}"))?;
+    let session = zenoh::open(config)
+        .await
+        .map_err(|e| anyhow!("cannot open the Zenoh router: {e}"))?;
+    tracing::info!("router {} listening on {listening}", session.zid());
+    shutdown.recv().await;
+    tracing::info!("router: stopping");
+    session.close().await.map_err(|e| anyhow!("closing the router: {e}"))
+}
