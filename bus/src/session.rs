@@ -64,9 +64,10 @@ impl ZenohArgs {
 
     pub async fn open(&self) -> Result<Session> {
         let config = self.config()?;
-        zenoh::open(config)
-            .await
-            .map_err(|e| anyhow!("{e}"))
-            .context("cannot open the Zenoh session")
+        zenoh::open(config).await.map_err(|e| anyhow!("{e}")).context(
+            "cannot open the Zenoh session: nothing answered at the endpoints to connect to, or \
+                 a TLS handshake was refused (is the router up and reachable, and does it accept this \
+                 host's certificate?)",
+        )
     }
 }

@@ -141,6 +141,22 @@ pub async fn subscribe_into<T>(
 where
     T: DeserializeOwned + Checked + Send + 'static,
 {
+    subscribe_as(session, key, rejected, tx, |m| m).await
+}
+
+/// As `subscribe_into`, each message wrapped by `wrap`: subscriptions of several types share
+/// one channel, and the receiver takes their messages in the order they arrived.
+pub async fn subscribe_as<T, M>(
+    session: &Session,
+    key: &str,
+    rejected: &Rejected,
+    tx: mpsc::Sender<Received<M>>,
+    wrap: fn(T) -> M,
+) -> Result<Subscriber<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+    M: Send + 'static,
+{
     let rejected = rejected.clone();
     let subscriber = session
         .declare_subscriber(key)
@@ -150,7 +166,7 @@ where
                 Ok(message) => {
                     let received = Received {
                         key: key.to_string(),
-                        message,
+                        message: wrap(message),
                     };
                     if let Err(mpsc::error::TrySendError::Full(_)) = tx.try_send(received) {
                         rejected.overflow(key);
@@ -272,7 +288,7 @@ pub async fn fetch_paths(
         }
         if Instant::now() >= deadline {
             return Err(anyhow!(
-                "no path from the planner for vehicle(s) {missing:?} within {:.0} s (is `tcpf planner` running for this mission?)",
+                "no path from the planner for vehicle(s) {missing:?} within {:.0} s (is `tcpf planner` running for this mission, and does the router's access control let this identity ask for it?)",
                 timeout.as_secs_f64()
             ));
         }

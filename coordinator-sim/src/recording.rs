@@ -9,7 +9,7 @@ use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::ask_clock;
-use tcpf_bus::typed::{subscribe, Received, Rejected};
+use tcpf_bus::typed::{subscribe_as, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::lockstep::Reject;
 use tcpf_core::metrics::Results;
@@ -17,7 +17,7 @@ use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Command, End, Loss, Lost, Report, State};
 use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
-use tokio::sync::mpsc::Receiver;
+use tokio::sync::mpsc::{self, Receiver};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
@@ -29,6 +29,19 @@ use tcpf_core::planner::Plan;
 use crate::progress::Ticks;
 use tcpf_report::rundir::{RunDir, Telemetry};
 use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
+
+/// Messages the recorder may hold before the next are dropped (and counted): it writes what a
+/// fleet sends, so it may lag behind a fast lockstep fleet by many ticks.
+const INBOX: usize = 65_536;
+
+/// What the recorder takes, in one channel.
+enum Message {
+    State(State),
+    Command(Command),
+    End(End),
+    Loss(Loss),
+    Report(Report),
+}
 
 /// Where in its period the realtime recorder samples: after the agents' commands of the period
 /// (at half of it), before the world's next states.
@@ -67,11 +80,10 @@ pub struct Recording {
     session: Session,
     keys: Keys,
     telemetry: Telemetry,
-    states: Receiver<Received<State>>,
-    commands: Receiver<Received<Command>>,
-    ends: Receiver<Received<End>>,
-    losses: Receiver<Received<Loss>>,
-    reports: Receiver<Received<Report>>,
+    /// Every message, in the order it arrived: a state may not overtake the command of an
+    /// earlier tick that came before it, or the recorder would refuse a genuine message as one
+    /// too far ahead once it lags.
+    inbox: Receiver<Received<Message>>,
     pub exit_reports: Vec<Report>,
     pub end: Option<End>,
     /// When the last tick was written.
@@ -96,12 +108,14 @@ impl Recording {
     pub async fn start(session: &Session, mission: &Mission, t_f: f64, telemetry: Telemetry) -> Result<Recording> {
         let keys = Keys::new(&mission.mission.name);
         let rejected = Rejected::default();
-        let (s1, states) = subscribe::<State>(session, &keys.state("*"), &rejected).await?;
-        let (s2, commands) = subscribe::<Command>(session, &keys.cmd("*"), &rejected).await?;
-        let (s3, ends) = subscribe::<End>(session, &keys.end(), &rejected).await?;
-        let (s5, losses) = subscribe::<Loss>(session, &keys.lost("*"), &rejected).await?;
-        let (s4, reports) =
-            subscribe::<Report>(session, &format!("tcpf/{}/report/**", mission.mission.name), &rejected).await?;
+        let (tx, inbox) = mpsc::channel(INBOX);
+        let mut subscribers = Vec::new();
+        subscribers.push(subscribe_as(session, &keys.state("*"), &rejected, tx.clone(), Message::State).await?);
+        subscribers.push(subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Message::Command).await?);
+        subscribers.push(subscribe_as(session, &keys.end(), &rejected, tx.clone(), Message::End).await?);
+        subscribers.push(subscribe_as(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?);
+        let reports = format!("tcpf/{}/report/**", mission.mission.name);
+        subscribers.push(subscribe_as(session, &reports, &rejected, tx, Message::Report).await?);
         let token = session
             .liveliness()
             .declare_token(keys.alive(Role::Record, std::process::id()))
@@ -125,16 +139,12 @@ impl Recording {
             session: session.clone(),
             keys,
             telemetry,
-            states,
-            commands,
-            ends,
-            losses,
-            reports,
+            inbox,
             exit_reports: Vec::new(),
             end: None,
             progress: Instant::now(),
             first: None,
-            _subscribers: vec![s1, s2, s3, s4, s5],
+            _subscribers: subscribers,
             _token: token,
         })
     }
@@ -144,19 +154,28 @@ impl Recording {
     pub async fn step(&mut self) -> Result<()> {
         let before = self.ticks();
         match &mut self.machine {
-            Machine::Lockstep(recorder) => tokio::select! {
-                Some(s) = self.states.recv() => check(&s.key, s.message.id, &self.rejected, || recorder.on_state(s.message)),
-                Some(c) = self.commands.recv() => check(&c.key, c.message.id, &self.rejected, || recorder.on_command(c.message)),
-                Some(e) = self.ends.recv() => match recorder.on_end(e.message.clone()) {
-                    Ok(()) => self.end = Some(e.message),
-                    Err(why) => self.rejected.reject(why, &e.key),
-                },
-                Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
-                Some(l) = self.losses.recv() => {
-                    let lost = Lost { id: l.message.id, tick: l.message.tick, reason: l.message.reason };
-                    check(&l.key, l.message.id, &self.rejected, || recorder.on_lost(lost));
+            Machine::Lockstep(recorder) => {
+                let Some(m) = self.inbox.recv().await else {
+                    return Err(anyhow!("the recorder's subscriptions closed"));
+                };
+                match m.message {
+                    Message::State(s) => check(&m.key, s.id, &self.rejected, || recorder.on_state(s)),
+                    Message::Command(c) => check(&m.key, c.id, &self.rejected, || recorder.on_command(c)),
+                    Message::End(e) => match recorder.on_end(e.clone()) {
+                        Ok(()) => self.end = Some(e),
+                        Err(why) => self.rejected.reject(why, &m.key),
+                    },
+                    Message::Report(r) => self.exit_reports.push(r),
+                    Message::Loss(l) => {
+                        let lost = Lost {
+                            id: l.id,
+                            tick: l.tick,
+                            reason: l.reason,
+                        };
+                        check(&m.key, l.id, &self.rejected, || recorder.on_lost(lost));
+                    }
                 }
-            },
+            }
             Machine::Realtime {
                 sampler,
                 beats,
@@ -184,14 +203,16 @@ impl Recording {
                         *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
                     }
                 }
-                Some(s) = self.states.recv() => check(&s.key, s.message.id, &self.rejected, || sampler.on_state(s.message)),
-                Some(c) = self.commands.recv() => check(&c.key, c.message.id, &self.rejected, || sampler.on_command(c.message)),
-                Some(e) = self.ends.recv() => match sampler.on_end(e.message.clone()) {
-                    Ok(()) => self.end = Some(e.message),
-                    Err(why) => self.rejected.reject(why, &e.key),
+                Some(m) = self.inbox.recv() => match m.message {
+                    Message::State(s) => check(&m.key, s.id, &self.rejected, || sampler.on_state(s)),
+                    Message::Command(c) => check(&m.key, c.id, &self.rejected, || sampler.on_command(c)),
+                    Message::End(e) => match sampler.on_end(e.clone()) {
+                        Ok(()) => self.end = Some(e),
+                        Err(why) => self.rejected.reject(why, &m.key),
+                    },
+                    Message::Report(r) => self.exit_reports.push(r),
+                    Message::Loss(_) => {}
                 },
-                Some(r) = self.reports.recv() => self.exit_reports.push(r.message),
-                Some(_) = self.losses.recv() => {}
             },
         }
         let mut failure = Ok(());
