@@ -181,6 +181,10 @@ enum Command {
         mission: MissionArgs,
         #[command(flatten)]
         zenoh: ZenohArgs,
+        /// Accepted like every role's, so that one command line serves all: paths do not
+        /// depend on the clock.
+        #[command(flatten)]
+        clock: ClockArgs,
     },
     /// Role: the world and its lockstep clock.
     World {
@@ -367,7 +371,7 @@ fn main() -> ExitCode {
         Command::Pong { zenoh, count } => runtime()
             .and_then(|rt| rt.block_on(bench::pong(&zenoh, count)).map_err(Failure::Failed))
             .map(|_| ExitCode::SUCCESS),
-        Command::Planner { mission, zenoh } => planner(&mission, &zenoh),
+        Command::Planner { mission, zenoh, clock } => planner(&clocked(&mission, &clock), &zenoh),
         Command::Router { zenoh } => runtime()
             .and_then(|rt| {
                 rt.block_on(tcpf_coordinator::router::run(&zenoh))

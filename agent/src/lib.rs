@@ -108,7 +108,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let (s3, losses) = subscribe::<Loss>(&session, &keys.lost("*"), &rejected).await?;
     subscribers.extend([s2, s3, presence_subscriber]);
     let commands = Outlet::for_clock(&session, keys.cmd(id), realtime).await?;
-    let gamma_out = Outlet::for_clock(&session, keys.gamma(id), realtime).await?;
+    let gamma_out = Outlet::gamma(&session, keys.gamma(id), realtime).await?;
     tracing::info!(
         "agent {id}: path with t_f = {:.3} s, neighbours {neighbours:?}",
         path.t_f()
@@ -182,7 +182,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             None => shell.wait_for_clock(mission, deadline).await?,
         };
         match clock {
-            Some(clock) => shell.realtime(mission, agent, &clock).await?,
+            Some(clock) => shell.realtime(mission, agent, &clock, options).await?,
             None => Exit::Interrupted,
         }
     } else {
@@ -365,8 +365,12 @@ impl Shell {
         Ok(exit)
     }
 
-    async fn realtime(&mut self, mission: &Mission, agent: Agent, clock: &Clock) -> Result<Exit> {
+    async fn realtime(&mut self, mission: &Mission, agent: Agent, clock: &Clock, options: &Options) -> Result<Exit> {
         let id = self.id;
+        // When the world went out of reach, and until when to wait for it: on a testbed a link
+        // that drops for a while must not end the vehicle's mission.
+        let mut away: Option<tokio::time::Instant> = None;
+        let mut published = 0;
         let fleet = FleetClock::new(clock, mission.mission.control_period);
         let period = fleet.period().as_secs_f64();
         // γ_i starts from the vehicle's position: at its start for an agent there from the
@@ -379,6 +383,7 @@ impl Shell {
                     if let Some(action) = node.act(beat.tick, beat.late_s(), period, beat.skipped) {
                         if let Some(gamma) = action.gamma {
                             self.gamma_out.put(&gamma).await?;
+                            published += 1;
                         }
                         self.publish(&action.command).await?;
                     }
@@ -396,9 +401,19 @@ impl Shell {
                     }
                 }
                 Some(p) = self.presence.recv() => {
-                    if matches!(p.role, Role::World | Role::Planner) && !p.alive {
-                        break self.world_gone(p.role, |_| true).await;
+                    if p.role == Role::World && !p.alive && away.is_none() {
+                        tracing::warn!(
+                            "agent {id}: the world is out of reach; acting on what it last sent, and waiting up to {:?} for it",
+                            options.startup_timeout
+                        );
+                        away = Some(tokio::time::Instant::now() + options.startup_timeout);
+                    } else if p.role == Role::World && p.alive && away.take().is_some() {
+                        tracing::info!("agent {id}: the world is back");
                     }
+                }
+                _ = tokio::time::sleep_until(away.unwrap_or_else(tokio::time::Instant::now)), if away.is_some() => {
+                    tracing::warn!("agent {id}: the world did not come back; stopping");
+                    break Exit::Orphaned;
                 }
                 Some(_) = self.ends.recv() => break Exit::Ended,
                 Some(_) = self.losses.recv() => {}
@@ -423,7 +438,7 @@ impl Shell {
             id,
             &self.rejected,
             &Timing::default(),
-            Some(timing),
+            Some((timing, published)),
         )
         .await?;
         Ok(exit)

@@ -13,7 +13,7 @@ use tcpf_core::msg::{Checked, Clock, PathMsg, PeriodTiming, Rejections, Report, 
 use tcpf_core::path::GeneralizedPath;
 use tokio::sync::mpsc;
 use zenoh::pubsub::{Publisher, Subscriber};
-use zenoh::qos::CongestionControl;
+use zenoh::qos::{CongestionControl, Reliability};
 use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait};
 
@@ -189,23 +189,39 @@ pub struct Outlet {
 
 impl Outlet {
     pub async fn new(session: &Session, key: String) -> Result<Outlet> {
-        Outlet::with(session, key, CongestionControl::Block).await
+        Outlet::with(session, key, CongestionControl::Block, Reliability::Reliable).await
     }
 
-    /// `Outlet::new` in lockstep, `Outlet::freshest` in realtime.
+    /// `Outlet::new` in lockstep; in realtime one that drops under congestion.
     pub async fn for_clock(session: &Session, key: String, realtime: bool) -> Result<Outlet> {
-        let congestion = if realtime {
-            CongestionControl::Drop
+        if realtime {
+            Outlet::with(session, key, CongestionControl::Drop, Reliability::Reliable).await
         } else {
-            CongestionControl::Block
-        };
-        Outlet::with(session, key, congestion).await
+            Outlet::new(session, key).await
+        }
     }
 
-    async fn with(session: &Session, key: String, congestion: CongestionControl) -> Result<Outlet> {
+    /// γ: in realtime best-effort as well, so that it travels over a datagram link where the
+    /// session has one (configs/zenoh/udp/): a γ the network loses is lost, as on a modem,
+    /// instead of being sent again late.
+    pub async fn gamma(session: &Session, key: String, realtime: bool) -> Result<Outlet> {
+        if realtime {
+            Outlet::with(session, key, CongestionControl::Drop, Reliability::BestEffort).await
+        } else {
+            Outlet::new(session, key).await
+        }
+    }
+
+    async fn with(
+        session: &Session,
+        key: String,
+        congestion: CongestionControl,
+        reliability: Reliability,
+    ) -> Result<Outlet> {
         let publisher = session
             .declare_publisher(key.clone())
             .congestion_control(congestion)
+            .reliability(reliability)
             .express(true)
             .await
             .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
@@ -350,7 +366,8 @@ pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> R
     Ok(found)
 }
 
-/// Tells the recorder who this process was and what it refused, as it exits.
+/// Tells the recorder who this process was, what it refused and, in realtime, how it kept its
+/// period and how many γ it published.
 pub async fn report(
     session: &Session,
     keys: &Keys,
@@ -358,8 +375,9 @@ pub async fn report(
     id: u32,
     rejected: &Rejected,
     timing: &Timing,
-    realtime: Option<PeriodTiming>,
+    realtime: Option<(PeriodTiming, u64)>,
 ) -> Result<()> {
+    let (realtime, published) = realtime.map_or((None, 0), |(t, p)| (Some(t), p));
     rejected.flush();
     let report = Report {
         version: PROTOCOL_VERSION,
@@ -370,6 +388,7 @@ pub async fn report(
         stale_timeouts: timing.stale_timeouts,
         late_gammas: timing.late_gammas.clone(),
         timing: realtime,
+        published,
     };
     Outlet::new(session, keys.report(role, id)).await?.put(&report).await
 }

@@ -281,11 +281,22 @@ impl Recording {
                         delivered: 0,
                         dropped: 0,
                         unused: n,
+                        published: None,
                     }),
                 }
             }
         }
         let realtime = mission.mission.clock == ClockKind::Realtime;
+        if realtime {
+            // What each sender published: against what arrived, the network's own loss.
+            for link in results.links.iter_mut() {
+                link.published = self
+                    .exit_reports
+                    .iter()
+                    .find(|r| r.role == Role::Agent.as_str() && r.id == link.from)
+                    .map(|r| r.published);
+            }
+        }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
         if realtime {
             reproducible_reasons.push("the realtime clock: what happens depends on timing".into());

@@ -155,6 +155,10 @@ pub struct LinkStats {
     /// without them: never used. Always 0 in-process.
     #[serde(default)]
     pub unused: u64,
+    /// Realtime: γ messages the sender published, of which `sent` reached this receiver; the
+    /// difference is what the network itself lost.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub published: Option<u64>,
 }
 
 #[cfg(test)]

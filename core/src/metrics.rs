@@ -157,6 +157,7 @@ impl Metrics {
                     delivered: 0,
                     dropped: 0,
                     unused: 0,
+                    published: None,
                 });
                 s.sent += 1;
                 // Each neighbour reports the same broadcast: count it once.

@@ -367,6 +367,8 @@ pub struct Report {
     pub late_gammas: Vec<(u32, u64)>,
     /// Realtime roles: how they kept their period.
     pub timing: Option<PeriodTiming>,
+    /// Realtime agents: the γ messages published (with a sample).
+    pub published: u64,
 }
 
 impl Checked for Report {

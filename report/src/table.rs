@@ -80,9 +80,11 @@ pub fn summary(summary: &Summary) -> String {
     for l in &r.links {
         let _ = writeln!(
             s,
-            "link {}→{}: sent {}, delivered {}, dropped {}{}",
+            "link {}→{}: {}sent {}, delivered {}, dropped {}{}",
             l.from,
             l.to,
+            l.published
+                .map_or(String::new(), |p| format!("published {p}, arrived and ")),
             l.sent,
             l.delivered,
             l.dropped,

@@ -358,7 +358,7 @@ impl Shell {
             0,
             &self.rejected,
             &Timing::default(),
-            Some(timing),
+            Some((timing, 0)),
         )
         .await?;
         Ok(exit)
