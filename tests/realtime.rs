@@ -8,7 +8,10 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{assert_none_left, descendants, kill, paper, run_in_process, scratch, summary, Launch, Reaper};
+use common::{
+    assert_none_left, descendants, kill, paper, run_in_process, scratch, summary, timing, wait_until_simulated,
+    without_command, Launch, Reaper,
+};
 use serde_json::Value;
 
 /// The arrival times of a run's vehicles, in id order.
@@ -23,16 +26,6 @@ fn arrivals(s: &Value) -> Vec<f64> {
                 .unwrap_or_else(|| panic!("vehicle {} did not arrive", v["id"]))
         })
         .collect()
-}
-
-/// The timing entry of `role` `id` in a realtime summary.
-fn timing<'a>(s: &'a Value, role: &str, id: u64) -> &'a Value {
-    s["timing"]
-        .as_array()
-        .expect("a realtime summary has timing")
-        .iter()
-        .find(|t| t["role"] == role && t["id"] == id)
-        .unwrap_or_else(|| panic!("no timing of {role} {id}: {}", s["timing"]))
 }
 
 /// The pid of the agent of vehicle `id` under `root`.
@@ -51,24 +44,6 @@ fn agent_pid(root: u32, id: u32) -> u32 {
         }
         assert!(Instant::now() < deadline, "no agent {id} under {root}");
         std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
-/// Waits until the run directory's telemetry reaches simulated time `t`.
-fn wait_until_simulated(out: &Path, t: f64) {
-    let deadline = Instant::now() + Duration::from_secs(60);
-    loop {
-        let text = std::fs::read_to_string(out.join("telemetry.csv")).unwrap_or_default();
-        let last = text
-            .lines()
-            .rev()
-            .nth(1)
-            .and_then(|l| l.split(',').nth(1)?.parse::<f64>().ok());
-        if last.is_some_and(|now| now >= t) {
-            return;
-        }
-        assert!(Instant::now() < deadline, "the run never reached t = {t} s");
-        std::thread::sleep(Duration::from_millis(5));
     }
 }
 
@@ -234,13 +209,7 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
     assert!((a[0] - a[1]).abs() < 0.5, "arrivals {a:?}");
     let world = timing(&s, "world", 0);
     assert_eq!(world["rejoins"], serde_json::json!([[2, 1]]), "{world}");
-    let gap = world["without_command"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|v| v[0] == 2)
-        .and_then(|v| v[1].as_u64())
-        .unwrap_or(0);
+    let gap = without_command(&s, 2);
     // At least the second between the kill and the restart, 100 periods.
     assert!(
         gap >= 100,
@@ -326,15 +295,8 @@ fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
         vehicles[0]["arrival_time"].as_f64().is_some(),
         "vehicle 1 arrives: {vehicles:?} (exit {status})"
     );
-    let world = timing(&s, "world", 0);
-    let drifted = world["without_command"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|v| v[0] == 2)
-        .and_then(|v| v[1].as_u64())
-        .unwrap_or(0);
-    assert!(drifted > 100, "vehicle 2 drifted with thrusters off: {world}");
+    let drifted = without_command(&s, 2);
+    assert!(drifted > 100, "vehicle 2 drifted with thrusters off: {}", s["timing"]);
     assert_none_left(&s);
 }
 

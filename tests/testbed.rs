@@ -9,7 +9,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use common::testbed::Testbed;
-use common::{assert_same_run, paper, run_in_process, scratch, summary};
+use common::{assert_same_run, paper, run_in_process, scratch, summary, wait_until_simulated, without_command};
 
 const TCPF: &str = env!("CARGO_BIN_EXE_tcpf");
 const PORT: u16 = 7447;
@@ -295,24 +295,6 @@ fn with_access_control_a_vehicle_can_steer_only_itself() {
     assert!(sent.contains("messages sent"), "the intruder ran: {sent}");
 }
 
-/// Waits until the recorder's telemetry reaches simulated time `t`.
-fn wait_until_simulated(out: &Path, t: f64) {
-    let deadline = std::time::Instant::now() + Duration::from_secs(60);
-    loop {
-        let text = std::fs::read_to_string(out.join("telemetry.csv")).unwrap_or_default();
-        let last = text
-            .lines()
-            .rev()
-            .nth(1)
-            .and_then(|l| l.split(',').nth(1)?.parse::<f64>().ok());
-        if last.is_some_and(|now| now >= t) {
-            return;
-        }
-        assert!(std::time::Instant::now() < deadline, "the run never reached t = {t} s");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
-
 #[test]
 fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_up() {
     let dir = scratch("link-down");
@@ -355,20 +337,8 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
         "γ of vehicle 2 reached vehicle 1 inside the outage"
     );
     assert!(heard.iter().any(|&t| t >= 32.0), "and again after it");
-    let world = s["timing"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|t| t["role"] == "world")
-        .unwrap();
-    let drifted = world["without_command"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|v| v[0] == 2)
-        .and_then(|v| v[1].as_u64())
-        .unwrap_or(0);
-    assert!(drifted > 1000, "vehicle 2 drifted during the outage: {world}");
+    let drifted = without_command(&s, 2);
+    assert!(drifted > 1000, "vehicle 2 drifted during the outage: {}", s["timing"]);
     assert!(down_at.elapsed() < Duration::from_secs(60));
 }
 

@@ -200,3 +200,42 @@ pub fn assert_none_left(summary: &Value) {
         assert!(!alive(pid), "{} {} (pid {pid}) still running", c["role"], c["id"]);
     }
 }
+
+/// Waits until the telemetry in run directory `out` reaches simulated time `t`.
+pub fn wait_until_simulated(out: &Path, t: f64) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let text = std::fs::read_to_string(out.join("telemetry.csv")).unwrap_or_default();
+        let last = text
+            .lines()
+            .rev()
+            .nth(1)
+            .and_then(|l| l.split(',').nth(1)?.parse::<f64>().ok());
+        if last.is_some_and(|now| now >= t) {
+            return;
+        }
+        assert!(Instant::now() < deadline, "the run never reached t = {t} s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// The timing entry of `role` `id` in a realtime summary.
+pub fn timing<'a>(s: &'a Value, role: &str, id: u64) -> &'a Value {
+    s["timing"]
+        .as_array()
+        .expect("a realtime summary has timing")
+        .iter()
+        .find(|t| t["role"] == role && t["id"] == id)
+        .unwrap_or_else(|| panic!("no timing of {role} {id}: {}", s["timing"]))
+}
+
+/// The periods the realtime world integrated vehicle `id` without a command.
+pub fn without_command(s: &Value, id: u64) -> u64 {
+    timing(s, "world", 0)["without_command"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v[0] == id)
+        .and_then(|v| v[1].as_u64())
+        .unwrap_or(0)
+}
