@@ -307,11 +307,7 @@ impl Shell {
                     Err(e) => self.rejected.reject(e, &s.key),
                 },
                 Some(g) = self.gammas.recv() => {
-                    if Keys::id_of(&g.key) != Some(g.message.from) {
-                        self.rejected.wrong_sender(&g.key);
-                    } else if let Err(e) = node.on_gamma(g.message) {
-                        self.rejected.reject(e, &g.key);
-                    }
+                    self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message));
                 }
                 Some(p) = self.presence.recv() => match p.role {
                     Role::World | Role::Planner if !p.alive => {
@@ -394,11 +390,7 @@ impl Shell {
                     }
                 }
                 Some(g) = self.gammas.recv() => {
-                    if Keys::id_of(&g.key) != Some(g.message.from) {
-                        self.rejected.wrong_sender(&g.key);
-                    } else if let Err(e) = node.on_gamma(g.message) {
-                        self.rejected.reject(e, &g.key);
-                    }
+                    self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message));
                 }
                 Some(p) = self.presence.recv() => {
                     if p.role == Role::World && !p.alive && away.is_none() {

@@ -54,6 +54,16 @@ impl Rejected {
         self.bump(key, |r| why.count(r));
     }
 
+    /// Hands a message that names sender `id` on to a machine (`take`) if it came on that
+    /// sender's key; counts it if not, or if the machine refuses it.
+    pub fn check(&self, key: &str, id: u32, take: impl FnOnce() -> Result<(), Reject>) {
+        if Keys::id_of(key) != Some(id) {
+            self.wrong_sender(key);
+        } else if let Err(e) = take() {
+            self.reject(e, key);
+        }
+    }
+
     /// A message whose contents name another sender than its key.
     pub fn wrong_sender(&self, key: &str) {
         self.bump(key, |r| r.wrong_sender += 1);

@@ -11,7 +11,6 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::ask_clock;
 use tcpf_bus::typed::{subscribe_as, Received, Rejected};
 use tcpf_core::links::LinkStats;
-use tcpf_core::lockstep::Reject;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Command, End, Loss, Lost, Report, State};
@@ -94,15 +93,6 @@ pub struct Recording {
     _token: LivelinessToken,
 }
 
-/// Hands a message on to the recorder if it comes on its vehicle's key; counts it if refused.
-fn check(key: &str, id: u32, rejected: &Rejected, take: impl FnOnce() -> Result<(), Reject>) {
-    if Keys::id_of(key) != Some(id) {
-        rejected.wrong_sender(key);
-    } else if let Err(e) = take() {
-        rejected.reject(e, key);
-    }
-}
-
 impl Recording {
     /// Subscribes to the mission, then declares the recorder's token (the world waits for it).
     pub async fn start(session: &Session, mission: &Mission, t_f: f64, telemetry: Telemetry) -> Result<Recording> {
@@ -159,8 +149,8 @@ impl Recording {
                     return Err(anyhow!("the recorder's subscriptions closed"));
                 };
                 match m.message {
-                    Message::State(s) => check(&m.key, s.id, &self.rejected, || recorder.on_state(s)),
-                    Message::Command(c) => check(&m.key, c.id, &self.rejected, || recorder.on_command(c)),
+                    Message::State(s) => self.rejected.check(&m.key, s.id, || recorder.on_state(s)),
+                    Message::Command(c) => self.rejected.check(&m.key, c.id, || recorder.on_command(c)),
                     Message::End(e) => match recorder.on_end(e.clone()) {
                         Ok(()) => self.end = Some(e),
                         Err(why) => self.rejected.reject(why, &m.key),
@@ -172,7 +162,7 @@ impl Recording {
                             tick: l.tick,
                             reason: l.reason,
                         };
-                        check(&m.key, l.id, &self.rejected, || recorder.on_lost(lost));
+                        self.rejected.check(&m.key, l.id, || recorder.on_lost(lost));
                     }
                 }
             }
@@ -204,8 +194,8 @@ impl Recording {
                     }
                 }
                 Some(m) = self.inbox.recv() => match m.message {
-                    Message::State(s) => check(&m.key, s.id, &self.rejected, || sampler.on_state(s)),
-                    Message::Command(c) => check(&m.key, c.id, &self.rejected, || sampler.on_command(c)),
+                    Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s)),
+                    Message::Command(c) => self.rejected.check(&m.key, c.id, || sampler.on_command(c)),
                     Message::End(e) => match sampler.on_end(e.clone()) {
                         Ok(()) => self.end = Some(e),
                         Err(why) => self.rejected.reject(why, &m.key),

@@ -201,11 +201,7 @@ impl Shell {
                 let back_by = restarting.iter().map(|r| r.1).min();
                 tokio::select! {
                     Some(c) = self.commands.recv() => {
-                        if Keys::id_of(&c.key) != Some(c.message.id) {
-                            self.rejected.wrong_sender(&c.key);
-                        } else if let Err(e) = node.on_command(c.message) {
-                            self.rejected.reject(e, &c.key);
-                        }
+                        self.rejected.check(&c.key, c.message.id, || node.on_command(c.message));
                     }
                     Some(p) = self.presence.recv() => {
                         if p.role != Role::Agent {
@@ -318,11 +314,7 @@ impl Shell {
                     }
                 }
                 Some(c) = self.commands.recv() => {
-                    if Keys::id_of(&c.key) != Some(c.message.id) {
-                        self.rejected.wrong_sender(&c.key);
-                    } else if let Err(e) = node.on_command(c.message) {
-                        self.rejected.reject(e, &c.key);
-                    }
+                    self.rejected.check(&c.key, c.message.id, || node.on_command(c.message));
                 }
                 Some(p) = self.presence.recv() => {
                     if p.role == Role::Agent && ids.contains(&p.id) {
