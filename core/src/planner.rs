@@ -7,7 +7,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use crate::mission::{CostKind, Mission, PlannerConfig, VehicleConfig};
-use crate::path::{Boundary, GeneralizedPath};
+use crate::path::{Boundary, GeneralizedPath, Vec2};
 
 /// Grid step of D6, s.
 const GRID: f64 = 0.01;
@@ -125,7 +125,7 @@ struct Violation {
 
 /// Everything the planner knows about one candidate t_f.
 #[derive(Debug, Clone)]
-pub struct Candidate {
+struct Candidate {
     t_f: f64,
     cost: f64,
     vehicles: Vec<VehiclePlan>,
@@ -223,112 +223,157 @@ fn near(value: f64, bound: f64) -> bool {
     (value - bound).abs() <= MARGIN * bound.abs().max(1e-3)
 }
 
-/// Everything about one candidate t_f. With `exact`, every extreme is refined; without, only
-/// those near their bound, which decides feasibility alike at a fraction of the cost.
-fn evaluate(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64, exact: bool) -> Candidate {
+/// One vehicle at one candidate t_f: its plan, what it violates, and its sampled positions.
+struct Checked {
+    plan: VehiclePlan,
+    violations: Vec<Violation>,
+    positions: Vec<Vec2>,
+    bounds: Bounds,
+}
+
+/// Speed and acceleration of one vehicle's path for `t_f` against eqs. 20 and 4. With `exact`,
+/// every extreme is refined; without, only those near their bound, which decides feasibility
+/// alike at a fraction of the cost.
+fn check_vehicle(config: &PlannerConfig, v: &VehicleConfig, t_f: f64, exact: bool) -> Checked {
     let h = t_f / SAMPLES as f64;
     let mut violations = Vec::new();
-    let mut plans = Vec::with_capacity(vehicles.len());
-    let mut positions = Vec::with_capacity(vehicles.len());
-    let mut boxes = Vec::with_capacity(vehicles.len());
-    let mut total = 0.0;
-    for v in vehicles {
-        let path = vehicle_path(v, t_f);
-        let points: Vec<_> = (0..=SAMPLES).map(|k| path.derivatives(k as f64 * h)).collect();
-        let speed = |t: f64| path.derivatives(t)[1].norm();
-        let accel = |t: f64| path.derivatives(t)[2].norm();
-        let speeds: Vec<f64> = points.iter().map(|p| p[1].norm()).collect();
-        let slow = extreme(&speeds, t_f, false, speed);
-        let (t_min_speed, min_speed) = extreme(&speeds, t_f, exact || near(slow.1, config.v_min), speed);
-        let fast: Vec<f64> = speeds.iter().map(|s| -s).collect();
-        let quick = extreme(&fast, t_f, false, |t| -speed(t));
-        let (t_max_speed, neg_max_speed) = extreme(&fast, t_f, exact || near(-quick.1, config.v_max), |t| -speed(t));
-        let accels: Vec<f64> = points.iter().map(|p| -p[2].norm()).collect();
-        let hard = extreme(&accels, t_f, false, |t| -accel(t));
-        let (t_max_accel, neg_max_accel) = extreme(&accels, t_f, exact || near(-hard.1, config.a_max), |t| -accel(t));
-        let (max_speed, max_accel) = (-neg_max_speed, -neg_max_accel);
-        // eq. 20 and eq. 4
-        if min_speed < config.v_min {
-            violations.push(Violation {
-                constraint: Constraint::VMin(v.id),
-                value: min_speed,
-                bound: config.v_min,
-                t: t_min_speed,
-            });
-        }
-        if max_speed > config.v_max {
-            violations.push(Violation {
-                constraint: Constraint::VMax(v.id),
-                value: max_speed,
-                bound: config.v_max,
-                t: t_max_speed,
-            });
-        }
-        if max_accel > config.a_max {
-            violations.push(Violation {
-                constraint: Constraint::AMax(v.id),
-                value: max_accel,
-                bound: config.a_max,
-                t: t_max_accel,
-            });
-        }
-        let cost = cost(&path, config.cost);
-        total += v.weight * cost;
-        let sampled: Vec<_> = points.iter().map(|p| p[0]).collect();
-        boxes.push(Bounds::around(&sampled, max_speed * h));
-        positions.push(sampled);
-        plans.push(VehiclePlan {
+    let path = vehicle_path(v, t_f);
+    let points: Vec<_> = (0..=SAMPLES).map(|k| path.derivatives(k as f64 * h)).collect();
+    let speed = |t: f64| path.derivatives(t)[1].norm();
+    let accel = |t: f64| path.derivatives(t)[2].norm();
+    let speeds: Vec<f64> = points.iter().map(|p| p[1].norm()).collect();
+    let slow = extreme(&speeds, t_f, false, speed);
+    let (t_min_speed, min_speed) = extreme(&speeds, t_f, exact || near(slow.1, config.v_min), speed);
+    let fast: Vec<f64> = speeds.iter().map(|s| -s).collect();
+    let quick = extreme(&fast, t_f, false, |t| -speed(t));
+    let (t_max_speed, neg_max_speed) = extreme(&fast, t_f, exact || near(-quick.1, config.v_max), |t| -speed(t));
+    let accels: Vec<f64> = points.iter().map(|p| -p[2].norm()).collect();
+    let hard = extreme(&accels, t_f, false, |t| -accel(t));
+    let (t_max_accel, neg_max_accel) = extreme(&accels, t_f, exact || near(-hard.1, config.a_max), |t| -accel(t));
+    let (max_speed, max_accel) = (-neg_max_speed, -neg_max_accel);
+    // eq. 20 and eq. 4
+    if min_speed < config.v_min {
+        violations.push(Violation {
+            constraint: Constraint::VMin(v.id),
+            value: min_speed,
+            bound: config.v_min,
+            t: t_min_speed,
+        });
+    }
+    if max_speed > config.v_max {
+        violations.push(Violation {
+            constraint: Constraint::VMax(v.id),
+            value: max_speed,
+            bound: config.v_max,
+            t: t_max_speed,
+        });
+    }
+    if max_accel > config.a_max {
+        violations.push(Violation {
+            constraint: Constraint::AMax(v.id),
+            value: max_accel,
+            bound: config.a_max,
+            t: t_max_accel,
+        });
+    }
+    let positions: Vec<Vec2> = points.iter().map(|p| p[0]).collect();
+    Checked {
+        bounds: Bounds::around(&positions, max_speed * h),
+        positions,
+        violations,
+        plan: VehiclePlan {
             id: v.id,
             weight: v.weight,
-            cost,
+            cost: 0.0,
             min_speed,
             max_speed,
             max_accel,
             path,
-        });
+        },
+    }
+}
+
+/// Whether two sampled paths may come within the clearance (D18): a pair whose boxes are farther
+/// apart than the clearance and its margin is never refined, and never closer than the clearance.
+fn may_meet(config: &PlannerConfig, a: &Checked, b: &Checked) -> bool {
+    a.bounds.gap(&b.bounds) <= config.clearance * (1.0 + MARGIN)
+}
+
+/// The closest approach of two checked paths at equal time: (t, distance).
+fn closest_approach(config: &PlannerConfig, a: &Checked, b: &Checked, t_f: f64, exact: bool) -> (f64, f64) {
+    let gaps: Vec<f64> = a
+        .positions
+        .iter()
+        .zip(&b.positions)
+        .map(|(p, q)| (p - q).norm())
+        .collect();
+    let gap = |t: f64| (a.plan.path.derivatives(t)[0] - b.plan.path.derivatives(t)[0]).norm();
+    let sampled = extreme(&gaps, t_f, false, gap);
+    extreme(&gaps, t_f, exact || near(sampled.1, config.clearance), gap)
+}
+
+/// Everything about one candidate t_f, every extreme refined when `exact`.
+fn evaluate(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64, exact: bool) -> Candidate {
+    let mut total = 0.0;
+    let mut checked: Vec<Checked> = Vec::with_capacity(vehicles.len());
+    let mut violations = Vec::new();
+    for v in vehicles {
+        let mut c = check_vehicle(config, v, t_f, exact);
+        c.plan.cost = cost(&c.plan.path, config.cost);
+        total += v.weight * c.plan.cost;
+        violations.append(&mut c.violations);
+        checked.push(c);
     }
     let mut closest: Option<Separation> = None;
-    for i in 0..plans.len() {
-        for j in i + 1..plans.len() {
+    for (i, a) in checked.iter().enumerate() {
+        for b in &checked[i + 1..] {
             // Pairs that cannot come within the clearance, nor closer than the closest pair so
             // far, are left out: in a large fleet most pairs are far apart all along.
-            let apart = boxes[i].gap(&boxes[j]);
-            if apart > config.clearance * (1.0 + MARGIN) && closest.is_some_and(|c| apart > c.distance) {
+            let apart = a.bounds.gap(&b.bounds);
+            if !may_meet(config, a, b) && closest.is_some_and(|c| apart > c.distance) {
                 continue;
             }
-            let (a, b) = (&plans[i], &plans[j]);
-            let gaps: Vec<f64> = positions[i]
-                .iter()
-                .zip(&positions[j])
-                .map(|(p, q)| (p - q).norm())
-                .collect();
-            let gap = |t: f64| (a.path.derivatives(t)[0] - b.path.derivatives(t)[0]).norm();
-            let sampled = extreme(&gaps, t_f, false, gap);
-            let (t, distance) = extreme(&gaps, t_f, exact || near(sampled.1, config.clearance), gap);
+            let (t, distance) = closest_approach(config, a, b, t_f, exact);
+            let vehicles = [a.plan.id, b.plan.id];
             if distance <= config.clearance {
                 violations.push(Violation {
-                    constraint: Constraint::Clearance(a.id, b.id),
+                    constraint: Constraint::Clearance(vehicles[0], vehicles[1]),
                     value: distance,
                     bound: config.clearance,
                     t,
                 });
             }
             if closest.is_none_or(|c| distance < c.distance) {
-                closest = Some(Separation {
-                    vehicles: [a.id, b.id],
-                    distance,
-                    t,
-                });
+                closest = Some(Separation { vehicles, distance, t });
             }
         }
     }
     Candidate {
         t_f,
         cost: total,
-        vehicles: plans,
+        vehicles: checked.into_iter().map(|c| c.plan).collect(),
         closest,
         violations,
     }
+}
+
+/// `evaluate(.., false).feasible()`, stopping at the first constraint that fails and leaving out
+/// the cost and the closest pair, which feasibility does not need.
+fn feasible(config: &PlannerConfig, vehicles: &[VehicleConfig], t_f: f64) -> bool {
+    let mut checked: Vec<Checked> = Vec::with_capacity(vehicles.len());
+    for v in vehicles {
+        let c = check_vehicle(config, v, t_f, false);
+        if !c.violations.is_empty() {
+            return false;
+        }
+        checked.push(c);
+    }
+    checked.iter().enumerate().all(|(i, a)| {
+        checked[i + 1..]
+            .iter()
+            .filter(|b| may_meet(config, a, b))
+            .all(|b| closest_approach(config, a, b, t_f, false).1 > config.clearance)
+    })
 }
 
 /// Where a path can be over a candidate's horizon: the box of its samples grown by the farthest it
@@ -339,7 +384,7 @@ struct Bounds {
 }
 
 impl Bounds {
-    fn around(points: &[nalgebra::Vector2<f64>], reach: f64) -> Bounds {
+    fn around(points: &[Vec2], reach: f64) -> Bounds {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in points {
             for k in 0..2 {
@@ -383,13 +428,15 @@ fn boundary_between(
 /// Solves eq. 19 for the mission's vehicles, one candidate after the other.
 pub fn plan(mission: &Mission) -> Result<Plan, Infeasible> {
     let search = Search::new(mission);
-    let candidates: Vec<Candidate> = search.grid().iter().map(|&t| search.evaluate(t)).collect();
-    search.finish(&candidates)
+    let costs: Vec<f64> = search.grid().iter().map(|&t| search.cost(t)).collect();
+    search.finish(&costs, |next| vec![search.feasible(next[0])])
 }
 
-/// Eq. 19 as a search that its caller drives: every t_f of the grid is evaluated on its own, in
-/// any order and on any thread (`evaluate`), then `finish` refines the best and names the active
-/// constraints. The result does not depend on how the grid was spread.
+/// Eq. 19 as a search that its caller drives. The best t_f of the grid is the cheapest feasible
+/// one: the caller computes the cost of every t_f (`cost`, in any order and on any thread), then
+/// `finish` tries them from the cheapest on until one is feasible, asking the caller (who may
+/// spread them over threads too) for the feasibility of the next ones, and refines it. The
+/// result does not depend on how the work was spread.
 pub struct Search<'a> {
     config: &'a PlannerConfig,
     /// m/s: a path is followable only where it is faster than the current.
@@ -412,19 +459,26 @@ impl<'a> Search<'a> {
         }
     }
 
-    /// The candidate t_f to evaluate.
+    /// The candidate t_f.
     pub fn grid(&self) -> &[f64] {
         &self.grid
     }
 
-    /// One candidate of the grid.
-    pub fn evaluate(&self, t_f: f64) -> Candidate {
-        evaluate(self.config, self.vehicles, t_f, false)
+    /// Σ w_i J_i (eq. 19) at one candidate t_f.
+    pub fn cost(&self, t_f: f64) -> f64 {
+        fleet_cost(self.config, self.vehicles, t_f)
     }
 
-    /// The plan, from the candidates of every t_f of `grid`, in its order.
-    pub fn finish(&self, candidates: &[Candidate]) -> Result<Plan, Infeasible> {
-        let plan = finish(self.config, self.vehicles, &self.grid, candidates)?;
+    /// Whether one candidate t_f meets every constraint.
+    pub fn feasible(&self, t_f: f64) -> bool {
+        feasible(self.config, self.vehicles, t_f)
+    }
+
+    /// The plan, from the cost of every t_f of `grid` (in its order). `check` is given the t_f
+    /// still to try, cheapest first, and returns the feasibility of as many of the first of them
+    /// as it chose to decide (at least one).
+    pub fn finish(&self, costs: &[f64], check: impl FnMut(&[f64]) -> Vec<bool>) -> Result<Plan, Infeasible> {
+        let plan = finish(self.config, self.vehicles, &self.grid, costs, check)?;
         match plan.vehicles.iter().find(|v| v.min_speed <= self.current) {
             Some(v) => Err(Infeasible {
                 message: format!(
@@ -441,17 +495,38 @@ fn finish(
     config: &PlannerConfig,
     vehicles: &[VehicleConfig],
     grid: &[f64],
-    candidates: &[Candidate],
+    costs: &[f64],
+    mut check: impl FnMut(&[f64]) -> Vec<bool>,
 ) -> Result<Plan, Infeasible> {
-    let Some(best) = (0..candidates.len())
-        .filter(|&k| candidates[k].feasible())
-        .min_by(|&a, &b| candidates[a].cost.total_cmp(&candidates[b].cost))
-    else {
-        return Err(infeasible(config, candidates));
+    // Cheapest first, the earlier of equal costs first: the first feasible is the grid's best.
+    let mut order: Vec<usize> = (0..grid.len()).collect();
+    order.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)));
+    let ordered: Vec<f64> = order.iter().map(|&k| grid[k]).collect();
+    let mut known: Vec<Option<bool>> = vec![None; grid.len()];
+    let mut next = 0;
+    let mut best = None;
+    while best.is_none() && next < order.len() {
+        let decided = check(&ordered[next..]);
+        assert!(!decided.is_empty(), "check decides at least one candidate");
+        for (&k, ok) in order[next..].iter().zip(decided) {
+            known[k] = Some(ok);
+            next += 1;
+            if ok {
+                best = Some(k);
+                break;
+            }
+        }
+    }
+    let Some(best) = best else {
+        let candidates: Vec<Candidate> = grid.iter().map(|&t| evaluate(config, vehicles, t, false)).collect();
+        return Err(infeasible(config, &candidates));
     };
+    let mut feasible_at = |k: usize| *known[k].get_or_insert_with(|| check(&[grid[k]])[0]);
+    let below = best.checked_sub(1).map(|k| (k, feasible_at(k)));
+    let above = (best + 1 < grid.len()).then(|| (best + 1, feasible_at(best + 1)));
 
     let mut active = Vec::new();
-    let limit = |side: Option<usize>, edge_name: &str| -> (f64, Option<Active>) {
+    let limit = |side: Option<(usize, bool)>, edge_name: &str| -> (f64, Option<Active>) {
         match side {
             None => (
                 grid[best],
@@ -461,8 +536,8 @@ fn finish(
                     detail: format!("t_f = {edge_name} = {}", grid[best]),
                 }),
             ),
-            Some(k) if candidates[k].feasible() => (grid[k], None),
-            Some(k) => {
+            Some((k, true)) => (grid[k], None),
+            Some((k, false)) => {
                 let (t, beyond) = boundary_between(config, vehicles, grid[best], grid[k]);
                 let v = beyond.violations[0];
                 let active = Active {
@@ -474,8 +549,8 @@ fn finish(
             }
         }
     };
-    let (lo, lo_active) = limit(best.checked_sub(1), "tf_min");
-    let (hi, hi_active) = limit((best + 1 < grid.len()).then_some(best + 1), "tf_max");
+    let (lo, lo_active) = limit(below, "tf_min");
+    let (hi, hi_active) = limit(above, "tf_max");
     let (t_f, _) = golden_min(lo, hi, TF_TOL, |t| fleet_cost(config, vehicles, t));
     // An optimum within a few tolerances of a limit sits on it: the limit's constraint is active.
     for (edge, a) in [(lo, lo_active), (hi, hi_active)] {
@@ -587,5 +662,50 @@ mod tests {
                 assert!(j == i + 1 || gap > 4.0 * (1.0 + MARGIN), "far lanes are: {gap}");
             }
         }
+    }
+
+    /// The search tries candidates by cost with a feasibility check that stops early; both must
+    /// agree with the full evaluation, or the best t_f would be another.
+    #[test]
+    fn the_quick_feasibility_and_cost_agree_with_the_full_evaluation() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs");
+        let files = [
+            "paper/a-nominal",
+            "paper/b-current",
+            "paper/c-uncoordinated",
+            "ring5",
+            "acoustic",
+        ];
+        let mut missions: Vec<Mission> = files
+            .iter()
+            .map(|f| {
+                let file = format!("{dir}/{f}.toml");
+                parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap()
+            })
+            .collect();
+        missions.push(parse("lanes.toml", &generate::lanes(6, 0.0), &[]).unwrap());
+        let (mut feasible, mut infeasible) = (0, 0);
+        for m in &missions {
+            let search = Search::new(m);
+            for &t in search.grid().iter().step_by(7) {
+                let full = evaluate(&m.planner, &m.vehicles, t, false);
+                assert_eq!(search.feasible(t), full.feasible(), "{} at t_f = {t}", m.mission.name);
+                assert_eq!(
+                    search.cost(t).to_bits(),
+                    full.cost.to_bits(),
+                    "{} at t_f = {t}",
+                    m.mission.name
+                );
+                if full.feasible() {
+                    feasible += 1;
+                } else {
+                    infeasible += 1;
+                }
+            }
+        }
+        assert!(
+            feasible > 100 && infeasible > 100,
+            "both kinds met: {feasible} and {infeasible}"
+        );
     }
 }
