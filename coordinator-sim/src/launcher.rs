@@ -20,6 +20,12 @@ use crate::recording::{Closing, Recording};
 use tcpf_report::rundir::RunDir;
 use tcpf_report::summary::{ChildSummary, Restarts, Summary};
 
+/// Zenoh's threads in a child (unless the user set ZENOH_RUNTIME): one, instead of six that hand
+/// every message to each other. A child is a client and routes nothing, so nothing it runs waits
+/// on a queue only that thread would drain; the launcher, the router, keeps Zenoh's defaults.
+/// Measured on 10 agents: a tick 12 % cheaper, and fewer threads' stacks per agent.
+const CHILD_RUNTIME: &str =
+    "(rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app), app: (worker_threads: 1))";
 /// How long children get to exit by themselves after the end before they are killed.
 const GRACE: Duration = Duration::from_secs(3);
 /// A run in which no tick completes for this long has stalled.
@@ -68,6 +74,9 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String])
         .with_context(|| format!("cannot create logs/{name}"))?;
     let mut command = Command::new(exe);
     command.arg(role.as_str()).args(args);
+    if std::env::var_os("ZENOH_RUNTIME").is_none() {
+        command.env("ZENOH_RUNTIME", CHILD_RUNTIME);
+    }
     if let Some(id) = id {
         command.args(["--id", &id.to_string()]);
     }
