@@ -26,13 +26,16 @@ struct Track {
 }
 
 fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
-    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines
+    use std::io::BufRead;
+    // Line by line: a fleet's telemetry runs to hundreds of megabytes.
+    let reader =
+        std::io::BufReader::new(std::fs::File::open(file).with_context(|| format!("cannot read {}", file.display()))?);
+    let mut lines = reader.lines();
+    let first = lines
         .next()
         .ok_or_else(|| anyhow!("{}: empty", file.display()))?
-        .split(',')
-        .collect();
+        .with_context(|| format!("cannot read {}", file.display()))?;
+    let header: Vec<&str> = first.split(',').collect();
     let col = |name: &str| {
         header
             .iter()
@@ -50,6 +53,7 @@ fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
     );
     let mut tracks: BTreeMap<u32, Track> = BTreeMap::new();
     for (n, line) in lines.enumerate() {
+        let line = line.with_context(|| format!("cannot read {}", file.display()))?;
         let f: Vec<&str> = line.split(',').collect();
         let num = |c: usize| f.get(c).and_then(|s| s.parse::<f64>().ok());
         let bad = || anyhow!("{}:{}: malformed row", file.display(), n + 2);
@@ -143,6 +147,23 @@ pub fn write(dir: &Path) -> Result<()> {
 }
 
 type Pairs = Vec<(u32, u32)>;
+
+/// At most this many pairs per chart: a fleet of 200 has 19 900, which drew a report of hundreds
+/// of megabytes that no eye could read.
+const PAIRS: usize = 20;
+
+/// The `PAIRS` pairs that rank first by `key` (smallest first), in the order given, and how many
+/// there were when some were left out.
+fn worst(pairs: &[(u32, u32)], key: impl Fn(u32, u32) -> f64) -> (Vec<(u32, u32)>, Option<usize>) {
+    if pairs.len() <= PAIRS {
+        return (pairs.to_vec(), None);
+    }
+    let mut ranked: Vec<(f64, usize)> = pairs.iter().enumerate().map(|(k, &(a, b))| (key(a, b), k)).collect();
+    ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut kept: Vec<usize> = ranked.iter().take(PAIRS).map(|&(_, k)| k).collect();
+    kept.sort_unstable();
+    (kept.into_iter().map(|k| pairs[k]).collect(), Some(pairs.len()))
+}
 
 /// Every pair of vehicles, and those that are linked.
 fn pairs(mission: &Mission, ids: &[u32]) -> (Pairs, Pairs) {
@@ -257,18 +278,25 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
 
     let mut gaps = Chart::new("Coordination error |γi − γj|", "t (s)", "|γi − γj| (s)");
     let shown = if linked.is_empty() { &all } else { &linked };
-    for (a, b) in shown {
-        let (ta, tb) = (&tracks[a], &tracks[b]);
-        let diff: Vec<f64> = ta.gamma.iter().zip(&tb.gamma).map(|(x, y)| (x - y).abs()).collect();
+    let error = |a: u32, b: u32| {
+        tracks[&a]
+            .gamma
+            .iter()
+            .zip(&tracks[&b].gamma)
+            .map(|(x, y)| (x - y).abs())
+    };
+    let (drifting, of) = worst(shown, |a, b| -error(a, b).fold(0.0, f64::max));
+    for (a, b) in drifting {
         gaps.series.push(Series {
             name: format!("{a}–{b}"),
-            points: thin(&ta.t, &diff),
+            points: thin(&tracks[&a].t, &error(a, b).collect::<Vec<_>>()),
         });
     }
-    let what = if linked.is_empty() {
-        "every pair (no links)"
-    } else {
-        "each linked pair"
+    let what = match (linked.is_empty(), of) {
+        (true, None) => "every pair (no links)".to_string(),
+        (false, None) => "each linked pair".to_string(),
+        (true, Some(n)) => format!("the {PAIRS} pairs of {n} (no links) that drift farthest apart"),
+        (false, Some(n)) => format!("the {PAIRS} linked pairs of {n} that drift farthest apart"),
     };
     figures.push((
         "coordination",
@@ -277,23 +305,27 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     ));
 
     let mut distance = Chart::new("Distance between vehicles", "t (s)", "distance (m)");
-    for (a, b) in &all {
-        let (ta, tb) = (&tracks[a], &tracks[b]);
-        let d: Vec<f64> = (0..ta.t.len().min(tb.t.len()))
-            .map(|k| (ta.x[k] - tb.x[k]).hypot(ta.y[k] - tb.y[k]))
-            .collect();
+    let apart = |a: u32, b: u32| {
+        let (ta, tb) = (&tracks[&a], &tracks[&b]);
+        (0..ta.t.len().min(tb.t.len())).map(|k| (ta.x[k] - tb.x[k]).hypot(ta.y[k] - tb.y[k]))
+    };
+    let (closest, of) = worst(&all, |a, b| apart(a, b).fold(f64::INFINITY, f64::min));
+    for (a, b) in closest {
         distance.series.push(Series {
             name: format!("{a}–{b}"),
-            points: thin(&ta.t, &d),
+            points: thin(&tracks[&a].t, &apart(a, b).collect::<Vec<_>>()),
         });
     }
     distance.levels.push((
         mission.planner.clearance,
         format!("clearance {} m", mission.planner.clearance),
     ));
+    let which = of.map_or(String::new(), |n| {
+        format!(" of the {PAIRS} pairs of {n} that come closest")
+    });
     figures.push((
         "distances",
-        "Pairwise distances with the clearance E (Fig. 6).".into(),
+        format!("Pairwise distances{which} with the clearance E (Fig. 6)."),
         distance.svg(900, 400),
     ));
 
@@ -422,4 +454,24 @@ fn timing_table(html: &mut String, summary: &Value) {
         );
     }
     html.push_str("</table>\n");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_large_fleet_charts_only_the_pairs_that_matter_most() {
+        let few: Vec<(u32, u32)> = (1..=PAIRS as u32).map(|j| (0, j)).collect();
+        assert_eq!(
+            worst(&few, |_, b| b as f64),
+            (few.clone(), None),
+            "all of a small fleet"
+        );
+        let many: Vec<(u32, u32)> = (1..=100).map(|j| (0, j)).collect();
+        // The smallest key wins: pairs 100, 99, … 81, given back in the order of `many`.
+        let (kept, of) = worst(&many, |_, b| -(b as f64));
+        assert_eq!(of, Some(100));
+        assert_eq!(kept, (81..=100).map(|j| (0, j)).collect::<Vec<_>>());
+    }
 }
