@@ -4,7 +4,7 @@ use std::io::IsTerminal;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
@@ -169,6 +169,9 @@ enum Command {
         zenoh: ZenohArgs,
         #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         count: u64,
+        /// Names its liveliness token.
+        #[arg(long, default_value_t = 0)]
+        id: u32,
     },
     /// A Zenoh router for a testbed: every role connects to it (configs/zenoh/).
     Router {
@@ -368,8 +371,8 @@ fn main() -> ExitCode {
             processes,
             out,
         } => sweep(&mission, &loss, param.as_deref(), seeds, processes, out.as_deref()),
-        Command::Pong { zenoh, count } => runtime()
-            .and_then(|rt| rt.block_on(bench::pong(&zenoh, count)).map_err(Failure::Failed))
+        Command::Pong { zenoh, count, id } => runtime()
+            .and_then(|rt| rt.block_on(bench::pong(&zenoh, count, id)).map_err(Failure::Failed))
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { mission, zenoh, clock } => planner(&clocked(&mission, &clock), &zenoh),
         Command::Router { zenoh } => runtime()
@@ -580,7 +583,31 @@ fn agent(
 
 fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
+    let seconds = |d: Duration| d.as_secs_f64();
+    let started = Instant::now();
     let plan = solve(&mission, &args.file)?;
+    let on_every_core = started.elapsed();
+    let started = Instant::now();
+    let _ = tcpf_core::planner::plan(&mission);
+    let on_one = started.elapsed();
+    println!(
+        "plan ({} vehicles): {:.3} s on {} cores, {:.3} s on one (baseline): {:.2}x",
+        plan.vehicles.len(),
+        seconds(on_every_core),
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        seconds(on_one),
+        seconds(on_one) / seconds(on_every_core)
+    );
+
+    let (steps, fleet, world) = bench::in_process(&mission, &plan, 3);
+    let rate = |d: Duration| steps as f64 / seconds(d) / 1e6;
+    println!(
+        "in-process: {:.2} M vehicle-steps/s; the world alone (baseline) {:.2} M/s: {:.2}x",
+        rate(fleet),
+        rate(world),
+        rate(fleet) / rate(world)
+    );
+
     let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
     let dir = RunDir::create(
         Some(&std::env::temp_dir().join(format!("tcpf-bench-{}", std::process::id()))),
@@ -589,36 +616,64 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     .map_err(Failure::Failed)?;
     let rt = runtime()?;
     let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
-    let before = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
-    let summary = rt
-        .block_on(launcher::run(
-            &mission,
-            &plan,
-            &dir,
-            &exe,
-            launcher::Options {
+    let direct = rt.block_on(bench::ping(&exe, count, false)).map_err(Failure::Failed)?;
+    let routed = rt.block_on(bench::ping(&exe, count, true)).map_err(Failure::Failed)?;
+    let (summary, busiest) = rt
+        .block_on(async {
+            // The fleet's footprint, sampled while it runs: the largest seen.
+            let sampling = tokio::spawn(async {
+                let mut busiest = bench::Footprint::default();
+                loop {
+                    tokio::time::sleep(Duration::from_millis(500)).await;
+                    let now = tokio::task::spawn_blocking(|| bench::Footprint::of_children("agent"))
+                        .await
+                        .unwrap_or_default();
+                    if now.pss_kib > busiest.pss_kib {
+                        busiest = now;
+                    }
+                    if now.processes == 0 && busiest.processes > 0 {
+                        return busiest;
+                    }
+                }
+            });
+            let options = launcher::Options {
                 live: None,
                 command_timeout: launcher::COMMAND_TIMEOUT,
                 restart: false,
-            },
-        ))
+            };
+            let summary = launcher::run(&mission, &plan, &dir, &exe, options).await;
+            let busiest = tokio::time::timeout(Duration::from_secs(2), sampling).await;
+            summary.map(|s| (s, busiest.ok().and_then(Result::ok).unwrap_or_default()))
+        })
         .map_err(Failure::Failed)?;
-    let after = rt.block_on(bench::ping(&exe, count)).map_err(Failure::Failed)?;
+    let idle = rt
+        .block_on(bench::idle_fleet(&exe, plan.vehicles.len()))
+        .map_err(Failure::Failed)?;
     let _ = std::fs::remove_dir_all(&dir.path);
-    let rtt = 0.5 * (median(&before) + median(&after));
+    let tick = summary.tick_wall_time_us;
     println!(
-        "zenoh round trip between two processes: median {:.1} µs before, {:.1} µs after the run",
-        median(&before),
-        median(&after)
+        "zenoh round trip between two processes: median {:.1} µs direct, {:.1} µs through a router",
+        median(&direct),
+        median(&routed)
     );
     println!(
-        "lockstep tick ({} vehicles, {} ticks): {:.1} µs",
+        "lockstep tick ({} vehicles, {} ticks): {:.1} µs; tick / round trip: {:.2} direct, {:.2} through a router",
         plan.vehicles.len(),
         summary.results.ticks,
-        summary.tick_wall_time_us
+        tick,
+        tick / median(&direct),
+        tick / median(&routed)
     );
-    println!("tick / round trip: {:.2}", summary.tick_wall_time_us / rtt);
     println!("simulated / wall time: {:.1}", summary.speedup());
+    let (rss, pss) = busiest.per_process_mib();
+    let (idle_rss, idle_pss) = idle.per_process_mib();
+    println!(
+        "per agent: RSS {rss:.1} MiB, PSS {pss:.1} MiB; an idle Zenoh client (baseline): RSS {idle_rss:.1} MiB, PSS {idle_pss:.1} MiB"
+    );
+    println!(
+        "agents' sockets: {} for {} agents; idle clients' (baseline): {}",
+        busiest.sockets, busiest.processes, idle.sockets
+    );
     Ok(ExitCode::SUCCESS)
 }
 

@@ -199,13 +199,20 @@ pub struct Outlet {
 
 impl Outlet {
     pub async fn new(session: &Session, key: String) -> Result<Outlet> {
-        Outlet::with(session, key, CongestionControl::Block, Reliability::Reliable).await
+        Outlet::with(session, key, CongestionControl::Block, Reliability::Reliable, false).await
+    }
+
+    /// For a process's last words (its report, the world's end): sent at once. A batched message
+    /// can be overtaken by the undeclarations of a closing session, which travel at a higher
+    /// priority, and then be dropped on arrival for a key no longer known.
+    pub async fn last_words(session: &Session, key: String) -> Result<Outlet> {
+        Outlet::with(session, key, CongestionControl::Block, Reliability::Reliable, true).await
     }
 
     /// `Outlet::new` in lockstep; in realtime one that drops under congestion.
     pub async fn for_clock(session: &Session, key: String, realtime: bool) -> Result<Outlet> {
         if realtime {
-            Outlet::with(session, key, CongestionControl::Drop, Reliability::Reliable).await
+            Outlet::with(session, key, CongestionControl::Drop, Reliability::Reliable, true).await
         } else {
             Outlet::new(session, key).await
         }
@@ -216,7 +223,7 @@ impl Outlet {
     /// instead of being sent again late.
     pub async fn gamma(session: &Session, key: String, realtime: bool) -> Result<Outlet> {
         if realtime {
-            Outlet::with(session, key, CongestionControl::Drop, Reliability::BestEffort).await
+            Outlet::with(session, key, CongestionControl::Drop, Reliability::BestEffort, true).await
         } else {
             Outlet::new(session, key).await
         }
@@ -227,6 +234,7 @@ impl Outlet {
         key: String,
         congestion: CongestionControl,
         reliability: Reliability,
+        express: bool,
     ) -> Result<Outlet> {
         let publisher = session
             .declare_publisher(key.clone())
@@ -236,8 +244,8 @@ impl Outlet {
             // a router forwards to the world) leaves in one batch, one write, instead of one
             // write per message; that cut a 10-agent tick by a quarter. Zenoh takes a batch as
             // soon as its sender thread runs, so a message waits only under back-pressure, which
-            // realtime, where a late message is worth nothing, must not risk: it stays express.
-            .express(congestion == CongestionControl::Drop)
+            // realtime, where a late message is worth nothing, must not risk: it is express.
+            .express(express)
             .await
             .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
         Ok(Outlet { publisher })
@@ -405,5 +413,8 @@ pub async fn report(
         timing: realtime,
         published,
     };
-    Outlet::new(session, keys.report(role, id)).await?.put(&report).await
+    Outlet::last_words(session, keys.report(role, id))
+        .await?
+        .put(&report)
+        .await
 }

@@ -1,6 +1,8 @@
-//! `tcpf bench`: how a lockstep tick compares with a raw Zenoh round trip between two processes,
-//! both measured in the same invocation (this machine is shared and noisy: only the ratio means
-//! something).
+//! `tcpf bench`: each figure of a mission's speed beside a baseline measured in the same
+//! invocation (this machine is shared and noisy: only the ratios mean something). The plan on
+//! every core beside one; the in-process fleet beside the world alone; a lockstep tick as
+//! processes beside a raw Zenoh round trip, direct and through a router; the fleet's memory and
+//! sockets beside as many idle Zenoh clients.
 
 use std::path::Path;
 use std::process::Stdio;
@@ -10,7 +12,11 @@ use anyhow::{anyhow, Context, Result};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::typed::{presence, subscribe, Outlet, Rejected};
-use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
+use tcpf_core::mission::Mission;
+use tcpf_core::msg::{Command as MsgCommand, Gamma, Sample, PROTOCOL_VERSION};
+use tcpf_core::planner::Plan;
+use tcpf_core::sim::Fleet;
+use tcpf_core::world::World;
 use tokio::process::Command;
 
 const PING: &str = "tcpf/bench/ping";
@@ -31,12 +37,13 @@ fn probe(tick: u64) -> Gamma {
 }
 
 /// The echo side: answers every ping with a pong of the same payload until `count` echoes.
-pub async fn pong(zenoh: &ZenohArgs, count: u64) -> Result<()> {
+/// `id` names its token, so that a fleet of idle ones can be counted.
+pub async fn pong(zenoh: &ZenohArgs, count: u64, id: u32) -> Result<()> {
     let session = zenoh.open().await?;
     let rejected = Rejected::default();
     let (_sub, mut pings) = subscribe::<Gamma>(&session, PING, &rejected).await?;
     let out = Outlet::new(&session, PONG.into()).await?;
-    let token = Keys::new("bench").alive(Role::Agent, 0);
+    let token = Keys::new("bench").alive(Role::Agent, id);
     let _token = session
         .liveliness()
         .declare_token(token)
@@ -50,22 +57,42 @@ pub async fn pong(zenoh: &ZenohArgs, count: u64) -> Result<()> {
     Ok(())
 }
 
-/// Round-trip times to a `tcpf pong` child on a loopback port, sorted.
-pub async fn ping(exe: &Path, count: u64) -> Result<Vec<Duration>> {
+/// Round-trip times to a `tcpf pong` child on a loopback port, sorted: peer to peer, or with
+/// `routed` both sides clients of a router, as a fleet's processes are of the launcher.
+pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
-    let session = ZenohArgs {
-        listen: vec![endpoint.clone()],
-        ..ZenohArgs::default()
-    }
-    .open()
-    .await?;
+    let router = if routed {
+        Some(open_router(&endpoint).await?)
+    } else {
+        None
+    };
+    let session = if routed {
+        client(&endpoint).open().await?
+    } else {
+        ZenohArgs {
+            listen: vec![endpoint.clone()],
+            ..ZenohArgs::default()
+        }
+        .open()
+        .await?
+    };
+    let mode = if routed { "client" } else { "peer" };
     let rejected = Rejected::default();
     let (_sub, mut pongs) = subscribe::<Gamma>(&session, PONG, &rejected).await?;
     let (_alive, mut alive) = presence(&session, &Keys::new("bench")).await?;
     let out = Outlet::new(&session, PING.into()).await?;
     let mut child = Command::new(exe)
-        .args(["pong", "--count", &(count + 100).to_string(), "-e", &endpoint])
+        .args([
+            "pong",
+            "--count",
+            &(count + 100).to_string(),
+            "-e",
+            &endpoint,
+            "--mode",
+            mode,
+        ])
+        .envs(child_runtime())
         .stdout(Stdio::null())
         .kill_on_drop(true)
         .spawn()
@@ -95,6 +122,197 @@ pub async fn ping(exe: &Path, count: u64) -> Result<Vec<Duration>> {
     }
     let _ = child.wait().await;
     let _ = session.close().await;
+    if let Some(router) = router {
+        let _ = router.close().await;
+    }
     times.sort_unstable();
     Ok(times)
+}
+
+/// The Zenoh threads `tcpf run` gives its children, so that a baseline runs as they do.
+fn child_runtime() -> Option<(&'static str, &'static str)> {
+    std::env::var_os("ZENOH_RUNTIME")
+        .is_none()
+        .then_some(("ZENOH_RUNTIME", crate::launcher::CHILD_RUNTIME))
+}
+
+/// The in-process fleet against the world alone integrating as many vehicles for as many ticks
+/// with constant commands: (vehicle-steps, fleet time, world time), the best of `repeat`.
+pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> (u64, Duration, Duration) {
+    let best = |f: &mut dyn FnMut()| {
+        (0..repeat)
+            .map(|_| {
+                let start = Instant::now();
+                f();
+                start.elapsed()
+            })
+            .min()
+            .unwrap_or_default()
+    };
+    let mut ticks = 0;
+    let fleet = best(&mut || ticks = std::hint::black_box(Fleet::new(mission, plan).run(|_, _| {})).ticks);
+    let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+    let held: Vec<Option<MsgCommand>> = paths
+        .iter()
+        .map(|&(id, _)| {
+            Some(MsgCommand {
+                version: PROTOCOL_VERSION,
+                tick: 0,
+                id,
+                v: 0.6,
+                r: 0.01,
+                hold: false,
+                gamma: 0.0,
+                gamma_dot: 1.0,
+                v_d: 0.6,
+                x_e: 0.0,
+                y_e: 0.0,
+                psi_e: 0.0,
+                receptions: Vec::new(),
+            })
+        })
+        .collect();
+    let world = best(&mut || {
+        let mut world = World::new(mission, &paths);
+        let mut states = Vec::with_capacity(paths.len());
+        for _ in 0..ticks {
+            world.states(&mut states);
+            std::hint::black_box(&states);
+            world.step(&held);
+        }
+    });
+    (ticks * paths.len() as u64, fleet, world)
+}
+
+/// A router listening on `endpoint`, with nothing else.
+async fn open_router(endpoint: &str) -> Result<zenoh::Session> {
+    ZenohArgs {
+        listen: vec![endpoint.into()],
+        mode: Some("router".into()),
+        ..ZenohArgs::default()
+    }
+    .open()
+    .await
+}
+
+fn client(endpoint: &str) -> ZenohArgs {
+    ZenohArgs {
+        connect: vec![endpoint.into()],
+        mode: Some("client".into()),
+        ..ZenohArgs::default()
+    }
+}
+
+/// Memory and sockets of a set of processes at one instant.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Footprint {
+    pub processes: usize,
+    /// Resident set, KiB: counts the binary's code in every process that maps it.
+    pub rss_kib: u64,
+    /// Proportional set, KiB: shared pages divided among their sharers, so it adds up.
+    pub pss_kib: u64,
+    pub sockets: usize,
+}
+
+impl Footprint {
+    /// The children of this process whose command line holds `role` as its first argument.
+    pub fn of_children(role: &str) -> Footprint {
+        let me = std::process::id();
+        let mut f = Footprint::default();
+        let Ok(dir) = std::fs::read_dir("/proc") else {
+            return f;
+        };
+        for pid in dir
+            .flatten()
+            .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        {
+            let proc = format!("/proc/{pid}");
+            let parent = std::fs::read_to_string(format!("{proc}/stat"))
+                .ok()
+                .and_then(|s| s.rsplit(')').next()?.split_whitespace().nth(1)?.parse::<u32>().ok());
+            let args = std::fs::read(format!("{proc}/cmdline")).unwrap_or_default();
+            let first = args.split(|&b| b == 0).nth(1).unwrap_or_default();
+            if parent != Some(me) || first != role.as_bytes() {
+                continue;
+            }
+            let field = |file: &str, name: &str| {
+                std::fs::read_to_string(format!("{proc}/{file}")).ok().and_then(|s| {
+                    s.lines()
+                        .find(|l| l.starts_with(name))?
+                        .split_whitespace()
+                        .nth(1)?
+                        .parse::<u64>()
+                        .ok()
+                })
+            };
+            f.processes += 1;
+            f.rss_kib += field("status", "VmRSS:").unwrap_or(0);
+            f.pss_kib += field("smaps_rollup", "Pss:").unwrap_or(0);
+            f.sockets += std::fs::read_dir(format!("{proc}/fd")).map_or(0, |fds| {
+                fds.flatten()
+                    .filter(|fd| {
+                        std::fs::read_link(fd.path()).is_ok_and(|l| l.to_string_lossy().starts_with("socket:"))
+                    })
+                    .count()
+            });
+        }
+        f
+    }
+
+    /// Per process, MiB: (RSS, PSS).
+    pub fn per_process_mib(&self) -> (f64, f64) {
+        let n = self.processes.max(1) as f64;
+        (self.rss_kib as f64 / 1024.0 / n, self.pss_kib as f64 / 1024.0 / n)
+    }
+}
+
+/// The footprint of `n` idle Zenoh clients (`tcpf pong`, one subscription, one publisher, one
+/// token) of one router: what a fleet of agents costs before it does anything.
+pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let router = open_router(&endpoint).await?;
+    let (_alive, mut alive) = presence(&router, &Keys::new("bench")).await?;
+    let mut children = Vec::with_capacity(n);
+    for id in 0..n {
+        children.push(
+            Command::new(exe)
+                .args([
+                    "pong",
+                    "--count",
+                    "1",
+                    "--id",
+                    &id.to_string(),
+                    "-e",
+                    &endpoint,
+                    "--mode",
+                    "client",
+                ])
+                .envs(child_runtime())
+                .stdout(Stdio::null())
+                .kill_on_drop(true)
+                .spawn()
+                .context("cannot start tcpf pong")?,
+        );
+    }
+    let mut up = std::collections::BTreeSet::new();
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
+    while up.len() < n {
+        match tokio::time::timeout_at(deadline, alive.recv()).await {
+            Ok(Some(p)) if p.alive => {
+                up.insert(p.id);
+            }
+            Ok(Some(_)) => {}
+            _ => return Err(anyhow!("only {} of {n} idle clients came up", up.len())),
+        }
+    }
+    // Let them settle as a running fleet has.
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    let footprint = Footprint::of_children("pong");
+    for mut c in children {
+        let _ = c.start_kill();
+        let _ = c.wait().await;
+    }
+    let _ = router.close().await;
+    Ok(footprint)
 }

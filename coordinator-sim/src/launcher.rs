@@ -24,7 +24,7 @@ use tcpf_report::summary::{ChildSummary, Restarts, Summary};
 /// every message to each other. A child is a client and routes nothing, so nothing it runs waits
 /// on a queue only that thread would drain; the launcher, the router, keeps Zenoh's defaults.
 /// Measured on 10 agents: a tick 12 % cheaper, and fewer threads' stacks per agent.
-const CHILD_RUNTIME: &str =
+pub const CHILD_RUNTIME: &str =
     "(rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app), app: (worker_threads: 1))";
 /// How long children get to exit by themselves after the end before they are killed.
 const GRACE: Duration = Duration::from_secs(3);

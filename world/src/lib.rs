@@ -85,7 +85,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     for id in &simulated {
         outlets.push(Outlet::for_clock(&session, keys.state(id), realtime).await?);
     }
-    let end_out = Outlet::new(&session, keys.end()).await?;
+    let end_out = Outlet::last_words(&session, keys.end()).await?;
     let clock = ClockServer::declare(&session, &keys).await?;
     let token = session
         .liveliness()
@@ -164,7 +164,7 @@ impl Shell {
             tick: lost.tick,
             reason: lost.reason,
         };
-        Outlet::new(&self.session, self.keys.lost(lost.id))
+        Outlet::last_words(&self.session, self.keys.lost(lost.id))
             .await?
             .put(&loss)
             .await
