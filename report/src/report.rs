@@ -153,14 +153,29 @@ type Pairs = Vec<(u32, u32)>;
 const PAIRS: usize = 20;
 
 /// The `PAIRS` pairs that rank first by `key` (smallest first), in the order given, and how many
-/// there were when some were left out.
-fn worst(pairs: &[(u32, u32)], key: impl Fn(u32, u32) -> f64) -> (Vec<(u32, u32)>, Option<usize>) {
+/// there were when some were left out. `bound` is a lower bound of `key`, cheaper to compute:
+/// pairs are keyed in the order of their bound, and none whose bound exceeds the `PAIRS`-th key
+/// found so far is keyed at all.
+fn worst(
+    pairs: &[(u32, u32)],
+    bound: impl Fn(u32, u32) -> f64,
+    key: impl Fn(u32, u32) -> f64,
+) -> (Vec<(u32, u32)>, Option<usize>) {
     if pairs.len() <= PAIRS {
         return (pairs.to_vec(), None);
     }
-    let mut ranked: Vec<(f64, usize)> = pairs.iter().enumerate().map(|(k, &(a, b))| (key(a, b), k)).collect();
-    ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    let mut kept: Vec<usize> = ranked.iter().take(PAIRS).map(|&(_, k)| k).collect();
+    let mut by_bound: Vec<(f64, usize)> = pairs.iter().enumerate().map(|(k, &(a, b))| (bound(a, b), k)).collect();
+    by_bound.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let rank = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    let mut keyed: Vec<(f64, usize)> = Vec::new();
+    for (lower, k) in by_bound {
+        if keyed.len() >= PAIRS && lower > keyed[PAIRS - 1].0 {
+            break;
+        }
+        keyed.push((key(pairs[k].0, pairs[k].1), k));
+        keyed.sort_by(rank);
+    }
+    let mut kept: Vec<usize> = keyed.iter().take(PAIRS).map(|&(_, k)| k).collect();
     kept.sort_unstable();
     (kept.into_iter().map(|k| pairs[k]).collect(), Some(pairs.len()))
 }
@@ -285,7 +300,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
             .zip(&tracks[&b].gamma)
             .map(|(x, y)| (x - y).abs())
     };
-    let (drifting, of) = worst(shown, |a, b| -error(a, b).fold(0.0, f64::max));
+    let (drifting, of) = worst(shown, |_, _| f64::NEG_INFINITY, |a, b| -error(a, b).fold(0.0, f64::max));
     for (a, b) in drifting {
         gaps.series.push(Series {
             name: format!("{a}–{b}"),
@@ -309,7 +324,21 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         let (ta, tb) = (&tracks[&a], &tracks[&b]);
         (0..ta.t.len().min(tb.t.len())).map(|k| (ta.x[k] - tb.x[k]).hypot(ta.y[k] - tb.y[k]))
     };
-    let (closest, of) = worst(&all, |a, b| apart(a, b).fold(f64::INFINITY, f64::min));
+    // Where each vehicle went, as a box: two boxes far apart hold no close pair.
+    let boxes: BTreeMap<u32, [f64; 4]> = tracks
+        .iter()
+        .map(|(&id, tr)| {
+            let lo = |v: &[f64]| v.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+            let hi = |v: &[f64]| v.iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x));
+            (id, [lo(&tr.x), hi(&tr.x), lo(&tr.y), hi(&tr.y)])
+        })
+        .collect();
+    let gap = |a: u32, b: u32| {
+        let (p, q) = (boxes[&a], boxes[&b]);
+        let axis = |lo: usize| (q[lo] - p[lo + 1]).max(p[lo] - q[lo + 1]).max(0.0);
+        axis(0).hypot(axis(2))
+    };
+    let (closest, of) = worst(&all, gap, |a, b| apart(a, b).fold(f64::INFINITY, f64::min));
     for (a, b) in closest {
         distance.series.push(Series {
             name: format!("{a}–{b}"),
@@ -463,15 +492,25 @@ mod tests {
     #[test]
     fn a_large_fleet_charts_only_the_pairs_that_matter_most() {
         let few: Vec<(u32, u32)> = (1..=PAIRS as u32).map(|j| (0, j)).collect();
+        let none = |_, _| f64::NEG_INFINITY;
         assert_eq!(
-            worst(&few, |_, b| b as f64),
+            worst(&few, none, |_, b| b as f64),
             (few.clone(), None),
             "all of a small fleet"
         );
         let many: Vec<(u32, u32)> = (1..=100).map(|j| (0, j)).collect();
         // The smallest key wins: pairs 100, 99, … 81, given back in the order of `many`.
-        let (kept, of) = worst(&many, |_, b| -(b as f64));
+        let (kept, of) = worst(&many, none, |_, b| -(b as f64));
         assert_eq!(of, Some(100));
         assert_eq!(kept, (81..=100).map(|j| (0, j)).collect::<Vec<_>>());
+        // A bound that prunes keys only what it must, and keeps the same pairs.
+        let keyed = std::cell::Cell::new(0);
+        let key = |_, b: u32| {
+            keyed.set(keyed.get() + 1);
+            -(b as f64)
+        };
+        let (pruned, _) = worst(&many, |_, b| -(b as f64) - 0.5, key);
+        assert_eq!(pruned, kept);
+        assert!(keyed.get() < 30, "keyed {} of 100", keyed.get());
     }
 }
