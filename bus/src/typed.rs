@@ -268,6 +268,23 @@ pub struct Presence {
 }
 
 /// Follows every liveliness token of the mission, those already there included.
+/// Who of the mission is present now, by their liveliness tokens.
+pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>> {
+    let replies = session
+        .liveliness()
+        .get(keys.alive_all())
+        .timeout(Duration::from_millis(500))
+        .await
+        .map_err(|e| anyhow!("cannot ask who is present: {e}"))?;
+    let mut present = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result() {
+            present.extend(keys.parse_alive(sample.key_expr().as_str()));
+        }
+    }
+    Ok(present)
+}
+
 pub async fn presence(session: &Session, keys: &Keys) -> Result<(Subscriber<()>, mpsc::UnboundedReceiver<Presence>)> {
     let (tx, rx) = mpsc::unbounded_channel();
     let parser = keys.clone();

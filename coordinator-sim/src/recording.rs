@@ -90,7 +90,8 @@ pub struct Recording {
     /// When the first tick was written.
     first: Option<Instant>,
     _subscribers: Vec<Subscriber<()>>,
-    _token: LivelinessToken,
+    /// Withdrawn once the recording is complete: the world waits for its recorders to leave.
+    token: Option<LivelinessToken>,
 }
 
 impl Recording {
@@ -135,7 +136,7 @@ impl Recording {
             progress: Instant::now(),
             first: None,
             _subscribers: subscribers,
-            _token: token,
+            token: Some(token),
         })
     }
 
@@ -217,6 +218,11 @@ impl Recording {
         if self.ticks() > before {
             self.progress = Instant::now();
             self.first.get_or_insert(self.progress);
+        }
+        if self.complete() {
+            if let Some(token) = self.token.take() {
+                let _ = token.undeclare().await;
+            }
         }
         failure
     }
