@@ -323,3 +323,45 @@ fn roles_waiting_at_startup_honour_sigterm_and_sigint() {
         assert_eq!(status.code(), Some(130), "{args:?} after {signal}");
     }
 }
+
+/// `tcpf bench` prints each figure beside the baseline it is measured against, all from one
+/// invocation; the figures themselves vary with the machine, their presence and sense do not.
+#[test]
+fn bench_prints_every_figure_beside_its_baseline() {
+    let o = tcpf(&["bench", &paper("b-current"), "--count", "50"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    let line = |start: &str| {
+        out.lines()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("no line '{start}' in:\n{out}"))
+            .to_string()
+    };
+    // The numbers of a line, in order.
+    let numbers = |l: &str| -> Vec<f64> {
+        l.split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .filter_map(|w| w.trim_matches('.').parse().ok())
+            .collect()
+    };
+    let plan = numbers(&line("plan (2 vehicles)"));
+    assert!(plan[1] > 0.0 && plan[3] > 0.0, "{plan:?}");
+    let fleet = numbers(&line("in-process:"));
+    assert!(
+        fleet[0] > 0.1 && fleet[1] > fleet[0],
+        "the world alone is faster: {fleet:?}"
+    );
+    let rtt = numbers(&line("zenoh round trip"));
+    assert!(rtt[0] > 10.0 && rtt[1] > rtt[0], "a router adds a hop: {rtt:?}");
+    let tick = numbers(&line("lockstep tick (2 vehicles, 5548 ticks)"));
+    assert!(tick[2] > rtt[0], "a tick is at least a round trip: {tick:?}");
+    assert!((tick[3] - tick[2] / rtt[0]).abs() < 0.01 * tick[3], "{tick:?} {rtt:?}");
+    let memory = numbers(&line("per agent:"));
+    assert!(memory.iter().all(|&m| m > 0.5 && m < 200.0), "{memory:?}");
+    // Sockets grow with the fleet, not its square: a handful per process.
+    let sockets = numbers(&line("agents' sockets:"));
+    assert_eq!(sockets[1], 2.0, "{sockets:?}");
+    assert!(
+        sockets[0] <= 8.0 * sockets[1] && sockets[2] <= 8.0 * sockets[1],
+        "{sockets:?}"
+    );
+}
