@@ -1,6 +1,6 @@
-//! Throughput of the in-process simulator on the paper's case (b), in vehicle-steps per second,
-//! beside a baseline measured in the same run: the world alone integrating the same fleet with
-//! constant commands. The ratio of the two is what to compare across machines.
+//! Throughput of the in-process simulator on the paper's case (b) and on 50 vehicles in lanes, in
+//! vehicle-steps per second, beside a baseline measured in the same run: the world alone
+//! integrating the same fleet with constant commands. The ratio of the two is what to compare across machines.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
@@ -15,13 +15,23 @@ fn case_b() -> mission::Mission {
     mission::parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap()
 }
 
+/// `tcpf gen lanes --vehicles 50`: the fleet of the README's process figures.
+fn lanes50() -> mission::Mission {
+    mission::parse("lanes50.toml", &mission::generate::lanes(50, 0.2), &[]).unwrap()
+}
+
 fn bench(c: &mut Criterion) {
-    let m = case_b();
+    fleet(c, "case_b", &case_b());
+    fleet(c, "lanes50", &lanes50());
+}
+
+fn fleet(c: &mut Criterion, name: &str, m: &mission::Mission) {
+    let m = m.clone();
     let plan = planner::plan(&m).unwrap();
     let ticks = Fleet::new(&m, &plan).run(|_, _| {}).ticks;
     let steps = ticks * plan.vehicles.len() as u64;
 
-    let mut group = c.benchmark_group("case_b");
+    let mut group = c.benchmark_group(name);
     group.throughput(Throughput::Elements(steps));
     group.bench_function("world_only_baseline", |b| {
         let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();

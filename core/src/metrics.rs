@@ -63,7 +63,8 @@ pub struct Metrics {
 ///
 /// Neither visits every pair, and both are the pairwise figures bit for bit: rounding is
 /// monotonic, so the largest rounded |γ_i − γ_j| is that of the largest and smallest γ; and a
-/// pair whose x alone are `best` apart or more is never closer than `best` (hypot ≥ |dx|).
+/// pair whose x (or y) alone are `best` apart or more is never closer than `best` (hypot ≥ |dx|).
+/// The sweep runs along the axis the fleet spreads most along: lanes side by side share their x.
 fn spread(gammas: &[f64], positions: &[[f64; 2]], order: &mut Vec<usize>, live: impl Fn(usize) -> bool) -> (f64, f64) {
     let (lo, hi) = (0..gammas.len())
         .filter(|&n| live(n))
@@ -71,13 +72,22 @@ fn spread(gammas: &[f64], positions: &[[f64; 2]], order: &mut Vec<usize>, live: 
             (lo.min(gammas[n]), hi.max(gammas[n]))
         });
     let err = if lo < hi { hi - lo } else { 0.0 };
+    let extent = |axis: usize| {
+        let (lo, hi) = positions
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p[axis]), hi.max(p[axis]))
+            });
+        hi - lo
+    };
+    let axis = if extent(1) > extent(0) { 1 } else { 0 };
     order.clear();
     order.extend(0..positions.len());
-    order.sort_unstable_by(|&a, &b| positions[a][0].total_cmp(&positions[b][0]));
+    order.sort_unstable_by(|&a, &b| positions[a][axis].total_cmp(&positions[b][axis]));
     let mut clr = f64::INFINITY;
     for (k, &i) in order.iter().enumerate() {
         for &j in &order[k + 1..] {
-            if positions[j][0] - positions[i][0] >= clr {
+            if positions[j][axis] - positions[i][axis] >= clr {
                 break;
             }
             clr = clr.min((positions[i][0] - positions[j][0]).hypot(positions[i][1] - positions[j][1]));
@@ -266,7 +276,9 @@ mod tests {
                 }
             };
             let gammas: Vec<f64> = (0..n).map(|_| draw(60.0)).collect();
-            let positions: Vec<[f64; 2]> = (0..n).map(|_| [draw(40.0) - 20.0, draw(40.0) - 20.0]).collect();
+            // Square fleets, and lanes stretched along either axis.
+            let (wide, tall) = [(40.0, 40.0), (2.0, 200.0), (200.0, 2.0)][case % 3];
+            let positions: Vec<[f64; 2]> = (0..n).map(|_| [draw(wide) - 20.0, draw(tall) - 20.0]).collect();
             let dead = case % 7;
             let live = |k: usize| k % 7 != dead;
             let (err, clr) = spread(&gammas, &positions, &mut order, live);
