@@ -13,6 +13,7 @@ pub mod path;
 pub mod planner;
 pub mod realtime;
 pub mod record;
+pub mod roster;
 pub mod sim;
 pub mod telemetry;
 pub mod world;

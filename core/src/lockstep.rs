@@ -6,6 +6,8 @@
 
 use std::collections::BTreeSet;
 
+use crate::roster::Roster;
+
 use crate::agent::Agent;
 use crate::mission::Mission;
 use crate::msg::{Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, PROTOCOL_VERSION};
@@ -70,7 +72,7 @@ pub struct WorldNode {
     /// metrics are the recorder's; the world needs only this.
     arrived: Vec<bool>,
     max_ticks: u64,
-    ids: Vec<u32>,
+    ids: Roster,
     states: Vec<State>,
     pending: Vec<Option<Command>>,
     lost: Vec<Lost>,
@@ -88,7 +90,7 @@ impl WorldNode {
             arrived: vec![false; ids.len()],
             max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
-            ids,
+            ids: Roster::new(&ids),
             world,
             lost: Vec::new(),
         }
@@ -104,11 +106,7 @@ impl WorldNode {
     }
 
     pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
-        let n = self
-            .ids
-            .iter()
-            .position(|&i| i == command.id)
-            .ok_or(Reject::UnknownVehicle)?;
+        let n = self.ids.position(command.id).ok_or(Reject::UnknownVehicle)?;
         if self.world.is_lost(n) {
             return Err(Reject::LostVehicle);
         }
@@ -126,11 +124,7 @@ impl WorldNode {
     /// The agent of `id` is given up on, for `reason`: its vehicle drifts from this tick on, and
     /// nobody waits for it. Returns the loss to announce, the first time.
     pub fn on_lost(&mut self, id: u32, reason: LossReason) -> Option<Lost> {
-        let n = self
-            .ids
-            .iter()
-            .position(|&i| i == id)
-            .filter(|&n| !self.world.is_lost(n))?;
+        let n = self.ids.position(id).filter(|&n| !self.world.is_lost(n))?;
         self.world.mark_lost(n);
         self.pending[n] = None;
         let lost = Lost {
@@ -145,6 +139,7 @@ impl WorldNode {
     /// Live vehicles whose command of this tick has not come yet.
     pub fn waiting_for(&self) -> Vec<u32> {
         self.ids
+            .ids()
             .iter()
             .zip(&self.pending)
             .enumerate()

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::links::LinkStats;
 use crate::msg::{Command, LossReason, State};
+use crate::roster::Roster;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VehicleSummary {
@@ -45,7 +46,7 @@ pub struct Metrics {
     /// Previous tick's γ and positions, for interpolating at the first arrival.
     previous: Option<(Vec<f64>, Vec<[f64; 2]>)>,
     spare: Option<(Vec<f64>, Vec<[f64; 2]>)>,
-    ids: Vec<u32>,
+    ids: Roster,
     arrivals: Vec<Option<f64>>,
     lost: Vec<Option<LossReason>>,
     en_route: (f64, f64),
@@ -108,7 +109,7 @@ impl Metrics {
             ticks: 0,
             previous: None,
             spare: None,
-            ids: ids.to_vec(),
+            ids: Roster::new(ids),
             arrivals: vec![None; ids.len()],
             lost: vec![None; ids.len()],
             en_route: (0.0, f64::INFINITY),
@@ -121,7 +122,7 @@ impl Metrics {
     }
 
     pub fn mark_lost(&mut self, id: u32, reason: LossReason) {
-        if let Some(n) = self.ids.iter().position(|&i| i == id) {
+        if let Some(n) = self.ids.position(id) {
             self.lost[n] = Some(reason);
         }
     }
@@ -187,7 +188,7 @@ impl Metrics {
                 });
                 s.sent += 1;
                 // Each neighbour reports the same broadcast: count it once.
-                if let Some(n) = self.ids.iter().position(|&i| i == r.from) {
+                if let Some(n) = self.ids.position(r.from) {
                     if self.sent_at[n] != Some(tick) {
                         self.sent_at[n] = Some(tick);
                         self.gamma_sent[n] += 1;
@@ -217,6 +218,7 @@ impl Metrics {
             ticks: self.ticks,
             vehicles: self
                 .ids
+                .ids()
                 .iter()
                 .zip(&self.arrivals)
                 .zip(&self.lost)

@@ -10,6 +10,7 @@ use crate::metrics::{Metrics, Results};
 use crate::mission::Mission;
 use crate::msg::{Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
+use crate::roster::Roster;
 use crate::world::World;
 
 /// The longest a realtime world holds a vehicle's last command, in simulated seconds: a vehicle
@@ -209,7 +210,7 @@ impl RealtimeAgent {
 pub struct RealtimeWorld {
     world: World,
     /// Every vehicle of the mission.
-    ids: Vec<u32>,
+    ids: Roster,
     /// Per simulated body, its index in `ids`.
     bodies: Vec<usize>,
     held: Vec<Option<Command>>,
@@ -259,7 +260,7 @@ impl RealtimeWorld {
             late_commands: 0,
             without_command: vec![0; n],
             rejoins: vec![0; n],
-            ids,
+            ids: Roster::new(&ids),
         }
     }
 
@@ -274,11 +275,7 @@ impl RealtimeWorld {
 
     /// A vehicle's command: the freshest is held until a fresher one comes.
     pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
-        let n = self
-            .ids
-            .iter()
-            .position(|&i| i == command.id)
-            .ok_or(Reject::UnknownVehicle)?;
+        let n = self.ids.position(command.id).ok_or(Reject::UnknownVehicle)?;
         if !command.finite() {
             return Err(Reject::NonFinite);
         }
@@ -296,7 +293,7 @@ impl RealtimeWorld {
     /// Vehicle `id`'s agent is gone (its token went away) or back. While it is gone its vehicle
     /// has no command: it drifts with thrusters off, and the run does not wait for its arrival.
     pub fn set_gone(&mut self, id: u32, gone: bool) {
-        let Some(n) = self.ids.iter().position(|&i| i == id) else {
+        let Some(n) = self.ids.position(id) else {
             return;
         };
         if gone && !self.gone[n] {
@@ -341,6 +338,7 @@ impl RealtimeWorld {
             ticks: self.world.tick(),
             lost: self
                 .ids
+                .ids()
                 .iter()
                 .zip(&self.gone)
                 .zip(&self.ever_gone)
@@ -362,6 +360,7 @@ impl RealtimeWorld {
     pub fn timing(&self) -> PeriodTiming {
         let per_vehicle = |counts: &[u64]| {
             self.ids
+                .ids()
                 .iter()
                 .zip(counts)
                 .filter(|(_, &c)| c > 0)
@@ -380,7 +379,7 @@ impl RealtimeWorld {
 /// The recorder's side: the freshest state and command of every vehicle, sampled once a period
 /// into the telemetry and the metrics.
 pub struct Sampler {
-    ids: Vec<u32>,
+    ids: Roster,
     states: Vec<Option<State>>,
     commands: Vec<Option<Command>>,
     metrics: Metrics,
@@ -392,7 +391,7 @@ pub struct Sampler {
 impl Sampler {
     pub fn new(ids: &[u32], t_f: f64, dt: f64) -> Sampler {
         Sampler {
-            ids: ids.to_vec(),
+            ids: Roster::new(ids),
             states: vec![None; ids.len()],
             commands: vec![None; ids.len()],
             metrics: Metrics::new(ids, t_f, dt),
@@ -403,7 +402,7 @@ impl Sampler {
     }
 
     fn index(&self, id: u32) -> Result<usize, Reject> {
-        self.ids.iter().position(|&i| i == id).ok_or(Reject::UnknownVehicle)
+        self.ids.position(id).ok_or(Reject::UnknownVehicle)
     }
 
     pub fn on_state(&mut self, state: State) -> Result<(), Reject> {

@@ -6,6 +6,7 @@ use std::collections::VecDeque;
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
 use crate::msg::{Checked, Command, End, Lost, State};
+use crate::roster::Roster;
 
 /// One tick as it fills: a slot per vehicle for its state and its command.
 type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
@@ -17,7 +18,7 @@ type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
 const WINDOW: u64 = 256;
 
 pub struct Recorder {
-    ids: Vec<u32>,
+    ids: Roster,
     metrics: Metrics,
     next: u64,
     /// Ticks next, next + 1, … as they fill.
@@ -33,7 +34,7 @@ pub struct Recorder {
 impl Recorder {
     pub fn new(ids: &[u32], t_f: f64, dt: f64) -> Recorder {
         Recorder {
-            ids: ids.to_vec(),
+            ids: Roster::new(ids),
             metrics: Metrics::new(ids, t_f, dt),
             next: 0,
             ticks: VecDeque::new(),
@@ -46,7 +47,7 @@ impl Recorder {
 
     #[inline]
     fn slot(&mut self, tick: u64, id: u32) -> Result<(&mut Tick, usize), Reject> {
-        let n = self.ids.iter().position(|&i| i == id).ok_or(Reject::UnknownVehicle)?;
+        let n = self.ids.position(id).ok_or(Reject::UnknownVehicle)?;
         if tick < self.next {
             return Err(Reject::Past);
         }
@@ -120,7 +121,7 @@ impl Recorder {
     /// The world gave up on a vehicle's agent from `lost.tick` on: its ticks from then on are
     /// complete without its command, so recording goes on without waiting for the end.
     pub fn on_lost(&mut self, lost: Lost) -> Result<(), Reject> {
-        if !self.ids.contains(&lost.id) {
+        if self.ids.position(lost.id).is_none() {
             return Err(Reject::UnknownVehicle);
         }
         if !self.losses.iter().any(|l| l.id == lost.id) {
@@ -140,7 +141,7 @@ impl Recorder {
             let Some((states, commands)) = self.ticks.front() else {
                 return;
             };
-            let lost = |n: usize| lost_at(&self.losses, self.ids[n], tick);
+            let lost = |n: usize| lost_at(&self.losses, self.ids.ids()[n], tick);
             let complete =
                 states.iter().all(Option::is_some) && commands.iter().enumerate().all(|(n, c)| c.is_some() || lost(n));
             if !complete {
@@ -149,7 +150,7 @@ impl Recorder {
             let (mut states, mut commands) = self.ticks.pop_front().expect("present");
             self.states.clear();
             self.states.extend(states.iter_mut().flat_map(Option::take));
-            for (&id, command) in self.ids.iter().zip(commands.iter_mut()) {
+            for (&id, command) in self.ids.ids().iter().zip(commands.iter_mut()) {
                 if lost_at(&self.losses, id, tick) {
                     let reason = self.losses.iter().find(|l| l.id == id).map(|l| l.reason);
                     self.metrics.mark_lost(id, reason.expect("lost_at found it"));
