@@ -668,20 +668,19 @@ mod tests {
     /// agree with the full evaluation, or the best t_f would be another.
     #[test]
     fn the_quick_feasibility_and_cost_agree_with_the_full_evaluation() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs");
         let files = [
-            "paper/a-nominal",
-            "paper/b-current",
-            "paper/c-uncoordinated",
-            "ring5",
-            "acoustic",
+            ("a-nominal.toml", include_str!("../../configs/paper/a-nominal.toml")),
+            ("b-current.toml", include_str!("../../configs/paper/b-current.toml")),
+            (
+                "c-uncoordinated.toml",
+                include_str!("../../configs/paper/c-uncoordinated.toml"),
+            ),
+            ("ring5.toml", include_str!("../../configs/ring5.toml")),
+            ("acoustic.toml", include_str!("../../configs/acoustic.toml")),
         ];
         let mut missions: Vec<Mission> = files
             .iter()
-            .map(|f| {
-                let file = format!("{dir}/{f}.toml");
-                parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap()
-            })
+            .map(|(file, text)| parse(file, text, &[]).unwrap())
             .collect();
         missions.push(parse("lanes.toml", &generate::lanes(6, 0.0), &[]).unwrap());
         let (mut feasible, mut infeasible) = (0, 0);
