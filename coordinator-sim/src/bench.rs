@@ -13,10 +13,9 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::typed::{presence, subscribe, Outlet, Rejected};
 use tcpf_core::mission::Mission;
-use tcpf_core::msg::{Command as MsgCommand, Gamma, Sample, PROTOCOL_VERSION};
+use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
-use tcpf_core::sim::Fleet;
-use tcpf_core::world::World;
+use tcpf_core::sim::{world_alone, Fleet};
 use tokio::process::Command;
 
 const PING: &str = "tcpf/bench/ping";
@@ -151,37 +150,10 @@ pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> (u64, Durati
     };
     let mut ticks = 0;
     let fleet = best(&mut || ticks = std::hint::black_box(Fleet::new(mission, plan).run(|_, _| {})).ticks);
-    let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
-    let held: Vec<Option<MsgCommand>> = paths
-        .iter()
-        .map(|&(id, _)| {
-            Some(MsgCommand {
-                version: PROTOCOL_VERSION,
-                tick: 0,
-                id,
-                v: 0.6,
-                r: 0.01,
-                hold: false,
-                gamma: 0.0,
-                gamma_dot: 1.0,
-                v_d: 0.6,
-                x_e: 0.0,
-                y_e: 0.0,
-                psi_e: 0.0,
-                receptions: Vec::new(),
-            })
-        })
-        .collect();
     let world = best(&mut || {
-        let mut world = World::new(mission, &paths);
-        let mut states = Vec::with_capacity(paths.len());
-        for _ in 0..ticks {
-            world.states(&mut states);
-            std::hint::black_box(&states);
-            world.step(&held);
-        }
+        std::hint::black_box(world_alone(mission, plan, ticks));
     });
-    (ticks * paths.len() as u64, fleet, world)
+    (ticks * plan.vehicles.len() as u64, fleet, world)
 }
 
 /// A router listening on `endpoint`, with nothing else.

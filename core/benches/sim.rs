@@ -5,10 +5,8 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use tcpf_core::mission;
-use tcpf_core::msg::{Command, PROTOCOL_VERSION};
 use tcpf_core::planner;
-use tcpf_core::sim::Fleet;
-use tcpf_core::world::World;
+use tcpf_core::sim::{world_alone, Fleet};
 
 fn case_b() -> mission::Mission {
     let file = format!("{}/../configs/paper/b-current.toml", env!("CARGO_MANIFEST_DIR"));
@@ -34,33 +32,7 @@ fn fleet(c: &mut Criterion, name: &str, m: &mission::Mission) {
     let mut group = c.benchmark_group(name);
     group.throughput(Throughput::Elements(steps));
     group.bench_function("world_only_baseline", |b| {
-        let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
-        let command = Command {
-            version: PROTOCOL_VERSION,
-            tick: 0,
-            id: 0,
-            v: 0.6,
-            r: 0.01,
-            hold: false,
-            gamma: 0.0,
-            gamma_dot: 1.0,
-            v_d: 0.6,
-            x_e: 0.0,
-            y_e: 0.0,
-            psi_e: 0.0,
-            receptions: Vec::new(),
-        };
-        let held = vec![Some(command); paths.len()];
-        let mut states = Vec::with_capacity(paths.len());
-        b.iter(|| {
-            let mut world = World::new(&m, &paths);
-            for _ in 0..ticks {
-                world.states(&mut states);
-                black_box(&states);
-                world.step(&held);
-            }
-            world
-        })
+        b.iter(|| black_box(world_alone(&m, &plan, ticks)))
     });
     group.bench_function("fleet_in_process", |b| {
         b.iter(|| {

@@ -7,9 +7,10 @@ use crate::agent::Agent;
 use crate::lockstep::{AgentNode, WorldNode};
 use crate::metrics::Results;
 use crate::mission::Mission;
-use crate::msg::{Command, Gamma, LossReason, State};
+use crate::msg::{Command, Gamma, LossReason, State, PROTOCOL_VERSION};
 use crate::planner::Plan;
 use crate::record::Recorder;
+use crate::world::World;
 
 pub struct Fleet {
     world: WorldNode,
@@ -114,6 +115,40 @@ impl Fleet {
             }
         }
     }
+}
+
+/// The baseline of the simulator's throughput: the world alone integrating the plan's vehicles
+/// for `ticks` with constant commands (no agents, no recorder). Returns the world at the end.
+pub fn world_alone(mission: &Mission, plan: &Plan, ticks: u64) -> World {
+    let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+    let held: Vec<Option<Command>> = paths
+        .iter()
+        .map(|&(id, _)| {
+            Some(Command {
+                version: PROTOCOL_VERSION,
+                tick: 0,
+                id,
+                v: 0.6,
+                r: 0.01,
+                hold: false,
+                gamma: 0.0,
+                gamma_dot: 1.0,
+                v_d: 0.6,
+                x_e: 0.0,
+                y_e: 0.0,
+                psi_e: 0.0,
+                receptions: Vec::new(),
+            })
+        })
+        .collect();
+    let mut world = World::new(mission, &paths);
+    let mut states = Vec::with_capacity(paths.len());
+    for _ in 0..ticks {
+        world.states(&mut states);
+        std::hint::black_box(&states);
+        world.step(&held);
+    }
+    world
 }
 
 #[cfg(test)]
