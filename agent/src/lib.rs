@@ -2,6 +2,7 @@
 //! `RealtimeAgent` (realtime): it fetches its path, takes its vehicle's state, exchanges γ with
 //! its neighbours and publishes commands. Started while the run is under way, it rejoins.
 
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
@@ -10,14 +11,15 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    ask_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, Outlet, Presence, Received, Rejected,
+    ask_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, subscribe_with, Outlet, Presence,
+    Received, Rejected,
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, State};
 use tcpf_core::realtime::RealtimeAgent;
-use tokio::sync::mpsc::{Receiver, UnboundedReceiver};
+use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
@@ -70,13 +72,134 @@ struct Shell {
     shutdown: Shutdown,
     rejected: Rejected,
     presence: UnboundedReceiver<Presence>,
-    states: Receiver<Received<State>>,
-    gammas: Receiver<Received<Gamma>>,
     ends: Receiver<Received<End>>,
     losses: Receiver<Received<Loss>>,
+    _subscribers: Vec<Subscriber<()>>,
+}
+
+/// A realtime agent, its inbound queues and its outlets.
+struct Queued {
+    agent: Agent,
+    states: Receiver<Received<State>>,
+    gammas: Receiver<Received<Gamma>>,
     commands: Outlet,
     gamma_out: Outlet,
-    _subscribers: Vec<Subscriber<()>>,
+}
+
+/// Where the vehicle's states and the neighbours' γ go, and whence the agent's messages leave.
+enum Inbound {
+    /// Realtime: queued for the loop, which acts at its own beat.
+    Queued(Box<Queued>),
+    /// Lockstep: into the node on Zenoh's thread.
+    Fed {
+        feed: Arc<Feed>,
+        faults: UnboundedReceiver<anyhow::Error>,
+    },
+}
+
+/// The lockstep node, fed on Zenoh's thread: a state or γ goes in and the γ and command it
+/// yields leave at once, without waking the agent's task. That handoff, a thread woken per
+/// message, cost a fifth of a tick of 10 agents as processes. The task keeps what is slow:
+/// liveliness, the end, the stale timeout.
+///
+/// Publishing from the callback cannot block on a full queue that only this thread would
+/// drain: lockstep sends a message or two per tick, and no tick comes until they are delivered.
+struct Feed {
+    id: u32,
+    fed: Mutex<Fed>,
+    commands: Outlet,
+    gamma_out: Outlet,
+    rejected: Rejected,
+    faults: UnboundedSender<anyhow::Error>,
+}
+
+struct Fed {
+    node: AgentNode,
+    /// Until the loop starts (the node's neighbours and rejoining known), what came, in order.
+    held: Option<Vec<(String, Input)>>,
+    /// Since when the node has been waiting for a neighbour's γ.
+    waiting_since: Option<Instant>,
+}
+
+enum Input {
+    State(State),
+    Gamma(Gamma),
+}
+
+impl Feed {
+    fn lock(&self) -> MutexGuard<'_, Fed> {
+        self.fed.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn take(&self, key: &str, input: Input) {
+        let mut fed = self.lock();
+        match &mut fed.held {
+            Some(held) => held.push((key.to_string(), input)),
+            None => {
+                self.apply(&mut fed, key, input);
+                self.settle(&mut fed);
+            }
+        }
+    }
+
+    fn apply(&self, fed: &mut Fed, key: &str, input: Input) {
+        match input {
+            Input::State(state) => match fed.node.on_state(state) {
+                Ok(Some(gamma)) => self.sent(self.gamma_out.put_now(&gamma)),
+                Ok(None) => {}
+                Err(e) => self.rejected.reject(e, key),
+            },
+            Input::Gamma(gamma) => self.rejected.check(key, gamma.from, || fed.node.on_gamma(gamma)),
+        }
+    }
+
+    /// Publishes the commands the node has ready, and notes whether it now waits.
+    fn settle(&self, fed: &mut Fed) {
+        while let Some(command) = fed.node.command() {
+            warn_if_not_finite(self.id, &command);
+            self.sent(self.commands.put_now(&command));
+        }
+        if fed.node.waiting() {
+            fed.waiting_since.get_or_insert_with(Instant::now);
+        } else {
+            fed.waiting_since = None;
+        }
+    }
+
+    /// A publication that failed ends the loop, which owns the error.
+    fn sent(&self, publication: Result<()>) {
+        if let Err(e) = publication {
+            let _ = self.faults.send(e);
+        }
+    }
+
+    /// The loop starts: what came before goes into the node.
+    fn start(&self) {
+        let mut fed = self.lock();
+        for (key, input) in fed.held.take().unwrap_or_default() {
+            self.apply(&mut fed, &key, input);
+        }
+        self.settle(&mut fed);
+    }
+
+    /// Does `change` to the node, then publishes what it has ready.
+    fn with<R>(&self, change: impl FnOnce(&mut AgentNode) -> R) -> R {
+        let mut fed = self.lock();
+        let result = change(&mut fed.node);
+        if fed.held.is_none() {
+            self.settle(&mut fed);
+        }
+        result
+    }
+}
+
+fn warn_if_not_finite(id: u32, command: &Command) {
+    if !command.finite() {
+        tracing::error!(
+            "agent {id}: the command of tick {} holds a non-finite number; the world refuses it",
+            command.tick
+        );
+    }
 }
 
 pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Options) -> Result<Exit> {
@@ -98,17 +221,57 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let agent = Agent::new(mission, id, path);
     let neighbours: Vec<u32> = agent.neighbours().collect();
 
-    let (s1, states) = subscribe::<State>(&session, &keys.state(id), &rejected).await?;
-    let (gamma_tx, gammas) = queue();
-    let mut subscribers = vec![s1];
-    for &j in &neighbours {
-        subscribers.push(subscribe_into::<Gamma>(&session, &keys.gamma(j), &rejected, gamma_tx.clone()).await?);
-    }
+    let mut subscribers = Vec::new();
+    let inbound = if realtime {
+        let (s1, states) = subscribe::<State>(&session, &keys.state(id), &rejected).await?;
+        let (gamma_tx, gammas) = queue();
+        subscribers.push(s1);
+        for &j in &neighbours {
+            subscribers.push(subscribe_into::<Gamma>(&session, &keys.gamma(j), &rejected, gamma_tx.clone()).await?);
+        }
+        let queued = Queued {
+            agent,
+            states,
+            gammas,
+            commands: Outlet::for_clock(&session, keys.cmd(id), true).await?,
+            gamma_out: Outlet::gamma(&session, keys.gamma(id), true).await?,
+        };
+        Inbound::Queued(Box::new(queued))
+    } else {
+        let (faults_tx, faults) = mpsc::unbounded_channel();
+        let feed = Arc::new(Feed {
+            id,
+            fed: Mutex::new(Fed {
+                node: AgentNode::new(agent),
+                held: Some(Vec::new()),
+                waiting_since: None,
+            }),
+            commands: Outlet::for_clock(&session, keys.cmd(id), false).await?,
+            gamma_out: Outlet::gamma(&session, keys.gamma(id), false).await?,
+            rejected: rejected.clone(),
+            faults: faults_tx,
+        });
+        let to = feed.clone();
+        subscribers.push(
+            subscribe_with::<State>(&session, &keys.state(id), &rejected, move |key, s| {
+                to.take(key, Input::State(s))
+            })
+            .await?,
+        );
+        for &j in &neighbours {
+            let to = feed.clone();
+            subscribers.push(
+                subscribe_with::<Gamma>(&session, &keys.gamma(j), &rejected, move |key, g| {
+                    to.take(key, Input::Gamma(g))
+                })
+                .await?,
+            );
+        }
+        Inbound::Fed { feed, faults }
+    };
     let (s2, ends) = subscribe::<End>(&session, &keys.end(), &rejected).await?;
     let (s3, losses) = subscribe::<Loss>(&session, &keys.lost("*"), &rejected).await?;
     subscribers.extend([s2, s3, presence_subscriber]);
-    let commands = Outlet::for_clock(&session, keys.cmd(id), realtime).await?;
-    let gamma_out = Outlet::gamma(&session, keys.gamma(id), realtime).await?;
     tracing::info!(
         "agent {id}: path with t_f = {:.3} s, neighbours {neighbours:?}",
         path.t_f()
@@ -167,54 +330,55 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         shutdown,
         rejected,
         presence,
-        states,
-        gammas,
         ends,
         losses,
-        commands,
-        gamma_out,
         _subscribers: subscribers,
     };
 
-    let exit = if realtime {
-        let clock = match under_way {
-            Some(clock) => Some(clock),
-            None => shell.wait_for_clock(mission, deadline).await?,
-        };
-        match clock {
-            Some(clock) => shell.realtime(mission, agent, &clock, options).await?,
-            None => Exit::Interrupted,
-        }
-    } else {
-        let mut node = AgentNode::new(agent);
-        if under_way.is_some() {
-            node.rejoin();
-        } else {
-            // A neighbour counts once its token is seen, so that the first tick waits for
-            // exactly the neighbours every later tick waits for.
-            for &j in &neighbours {
-                node.set_gone(j, !present.contains(&j));
+    let exit = match inbound {
+        Inbound::Queued(queued) => {
+            let clock = match under_way {
+                Some(clock) => Some(clock),
+                None => shell.wait_for_clock(mission, deadline).await?,
+            };
+            match clock {
+                Some(clock) => shell.realtime(mission, *queued, &clock, options).await?,
+                None => Exit::Interrupted,
             }
-            while !node.all_present() {
-                let Some(arrived) = shell
-                    .shutdown
-                    .unless(tokio::time::timeout_at(deadline, shell.presence.recv()))
-                    .await
-                else {
-                    return Ok(Exit::Interrupted);
-                };
-                match arrived {
-                    Ok(Some(p)) if p.role == Role::Agent && neighbours.contains(&p.id) => node.set_gone(p.id, !p.alive),
-                    Ok(Some(_)) => {}
-                    Ok(None) => return Err(anyhow!("liveliness subscription closed")),
-                    Err(_) => {
-                        tracing::warn!("agent {id}: starting without neighbours {:?}", node.waiting_for());
-                        break;
+        }
+        Inbound::Fed { feed, mut faults } => {
+            if under_way.is_some() {
+                feed.with(AgentNode::rejoin);
+            } else {
+                // A neighbour counts once its token is seen, so that the first tick waits for
+                // exactly the neighbours every later tick waits for.
+                for &j in &neighbours {
+                    feed.with(|node| node.set_gone(j, !present.contains(&j)));
+                }
+                while !feed.with(|node| node.all_present()) {
+                    let Some(arrived) = shell
+                        .shutdown
+                        .unless(tokio::time::timeout_at(deadline, shell.presence.recv()))
+                        .await
+                    else {
+                        return Ok(Exit::Interrupted);
+                    };
+                    match arrived {
+                        Ok(Some(p)) if p.role == Role::Agent && neighbours.contains(&p.id) => {
+                            feed.with(|node| node.set_gone(p.id, !p.alive))
+                        }
+                        Ok(Some(_)) => {}
+                        Ok(None) => return Err(anyhow!("liveliness subscription closed")),
+                        Err(_) => {
+                            let waiting = feed.lock().node.waiting_for();
+                            tracing::warn!("agent {id}: starting without neighbours {waiting:?}");
+                            break;
+                        }
                     }
                 }
             }
+            shell.lockstep(&feed, &mut faults, options).await?
         }
-        shell.lockstep(node, options).await?
     };
     let _ = token.undeclare().await;
     let _ = shell.session.close().await;
@@ -264,17 +428,6 @@ impl Shell {
         }
     }
 
-    async fn publish(&self, command: &Command) -> Result<()> {
-        if !command.finite() {
-            tracing::error!(
-                "agent {}: the command of tick {} holds a non-finite number; the world refuses it",
-                self.id,
-                command.tick
-            );
-        }
-        self.commands.put(command).await
-    }
-
     /// An `End` from the world, or the world or planner gone: whether to stop, and why.
     async fn world_gone(&mut self, role: Role, accept: impl Fn(&End) -> bool) -> Exit {
         // At the end the planner may leave before the world's end message reaches us.
@@ -287,36 +440,27 @@ impl Shell {
         Exit::Orphaned
     }
 
-    async fn lockstep(&mut self, mut node: AgentNode, options: &Options) -> Result<Exit> {
+    async fn lockstep(
+        &mut self,
+        feed: &Feed,
+        faults: &mut UnboundedReceiver<anyhow::Error>,
+        options: &Options,
+    ) -> Result<Exit> {
         let id = self.id;
-        let mut waiting_since: Option<Instant> = None;
+        feed.start();
         let exit = loop {
-            while let Some(command) = node.command() {
-                self.publish(&command).await?;
-            }
-            let waiting = node.waiting_for();
-            if waiting.is_empty() {
-                waiting_since = None;
-            }
-            let since = *waiting_since.get_or_insert_with(Instant::now);
-            let stale = tokio::time::sleep_until((since + options.stale_timeout).into());
+            // Woken once per timeout while the fleet moves on, to look whether it still waits.
+            let stale_at = feed.lock().waiting_since.unwrap_or_else(Instant::now) + options.stale_timeout;
             tokio::select! {
-                Some(s) = self.states.recv() => match node.on_state(s.message) {
-                    Ok(Some(gamma)) => self.gamma_out.put(&gamma).await?,
-                    Ok(None) => {}
-                    Err(e) => self.rejected.reject(e, &s.key),
-                },
-                Some(g) = self.gammas.recv() => {
-                    self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message));
-                }
+                Some(e) = faults.recv() => return Err(e),
                 Some(p) = self.presence.recv() => match p.role {
                     Role::World | Role::Planner if !p.alive => {
-                        break self.world_gone(p.role, |e| node.on_end(e).is_ok()).await;
+                        break self.world_gone(p.role, |e| feed.with(|node| node.on_end(e).is_ok())).await;
                     }
-                    Role::Agent if self.neighbours.contains(&p.id) => node.set_gone(p.id, !p.alive),
+                    Role::Agent if self.neighbours.contains(&p.id) => feed.with(|node| node.set_gone(p.id, !p.alive)),
                     _ => {}
                 },
-                Some(e) = self.ends.recv() => match node.on_end(&e.message) {
+                Some(e) = self.ends.recv() => match feed.with(|node| node.on_end(&e.message)) {
                     Ok(()) => break Exit::Ended,
                     Err(why) => self.rejected.reject(why, &e.key),
                 },
@@ -332,36 +476,50 @@ impl Shell {
                         break Exit::Lost;
                     } else if self.neighbours.contains(&l.message.id) {
                         // Nobody waits for a lost vehicle's agent: neither the world nor its neighbours.
-                        node.set_gone(l.message.id, true);
+                        feed.with(|node| node.set_gone(l.message.id, true));
                     }
                 }
                 _ = self.shutdown.recv() => break Exit::Interrupted,
-                _ = stale, if !waiting.is_empty() => {
-                    for j in waiting {
-                        tracing::warn!(
-                            "agent {id}: neighbour {j} silent for {:?}; going on without it until it speaks again (the run is no longer reproducible)",
-                            options.stale_timeout
-                        );
-                        node.on_stale(j);
+                _ = tokio::time::sleep_until(stale_at.into()) => {
+                    let mut fed = feed.lock();
+                    if fed.waiting_since.is_some_and(|since| since.elapsed() >= options.stale_timeout) {
+                        for j in fed.node.waiting_for() {
+                            tracing::warn!(
+                                "agent {id}: neighbour {j} silent for {:?}; going on without it until it speaks again (the run is no longer reproducible)",
+                                options.stale_timeout
+                            );
+                            fed.node.on_stale(j);
+                        }
+                        feed.settle(&mut fed);
                     }
                 }
             }
         };
-        tracing::info!("agent {id}: {exit:?} at γ = {:.3}", node.agent().gamma());
+        let (gamma, timing) = {
+            let fed = feed.lock();
+            (fed.node.agent().gamma(), fed.node.timing().clone())
+        };
+        tracing::info!("agent {id}: {exit:?} at γ = {gamma:.3}");
         report(
             &self.session,
             &self.keys,
             Role::Agent,
             id,
             &self.rejected,
-            node.timing(),
+            &timing,
             None,
         )
         .await?;
         Ok(exit)
     }
 
-    async fn realtime(&mut self, mission: &Mission, agent: Agent, clock: &Clock, options: &Options) -> Result<Exit> {
+    async fn realtime(
+        &mut self,
+        mission: &Mission,
+        mut queued: Queued,
+        clock: &Clock,
+        options: &Options,
+    ) -> Result<Exit> {
         let id = self.id;
         // When the world went out of reach, and until when to wait for it: on a testbed a link
         // that drops for a while must not end the vehicle's mission.
@@ -371,25 +529,26 @@ impl Shell {
         let period = fleet.period().as_secs_f64();
         // γ_i starts from the vehicle's position: at its start for an agent there from the
         // beginning, wherever it is for one started again.
-        let mut node = RealtimeAgent::new(agent, true);
+        let mut node = RealtimeAgent::new(queued.agent, true);
         let mut beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
         let exit = loop {
             tokio::select! {
                 Some(beat) = beats.recv() => {
                     if let Some(action) = node.act(beat.tick, beat.late_s(), period, beat.skipped) {
                         if let Some(gamma) = action.gamma {
-                            self.gamma_out.put(&gamma).await?;
+                            queued.gamma_out.put(&gamma).await?;
                             published += 1;
                         }
-                        self.publish(&action.command).await?;
+                        warn_if_not_finite(id, &action.command);
+                        queued.commands.put(&action.command).await?;
                     }
                 }
-                Some(s) = self.states.recv() => {
+                Some(s) = queued.states.recv() => {
                     if let Err(e) = node.on_state(s.message) {
                         self.rejected.reject(e, &s.key);
                     }
                 }
-                Some(g) = self.gammas.recv() => {
+                Some(g) = queued.gammas.recv() => {
                     self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message));
                 }
                 Some(p) = self.presence.recv() => {

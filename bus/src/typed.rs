@@ -167,21 +167,37 @@ where
     T: DeserializeOwned + Checked + Send + 'static,
     M: Send + 'static,
 {
+    let overflowed = rejected.clone();
+    subscribe_with(session, key, rejected, move |key, message| {
+        let received = Received {
+            key: key.to_string(),
+            message: wrap(message),
+        };
+        if let Err(mpsc::error::TrySendError::Full(_)) = tx.try_send(received) {
+            overflowed.overflow(key);
+        }
+    })
+    .await
+}
+
+/// Subscribes to `key` and hands every usable message of type T, with the key it came on, to
+/// `take`, on Zenoh's thread: for a machine fed in place, without waking another task.
+pub async fn subscribe_with<T>(
+    session: &Session,
+    key: &str,
+    rejected: &Rejected,
+    take: impl Fn(&str, T) + Send + Sync + 'static,
+) -> Result<Subscriber<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+{
     let rejected = rejected.clone();
     let subscriber = session
         .declare_subscriber(key)
         .callback(move |sample| {
             let key = sample.key_expr().as_str();
             match decode::<T>(&sample.payload().to_bytes()) {
-                Ok(message) => {
-                    let received = Received {
-                        key: key.to_string(),
-                        message: wrap(message),
-                    };
-                    if let Err(mpsc::error::TrySendError::Full(_)) = tx.try_send(received) {
-                        rejected.overflow(key);
-                    }
-                }
+                Ok(message) => take(key, message),
                 Err(e) => rejected.invalid(e, key),
             }
         })
@@ -249,6 +265,14 @@ impl Outlet {
             .await
             .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
         Ok(Outlet { publisher })
+    }
+
+    /// `put` from a thread that must not await: a Zenoh callback.
+    pub fn put_now<T: Serialize>(&self, message: &T) -> Result<()> {
+        self.publisher
+            .put(encode(message))
+            .wait()
+            .map_err(|e| anyhow!("publish on {}: {e}", self.publisher.key_expr()))
     }
 
     pub async fn put<T: Serialize>(&self, message: &T) -> Result<()> {

@@ -351,6 +351,11 @@ impl AgentNode {
         self.awaited().collect()
     }
 
+    /// Whether a live neighbour's γ of this tick is still awaited (`waiting_for` without the list).
+    pub fn waiting(&self) -> bool {
+        self.awaited().next().is_some()
+    }
+
     fn awaited(&self) -> impl Iterator<Item = u32> + '_ {
         let tick = self.state.filter(|s| self.agent.is_comm_tick(s.tick)).map(|s| s.tick);
         self.agent.neighbours().filter(move |j| {
@@ -364,7 +369,7 @@ impl AgentNode {
 
     /// The command of this tick, once the state and every awaited γ are in.
     pub fn command(&mut self) -> Option<Command> {
-        if self.awaited().next().is_some() {
+        if self.waiting() {
             return None;
         }
         let state = self.state.take()?;
