@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
-use tcpf_bus::typed::{presence, subscribe, Outlet, Rejected};
+use tcpf_bus::typed::{presence, subscribe, subscribe_with, Outlet, Rejected};
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
@@ -35,13 +35,18 @@ fn probe(tick: u64) -> Gamma {
     }
 }
 
-/// The echo side: answers every ping with a pong of the same payload until `count` echoes.
-/// `id` names its token, so that a fleet of idle ones can be counted.
+/// The echo side: answers every ping with a pong of the same payload until `count` echoes, in
+/// Zenoh's callback, as an agent answers a state: the round trip is Zenoh's and the sockets'
+/// alone. `id` names its token, so that a fleet of idle ones can be counted.
 pub async fn pong(zenoh: &ZenohArgs, count: u64, id: u32) -> Result<()> {
     let session = zenoh.open().await?;
     let rejected = Rejected::default();
-    let (_sub, mut pings) = subscribe::<Gamma>(&session, PING, &rejected).await?;
     let out = Outlet::new(&session, PONG.into()).await?;
+    let (echoed, mut echoes) = tokio::sync::mpsc::unbounded_channel();
+    let _sub = subscribe_with::<Gamma>(&session, PING, &rejected, move |_, ping| {
+        let _ = echoed.send(out.put_now(&ping));
+    })
+    .await?;
     let token = Keys::new("bench").alive(Role::Agent, id);
     let _token = session
         .liveliness()
@@ -49,8 +54,8 @@ pub async fn pong(zenoh: &ZenohArgs, count: u64, id: u32) -> Result<()> {
         .await
         .map_err(|e| anyhow!("{e}"))?;
     for _ in 0..count {
-        let Some(ping) = pings.recv().await else { break };
-        out.put(&ping.message).await?;
+        let Some(echo) = echoes.recv().await else { break };
+        echo?;
     }
     let _ = session.close().await;
     Ok(())
