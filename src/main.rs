@@ -473,6 +473,12 @@ fn run(
             command_timeout
         )));
     }
+    if !in_process && !realtime {
+        launcher::router_runtime();
+    }
+    if !in_process && !realtime {
+        launcher::router_runtime();
+    }
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
@@ -583,6 +589,9 @@ fn agent(
 
 fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
+    if mission.mission.clock == mission::ClockKind::Lockstep {
+        launcher::router_runtime();
+    }
     let seconds = |d: Duration| d.as_secs_f64();
     let started = Instant::now();
     let plan = solve(&mission, &args.file)?;

@@ -96,7 +96,7 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
             "--mode",
             mode,
         ])
-        .envs(child_runtime())
+        .envs(crate::launcher::child_runtime())
         .stdout(Stdio::null())
         .kill_on_drop(true)
         .spawn()
@@ -131,13 +131,6 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
     }
     times.sort_unstable();
     Ok(times)
-}
-
-/// The Zenoh threads `tcpf run` gives its children, so that a baseline runs as they do.
-fn child_runtime() -> Option<(&'static str, &'static str)> {
-    std::env::var_os("ZENOH_RUNTIME")
-        .is_none()
-        .then_some(("ZENOH_RUNTIME", crate::launcher::CHILD_RUNTIME))
 }
 
 /// The in-process fleet against the world alone integrating as many vehicles for as many ticks
@@ -265,7 +258,7 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
                     "--mode",
                     "client",
                 ])
-                .envs(child_runtime())
+                .envs(crate::launcher::child_runtime())
                 .stdout(Stdio::null())
                 .kill_on_drop(true)
                 .spawn()
