@@ -2,6 +2,7 @@
 //! core's `Recorder` (lockstep), which hands complete ticks to `telemetry.csv` in order, or to its
 //! `Sampler` (realtime), which a metronome samples once a period on the fleet's clock.
 
+use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
@@ -9,7 +10,7 @@ use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::ask_clock;
-use tcpf_bus::typed::{subscribe_as, Received, Rejected};
+use tcpf_bus::typed::{presence, subscribe_as, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
@@ -29,6 +30,10 @@ use crate::progress::Ticks;
 use tcpf_report::rundir::{RunDir, Telemetry};
 use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
 
+/// How long `tcpf record` waits for the mission's agents, as long as the world does by default.
+const AGENTS_TIMEOUT: Duration = Duration::from_secs(60);
+/// How long `tcpf record` waits, after the world's end, for a tick that does not come whole.
+const END_STALL: Duration = Duration::from_secs(5);
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
 /// fleet sends, so it may lag behind a fast lockstep fleet by many ticks.
 const INBOX: usize = 65_536;
@@ -95,7 +100,8 @@ pub struct Recording {
 }
 
 impl Recording {
-    /// Subscribes to the mission, then declares the recorder's token (the world waits for it).
+    /// Subscribes to the mission. The world waits for the recorder's token: declare it with
+    /// `declare` once the recorder is sure to hear everyone.
     pub async fn start(session: &Session, mission: &Mission, t_f: f64, telemetry: Telemetry) -> Result<Recording> {
         let keys = Keys::new(&mission.mission.name);
         let rejected = Rejected::default();
@@ -107,11 +113,6 @@ impl Recording {
         subscribers.push(subscribe_as(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?);
         let reports = format!("tcpf/{}/report/**", mission.mission.name);
         subscribers.push(subscribe_as(session, &reports, &rejected, tx, Message::Report).await?);
-        let token = session
-            .liveliness()
-            .declare_token(keys.alive(Role::Record, std::process::id()))
-            .await
-            .map_err(|e| anyhow!("liveliness token: {e}"))?;
         let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
         let dt = mission.mission.control_period;
         let machine = match mission.mission.clock {
@@ -136,8 +137,54 @@ impl Recording {
             progress: Instant::now(),
             first: None,
             _subscribers: subscribers,
-            token: Some(token),
+            token: None,
         })
+    }
+
+    /// Declares the recorder's token: the world, which waits for it, may start.
+    pub async fn declare(&mut self) -> Result<()> {
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(self.keys.alive(Role::Record, std::process::id()))
+            .await
+            .map_err(|e| anyhow!("liveliness token: {e}"))?;
+        self.token = Some(token);
+        Ok(())
+    }
+
+    /// Waits until every agent of the mission is present (`false` on a signal). Between peers,
+    /// each pair has its own link, and the world starting on this recorder's token says
+    /// nothing of the agents' links to it: an agent that had not yet heard of the recorder's
+    /// subscriptions would send its first commands past it, and the recording would wait for
+    /// them forever. An agent's token comes on the same link, after the subscriptions went
+    /// the other way when the link opened.
+    pub async fn await_agents(&self, mission: &Mission, shutdown: &mut Shutdown, timeout: Duration) -> Result<bool> {
+        let (_subscriber, mut presence) = presence(&self.session, &self.keys).await?;
+        let mut missing: BTreeSet<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+        let deadline = tokio::time::Instant::now() + timeout;
+        while !missing.is_empty() {
+            let Some(arrived) = shutdown
+                .unless(tokio::time::timeout_at(deadline, presence.recv()))
+                .await
+            else {
+                return Ok(false);
+            };
+            match arrived {
+                Ok(Some(p)) if p.role == Role::Agent && p.alive => {
+                    missing.remove(&p.id);
+                }
+                Ok(Some(_)) => {}
+                Ok(None) => return Err(anyhow!("liveliness subscription closed")),
+                Err(_) => {
+                    return Err(anyhow!(
+                        "recorder: agents {missing:?} of mission {} not present within {timeout:?}",
+                        mission.mission.name
+                    ))
+                }
+            }
+        }
+        Ok(true)
     }
 
     /// Takes one message (or, in realtime, one beat of the clock), and writes every tick it
@@ -345,20 +392,37 @@ pub async fn record(
     dir.write_plan(plan)?;
     let session = zenoh.open().await?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
+    // In realtime a recording samples the fleet on its clock, and a command missed is only a
+    // period's gap; lockstep writes every tick whole, and so must hear everyone from the first.
+    let lockstep = mission.mission.clock == ClockKind::Lockstep;
+    let ready = !lockstep || recording.await_agents(mission, &mut shutdown, AGENTS_TIMEOUT).await?;
+    if ready {
+        recording.declare().await?;
+    }
     let progress = Ticks::new(mission);
     let started = Instant::now();
-    let interrupted = loop {
-        if recording.complete() {
-            break false;
-        }
-        tokio::select! {
-            r = recording.step() => {
-                r?;
-                progress.set(recording.ticks());
+    let interrupted = !ready
+        || loop {
+            if recording.complete() {
+                break false;
             }
-            _ = shutdown.recv() => break true,
-        }
-    };
+            tokio::select! {
+                r = recording.step() => {
+                    r?;
+                    progress.set(recording.ticks());
+                }
+                _ = shutdown.recv() => break true,
+                _ = tokio::time::sleep(END_STALL), if recording.end.is_some() => {
+                    if recording.progress.elapsed() >= END_STALL {
+                        tracing::error!(
+                            "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
+                            recording.ticks()
+                        );
+                        break false;
+                    }
+                }
+            }
+        };
     progress.finish();
     let wall_time_s = started.elapsed().as_secs_f64();
     // The world and the agents report as they exit, just after the end: a moment for them.
