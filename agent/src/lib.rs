@@ -370,8 +370,8 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                         Ok(Some(_)) => {}
                         Ok(None) => return Err(anyhow!("liveliness subscription closed")),
                         Err(_) => {
-                            let waiting = feed.lock().node.waiting_for();
-                            tracing::warn!("agent {id}: starting without neighbours {waiting:?}");
+                            let absent = feed.lock().node.absent();
+                            tracing::warn!("agent {id}: starting without neighbours {absent:?}");
                             break;
                         }
                     }

@@ -1,5 +1,6 @@
-//! Typed publishers and subscribers. A subscriber's callback only decodes and forwards: what to do
-//! with a message is the core machines' business. Refused payloads are counted, never fatal.
+//! Typed publishers and subscribers. A subscriber's callback only decodes and forwards, to a queue
+//! or straight to a core machine: what to do with a message is the machines' business. Refused
+//! payloads are counted, never fatal.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};

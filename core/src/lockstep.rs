@@ -332,6 +332,11 @@ impl AgentNode {
         self.gone.is_empty()
     }
 
+    /// The neighbours whose agent is gone.
+    pub fn absent(&self) -> Vec<u32> {
+        self.gone.iter().copied().collect()
+    }
+
     /// The shell's wall-clock rule: live neighbour `id` has been silent too long, so this tick
     /// goes on without its γ, and so do the next ones until it speaks again. A lockstep run in
     /// which this fires is no longer reproducible, and `timing` says so.
@@ -482,6 +487,7 @@ mod tests {
         assert_eq!(node.waiting_for(), vec![1]);
         node.set_gone(1, true);
         assert!(!node.all_present());
+        assert_eq!(node.absent(), vec![1]);
         let command = node.command().expect("nobody to wait for");
         assert!(command.receptions.is_empty(), "nothing heard, nothing counted");
     }
