@@ -284,6 +284,18 @@ impl Outlet {
     }
 }
 
+/// Publishes one message on `key` at once, without a declared publisher, from a thread that
+/// must not await: for a rare message such as a vehicle's loss.
+pub fn say_now<T: Serialize>(session: &Session, key: String, message: &T) -> Result<()> {
+    session
+        .put(key.clone(), encode(message))
+        .congestion_control(CongestionControl::Block)
+        .reliability(Reliability::Reliable)
+        .express(true)
+        .wait()
+        .map_err(|e| anyhow!("publish on {key}: {e}"))
+}
+
 /// A liveliness change of the mission: someone came or went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Presence {

@@ -138,6 +138,16 @@ impl WorldNode {
 
     /// Live vehicles whose command of this tick has not come yet.
     pub fn waiting_for(&self) -> Vec<u32> {
+        self.awaited().collect()
+    }
+
+    /// Whether a live vehicle's command of this tick is still awaited (`waiting_for` without
+    /// the list).
+    pub fn waiting(&self) -> bool {
+        self.awaited().next().is_some()
+    }
+
+    fn awaited(&self) -> impl Iterator<Item = u32> + '_ {
         self.ids
             .ids()
             .iter()
@@ -145,7 +155,6 @@ impl WorldNode {
             .enumerate()
             .filter(|(n, (_, c))| c.is_none() && !self.world.is_lost(*n))
             .map(|(_, (id, _))| *id)
-            .collect()
     }
 
     /// Closes the tick (`observe` sees it), then either ends the run or integrates to the next.
