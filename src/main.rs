@@ -476,9 +476,6 @@ fn run(
     if !in_process && !realtime {
         launcher::router_runtime();
     }
-    if !in_process && !realtime {
-        launcher::router_runtime();
-    }
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
