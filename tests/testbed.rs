@@ -390,16 +390,21 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
     };
     let fraction = |l: &serde_json::Value| l["delivered"].as_f64().unwrap() / l["published"].as_f64().unwrap();
     let (lossy, clean) = (fraction(&link(2)), fraction(&link(1)));
-    assert!(
-        (0.63..=0.77).contains(&lossy),
-        "delivered fraction of the links from vehicle 2: {lossy:.3} ({})",
-        link(2)
-    );
     // A realtime agent keeps the newest γ of a neighbour between two of its instants: one that
-    // came early is overtaken by the next, and not counted as arrived. A few per cent.
+    // came early is overtaken by the next, and not counted as arrived. A few per cent alone, a
+    // tenth when other tests load both cores, on both links alike: the kernel's share is the
+    // lossy link's fraction over the clean one's, measured in the same run. A rule that dropped
+    // vehicle 1's datagrams too would make that 1.
+    let kernel = lossy / clean;
     assert!(
-        clean > 0.9,
-        "the links from vehicle 1 lose next to nothing: {clean:.3} ({})",
+        (0.63..=0.77).contains(&kernel),
+        "delivered fraction of the links from vehicle 2 over those from vehicle 1: {lossy:.3} / {clean:.3} = {kernel:.3} ({}; {})",
+        link(2),
+        link(1)
+    );
+    assert!(
+        clean > 0.8,
+        "the links from vehicle 1 lose no more than overtaking does: {clean:.3} ({})",
         link(1)
     );
     // The same mission with the simulated loss, 20 seeds: the real run must fall in its range.
@@ -415,7 +420,7 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
     let band = &simulated["values"][0]["max_coordination_error"];
     let (min, max) = (band["min"].as_f64().unwrap(), band["max"].as_f64().unwrap());
     let error = s["max_coordination_error"].as_f64().unwrap();
-    println!("real loss 0.3: delivered {lossy:.3}, coordination error {error:.3} s; simulated over 20 seeds: {min:.3}–{max:.3} s");
+    println!("real loss 0.3: delivered {lossy:.3} (clean link {clean:.3}), coordination error {error:.3} s; simulated over 20 seeds: {min:.3}–{max:.3} s");
     assert!(
         (min * 0.75..=max * 1.25).contains(&error),
         "coordination error {error:.3} s outside the simulated {min:.3}–{max:.3} s, widened by 25 %"
