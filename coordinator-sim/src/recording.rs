@@ -325,19 +325,25 @@ impl Recording {
                         dropped: 0,
                         unused: n,
                         published: None,
+                        overtaken: None,
                     }),
                 }
             }
         }
         let realtime = mission.mission.clock == ClockKind::Realtime;
         if realtime {
-            // What each sender published: against what arrived, the network's own loss.
-            for link in results.links.iter_mut() {
-                link.published = self
-                    .exit_reports
+            // What each sender published, against what reached its receivers (judged at an
+            // instant, or overtaken before one): the network's own loss.
+            let agent = |id: u32| {
+                self.exit_reports
                     .iter()
-                    .find(|r| r.role == Role::Agent.as_str() && r.id == link.from)
-                    .map(|r| r.published);
+                    .find(move |r| r.role == Role::Agent.as_str() && r.id == id)
+            };
+            for link in results.links.iter_mut() {
+                link.published = agent(link.from).map(|r| r.published);
+                link.overtaken = agent(link.to)
+                    .and_then(|r| r.timing.as_ref())
+                    .map(|t| t.overtaken.iter().filter(|o| o.0 == link.from).map(|o| o.1).sum());
             }
         }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);

@@ -155,10 +155,15 @@ pub struct LinkStats {
     /// without them: never used. Always 0 in-process.
     #[serde(default)]
     pub unused: u64,
-    /// Realtime: γ messages the sender published, of which `sent` reached this receiver; the
-    /// difference is what the network itself lost.
+    /// Realtime: γ messages the sender published. Of them `sent` reached this receiver and were
+    /// judged at an instant, `overtaken` reached it and were replaced by a newer one before an
+    /// instant; the rest is what the network itself lost.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub published: Option<u64>,
+    /// Realtime: γ that reached this receiver and were overtaken by a newer one from the same
+    /// sender before an instant used them (the receiver woke too late to use each).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub overtaken: Option<u64>,
 }
 
 #[cfg(test)]

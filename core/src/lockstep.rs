@@ -10,7 +10,7 @@ use crate::roster::Roster;
 
 use crate::agent::Agent;
 use crate::mission::Mission;
-use crate::msg::{Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, PROTOCOL_VERSION};
+use crate::msg::{tally, Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::world::World;
 
@@ -300,10 +300,7 @@ impl AgentNode {
         if gamma.tick < self.next_tick {
             // Its instant is past: the first copy of it was never used.
             if first {
-                match self.timing.late_gammas.iter_mut().find(|l| l.0 == gamma.from) {
-                    Some(l) => l.1 += 1,
-                    None => self.timing.late_gammas.push((gamma.from, 1)),
-                }
+                tally(&mut self.timing.late_gammas, gamma.from);
             }
             return Err(Reject::Past);
         }

@@ -185,6 +185,7 @@ impl Metrics {
                     dropped: 0,
                     unused: 0,
                     published: None,
+                    overtaken: None,
                 });
                 s.sent += 1;
                 // Each neighbour reports the same broadcast: count it once.

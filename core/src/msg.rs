@@ -6,8 +6,9 @@ use serde::{Deserialize, Serialize};
 use crate::path::GeneralizedPath;
 
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
-/// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`.
-pub const PROTOCOL_VERSION: u16 = 4;
+/// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`. 5: the γ a realtime
+/// agent received but saw overtaken (`PeriodTiming::overtaken`).
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -344,12 +345,24 @@ pub struct PeriodTiming {
     pub without_command: Vec<(u32, u64)>,
     /// World: per vehicle, times its agent came back after it had gone.
     pub rejoins: Vec<(u32, u64)>,
+    /// Agent: per neighbour, its γ that arrived and were overtaken by a newer one before an
+    /// instant used them (the agent woke too late to use each): not lost by the network.
+    #[serde(default)]
+    pub overtaken: Vec<(u32, u64)>,
 }
 
 impl PeriodTiming {
     /// Whether the role kept its period: nothing overran, was skipped, late or stale.
     pub fn kept(&self) -> bool {
         self.overruns == 0 && self.skipped == 0 && self.late_commands == 0 && self.stale_states == 0
+    }
+}
+
+/// Counts one more for `id` in per-sender counts.
+pub(crate) fn tally(counts: &mut Vec<(u32, u64)>, id: u32) {
+    match counts.iter_mut().find(|c| c.0 == id) {
+        Some(c) => c.1 += 1,
+        None => counts.push((id, 1)),
     }
 }
 

@@ -8,7 +8,7 @@ use crate::agent::Agent;
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
 use crate::mission::Mission;
-use crate::msg::{Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
+use crate::msg::{tally, Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::roster::Roster;
 use crate::world::World;
@@ -106,6 +106,9 @@ pub struct RealtimeAgent {
     rejoin: bool,
     lateness: Lateness,
     stale_states: u64,
+    /// Per neighbour, its γ that arrived and were replaced by a newer one before an instant used
+    /// them: they reached this agent, so the network did not lose them, and were never used.
+    overtaken: Vec<(u32, u64)>,
 }
 
 /// What an agent does in one period.
@@ -127,6 +130,7 @@ impl RealtimeAgent {
             rejoin,
             lateness: Lateness::default(),
             stale_states: 0,
+            overtaken: Vec::new(),
         }
     }
 
@@ -166,6 +170,7 @@ impl RealtimeAgent {
         match self.inbox.iter_mut().find(|g| g.from == gamma.from) {
             Some(held) => {
                 older(held.tick, gamma.tick, held, &gamma)?;
+                tally(&mut self.overtaken, gamma.from);
                 *held = gamma;
             }
             None => self.inbox.push(gamma),
@@ -199,6 +204,7 @@ impl RealtimeAgent {
     pub fn timing(&self) -> PeriodTiming {
         PeriodTiming {
             stale_states: self.stale_states,
+            overtaken: self.overtaken.clone(),
             ..self.lateness.figures()
         }
     }
@@ -486,6 +492,7 @@ impl Sampler {
 mod tests {
     use super::*;
     use crate::mission;
+    use crate::msg::Reception;
     use crate::planner;
 
     fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
@@ -593,6 +600,49 @@ mod tests {
         let timing = world.timing();
         assert_eq!(timing.late_commands, 100, "ticks 11 to 110 held the command of tick 10");
         assert_eq!(timing.without_command, vec![(1, 11)], "tick 111 had none");
+    }
+
+    /// Two γ of a neighbour between two of the receiver's instants: the newer is judged, the
+    /// older reached the receiver and is counted as overtaken, not left to look like the
+    /// network's loss; a γ judged at an instant is not.
+    #[test]
+    fn a_gamma_overtaken_before_an_instant_is_counted() {
+        let (m, paths, _) = case_b();
+        let mut one = Agent::new(&m, 1, paths[0].1);
+        let mut two = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), false);
+        let state = |id, tick| State {
+            version: PROTOCOL_VERSION,
+            tick,
+            id,
+            t: tick as f64 * m.mission.control_period,
+            position: [0.0, 5.0 * id as f64],
+            heading: 0.0,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [0.0, 0.0],
+        };
+        let instants: Vec<u64> = (0..1000).filter(|&k| one.is_comm_tick(k)).take(4).collect();
+        let mut gamma = |k: u64| one.broadcast(k, &state(1, k)).expect("an instant of vehicle 1");
+        two.on_state(state(2, instants[0])).unwrap();
+        two.on_gamma(gamma(instants[0])).unwrap();
+        let judged = two.act(instants[0], 0.0, 0.001, 0).unwrap().command.receptions;
+        assert_eq!(
+            judged,
+            vec![Reception {
+                from: 1,
+                delivered: true
+            }]
+        );
+        assert_eq!(two.timing().overtaken, vec![]);
+        // Vehicle 2 wakes too late for its next instant: two of vehicle 1's γ are waiting.
+        two.on_gamma(gamma(instants[1])).unwrap();
+        two.on_gamma(gamma(instants[2])).unwrap();
+        two.on_state(state(2, instants[2])).unwrap();
+        let judged = two.act(instants[2], 0.0, 0.001, 0).unwrap().command.receptions;
+        assert_eq!(judged.len(), 1, "one γ judged: the newer");
+        assert_eq!(two.timing().overtaken, vec![(1, 1)]);
+        two.on_gamma(gamma(instants[3])).unwrap();
+        assert_eq!(two.timing().overtaken, vec![(1, 1)], "waiting, not yet overtaken");
     }
 
     #[test]

@@ -83,8 +83,10 @@ pub fn summary(summary: &Summary) -> String {
             "link {}→{}: {}sent {}, delivered {}, dropped {}{}",
             l.from,
             l.to,
-            l.published
-                .map_or(String::new(), |p| format!("published {p}, arrived and ")),
+            l.published.map_or(String::new(), |p| format!(
+                "published {p}, arrived but overtaken by a newer γ {}, arrived and ",
+                l.overtaken.unwrap_or(0)
+            )),
             l.sent,
             l.delivered,
             l.dropped,
