@@ -20,7 +20,7 @@ use foxglove::messages::{Pose, PoseInFrame, PosesInFrame, Quaternion, Timestamp,
 use foxglove::{
     Context, Encode, McapCompression, McapWriteOptions, McapWriterHandle, PartialMetadata, RawChannel, Schema,
 };
-use serde_json::json;
+use serde::Serialize;
 use tcpf_core::msg::{Command, State};
 use tcpf_core::path::GeneralizedPath;
 
@@ -52,6 +52,31 @@ pub struct Viewer {
     mcap: Option<McapWriterHandle<BufWriter<File>>>,
     live: Option<Live>,
     buffer: Vec<u8>,
+    json: Vec<u8>,
+}
+
+/// A message of `/vehicle/<id>/coordination`. Fields in the order of their names: the order in
+/// which the JSON maps written before wrote them, so `run.mcap` is byte for byte what it was.
+#[derive(Serialize)]
+struct Coordination {
+    gamma: f64,
+    gamma_dot: f64,
+    psi_e: f64,
+    r: f64,
+    t: f64,
+    v: f64,
+    v_d: f64,
+    x_e: f64,
+    y_e: f64,
+}
+
+/// A message of `/links`, fields in the order of their names.
+#[derive(Serialize)]
+struct Link {
+    delivered: bool,
+    from: u32,
+    t: f64,
+    to: u32,
 }
 
 fn nanos(t: f64) -> u64 {
@@ -96,6 +121,7 @@ impl Viewer {
             mcap: Some(mcap),
             live,
             buffer: Vec::new(),
+            json: Vec::new(),
         };
         for (id, path) in paths {
             let drawn = viewer.topic::<PosesInFrame>(&format!("/vehicle/{id}/path"))?;
@@ -153,6 +179,7 @@ impl Viewer {
     /// One tick: every vehicle's state, and the commands of those that are not lost.
     pub fn tick(&mut self, states: &[State], commands: &[Option<Command>]) {
         let vehicles = std::mem::take(&mut self.vehicles);
+        let mut json = std::mem::take(&mut self.json);
         for ((vehicle, s), c) in vehicles.iter().zip(states).zip(commands) {
             let message = PoseInFrame {
                 timestamp: Some(stamp(s.t)),
@@ -161,17 +188,37 @@ impl Viewer {
             };
             self.log_encoded(&vehicle.pose, &message, s.t);
             let Some(c) = c else { continue };
-            let coordination = json!({
-                "t": s.t, "gamma": c.gamma, "gamma_dot": c.gamma_dot, "v": c.v, "r": c.r,
-                "v_d": c.v_d, "x_e": c.x_e, "y_e": c.y_e, "psi_e": c.psi_e,
-            });
-            self.log(&vehicle.coordination, coordination.to_string().as_bytes(), s.t);
+            let coordination = Coordination {
+                gamma: c.gamma,
+                gamma_dot: c.gamma_dot,
+                psi_e: c.psi_e,
+                r: c.r,
+                t: s.t,
+                v: c.v,
+                v_d: c.v_d,
+                x_e: c.x_e,
+                y_e: c.y_e,
+            };
+            self.log_json(&mut json, &vehicle.coordination, &coordination, s.t);
             for r in &c.receptions {
-                let link = json!({"t": s.t, "from": r.from, "to": c.id, "delivered": r.delivered});
-                self.log(&self.links, link.to_string().as_bytes(), s.t);
+                let link = Link {
+                    delivered: r.delivered,
+                    from: r.from,
+                    t: s.t,
+                    to: c.id,
+                };
+                self.log_json(&mut json, &self.links, &link, s.t);
             }
         }
+        self.json = json;
         self.vehicles = vehicles;
+    }
+
+    fn log_json<T: Serialize>(&self, buffer: &mut Vec<u8>, topic: &Topic, message: &T, t: f64) {
+        buffer.clear();
+        if serde_json::to_writer(&mut *buffer, message).is_ok() {
+            self.log(topic, buffer, t);
+        }
     }
 
     /// Closes `run.mcap` and stops serving.
