@@ -4,8 +4,10 @@ use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::{self, SyncSender};
+use std::thread::JoinHandle;
 
-use anyhow::{Context, Result};
+use anyhow::{anyhow, Context, Result};
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{Command, State};
 use tcpf_core::planner::Plan;
@@ -67,20 +69,39 @@ impl RunDir {
             out.write_all(header.as_bytes())?;
             Ok(out)
         };
+        let viewer = Viewer::create(&self.path.join("run.mcap"), &paths, live)?;
+        // run.mcap is written on a thread of its own: encoding and compressing it costs more than
+        // the two CSV files, and a fleet's run would otherwise wait for all three in turn.
+        let (ticks, to_viewer) = mpsc::sync_channel::<(Vec<State>, Vec<Option<Command>>)>(VIEWER_QUEUE);
+        let viewer = std::thread::Builder::new()
+            .name("run.mcap".into())
+            .spawn(move || {
+                let mut viewer = viewer;
+                for (states, commands) in to_viewer {
+                    viewer.tick(&states, &commands);
+                }
+                viewer.finish()
+            })
+            .context("cannot start the thread that writes run.mcap")?;
         Ok(Telemetry {
             out: create("telemetry.csv", telemetry::HEADER)?,
             messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
-            viewer: Viewer::create(&self.path.join("run.mcap"), &paths, live)?,
+            ticks,
+            viewer,
             line: String::new(),
         })
     }
 }
 
+/// Ticks that may wait for the thread writing run.mcap before the run waits for it.
+const VIEWER_QUEUE: usize = 256;
+
 /// `telemetry.csv`, `messages.csv` and `run.mcap`, written as the ticks come.
 pub struct Telemetry {
     out: BufWriter<File>,
     messages: BufWriter<File>,
-    viewer: Viewer,
+    ticks: SyncSender<(Vec<State>, Vec<Option<Command>>)>,
+    viewer: JoinHandle<Result<()>>,
     line: String,
 }
 
@@ -98,13 +119,17 @@ impl Telemetry {
             }
         }
         self.messages.write_all(self.line.as_bytes())?;
-        self.viewer.tick(states, commands);
-        Ok(())
+        self.ticks
+            .send((states.to_vec(), commands.to_vec()))
+            .map_err(|_| anyhow!("the thread writing run.mcap stopped"))
     }
 
     pub fn finish(mut self) -> Result<()> {
         self.out.flush()?;
         self.messages.flush()?;
-        self.viewer.finish()
+        drop(self.ticks);
+        self.viewer
+            .join()
+            .map_err(|_| anyhow!("the thread writing run.mcap panicked"))?
     }
 }
