@@ -244,10 +244,15 @@ impl Recording {
                 Some(m) = self.inbox.recv() => match m.message {
                     Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s)),
                     Message::Command(c) => self.rejected.check(&m.key, c.id, || sampler.on_command(c)),
-                    Message::End(e) => match sampler.on_end(e.clone()) {
-                        Ok(()) => self.end = Some(e),
-                        Err(why) => self.rejected.reject(why, &m.key),
-                    },
+                    Message::End(e) => {
+                        let mut failure = Ok(());
+                        let telemetry = &mut self.telemetry;
+                        match sampler.on_end(e.clone(), |states, commands| failure = telemetry.tick(states, commands)) {
+                            Ok(()) => self.end = Some(e),
+                            Err(why) => self.rejected.reject(why, &m.key),
+                        }
+                        failure?;
+                    }
                     Message::Report(r) => self.exit_reports.push(r),
                     Message::Loss(_) => {}
                 },
