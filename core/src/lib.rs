@@ -3,6 +3,8 @@
 
 pub mod agent;
 pub mod coord;
+#[cfg(test)]
+mod fixtures;
 pub mod follow;
 pub mod links;
 pub mod lockstep;

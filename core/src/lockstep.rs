@@ -394,17 +394,8 @@ impl AgentNode {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mission;
+    use crate::fixtures::case_b;
     use crate::msg::Sample;
-    use crate::planner;
-
-    fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
-        let text = include_str!("../../configs/paper/b-current.toml");
-        let m = mission::parse("b-current.toml", text, &[]).unwrap();
-        let plan = planner::plan(&m).unwrap();
-        let paths = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
-        (m, paths, plan.t_f)
-    }
 
     #[test]
     fn an_agent_waits_for_its_live_neighbours_at_communication_instants_only() {

@@ -496,17 +496,8 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mission;
+    use crate::fixtures::case_b;
     use crate::msg::Reception;
-    use crate::planner;
-
-    fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
-        let text = include_str!("../../configs/paper/b-current.toml");
-        let m = mission::parse("b-current.toml", text, &[]).unwrap();
-        let plan = planner::plan(&m).unwrap();
-        let paths = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
-        (m, paths, plan.t_f)
-    }
 
     /// Case (b) with every machine on time, the agents phased half a period after the world as
     /// the shells do; the recorder samples every `sampled`-th period. Returns what it recorded,
