@@ -350,9 +350,9 @@ fn bench_prints_every_figure_beside_its_baseline() {
         fleet[0] > 0.1 && fleet[1] > fleet[0],
         "the world alone is faster: {fleet:?}"
     );
-    // Round trips and ticks are medians taken minutes apart on a shared machine: which of
-    // them is larger varies from run to run (a router on its own threads costs about as much
-    // as a direct link), so only their range and the printed ratios are checked.
+    // Round trips and ticks are medians taken apart from each other on a shared machine, and
+    // a router on its own threads adds little to a round trip: which of them is larger varies
+    // from run to run, so only their range and the printed ratios are checked.
     let rtt = numbers(&line("zenoh round trip"));
     assert!(
         rtt.len() == 2 && rtt.iter().all(|&t| t > 10.0 && t < 1e5),

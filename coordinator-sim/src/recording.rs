@@ -338,17 +338,25 @@ impl Recording {
         let realtime = mission.mission.clock == ClockKind::Realtime;
         if realtime {
             // What each sender published, against what reached its receivers (judged at an
-            // instant, or overtaken before one): the network's own loss.
+            // instant, or overtaken before one): the network's own loss. An agent started again
+            // reports once per life.
             let agent = |id: u32| {
-                self.exit_reports
+                let mut reports = self
+                    .exit_reports
                     .iter()
-                    .find(move |r| r.role == Role::Agent.as_str() && r.id == id)
+                    .filter(move |r| r.role == Role::Agent.as_str() && r.id == id)
+                    .peekable();
+                reports.peek().is_some().then_some(reports)
             };
             for link in results.links.iter_mut() {
-                link.published = agent(link.from).map(|r| r.published);
-                link.overtaken = agent(link.to)
-                    .and_then(|r| r.timing.as_ref())
-                    .map(|t| t.overtaken.iter().filter(|o| o.0 == link.from).map(|o| o.1).sum());
+                link.published = agent(link.from).map(|r| r.map(|r| r.published).sum());
+                link.overtaken = agent(link.to).map(|r| {
+                    r.filter_map(|r| r.timing.as_ref())
+                        .flat_map(|t| &t.overtaken)
+                        .filter(|o| o.0 == link.from)
+                        .map(|o| o.1)
+                        .sum()
+                });
             }
         }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);

@@ -428,7 +428,8 @@ impl Sampler {
         if !command.finite() {
             return Err(Reject::NonFinite);
         }
-        if let Some(held) = &self.commands[n] {
+        let mut command = command;
+        if let Some(held) = &mut self.commands[n] {
             // Receptions are cleared once sampled, so compare ticks only for what is held.
             if held.tick >= command.tick {
                 return Err(if held.tick > command.tick {
@@ -437,15 +438,20 @@ impl Sampler {
                     Reject::Duplicate
                 });
             }
+            // A command replaced before a period sampled it: its receptions go on with the
+            // newer one, or a recorder behind its beat would count them as lost by the network.
+            let mut receptions = std::mem::take(&mut held.receptions);
+            receptions.append(&mut command.receptions);
+            command.receptions = receptions;
         }
         self.commands[n] = Some(command);
         Ok(())
     }
 
     /// The world's end: the first one is kept; the vehicles it names were without an agent at
-    /// the end. The period before the end is sampled now, with the freshest of each vehicle: a
-    /// recorder whose beat fell behind would otherwise stop short of the commands that ended the
-    /// run, a vehicle's arrival among them.
+    /// the end. The period before the end is sampled now, with the freshest of each vehicle (so
+    /// an arrival may be stamped up to a period early): a recorder whose beat fell behind would
+    /// otherwise stop short of the commands that ended the run, a vehicle's arrival among them.
     pub fn on_end(&mut self, end: End, emit: impl FnOnce(&[State], &[Option<Command>])) -> Result<(), Reject> {
         if self.end.is_some() {
             return Err(Reject::Duplicate);
@@ -556,14 +562,18 @@ mod tests {
     }
 
     /// A recorder that samples one period in fifty (its beat far behind) still records the
-    /// arrivals that ended the run: the end samples the period before it.
+    /// arrivals that ended the run (the end samples the period before it) and every γ judged.
     #[test]
     fn a_recorder_behind_its_beat_still_sees_the_arrivals_that_ended_the_run() {
-        let (results, _) = on_time(50);
-        for v in &results.vehicles {
+        let (behind, _) = on_time(50);
+        for v in &behind.vehicles {
             let arrival = v.arrival_time.expect("arrived");
             assert!((arrival - 55.467).abs() < 0.05, "vehicle {}: {arrival}", v.id);
         }
+        // Nor does it lose the receptions of the commands it never sampled.
+        let (on_time, _) = on_time(1);
+        assert_eq!(behind.links, on_time.links);
+        assert!(on_time.links.iter().all(|l| l.sent > 500), "{:?}", on_time.links);
     }
 
     #[test]

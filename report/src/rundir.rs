@@ -72,7 +72,7 @@ impl RunDir {
         let viewer = Viewer::create(&self.path.join("run.mcap"), &paths, live)?;
         // run.mcap is written on a thread of its own: encoding and compressing it costs more than
         // the two CSV files, and a fleet's run would otherwise wait for all three in turn.
-        let (ticks, to_viewer) = mpsc::sync_channel::<(Vec<State>, Vec<Option<Command>>)>(VIEWER_QUEUE);
+        let (ticks, to_viewer) = mpsc::sync_channel::<Tick>(VIEWER_QUEUE);
         let viewer = std::thread::Builder::new()
             .name("run.mcap".into())
             .spawn(move || {
@@ -86,12 +86,15 @@ impl RunDir {
         Ok(Telemetry {
             out: create("telemetry.csv", telemetry::HEADER)?,
             messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
-            ticks,
-            viewer,
+            ticks: Some(ticks),
+            viewer: Some(viewer),
             line: String::new(),
         })
     }
 }
+
+/// A tick's states and commands, on their way to the thread writing run.mcap.
+type Tick = (Vec<State>, Vec<Option<Command>>);
 
 /// Ticks that may wait for the thread writing run.mcap before the run waits for it.
 const VIEWER_QUEUE: usize = 256;
@@ -100,8 +103,9 @@ const VIEWER_QUEUE: usize = 256;
 pub struct Telemetry {
     out: BufWriter<File>,
     messages: BufWriter<File>,
-    ticks: SyncSender<(Vec<State>, Vec<Option<Command>>)>,
-    viewer: JoinHandle<Result<()>>,
+    /// Both taken by `finish`, or by `drop` on a run that failed.
+    ticks: Option<SyncSender<Tick>>,
+    viewer: Option<JoinHandle<Result<()>>>,
     line: String,
 }
 
@@ -119,17 +123,38 @@ impl Telemetry {
             }
         }
         self.messages.write_all(self.line.as_bytes())?;
-        self.ticks
-            .send((states.to_vec(), commands.to_vec()))
-            .map_err(|_| anyhow!("the thread writing run.mcap stopped"))
+        let sent = self
+            .ticks
+            .as_ref()
+            .map(|t| t.send((states.to_vec(), commands.to_vec())));
+        match sent {
+            Some(Ok(())) => Ok(()),
+            _ => Err(anyhow!("the thread writing run.mcap stopped")),
+        }
     }
 
     pub fn finish(mut self) -> Result<()> {
         self.out.flush()?;
         self.messages.flush()?;
-        drop(self.ticks);
-        self.viewer
-            .join()
-            .map_err(|_| anyhow!("the thread writing run.mcap panicked"))?
+        self.close_viewer()
+    }
+
+    /// Ends the ticks and waits until run.mcap is closed.
+    fn close_viewer(&mut self) -> Result<()> {
+        self.ticks.take();
+        match self.viewer.take().map(JoinHandle::join) {
+            Some(Ok(closed)) => closed,
+            Some(Err(_)) => Err(anyhow!("the thread writing run.mcap panicked")),
+            None => Ok(()),
+        }
+    }
+}
+
+/// A run that failed still leaves a readable run.mcap of the ticks it had.
+impl Drop for Telemetry {
+    fn drop(&mut self) {
+        if let Err(e) = self.close_viewer() {
+            tracing::warn!("run.mcap: {e}");
+        }
     }
 }

@@ -85,7 +85,7 @@ pub fn summary(summary: &Summary) -> String {
             l.to,
             l.published.map_or(String::new(), |p| format!(
                 "published {p}, arrived but overtaken by a newer γ {}, arrived and ",
-                l.overtaken.unwrap_or(0)
+                l.overtaken.map_or("?".into(), |o| o.to_string())
             )),
             l.sent,
             l.delivered,
