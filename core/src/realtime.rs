@@ -109,6 +109,8 @@ pub struct RealtimeAgent {
     /// Per neighbour, its γ that arrived and were replaced by a newer one before an instant used
     /// them: they reached this agent, so the network did not lose them, and were never used.
     overtaken: Vec<(u32, u64)>,
+    /// Per neighbour, the tick of its newest γ judged at an instant.
+    judged: Vec<(u32, u64)>,
 }
 
 /// What an agent does in one period.
@@ -131,6 +133,7 @@ impl RealtimeAgent {
             lateness: Lateness::default(),
             stale_states: 0,
             overtaken: Vec::new(),
+            judged: Vec::new(),
         }
     }
 
@@ -167,6 +170,14 @@ impl RealtimeAgent {
         if gamma.sample.is_none() {
             return Ok(());
         }
+        // A γ no newer than one already judged (reordered or repeated on the way) is of no use.
+        if let Some(&(_, judged)) = self.judged.iter().find(|j| j.0 == gamma.from) {
+            match gamma.tick.cmp(&judged) {
+                std::cmp::Ordering::Less => return Err(Reject::Past),
+                std::cmp::Ordering::Equal => return Err(Reject::Duplicate),
+                std::cmp::Ordering::Greater => {}
+            }
+        }
         match self.inbox.iter_mut().find(|g| g.from == gamma.from) {
             Some(held) => {
                 older(held.tick, gamma.tick, held, &gamma)?;
@@ -195,7 +206,12 @@ impl RealtimeAgent {
         let gamma = self.agent.broadcast(tick, &state).filter(|g| g.sample.is_some());
         let command = self.agent.step(tick, &state, &self.inbox);
         if instant {
-            self.inbox.clear();
+            for g in self.inbox.drain(..) {
+                match self.judged.iter_mut().find(|j| j.0 == g.from) {
+                    Some(j) => j.1 = g.tick,
+                    None => self.judged.push((g.from, g.tick)),
+                }
+            }
         }
         self.acted = Some(tick);
         Some(Action { gamma, command })
@@ -667,6 +683,9 @@ mod tests {
         let judged = two.act(instants[2], 0.0, 0.001, 0).unwrap().command.receptions;
         assert_eq!(judged.len(), 1, "one γ judged: the newer");
         assert_eq!(two.timing().overtaken, vec![(1, 1)]);
+        // Late or repeated on the way: no newer than what was judged, so refused, not counted.
+        assert_eq!(two.on_gamma(gamma(instants[1])), Err(Reject::Past));
+        assert_eq!(two.on_gamma(gamma(instants[2])), Err(Reject::Duplicate));
         two.on_gamma(gamma(instants[3])).unwrap();
         assert_eq!(two.timing().overtaken, vec![(1, 1)], "waiting, not yet overtaken");
     }
