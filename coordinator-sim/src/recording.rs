@@ -244,15 +244,10 @@ impl Recording {
                 Some(m) = self.inbox.recv() => match m.message {
                     Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s)),
                     Message::Command(c) => self.rejected.check(&m.key, c.id, || sampler.on_command(c)),
-                    Message::End(e) => {
-                        let mut failure = Ok(());
-                        let telemetry = &mut self.telemetry;
-                        match sampler.on_end(e.clone(), |states, commands| failure = telemetry.tick(states, commands)) {
-                            Ok(()) => self.end = Some(e),
-                            Err(why) => self.rejected.reject(why, &m.key),
-                        }
-                        failure?;
-                    }
+                    Message::End(e) => match sampler.on_end(e.clone()) {
+                        Ok(()) => self.end = Some(e),
+                        Err(why) => self.rejected.reject(why, &m.key),
+                    },
                     Message::Report(r) => self.exit_reports.push(r),
                     Message::Loss(_) => {}
                 },
@@ -309,7 +304,7 @@ impl Recording {
     }
 
     /// Ends the recording: flushes telemetry.csv and writes summary.json and report.html.
-    pub fn close(self, mission: &Mission, dir: &RunDir, how: Closing) -> Result<Summary> {
+    pub fn close(mut self, mission: &Mission, dir: &RunDir, how: Closing) -> Result<Summary> {
         let Closing {
             ended,
             interrupted,
@@ -317,6 +312,12 @@ impl Recording {
             children,
             restarts,
         } = how;
+        if let Machine::Realtime { sampler, .. } = &mut self.machine {
+            let mut failure = Ok(());
+            let telemetry = &mut self.telemetry;
+            sampler.finish(|states, commands| failure = telemetry.tick(states, commands));
+            failure?;
+        }
         let mut results = self.results();
         for r in self.exit_reports.iter().filter(|r| r.role == Role::Agent.as_str()) {
             for &(from, n) in &r.late_gammas {

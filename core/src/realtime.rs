@@ -406,6 +406,8 @@ pub struct Sampler {
     commands: Vec<Option<Command>>,
     metrics: Metrics,
     last: Option<u64>,
+    /// A command came since the last period sampled.
+    fresh: bool,
     end: Option<End>,
     row: Vec<State>,
 }
@@ -418,6 +420,7 @@ impl Sampler {
             commands: vec![None; ids.len()],
             metrics: Metrics::new(ids, t_f, dt),
             last: None,
+            fresh: false,
             end: None,
             row: Vec::with_capacity(ids.len()),
         }
@@ -461,19 +464,15 @@ impl Sampler {
             command.receptions = receptions;
         }
         self.commands[n] = Some(command);
+        self.fresh = true;
         Ok(())
     }
 
     /// The world's end: the first one is kept; the vehicles it names were without an agent at
-    /// the end. The period before the end is sampled now, with the freshest of each vehicle (so
-    /// an arrival may be stamped up to a period early): a recorder whose beat fell behind would
-    /// otherwise stop short of the commands that ended the run, a vehicle's arrival among them.
-    pub fn on_end(&mut self, end: End, emit: impl FnOnce(&[State], &[Option<Command>])) -> Result<(), Reject> {
+    /// the end.
+    pub fn on_end(&mut self, end: End) -> Result<(), Reject> {
         if self.end.is_some() {
             return Err(Reject::Duplicate);
-        }
-        if let Some(last) = end.ticks.checked_sub(1) {
-            self.sample(last, emit);
         }
         for lost in &end.lost {
             self.metrics.mark_lost(lost.id, lost.reason);
@@ -485,10 +484,30 @@ impl Sampler {
     /// The period of `tick`: hands on each vehicle's freshest state and command (once every
     /// vehicle has a state). A command's receptions count once, the first time it is sampled.
     pub fn sample(&mut self, tick: u64, emit: impl FnOnce(&[State], &[Option<Command>])) {
-        if self.last.is_some_and(|l| l >= tick) || self.states.iter().any(Option::is_none) {
+        if self.last.is_some_and(|l| l >= tick) || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
             return;
         }
-        if self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+        self.record(tick, emit);
+    }
+
+    /// After the end, once the roles have reported: one period more with the freshest of each
+    /// vehicle, the one before the end if the samples stopped short of it, else the one after
+    /// the last if a command came since (so an arrival is stamped at most a period late). A
+    /// recorder whose beat fell behind, or whose last command of an agent came after the world's
+    /// `End` on another path, would otherwise miss the commands that ended the run.
+    pub fn finish(&mut self, emit: impl FnOnce(&[State], &[Option<Command>])) {
+        let Some(before_end) = self.end.as_ref().map(|e| e.ticks.saturating_sub(1)) else {
+            return;
+        };
+        match self.last {
+            Some(l) if l >= before_end && self.fresh => self.record(l + 1, emit),
+            Some(l) if l >= before_end => {}
+            _ => self.record(before_end, emit),
+        }
+    }
+
+    fn record(&mut self, tick: u64, emit: impl FnOnce(&[State], &[Option<Command>])) {
+        if self.states.iter().any(Option::is_none) {
             return;
         }
         self.row.clear();
@@ -499,6 +518,7 @@ impl Sampler {
             c.receptions.clear();
         }
         self.last = Some(tick);
+        self.fresh = false;
     }
 
     /// The world said the run is over.
@@ -556,7 +576,8 @@ mod tests {
                 break end;
             }
         };
-        sampler.on_end(end, |_, _| {}).unwrap();
+        sampler.on_end(end).unwrap();
+        sampler.finish(|_, _| {});
         let kept = world.timing().kept() && agents.iter().all(|a| a.timing().kept());
         (sampler.results(), kept)
     }
@@ -578,7 +599,8 @@ mod tests {
     }
 
     /// A recorder that samples one period in fifty (its beat far behind) still records the
-    /// arrivals that ended the run (the end samples the period before it) and every γ judged.
+    /// arrivals that ended the run (finishing samples the period before the end) and every γ
+    /// judged.
     #[test]
     fn a_recorder_behind_its_beat_still_sees_the_arrivals_that_ended_the_run() {
         let (behind, _) = on_time(50);
@@ -590,6 +612,51 @@ mod tests {
         let (on_time, _) = on_time(1);
         assert_eq!(behind.links, on_time.links);
         assert!(on_time.links.iter().all(|l| l.sent > 500), "{:?}", on_time.links);
+    }
+
+    /// The command that ended the run came to the recorder after the world's `End` (another
+    /// path): the recording's last period, after the roles reported, still has it.
+    #[test]
+    fn a_command_that_comes_after_the_end_is_in_the_last_period() {
+        let (m, paths, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let mut agent = Agent::new(&m, 1, paths[0].1);
+        let state = State {
+            version: PROTOCOL_VERSION,
+            tick: 99,
+            id: 1,
+            t: 99.0 * dt,
+            position: [0.0, 0.0],
+            heading: 0.0,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [0.0, 0.0],
+        };
+        let mut command = |tick, gamma| Command {
+            tick,
+            gamma,
+            ..agent.step(tick, &state, &[])
+        };
+        let (before, after) = (command(99, t_f - 0.001), command(100, t_f + 0.009));
+        let mut sampler = Sampler::new(&[1], t_f, dt);
+        sampler.on_state(state).unwrap();
+        sampler.on_command(before).unwrap();
+        let mut rows = 0;
+        sampler.sample(99, |_, _| rows += 1);
+        sampler
+            .on_end(End {
+                version: PROTOCOL_VERSION,
+                ticks: 100,
+                lost: vec![],
+            })
+            .unwrap();
+        sampler.finish(|_, _| rows += 1);
+        assert_eq!(rows, 1, "nothing new since tick 99: no period more");
+        sampler.on_command(after).unwrap();
+        sampler.finish(|_, _| rows += 1);
+        assert_eq!(rows, 2);
+        let arrival = sampler.results().vehicles[0].arrival_time.expect("arrived");
+        assert!((arrival - 99.1 * dt).abs() < 1e-9, "{arrival}");
     }
 
     #[test]
