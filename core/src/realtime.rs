@@ -541,6 +541,21 @@ mod tests {
     use crate::fixtures::case_b;
     use crate::msg::Reception;
 
+    /// Vehicle `id` at `position`, at rest, measured at `tick` of period `dt`.
+    fn still(id: u32, tick: u64, dt: f64, position: [f64; 2]) -> State {
+        State {
+            version: PROTOCOL_VERSION,
+            tick,
+            id,
+            t: tick as f64 * dt,
+            position,
+            heading: 0.0,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [0.0, 0.0],
+        }
+    }
+
     /// Case (b) with every machine on time, the agents phased half a period after the world as
     /// the shells do; the recorder samples every `sampled`-th period. Returns what it recorded,
     /// and whether the world and the agents kept their periods.
@@ -621,17 +636,7 @@ mod tests {
         let (m, paths, t_f) = case_b();
         let dt = m.mission.control_period;
         let mut agent = Agent::new(&m, 1, paths[0].1);
-        let state = State {
-            version: PROTOCOL_VERSION,
-            tick: 99,
-            id: 1,
-            t: 99.0 * dt,
-            position: [0.0, 0.0],
-            heading: 0.0,
-            sideslip: 0.0,
-            sideslip_rate: 0.0,
-            current: [0.0, 0.0],
-        };
+        let state = still(1, 99, dt, [0.0, 0.0]);
         let mut command = |tick, gamma| Command {
             tick,
             gamma,
@@ -669,17 +674,7 @@ mod tests {
             agent.act(0, 0.0, 0.001, 0).is_none(),
             "nothing measured, nothing commanded"
         );
-        let state = State {
-            version: PROTOCOL_VERSION,
-            tick: 5,
-            id: 2,
-            t: 0.05,
-            position: [0.0, 5.0],
-            heading: 0.0,
-            sideslip: 0.0,
-            sideslip_rate: 0.0,
-            current: [0.0, 0.0],
-        };
+        let state = still(2, 5, m.mission.control_period, [0.0, 5.0]);
         agent.on_state(state).unwrap();
         assert_eq!(agent.on_state(State { tick: 4, ..state }), Err(Reject::Past));
         assert_eq!(agent.on_state(state), Err(Reject::Duplicate));
@@ -719,17 +714,7 @@ mod tests {
         let (m, paths, _) = case_b();
         let mut one = Agent::new(&m, 1, paths[0].1);
         let mut two = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), false);
-        let state = |id, tick| State {
-            version: PROTOCOL_VERSION,
-            tick,
-            id,
-            t: tick as f64 * m.mission.control_period,
-            position: [0.0, 5.0 * id as f64],
-            heading: 0.0,
-            sideslip: 0.0,
-            sideslip_rate: 0.0,
-            current: [0.0, 0.0],
-        };
+        let state = |id, tick| still(id, tick, m.mission.control_period, [0.0, 5.0 * id as f64]);
         let instants: Vec<u64> = (0..1000).filter(|&k| one.is_comm_tick(k)).take(4).collect();
         let mut gamma = |k: u64| one.broadcast(k, &state(1, k)).expect("an instant of vehicle 1");
         two.on_state(state(2, instants[0])).unwrap();

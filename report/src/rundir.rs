@@ -73,7 +73,7 @@ impl RunDir {
         // run.mcap is written on a thread of its own: encoding and compressing it costs more than
         // the two CSV files, and a fleet's run would otherwise wait for all three in turn.
         let (ticks, to_viewer) = mpsc::sync_channel::<Tick>(VIEWER_QUEUE);
-        let viewer = std::thread::Builder::new()
+        let thread = std::thread::Builder::new()
             .name("run.mcap".into())
             .spawn(move || {
                 let mut viewer = viewer;
@@ -86,8 +86,7 @@ impl RunDir {
         Ok(Telemetry {
             out: create("telemetry.csv", telemetry::HEADER)?,
             messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
-            ticks: Some(ticks),
-            viewer: Some(viewer),
+            viewer: Some((ticks, thread)),
             line: String::new(),
         })
     }
@@ -103,9 +102,9 @@ const VIEWER_QUEUE: usize = 256;
 pub struct Telemetry {
     out: BufWriter<File>,
     messages: BufWriter<File>,
-    /// Both taken by `finish`, or by `drop` on a run that failed.
-    ticks: Option<SyncSender<Tick>>,
-    viewer: Option<JoinHandle<Result<()>>>,
+    /// The ticks' way to the thread writing run.mcap, and the thread; taken by `finish`, or by
+    /// `drop` on a run that failed.
+    viewer: Option<(SyncSender<Tick>, JoinHandle<Result<()>>)>,
     line: String,
 }
 
@@ -123,13 +122,11 @@ impl Telemetry {
             }
         }
         self.messages.write_all(self.line.as_bytes())?;
-        let sent = self
-            .ticks
-            .as_ref()
-            .map(|t| t.send((states.to_vec(), commands.to_vec())));
-        match sent {
-            Some(Ok(())) => Ok(()),
-            _ => Err(anyhow!("the thread writing run.mcap stopped")),
+        match &self.viewer {
+            Some((ticks, _)) => ticks
+                .send((states.to_vec(), commands.to_vec()))
+                .map_err(|_| anyhow!("the thread writing run.mcap stopped")),
+            None => Err(anyhow!("run.mcap is closed")),
         }
     }
 
@@ -141,12 +138,13 @@ impl Telemetry {
 
     /// Ends the ticks and waits until run.mcap is closed.
     fn close_viewer(&mut self) -> Result<()> {
-        self.ticks.take();
-        match self.viewer.take().map(JoinHandle::join) {
-            Some(Ok(closed)) => closed,
-            Some(Err(_)) => Err(anyhow!("the thread writing run.mcap panicked")),
-            None => Ok(()),
-        }
+        let Some((ticks, thread)) = self.viewer.take() else {
+            return Ok(());
+        };
+        drop(ticks);
+        thread
+            .join()
+            .map_err(|_| anyhow!("the thread writing run.mcap panicked"))?
     }
 }
 
