@@ -31,7 +31,7 @@ pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tcpf_core::msg::{Clock, Gamma, Loss, LossReason, Sample, State, PROTOCOL_VERSION};
+    use tcpf_core::msg::{Clock, Gamma, Loss, LossReason, Sample, State, TickRecord, PROTOCOL_VERSION};
 
     fn state() -> State {
         State {
@@ -62,7 +62,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x05, 0xac, 0x02, 0x02, 0x01,
+            0x06, 0xac, 0x02, 0x02, 0x01,
             0, 0, 0, 0, 0, 0, 0x08, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
@@ -71,14 +71,14 @@ mod tests {
         ];
         assert_eq!(encode(&g), bytes);
         let silent = Gamma { sample: None, ..g };
-        assert_eq!(encode(&silent), [0x05, 0xac, 0x02, 0x02, 0x00]);
+        assert_eq!(encode(&silent), [0x06, 0xac, 0x02, 0x02, 0x00]);
         let loss = Loss {
             version: PROTOCOL_VERSION,
             id: 2,
             tick: 300,
             reason: LossReason::Silent,
         };
-        assert_eq!(encode(&loss), [0x05, 0x02, 0xac, 0x02, 0x01]);
+        assert_eq!(encode(&loss), [0x06, 0x02, 0xac, 0x02, 0x01]);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
@@ -88,7 +88,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x05, 0x01,
+            0x06, 0x01,
             0, 0, 0, 0, 0, 0, 0x24, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0xac, 0x02,
@@ -100,6 +100,42 @@ mod tests {
     fn round_trip_is_bit_exact() {
         let s = state();
         assert_eq!(decode::<State>(&encode(&s)), Ok(s));
+    }
+
+    #[test]
+    fn a_tick_record_is_its_parts_in_a_row_and_each_part_must_be_usable() {
+        let states = [state(), State { id: 3, ..state() }];
+        let record = TickRecord {
+            version: PROTOCOL_VERSION,
+            tick: 42,
+            states: states[..].into(),
+            commands: vec![None, None].into(),
+        };
+        let bytes = encode(&record);
+        let mut parts = vec![PROTOCOL_VERSION as u8, 42, 2];
+        states.iter().for_each(|s| parts.extend(encode(s)));
+        parts.extend([2, 0, 0]);
+        assert_eq!(
+            bytes, parts,
+            "version, tick, the states as a Vec, the commands as a Vec of Options"
+        );
+        assert_eq!(decode::<TickRecord>(&bytes), Ok(record.clone()));
+        let old = [state(), State { version: 5, ..state() }];
+        let mixed = TickRecord {
+            states: old[..].into(),
+            ..record.clone()
+        };
+        assert_eq!(
+            decode::<TickRecord>(&encode(&mixed)),
+            Err(Invalid::Version),
+            "a part of another version"
+        );
+        let nan = [state(), State { t: f64::NAN, ..state() }];
+        let nan = TickRecord {
+            states: nan[..].into(),
+            ..record
+        };
+        assert_eq!(decode::<TickRecord>(&encode(&nan)), Err(Invalid::NonFinite));
     }
 
     #[test]

@@ -78,6 +78,11 @@ impl Keys {
         format!("{}/clock", self.root)
     }
 
+    /// The lockstep world's record of each tick it closed, for recorders.
+    pub fn tick(&self) -> String {
+        format!("{}/tick", self.root)
+    }
+
     pub fn end(&self) -> String {
         format!("{}/end", self.root)
     }
@@ -109,6 +114,7 @@ mod tests {
         assert_eq!(k.state(2), "tcpf/paper-b-current/state/2");
         assert_eq!(k.cmd("*"), "tcpf/paper-b-current/cmd/*");
         assert_eq!(k.gamma(1), "tcpf/paper-b-current/gamma/1");
+        assert_eq!(k.tick(), "tcpf/paper-b-current/tick");
         assert_eq!(k.alive(Role::Agent, 3), "tcpf/paper-b-current/alive/agent/3");
         assert_eq!(
             k.parse_alive("tcpf/paper-b-current/alive/world/0"),

@@ -1,8 +1,8 @@
-//! The recorder's Zenoh shell: every state, command, end and exit report of a mission, fed to
-//! core's `Recorder` (lockstep), which hands complete ticks to `telemetry.csv` in order, or to its
-//! `Sampler` (realtime), which a metronome samples once a period on the fleet's clock.
+//! The recorder's Zenoh shell: the world's record of each tick (lockstep), or every state and
+//! command (realtime), and every end, loss and exit report of a mission, fed to core's `Recorder`
+//! (lockstep), which hands complete ticks to `telemetry.csv` in order, or to its `Sampler`
+//! (realtime), which a metronome samples once a period on the fleet's clock.
 
-use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
@@ -10,11 +10,11 @@ use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::ask_clock;
-use tcpf_bus::typed::{presence, subscribe_as, Received, Rejected};
+use tcpf_bus::typed::{subscribe_as, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Command, End, Loss, Lost, Report, State};
+use tcpf_core::msg::{Command, End, Loss, Lost, Report, State, TickRecord};
 use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
 use tokio::sync::mpsc::{self, Receiver};
@@ -30,16 +30,15 @@ use crate::progress::Ticks;
 use tcpf_report::rundir::{RunDir, Telemetry};
 use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
 
-/// How long `tcpf record` waits for the mission's agents, as long as the world does by default.
-const AGENTS_TIMEOUT: Duration = Duration::from_secs(60);
 /// How long `tcpf record` waits, after the world's end, for a tick that does not come whole.
 const END_STALL: Duration = Duration::from_secs(5);
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
-/// fleet sends, so it may lag behind a fast lockstep fleet by many ticks.
+/// fleet sends, so it may lag behind a fast lockstep fleet by many ticks (one message each).
 const INBOX: usize = 65_536;
 
 /// What the recorder takes, in one channel.
 enum Message {
+    Tick(TickRecord<'static>),
     State(State),
     Command(Command),
     End(End),
@@ -107,8 +106,12 @@ impl Recording {
         let rejected = Rejected::default();
         let (tx, inbox) = mpsc::channel(INBOX);
         let mut subscribers = Vec::new();
-        subscribers.push(subscribe_as(session, &keys.state("*"), &rejected, tx.clone(), Message::State).await?);
-        subscribers.push(subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Message::Command).await?);
+        if mission.mission.clock == ClockKind::Lockstep {
+            subscribers.push(subscribe_as(session, &keys.tick(), &rejected, tx.clone(), Message::Tick).await?);
+        } else {
+            subscribers.push(subscribe_as(session, &keys.state("*"), &rejected, tx.clone(), Message::State).await?);
+            subscribers.push(subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Message::Command).await?);
+        }
         subscribers.push(subscribe_as(session, &keys.end(), &rejected, tx.clone(), Message::End).await?);
         subscribers.push(subscribe_as(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?);
         let reports = format!("tcpf/{}/report/**", mission.mission.name);
@@ -153,40 +156,6 @@ impl Recording {
         Ok(())
     }
 
-    /// Waits until every agent of the mission is present (`false` on a signal). Between peers,
-    /// each pair has its own link, and the world starting on this recorder's token says
-    /// nothing of the agents' links to it: an agent that had not yet heard of the recorder's
-    /// subscriptions would send its first commands past it, and the recording would wait for
-    /// them forever. An agent's token comes on the same link, after the subscriptions went
-    /// the other way when the link opened.
-    pub async fn await_agents(&self, mission: &Mission, shutdown: &mut Shutdown, timeout: Duration) -> Result<bool> {
-        let (_subscriber, mut presence) = presence(&self.session, &self.keys).await?;
-        let mut missing: BTreeSet<u32> = mission.vehicles.iter().map(|v| v.id).collect();
-        let deadline = tokio::time::Instant::now() + timeout;
-        while !missing.is_empty() {
-            let Some(arrived) = shutdown
-                .unless(tokio::time::timeout_at(deadline, presence.recv()))
-                .await
-            else {
-                return Ok(false);
-            };
-            match arrived {
-                Ok(Some(p)) if p.role == Role::Agent && p.alive => {
-                    missing.remove(&p.id);
-                }
-                Ok(Some(_)) => {}
-                Ok(None) => return Err(anyhow!("liveliness subscription closed")),
-                Err(_) => {
-                    return Err(anyhow!(
-                        "recorder: agents {missing:?} of mission {} not present within {timeout:?}",
-                        mission.mission.name
-                    ))
-                }
-            }
-        }
-        Ok(true)
-    }
-
     /// Takes one message (or, in realtime, one beat of the clock), and writes every tick it
     /// completes.
     pub async fn step(&mut self) -> Result<()> {
@@ -197,6 +166,11 @@ impl Recording {
                     return Err(anyhow!("the recorder's subscriptions closed"));
                 };
                 match m.message {
+                    Message::Tick(t) => {
+                        if let Err(why) = recorder.on_tick(t) {
+                            self.rejected.reject(why, &m.key);
+                        }
+                    }
                     Message::State(s) => self.rejected.check(&m.key, s.id, || recorder.on_state(s)),
                     Message::Command(c) => self.rejected.check(&m.key, c.id, || recorder.on_command(c)),
                     Message::End(e) => match recorder.on_end(e.clone()) {
@@ -242,6 +216,7 @@ impl Recording {
                     }
                 }
                 Some(m) = self.inbox.recv() => match m.message {
+                    Message::Tick(_) => {}
                     Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s)),
                     Message::Command(c) => self.rejected.check(&m.key, c.id, || sampler.on_command(c)),
                     Message::End(e) => match sampler.on_end(e.clone()) {
@@ -412,37 +387,30 @@ pub async fn record(
     dir.write_plan(plan)?;
     let session = zenoh.open().await?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
-    // In realtime a recording samples the fleet on its clock, and a command missed is only a
-    // period's gap; lockstep writes every tick whole, and so must hear everyone from the first.
-    let lockstep = mission.mission.clock == ClockKind::Lockstep;
-    let ready = !lockstep || recording.await_agents(mission, &mut shutdown, AGENTS_TIMEOUT).await?;
-    if ready {
-        recording.declare().await?;
-    }
+    recording.declare().await?;
     let progress = Ticks::new(mission);
     let started = Instant::now();
-    let interrupted = !ready
-        || loop {
-            if recording.complete() {
-                break false;
+    let interrupted = loop {
+        if recording.complete() {
+            break false;
+        }
+        tokio::select! {
+            r = recording.step() => {
+                r?;
+                progress.set(recording.ticks());
             }
-            tokio::select! {
-                r = recording.step() => {
-                    r?;
-                    progress.set(recording.ticks());
-                }
-                _ = shutdown.recv() => break true,
-                _ = tokio::time::sleep(END_STALL), if recording.end.is_some() => {
-                    if recording.progress.elapsed() >= END_STALL {
-                        tracing::error!(
-                            "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
-                            recording.ticks()
-                        );
-                        break false;
-                    }
+            _ = shutdown.recv() => break true,
+            _ = tokio::time::sleep(END_STALL), if recording.end.is_some() => {
+                if recording.progress.elapsed() >= END_STALL {
+                    tracing::error!(
+                        "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
+                        recording.ticks()
+                    );
+                    break false;
                 }
             }
-        };
+        }
+    };
     progress.finish();
     let wall_time_s = started.elapsed().as_secs_f64();
     // The world and the agents report as they exit, just after the end: a moment for them.

@@ -1,14 +1,17 @@
 //! The messages the machines exchange, as they go on the wire (docs/PROTOCOL.md). Every message
 //! carries the protocol version; a receiver drops one whose version or numbers it cannot use.
 
+use std::borrow::Cow;
+
 use serde::{Deserialize, Serialize};
 
 use crate::path::GeneralizedPath;
 
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
 /// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`. 5: the γ a realtime
-/// agent received but saw overtaken (`PeriodTiming::overtaken`).
-pub const PROTOCOL_VERSION: u16 = 5;
+/// agent received but saw overtaken (`PeriodTiming::overtaken`). 6: the lockstep world's
+/// `TickRecord`, which recorders take instead of every state and command.
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -79,6 +82,19 @@ pub struct Gamma {
     pub tick: u64,
     pub from: u32,
     pub sample: Option<Sample>,
+}
+
+/// World → recorders, in lockstep: a tick as the world closed it, its states and the command
+/// each vehicle held (none for a vehicle lost by then). One message a tick rather than one per
+/// state and per command: a recorder wakes once a tick whatever the fleet's size, and lags
+/// 65 536 ticks, not messages, before its queue drops. The world sends it from what it holds,
+/// hence the borrowed form; a received one owns its parts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TickRecord<'a> {
+    pub version: u16,
+    pub tick: u64,
+    pub states: Cow<'a, [State]>,
+    pub commands: Cow<'a, [Option<Command>]>,
 }
 
 /// Planner → agent: the vehicle's generalized path.
@@ -162,6 +178,20 @@ impl Checked for Gamma {
     fn finite(&self) -> bool {
         self.sample
             .is_none_or(|s| all_finite([s.t, s.gamma, s.gamma_dot, s.position[0], s.position[1]]))
+    }
+}
+
+impl Checked for TickRecord<'_> {
+    /// Its own version, or the first of its parts' that differs from it.
+    fn version(&self) -> u16 {
+        let parts = self.states.iter().map(|s| s.version);
+        parts
+            .chain(self.commands.iter().flatten().map(|c| c.version))
+            .find(|&v| v != self.version)
+            .unwrap_or(self.version)
+    }
+    fn finite(&self) -> bool {
+        self.states.iter().all(Checked::finite) && self.commands.iter().flatten().all(Checked::finite)
     }
 }
 

@@ -5,7 +5,7 @@ use std::collections::VecDeque;
 
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
-use crate::msg::{Checked, Command, End, Lost, State};
+use crate::msg::{Checked, Command, End, Lost, State, TickRecord};
 use crate::roster::Roster;
 
 /// One tick as it fills: a slot per vehicle for its state and its command.
@@ -93,6 +93,19 @@ impl Recorder {
         }
         t.1[n] = Some(command);
         Ok(())
+    }
+
+    /// The world's record of a tick: each state and command in it is taken as if it had come
+    /// alone (the first refused says why the record was).
+    pub fn on_tick(&mut self, record: TickRecord) -> Result<(), Reject> {
+        let mut taken = Ok(());
+        for &state in record.states.iter() {
+            taken = taken.and(self.on_state(state));
+        }
+        for command in record.commands.into_owned().into_iter().flatten() {
+            taken = taken.and(self.on_command(command));
+        }
+        taken
     }
 
     /// The world's end: the first one is kept. An end before ticks already written, or beyond
@@ -259,6 +272,64 @@ mod tests {
         assert!(recorder.complete());
         assert_eq!(out, csv);
         assert_eq!(recorder.results(), results);
+    }
+
+    #[test]
+    fn the_worlds_tick_records_give_the_in_process_rows() {
+        let (messages, csv, results, t_f, dt) = recorded_run();
+        let mut recorder = Recorder::new(&[1, 2], t_f, dt);
+        let mut out = String::new();
+        for (k, tick) in messages.chunks(2).enumerate() {
+            let states: Vec<State> = tick.iter().map(|m| m.0).collect();
+            let commands: Vec<Option<Command>> = tick.iter().map(|m| Some(m.1.clone())).collect();
+            let record = TickRecord {
+                version: PROTOCOL_VERSION,
+                tick: k as u64,
+                states: states.into(),
+                commands: commands.into(),
+            };
+            recorder.on_tick(record.clone()).unwrap();
+            assert_eq!(recorder.on_tick(record.clone()), Err(Reject::Duplicate));
+            recorder.drain(|s, c| {
+                s.iter()
+                    .zip(c)
+                    .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref()))
+            });
+            assert_eq!(recorder.on_tick(record), Err(Reject::Past), "tick {k} is written");
+        }
+        recorder
+            .on_end(End {
+                version: PROTOCOL_VERSION,
+                ticks: results.ticks,
+                lost: vec![],
+            })
+            .unwrap();
+        assert!(recorder.complete());
+        assert_eq!(out, csv);
+        assert_eq!(recorder.results(), results);
+    }
+
+    #[test]
+    fn a_tick_record_with_a_refused_part_is_refused_and_its_other_parts_are_taken() {
+        let (messages, ..) = recorded_run();
+        let mut recorder = Recorder::new(&[1, 2], 45.0, 0.01);
+        let (state, command) = messages[0].clone();
+        recorder.on_state(state).unwrap();
+        let conflicting = State { heading: 1.0, ..state };
+        let record = TickRecord {
+            version: PROTOCOL_VERSION,
+            tick: 0,
+            states: vec![conflicting, messages[1].0].into(),
+            commands: vec![Some(command), Some(messages[1].1.clone())].into(),
+        };
+        assert_eq!(recorder.on_tick(record), Err(Reject::Conflict));
+        let mut ticks = 0;
+        recorder.drain(|s, c| {
+            assert_eq!(s[0], state, "the first state of a tick is kept");
+            assert!(c.iter().all(Option::is_some));
+            ticks += 1;
+        });
+        assert_eq!(ticks, 1, "the tick is complete with the record's other parts");
     }
 
     #[test]

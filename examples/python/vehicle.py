@@ -21,7 +21,7 @@ import threading
 import time
 import tomllib
 
-VERSION = 5
+VERSION = 6
 F64 = struct.Struct("<d")
 
 # Message layouts: the fields in order, as postcard writes them (PROTOCOL.md, "Encoding"). A type is
@@ -412,14 +412,14 @@ def self_test():
                "receptions": [{"from": 1, "delivered": True}, {"from": 3, "delivered": False}]}
     end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}]}
     clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12}
-    gamma_bytes = ("05ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+    gamma_bytes = ("06ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
                    "0000000000000040" "000000000000e0bf")
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("05ac020200"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("06ac020200"),
         "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300))
-        == bytes.fromhex("0501" "0000000000002440" "000000000000f83f" "ac02"),
+        == bytes.fromhex("0601" "0000000000002440" "000000000000f83f" "ac02"),
         "u32 overflow refused": refused_as(version_id, varint(VERSION) + varint(2**32)) == "undecodable",
         "trailing byte refused": refused_as(COMMAND, encode(COMMAND, command) + b"\0") == "undecodable",
         "version 3 refused": refused_as(STATE, encode(STATE, dict(state, version=3))) == "wrong_version",

@@ -18,7 +18,7 @@ use tcpf_bus::typed::{
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, PROTOCOL_VERSION};
+use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, TickRecord, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
@@ -90,6 +90,8 @@ struct Stepper {
     session: Session,
     keys: Keys,
     outlets: Arc<Vec<Outlet>>,
+    /// Each closed tick, for recorders: it leaves in the batch of the next tick's states.
+    tick_out: Outlet,
     end_out: Arc<Outlet>,
     clock: Arc<ClockServer>,
     rejected: Rejected,
@@ -139,7 +141,20 @@ impl Stepper {
     /// Advances every tick that waits for nobody, publishing each one's states, or the end.
     fn step(&self, stepped: &mut Stepped) {
         while !stepped.over && !stepped.node.waiting() {
-            match stepped.node.advance(|_, _| {}) {
+            let tick = stepped.node.tick();
+            let mut recorded = Ok(());
+            let closed = stepped.node.advance(|states, commands| {
+                recorded = self.tick_out.put_now(&TickRecord {
+                    version: PROTOCOL_VERSION,
+                    tick,
+                    states: states.into(),
+                    commands: commands.into(),
+                })
+            });
+            if let Err(e) = recorded {
+                let _ = self.ends.send(Err(e));
+            }
+            match closed {
                 Some(end) => {
                     stepped.over = true;
                     let _ = self.ends.send(self.end_out.put_now(&end).map(|()| end));
@@ -225,6 +240,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             session: session.clone(),
             keys: keys.clone(),
             outlets: outlets.clone(),
+            tick_out: Outlet::new(&session, keys.tick()).await?,
             end_out: end_out.clone(),
             clock: clock.clone(),
             rejected: rejected.clone(),
