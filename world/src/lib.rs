@@ -220,7 +220,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let clock = Arc::new(ClockServer::declare(&session, &keys).await?);
     let (_commands, inbound) = if realtime {
         let (subscriber, commands) = subscribe::<Command>(&session, &keys.cmd("*"), &rejected).await?;
-        (subscriber, Inbound::Queued(commands))
+        (vec![subscriber], Inbound::Queued(commands))
     } else {
         let (ends_tx, ends) = mpsc::unbounded_channel();
         let stepper = Arc::new(Stepper {
@@ -246,10 +246,16 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             rejected: rejected.clone(),
             ends: ends_tx,
         });
-        let to = stepper.clone();
-        let subscriber =
-            subscribe_with::<Command>(&session, &keys.cmd("*"), &rejected, move |key, c| to.take(key, c)).await?;
-        (subscriber, Inbound::Fed { stepper, ends })
+        // One subscription per vehicle, not one to cmd/*: Zenoh caches a route only for a key it
+        // has a resource for, and on cmd/* it matched every arriving command against every key
+        // the session knew (50 agents: the world's CPU 2.33 -> 1.80 s a run).
+        let mut subscribers = Vec::with_capacity(ids.len());
+        for id in &ids {
+            let to = stepper.clone();
+            let take = move |key: &str, c| to.take(key, c);
+            subscribers.push(subscribe_with::<Command>(&session, &keys.cmd(id), &rejected, take).await?);
+        }
+        (subscribers, Inbound::Fed { stepper, ends })
     };
     let token = session
         .liveliness()
