@@ -1,6 +1,7 @@
 //! `tcpf run` as a fleet of processes over Zenoh, spawned as a user would. Every test kills what
 //! it started, whatever happens, and checks that no process is left behind.
 
+use std::io::Read;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -409,6 +410,67 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     }
     run_in_process(&mission, &dir.join("i"), &[]);
     assert_same_run(&out, &dir.join("i"));
+}
+
+#[test]
+fn a_recorder_whose_world_dies_without_an_end_says_so_and_writes_the_run() {
+    let dir = scratch("world-dies");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mission = paper("b-current");
+    let role = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    // Agent 2 never comes, so the world waits for it until it is killed, and never says End.
+    let mut fleet = Fleet(vec![role(&["planner", &mission, "-l", &endpoint])]);
+    fleet
+        .0
+        .push(role(&["world", &mission, "-e", &endpoint, "--recorders", "1"]));
+    fleet.0.push(role(&["agent", &mission, "--id", "1", "-e", &endpoint]));
+    let out = dir.join("p");
+    let recorder = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut recorder = Fleet(vec![recorder]);
+    std::thread::sleep(Duration::from_secs(2));
+    fleet.0[1].kill().unwrap();
+    let killed = Instant::now();
+    let status = loop {
+        if let Some(status) = recorder.0[0].try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            killed.elapsed() < Duration::from_secs(30),
+            "the recorder still waits for a dead world"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut stderr = String::new();
+    recorder.0[0]
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("the world left without announcing the end"), "{stderr}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["completed"], false);
+    assert_eq!(s["interrupted"], false);
+    assert!(out.join("report.html").is_file());
 }
 
 #[test]

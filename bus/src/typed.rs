@@ -304,7 +304,6 @@ pub struct Presence {
     pub alive: bool,
 }
 
-/// Follows every liveliness token of the mission, those already there included.
 /// Who of the mission is present now, by their liveliness tokens.
 pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>> {
     let replies = session
@@ -322,6 +321,7 @@ pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>>
     Ok(present)
 }
 
+/// Follows every liveliness token of the mission, those already there included.
 pub async fn presence(session: &Session, keys: &Keys) -> Result<(Subscriber<()>, mpsc::UnboundedReceiver<Presence>)> {
     let (tx, rx) = mpsc::unbounded_channel();
     let parser = keys.clone();

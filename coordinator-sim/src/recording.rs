@@ -10,7 +10,7 @@ use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::ask_clock;
-use tcpf_bus::typed::{subscribe_as, Received, Rejected};
+use tcpf_bus::typed::{presence, subscribe_as, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
@@ -30,7 +30,8 @@ use crate::progress::Ticks;
 use tcpf_report::rundir::{RunDir, Telemetry};
 use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
 
-/// How long `tcpf record` waits, after the world's end, for a tick that does not come whole.
+/// How long `tcpf record` waits, after the world's end (or after the world left without one),
+/// for a tick that does not come whole.
 const END_STALL: Duration = Duration::from_secs(5);
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
 /// fleet sends, so it may lag behind a fast lockstep fleet by many ticks (one message each).
@@ -387,9 +388,18 @@ pub async fn record(
     dir.write_plan(plan)?;
     let session = zenoh.open().await?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
+    let (_presence, mut presence) = presence(&session, &Keys::new(&mission.mission.name)).await?;
     recording.declare().await?;
     let progress = Ticks::new(mission);
     let started = Instant::now();
+    // A world that dies says no end: without this the recording would wait for it forever.
+    let mut world_left: Option<Instant> = None;
+    let realtime = mission.mission.clock == ClockKind::Realtime;
+    // A realtime recording goes on sampling without a world: only the world's absence counts.
+    let stalled = |recording: &Recording, left: Option<Instant>| match left {
+        Some(left) if realtime => left.elapsed() >= END_STALL,
+        _ => recording.progress.elapsed() >= END_STALL,
+    };
     let interrupted = loop {
         if recording.complete() {
             break false;
@@ -400,12 +410,23 @@ pub async fn record(
                 progress.set(recording.ticks());
             }
             _ = shutdown.recv() => break true,
-            _ = tokio::time::sleep(END_STALL), if recording.end.is_some() => {
-                if recording.progress.elapsed() >= END_STALL {
-                    tracing::error!(
-                        "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
-                        recording.ticks()
-                    );
+            Some(p) = presence.recv() => {
+                if p.role == Role::World {
+                    world_left = (!p.alive).then(Instant::now);
+                }
+            }
+            _ = tokio::time::sleep(END_STALL), if recording.end.is_some() || world_left.is_some() => {
+                if stalled(&recording, world_left) {
+                    match recording.end {
+                        Some(_) => tracing::error!(
+                            "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
+                            recording.ticks()
+                        ),
+                        None => tracing::error!(
+                            "recorder: the world left without announcing the end, after tick {}; writing what was recorded",
+                            recording.ticks()
+                        ),
+                    }
                     break false;
                 }
             }
@@ -430,11 +451,12 @@ pub async fn record(
     })
     .await;
     let _ = session.close().await;
+    let ended = !interrupted && recording.end.is_some();
     recording.close(
         mission,
         dir,
         Closing {
-            ended: !interrupted,
+            ended,
             interrupted,
             wall_time_s,
             children: Vec::new(),
