@@ -370,16 +370,15 @@ impl Drop for Fleet {
     }
 }
 
-#[test]
-fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
-    let dir = scratch("by-hand");
+/// The planner, a world that waits for one recorder and the agents `ids` of `mission`, started
+/// by hand on a free loopback endpoint (the world is the second), and that endpoint.
+fn by_hand(mission: &str, ids: &[&str]) -> (Fleet, String) {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
         .unwrap()
         .port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
-    let mission = paper("b-current");
     let role = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_tcpf"))
             .args(args)
@@ -388,12 +387,21 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
             .spawn()
             .unwrap()
     };
-    let mut fleet = Fleet(vec![role(&["planner", &mission, "-l", &endpoint])]);
+    let mut fleet = Fleet(vec![role(&["planner", mission, "-l", &endpoint])]);
     fleet
         .0
-        .push(role(&["world", &mission, "-e", &endpoint, "--recorders", "1"]));
-    fleet.0.push(role(&["agent", &mission, "--id", "2", "-e", &endpoint]));
-    fleet.0.push(role(&["agent", &mission, "--id", "1", "-e", &endpoint]));
+        .push(role(&["world", mission, "-e", &endpoint, "--recorders", "1"]));
+    for id in ids {
+        fleet.0.push(role(&["agent", mission, "--id", id, "-e", &endpoint]));
+    }
+    (fleet, endpoint)
+}
+
+#[test]
+fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
+    let dir = scratch("by-hand");
+    let mission = paper("b-current");
+    let (mut fleet, endpoint) = by_hand(&mission, &["2", "1"]);
     let out = dir.join("p");
     let record = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
@@ -415,27 +423,9 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
 #[test]
 fn a_recorder_whose_world_dies_without_an_end_says_so_and_writes_the_run() {
     let dir = scratch("world-dies");
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
     let mission = paper("b-current");
-    let role = |args: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(args)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap()
-    };
     // Agent 2 never comes, so the world waits for it until it is killed, and never says End.
-    let mut fleet = Fleet(vec![role(&["planner", &mission, "-l", &endpoint])]);
-    fleet
-        .0
-        .push(role(&["world", &mission, "-e", &endpoint, "--recorders", "1"]));
-    fleet.0.push(role(&["agent", &mission, "--id", "1", "-e", &endpoint]));
+    let (mut fleet, endpoint) = by_hand(&mission, &["1"]);
     let out = dir.join("p");
     let recorder = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
