@@ -87,10 +87,9 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
     );
     for (role, id) in [("world", 0), ("agent", 1), ("agent", 2)] {
         let t = timing(&realtime, role, id);
-        assert!(
-            t["periods"].as_u64().unwrap() > 5000,
-            "{role} {id} ran every period: {t}"
-        );
+        // A host that stalls makes a role skip periods; each is then counted, never lost.
+        let accounted = t["periods"].as_u64().unwrap() + t["skipped"].as_u64().unwrap();
+        assert!(accounted > 5000, "{role} {id} ran or skipped every period: {t}");
         for figure in ["lateness_p50_ms", "lateness_p99_ms", "lateness_max_ms"] {
             let ms = t[figure].as_f64().unwrap();
             assert!(ms > 0.0 && ms.is_finite(), "{role} {id} {figure} = {ms}");
