@@ -86,9 +86,9 @@ pub struct Gamma {
 
 /// World → recorders, in lockstep: a tick as the world closed it, its states and the command
 /// each vehicle held (none for a vehicle lost by then). One message a tick rather than one per
-/// state and per command: a recorder wakes once a tick whatever the fleet's size, and lags
-/// 65 536 ticks, not messages, before its queue drops. The world sends it from what it holds,
-/// hence the borrowed form; a received one owns its parts.
+/// state and per command: a recorder wakes once a tick whatever the fleet's size, and one that
+/// lags queues ticks, not messages. The world sends it from what it holds, hence the borrowed
+/// form; a received one owns its parts.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TickRecord<'a> {
     pub version: u16,
