@@ -597,14 +597,19 @@ mod tests {
         (sampler.results(), kept)
     }
 
-    /// On time: the same arrivals as lockstep (55.467 / 55.466 s) within a few periods.
-    #[test]
-    fn on_time_realtime_machines_arrive_as_lockstep_does() {
-        let (results, kept) = on_time(1);
+    /// Every vehicle arrived when lockstep's did (55.467 / 55.466 s), within a few periods.
+    fn assert_arrived_as_lockstep(results: &Results) {
         for v in &results.vehicles {
             let arrival = v.arrival_time.expect("arrived");
             assert!((arrival - 55.467).abs() < 0.05, "vehicle {}: {arrival}", v.id);
         }
+    }
+
+    /// On time: the same arrivals as lockstep within a few periods.
+    #[test]
+    fn on_time_realtime_machines_arrive_as_lockstep_does() {
+        let (results, kept) = on_time(1);
+        assert_arrived_as_lockstep(&results);
         assert!(
             (results.max_coordination_error - 0.362).abs() < 0.05,
             "{}",
@@ -619,10 +624,7 @@ mod tests {
     #[test]
     fn a_recorder_behind_its_beat_still_sees_the_arrivals_that_ended_the_run() {
         let (behind, _) = on_time(50);
-        for v in &behind.vehicles {
-            let arrival = v.arrival_time.expect("arrived");
-            assert!((arrival - 55.467).abs() < 0.05, "vehicle {}: {arrival}", v.id);
-        }
+        assert_arrived_as_lockstep(&behind);
         // Nor does it lose the receptions of the commands it never sampled.
         let (on_time, _) = on_time(1);
         assert_eq!(behind.links, on_time.links);
