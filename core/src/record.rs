@@ -1,6 +1,7 @@
 //! The recorder as a machine: states and commands arrive from many processes in any order; it
 //! hands them on tick by tick, in order, exactly as the in-process run sees them.
 
+use std::borrow::Cow;
 use std::collections::VecDeque;
 
 use crate::lockstep::Reject;
@@ -102,7 +103,12 @@ impl Recorder {
         for &state in record.states.iter() {
             taken = taken.and(self.on_state(state));
         }
-        for command in record.commands.into_owned().into_iter().flatten() {
+        // A received record owns its commands and gives them up; the world's own lends them.
+        let commands: Box<dyn Iterator<Item = Command>> = match record.commands {
+            Cow::Owned(commands) => Box::new(commands.into_iter().flatten()),
+            Cow::Borrowed(commands) => Box::new(commands.iter().flatten().cloned()),
+        };
+        for command in commands {
             taken = taken.and(self.on_command(command));
         }
         taken

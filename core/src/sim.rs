@@ -3,11 +3,13 @@
 //! lockstep shells pass their messages over Zenoh. Nothing here decides anything the machines do
 //! not: that is what makes in-process and process runs bit-identical.
 
+use std::borrow::Cow;
+
 use crate::agent::Agent;
 use crate::lockstep::{AgentNode, WorldNode};
 use crate::metrics::Results;
 use crate::mission::Mission;
-use crate::msg::{Command, Gamma, LossReason, State, PROTOCOL_VERSION};
+use crate::msg::{Command, Gamma, LossReason, State, TickRecord, PROTOCOL_VERSION};
 use crate::planner::Plan;
 use crate::record::Recorder;
 use crate::world::World;
@@ -82,8 +84,7 @@ impl Fleet {
             // The world publishes the states of the tick; each agent answers its own.
             let mut refused = Vec::new();
             for (n, &state) in self.world.states().iter().enumerate() {
-                // What the recorder and agents refuse here, the processes drop as they decode.
-                let _ = self.recorder.on_state(state);
+                // What the agents refuse here, the processes drop as they decode.
                 if self.live[n] {
                     match self.agents[n].on_state(state) {
                         Ok(gamma) => sent.extend(gamma.map(|g| (n, g))),
@@ -101,13 +102,22 @@ impl Fleet {
                 let command = self.agents[n]
                     .command()
                     .expect("the state and every γ of the tick are in");
-                let _ = self.recorder.on_command(command.clone());
                 if self.world.on_command(command).is_err() {
                     refused.push(n);
                 }
             }
             refused.drain(..).for_each(|n| self.silence(n));
-            let end = self.world.advance(|_, _| {});
+            // As the tick closes, the recorder takes the world's record of it.
+            let tick = self.world.tick();
+            let end = self.world.advance(|states, commands| {
+                let record = TickRecord {
+                    version: PROTOCOL_VERSION,
+                    tick,
+                    states: Cow::Borrowed(states),
+                    commands: Cow::Borrowed(commands),
+                };
+                self.recorder.on_tick(record).expect("the world's record of the next tick");
+            });
             self.recorder.drain(&mut observe);
             if let Some(end) = end {
                 self.recorder.on_end(end).expect("the world's end, once");
