@@ -116,7 +116,9 @@ impl Fleet {
                     states: Cow::Borrowed(states),
                     commands: Cow::Borrowed(commands),
                 };
-                self.recorder.on_tick(record).expect("the world's record of the next tick");
+                self.recorder
+                    .on_tick(record)
+                    .expect("the world's record of the next tick");
             });
             self.recorder.drain(&mut observe);
             if let Some(end) = end {
