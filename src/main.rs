@@ -266,7 +266,7 @@ fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
 
 /// A role's failure: a clock the fleet does not run is bad input, anything else a failed run.
 fn role_failure(e: anyhow::Error) -> Failure {
-    if e.downcast_ref::<tcpf_agent::WrongClock>().is_some() {
+    if e.downcast_ref::<tcpf_bus::clock::WrongClock>().is_some() {
         Failure::Input(e)
     } else {
         Failure::Failed(e)
@@ -776,7 +776,7 @@ fn record(
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = runtime()?
         .block_on(tcpf_coordinator::recording::record(&mission, &plan, &dir, zenoh, live))
-        .map_err(Failure::Failed)?;
+        .map_err(role_failure)?;
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());
     let realtime = mission.mission.clock == mission::ClockKind::Realtime;

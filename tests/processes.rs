@@ -8,7 +8,8 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, assert_none_left, assert_same_run, config, descendants, kill, paper, run_in_process, scratch, Launch,
+    alive, assert_none_left, assert_same_run, config, descendants, free_endpoint, kill, paper, run_in_process, scratch,
+    Launch,
 };
 
 #[test]
@@ -370,38 +371,54 @@ impl Drop for Fleet {
     }
 }
 
+/// A role of the `tcpf` binary, its output dropped but for its standard error, when `stderr`
+/// says so.
+fn role(args: &[&str], stderr: Stdio) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(stderr)
+        .spawn()
+        .unwrap()
+}
+
 /// The planner, a world that waits for one recorder and the agents `ids` of `mission`, started
-/// by hand on a free loopback endpoint (the world is the second), and that endpoint.
-fn by_hand(mission: &str, ids: &[&str]) -> (Fleet, String) {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let role = |args: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(args)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap()
-    };
-    let mut fleet = Fleet(vec![role(&["planner", mission, "-l", &endpoint])]);
+/// by hand on a free loopback endpoint with the `clock` options (the world is the second), and
+/// that endpoint.
+fn by_hand(mission: &str, ids: &[&str], clock: &[&str]) -> (Fleet, String) {
+    let endpoint = free_endpoint();
+    let start = |args: &[&str]| role(&[args, clock].concat(), Stdio::null());
+    let mut fleet = Fleet(vec![start(&["planner", mission, "-l", &endpoint])]);
     fleet
         .0
-        .push(role(&["world", mission, "-e", &endpoint, "--recorders", "1"]));
+        .push(start(&["world", mission, "-e", &endpoint, "--recorders", "1"]));
     for id in ids {
-        fleet.0.push(role(&["agent", mission, "--id", id, "-e", &endpoint]));
+        fleet.0.push(start(&["agent", mission, "--id", id, "-e", &endpoint]));
     }
     (fleet, endpoint)
+}
+
+/// Waits for `child` to exit (at most `limit`, or says `what` is still running) and returns its
+/// exit code and standard error.
+fn exited(child: &mut Child, limit: Duration, what: &str) -> (Option<i32>, String) {
+    let started = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(started.elapsed() < limit, "{what}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut stderr = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut stderr).unwrap();
+    (status.code(), stderr)
 }
 
 #[test]
 fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     let dir = scratch("by-hand");
     let mission = paper("b-current");
-    let (mut fleet, endpoint) = by_hand(&mission, &["2", "1"]);
+    let (mut fleet, endpoint) = by_hand(&mission, &["2", "1"], &[]);
     let out = dir.join("p");
     let record = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
@@ -420,47 +437,92 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     assert_same_run(&out, &dir.join("i"));
 }
 
-#[test]
-fn a_recorder_whose_world_dies_without_an_end_says_so_and_writes_the_run() {
-    let dir = scratch("world-dies");
+/// A recorder of a world that is killed before it announces the end: it says so within seconds,
+/// writes the run directory (not completed) and exits 1, on either clock.
+fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
+    let dir = scratch(name);
     let mission = paper("b-current");
     // Agent 2 never comes, so the world waits for it until it is killed, and never says End.
-    let (mut fleet, endpoint) = by_hand(&mission, &["1"]);
+    let (mut fleet, endpoint) = by_hand(&mission, &["1"], clock);
     let out = dir.join("p");
-    let recorder = Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut recorder = Fleet(vec![recorder]);
+    let record = [
+        &["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()],
+        clock,
+    ]
+    .concat();
+    let mut recorder = Fleet(vec![role(&record, Stdio::piped())]);
     std::thread::sleep(Duration::from_secs(2));
     fleet.0[1].kill().unwrap();
-    let killed = Instant::now();
-    let status = loop {
-        if let Some(status) = recorder.0[0].try_wait().unwrap() {
-            break status;
-        }
-        assert!(
-            killed.elapsed() < Duration::from_secs(30),
-            "the recorder still waits for a dead world"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut stderr = String::new();
-    recorder.0[0]
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut stderr)
-        .unwrap();
-    assert_eq!(status.code(), Some(1), "{stderr}");
+    let (code, stderr) = exited(
+        &mut recorder.0[0],
+        Duration::from_secs(30),
+        "the recorder still waits for a dead world",
+    );
+    assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("the world left without announcing the end"), "{stderr}");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["completed"], false);
     assert_eq!(s["interrupted"], false);
     assert!(out.join("report.html").is_file());
+}
+
+#[test]
+fn a_recorder_whose_world_dies_without_an_end_says_so_and_writes_the_run() {
+    a_recorder_outlives_a_dead_world("world-dies", &[]);
+}
+
+#[test]
+fn a_realtime_recorder_whose_world_dies_says_so_and_writes_the_run() {
+    // The realtime recorder asks for the clock every 50 ms while the world has not started:
+    // that must not keep the world's absence from counting.
+    a_recorder_outlives_a_dead_world("world-dies-realtime", &["--clock", "realtime", "--time-scale", "10"]);
+}
+
+#[test]
+fn roles_on_another_clock_than_the_worlds_refuse_to_run() {
+    let mission = paper("b-current");
+    let realtime = ["--clock", "realtime", "--time-scale", "10"];
+    // A realtime world; agent 2 and the recorder left on the default lockstep clock. The world
+    // has not started when they come, so they learn its clock only once it runs.
+    let (_fleet, endpoint) = by_hand(&mission, &["1"], &realtime);
+    let dir = scratch("wrong-clock");
+    let out = dir.join("p");
+    let mut late = Fleet(vec![
+        role(&["agent", &mission, "--id", "2", "-e", &endpoint], Stdio::piped()),
+        role(
+            &["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()],
+            Stdio::piped(),
+        ),
+    ]);
+    for (n, who) in ["agent", "recorder"].iter().enumerate() {
+        let (code, stderr) = exited(
+            &mut late.0[n],
+            Duration::from_secs(30),
+            &format!("the lockstep {who} still runs"),
+        );
+        assert_eq!(code, Some(2), "{stderr}");
+        let why = format!("this {who} runs the lockstep clock but the world runs realtime");
+        assert!(stderr.contains(&why), "{stderr}");
+    }
+    // A lockstep world (and its recorder), and a realtime agent.
+    let (_fleet, endpoint) = by_hand(&mission, &["1"], &[]);
+    let out = dir.join("q");
+    let agent = role(
+        &["agent", &mission, "--id", "2", "-e", &endpoint, "--clock", "realtime"],
+        Stdio::piped(),
+    );
+    let recorder = role(
+        &["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()],
+        Stdio::null(),
+    );
+    let mut late = Fleet(vec![agent, recorder]);
+    let (code, stderr) = exited(&mut late.0[0], Duration::from_secs(30), "the realtime agent still runs");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("this agent runs the realtime clock but the world runs lockstep"),
+        "{stderr}"
+    );
 }
 
 #[test]

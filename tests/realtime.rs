@@ -8,8 +8,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    assert_none_left, descendants, kill, paper, run_in_process, scratch, summary, timing, wait_until_simulated,
-    without_command, Launch, Reaper,
+    assert_none_left, descendants, free_endpoint, kill, paper, run_in_process, scratch, summary, timing,
+    wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -44,15 +44,6 @@ fn agent_pid(root: u32, id: u32) -> u32 {
         assert!(Instant::now() < deadline, "no agent {id} under {root}");
         std::thread::sleep(Duration::from_millis(20));
     }
-}
-
-fn free_endpoint() -> String {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    format!("tcp/127.0.0.1:{port}")
 }
 
 #[test]

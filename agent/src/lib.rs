@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::clock::{metronome, FleetClock};
+use tcpf_bus::clock::{self, metronome, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
@@ -25,8 +25,10 @@ use zenoh::Session;
 
 /// How long to wait for the end message after the world or the planner went away.
 const END_GRACE: Duration = Duration::from_millis(500);
-/// How often a realtime agent asks for the clock while the world has not started.
+/// How often an agent asks for the clock while the world has not started: a realtime agent
+/// waits for it; a lockstep one, running meanwhile, asks less and less often, up to the max.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
+const CLOCK_POLL_MAX: Duration = Duration::from_secs(1);
 /// Where in its period a realtime agent acts: after the world published the period's states,
 /// and early enough that its command reaches the world before the next.
 const AGENT_PHASE: f64 = 0.5;
@@ -50,18 +52,6 @@ pub enum Exit {
     Lost,
     Interrupted,
 }
-
-/// A clock this agent cannot run with: bad input, not a failure of the run.
-#[derive(Debug)]
-pub struct WrongClock(pub String);
-
-impl std::fmt::Display for WrongClock {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for WrongClock {}
 
 /// What both clocks' loops work with.
 struct Shell {
@@ -377,7 +367,9 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                     }
                 }
             }
-            shell.lockstep(&feed, &mut faults, options).await?
+            shell
+                .lockstep(mission, under_way.is_none(), &feed, &mut faults, options)
+                .await?
         }
     };
     let _ = token.undeclare().await;
@@ -385,26 +377,15 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     Ok(exit)
 }
 
-/// One time scale and one kind of clock for the whole fleet.
+/// This agent's clock against the world's.
 fn check_clock(mission: &Mission, clock: &Clock) -> Result<()> {
-    let realtime = mission.mission.clock == ClockKind::Realtime;
-    if clock.realtime != realtime {
-        let kind = |r: bool| if r { "realtime" } else { "lockstep" };
-        return Err(WrongClock(format!(
-            "this agent runs the {} clock but the world runs {}: start every role with the same --clock",
-            kind(realtime),
-            kind(clock.realtime)
-        ))
-        .into());
-    }
-    if realtime && clock.time_scale != mission.mission.time_scale {
-        return Err(WrongClock(format!(
-            "this agent runs at time scale {} but the world at {}: start every role with the same --time-scale",
-            mission.mission.time_scale, clock.time_scale
-        ))
-        .into());
-    }
-    Ok(())
+    let m = &mission.mission;
+    Ok(clock::check_clock(
+        "agent",
+        m.clock == ClockKind::Realtime,
+        m.time_scale,
+        clock,
+    )?)
 }
 
 impl Shell {
@@ -440,19 +421,36 @@ impl Shell {
         Exit::Orphaned
     }
 
+    /// `unchecked`: the world had not started when this agent came, so whether its clock is
+    /// lockstep is known only once it answers; until then the agent asks.
     async fn lockstep(
         &mut self,
+        mission: &Mission,
+        unchecked: bool,
         feed: &Feed,
         faults: &mut UnboundedReceiver<anyhow::Error>,
         options: &Options,
     ) -> Result<Exit> {
         let id = self.id;
         feed.start();
+        // When to ask next, and how long to wait after that: a fleet of hundreds waiting for its
+        // world to start must not flood the router with queries.
+        let mut ask = unchecked.then(|| (tokio::time::Instant::now(), CLOCK_POLL));
         let exit = loop {
             // Woken once per timeout while the fleet moves on, to look whether it still waits.
             let stale_at = feed.lock().waiting_since.unwrap_or_else(Instant::now) + options.stale_timeout;
             tokio::select! {
                 Some(e) = faults.recv() => return Err(e),
+                _ = tokio::time::sleep_until(ask.map_or_else(tokio::time::Instant::now, |a| a.0)), if ask.is_some() => {
+                    let wait = ask.map_or(CLOCK_POLL, |a| a.1);
+                    ask = match ask_clock(&self.session, &self.keys, &self.rejected).await? {
+                        Some(clock) => {
+                            check_clock(mission, &clock)?;
+                            None
+                        }
+                        None => Some((tokio::time::Instant::now() + wait, (wait * 2).min(CLOCK_POLL_MAX))),
+                    };
+                }
                 Some(p) = self.presence.recv() => match p.role {
                     Role::World | Role::Planner if !p.alive => {
                         break self.world_gone(p.role, |e| feed.with(|node| node.on_end(e).is_ok())).await;

@@ -13,6 +13,38 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tcpf_core::msg::Clock;
 use tokio::sync::mpsc;
 
+/// A role whose clock is not the world's: bad input (exit 2), not a failure of the run.
+#[derive(Debug)]
+pub struct WrongClock(pub String);
+
+impl std::fmt::Display for WrongClock {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for WrongClock {}
+
+/// One kind of clock and one time scale for the whole fleet: `role` runs the mission's
+/// `realtime` clock at `time_scale`, and `clock` is the world's.
+pub fn check_clock(role: &str, realtime: bool, time_scale: f64, clock: &Clock) -> Result<(), WrongClock> {
+    let kind = |r: bool| if r { "realtime" } else { "lockstep" };
+    if clock.realtime != realtime {
+        return Err(WrongClock(format!(
+            "this {role} runs the {} clock but the world runs {}: start every role with the same --clock",
+            kind(realtime),
+            kind(clock.realtime)
+        )));
+    }
+    if realtime && clock.time_scale != time_scale {
+        return Err(WrongClock(format!(
+            "this {role} runs at time scale {time_scale} but the world at {}: start every role with the same --time-scale",
+            clock.time_scale
+        )));
+    }
+    Ok(())
+}
+
 /// Unix time now, in seconds.
 pub fn unix_now() -> f64 {
     SystemTime::now()

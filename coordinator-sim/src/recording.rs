@@ -7,7 +7,7 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::clock::{metronome, Beat, FleetClock};
+use tcpf_bus::clock::{check_clock, metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::ask_clock;
 use tcpf_bus::typed::{presence, subscribe_as, Received, Rejected};
@@ -52,7 +52,7 @@ enum Message {
 const RECORDER_PHASE: f64 = 0.9;
 /// How long `tcpf record` waits after the end for the roles' exit reports.
 const REPORT_GRACE: Duration = Duration::from_secs(2);
-/// How often the realtime recorder asks for the clock before the world has started.
+/// How often the recorder asks for the clock before the world has started.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
 
 enum Machine {
@@ -61,9 +61,6 @@ enum Machine {
         sampler: Sampler,
         /// Once the world has started its clock.
         beats: Option<Receiver<Beat>>,
-        /// Until then, when to ask for it next.
-        ask_at: tokio::time::Instant,
-        time_scale: f64,
         control_period: f64,
     },
 }
@@ -97,6 +94,11 @@ pub struct Recording {
     _subscribers: Vec<Subscriber<()>>,
     /// Withdrawn once the recording is complete: the world waits for its recorders to leave.
     token: Option<LivelinessToken>,
+    /// The clock this recorder runs, which must be the world's.
+    realtime: bool,
+    time_scale: f64,
+    /// Until the world's clock has answered (it does once the run has started), when to ask.
+    ask_at: Option<tokio::time::Instant>,
 }
 
 impl Recording {
@@ -124,8 +126,6 @@ impl Recording {
             ClockKind::Realtime => Machine::Realtime {
                 sampler: Sampler::new(&ids, t_f, dt),
                 beats: None,
-                ask_at: tokio::time::Instant::now(),
-                time_scale: mission.mission.time_scale,
                 control_period: dt,
             },
         };
@@ -142,6 +142,9 @@ impl Recording {
             first: None,
             _subscribers: subscribers,
             token: None,
+            realtime: mission.mission.clock == ClockKind::Realtime,
+            time_scale: mission.mission.time_scale,
+            ask_at: Some(tokio::time::Instant::now()),
         })
     }
 
@@ -162,38 +165,48 @@ impl Recording {
     pub async fn step(&mut self) -> Result<()> {
         let before = self.ticks();
         match &mut self.machine {
-            Machine::Lockstep(recorder) => {
-                let Some(m) = self.inbox.recv().await else {
-                    return Err(anyhow!("the recorder's subscriptions closed"));
-                };
-                match m.message {
-                    Message::Tick(t) => {
-                        if let Err(why) = recorder.on_tick(t) {
-                            self.rejected.reject(why, &m.key);
+            Machine::Lockstep(recorder) => tokio::select! {
+                m = self.inbox.recv() => {
+                    let Some(m) = m else {
+                        return Err(anyhow!("the recorder's subscriptions closed"));
+                    };
+                    match m.message {
+                        Message::Tick(t) => {
+                            if let Err(why) = recorder.on_tick(t) {
+                                self.rejected.reject(why, &m.key);
+                            }
+                        }
+                        Message::State(s) => self.rejected.check(&m.key, s.id, || recorder.on_state(s)),
+                        Message::Command(c) => self.rejected.check(&m.key, c.id, || recorder.on_command(c)),
+                        Message::End(e) => match recorder.on_end(e.clone()) {
+                            Ok(()) => self.end = Some(e),
+                            Err(why) => self.rejected.reject(why, &m.key),
+                        },
+                        Message::Report(r) => self.exit_reports.push(r),
+                        Message::Loss(l) => {
+                            let lost = Lost {
+                                id: l.id,
+                                tick: l.tick,
+                                reason: l.reason,
+                            };
+                            self.rejected.check(&m.key, l.id, || recorder.on_lost(lost));
                         }
                     }
-                    Message::State(s) => self.rejected.check(&m.key, s.id, || recorder.on_state(s)),
-                    Message::Command(c) => self.rejected.check(&m.key, c.id, || recorder.on_command(c)),
-                    Message::End(e) => match recorder.on_end(e.clone()) {
-                        Ok(()) => self.end = Some(e),
-                        Err(why) => self.rejected.reject(why, &m.key),
-                    },
-                    Message::Report(r) => self.exit_reports.push(r),
-                    Message::Loss(l) => {
-                        let lost = Lost {
-                            id: l.id,
-                            tick: l.tick,
-                            reason: l.reason,
-                        };
-                        self.rejected.check(&m.key, l.id, || recorder.on_lost(lost));
-                    }
                 }
-            }
+                // A realtime world would send no record: say so rather than wait for one.
+                _ = tokio::time::sleep_until(self.ask_at.unwrap_or_else(tokio::time::Instant::now)), if self.ask_at.is_some() => {
+                    self.ask_at = match ask_clock(&self.session, &self.keys, &self.rejected).await? {
+                        Some(clock) => {
+                            check_clock("recorder", self.realtime, self.time_scale, &clock)?;
+                            None
+                        }
+                        None => Some(tokio::time::Instant::now() + CLOCK_POLL),
+                    };
+                }
+            },
             Machine::Realtime {
                 sampler,
                 beats,
-                ask_at,
-                time_scale,
                 control_period,
             } => tokio::select! {
                 Some(beat) = async { beats.as_mut()?.recv().await }, if beats.is_some() => {
@@ -202,18 +215,13 @@ impl Recording {
                     sampler.sample(beat.tick, |states, commands| failure = telemetry.tick(states, commands));
                     failure?;
                 }
-                _ = tokio::time::sleep_until(*ask_at), if beats.is_none() => {
-                    *ask_at = tokio::time::Instant::now() + CLOCK_POLL;
+                _ = tokio::time::sleep_until(self.ask_at.unwrap_or_else(tokio::time::Instant::now)), if self.ask_at.is_some() => {
+                    self.ask_at = Some(tokio::time::Instant::now() + CLOCK_POLL);
                     if let Some(clock) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
-                        if !clock.realtime || clock.time_scale != *time_scale {
-                            return Err(anyhow!(
-                                "the recorder runs realtime at time scale {time_scale} but the world runs {} at {}: start every role with the same --clock and --time-scale",
-                                if clock.realtime { "realtime" } else { "lockstep" },
-                                clock.time_scale
-                            ));
-                        }
+                        check_clock("recorder", self.realtime, self.time_scale, &clock)?;
                         let fleet = FleetClock::new(&clock, *control_period);
                         *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
+                        self.ask_at = None;
                     }
                 }
                 Some(m) = self.inbox.recv() => match m.message {
@@ -395,15 +403,16 @@ pub async fn record(
     // A world that dies says no end: without this the recording would wait for it forever.
     let mut world_left: Option<Instant> = None;
     let realtime = mission.mission.clock == ClockKind::Realtime;
-    // A realtime recording goes on sampling without a world: only the world's absence counts.
-    let stalled = |recording: &Recording, left: Option<Instant>| match left {
-        Some(left) if realtime => left.elapsed() >= END_STALL,
-        _ => recording.progress.elapsed() >= END_STALL,
-    };
     let interrupted = loop {
         if recording.complete() {
             break false;
         }
+        // When to give up: END_STALL without a tick after the end or after the world left; a
+        // realtime recording goes on sampling without a world, so there only its absence counts.
+        let stall_at = match world_left {
+            Some(left) if realtime => Some(left + END_STALL),
+            _ => (recording.end.is_some() || world_left.is_some()).then(|| recording.progress + END_STALL),
+        };
         tokio::select! {
             r = recording.step() => {
                 r?;
@@ -415,20 +424,18 @@ pub async fn record(
                     world_left = (!p.alive).then(Instant::now);
                 }
             }
-            _ = tokio::time::sleep(END_STALL), if recording.end.is_some() || world_left.is_some() => {
-                if stalled(&recording, world_left) {
-                    match recording.end {
-                        Some(_) => tracing::error!(
-                            "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
-                            recording.ticks()
-                        ),
-                        None => tracing::error!(
-                            "recorder: the world left without announcing the end, after tick {}; writing what was recorded",
-                            recording.ticks()
-                        ),
-                    }
-                    break false;
+            _ = tokio::time::sleep_until(stall_at.unwrap_or_else(Instant::now).into()), if stall_at.is_some() => {
+                match recording.end {
+                    Some(_) => tracing::error!(
+                        "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
+                        recording.ticks()
+                    ),
+                    None => tracing::error!(
+                        "recorder: the world left without announcing the end, after tick {}; writing what was recorded",
+                        recording.ticks()
+                    ),
                 }
+                break false;
             }
         }
     };

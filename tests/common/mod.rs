@@ -239,3 +239,13 @@ pub fn without_command(s: &Value, id: u64) -> u64 {
         .and_then(|v| v[1].as_u64())
         .unwrap_or(0)
 }
+
+/// A loopback endpoint on a port free a moment ago.
+pub fn free_endpoint() -> String {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    format!("tcp/127.0.0.1:{port}")
+}
