@@ -732,6 +732,7 @@ fn sweep(
     {
         return Err(Failure::Input(anyhow!("the value {v} is swept twice")));
     }
+    fresh_out(out)?;
     let base = load(args, None)?;
     let mut grid = sweep::Grid {
         values: Vec::with_capacity(values.len()),

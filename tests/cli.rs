@@ -215,6 +215,19 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "already holds files",
         ),
         (
+            vec![
+                "sweep",
+                &mission,
+                "--loss",
+                "0",
+                "--seeds",
+                "1",
+                "--out",
+                full.to_str().unwrap(),
+            ],
+            "already holds files",
+        ),
+        (
             vec!["run", &mission, "--in-process", "--seed", "18446744073709551615"],
             "--seed",
         ),

@@ -21,22 +21,30 @@ pub struct RunDir {
     pub path: PathBuf,
 }
 
+/// Now, as the default directories name it.
+pub fn stamp() -> String {
+    chrono::Utc::now().format("%Y%m%d-%H%M%S").to_string()
+}
+
+/// `runs/<name>`, or `runs/<name>-2`, `-3`, … if it exists: two runs in the same second do not
+/// share a directory.
+pub fn unused(name: &str) -> PathBuf {
+    let base = PathBuf::from("runs").join(name);
+    let mut path = base.clone();
+    let mut n = 2;
+    while path.exists() {
+        path = PathBuf::from(format!("{}-{n}", base.display()));
+        n += 1;
+    }
+    path
+}
+
 impl RunDir {
     /// `out`, or a fresh `runs/<mission>-<timestamp>/`.
     pub fn create(out: Option<&Path>, mission: &Mission) -> Result<RunDir> {
         let path = match out {
             Some(p) => p.to_path_buf(),
-            None => {
-                let stamp = chrono::Utc::now().format("%Y%m%d-%H%M%S");
-                let base = PathBuf::from("runs").join(format!("{}-{stamp}", mission.mission.name));
-                let mut path = base.clone();
-                let mut n = 2;
-                while path.exists() {
-                    path = PathBuf::from(format!("{}-{n}", base.display()));
-                    n += 1;
-                }
-                path
-            }
+            None => unused(&format!("{}-{}", mission.mission.name, stamp())),
         };
         fs::create_dir_all(&path).with_context(|| format!("cannot create run directory {}", path.display()))?;
         Ok(RunDir { path })

@@ -307,9 +307,5 @@ pub fn table(summary: &SweepSummary) -> String {
 
 /// Where a sweep writes by default.
 pub fn default_out(mission: &Mission) -> PathBuf {
-    PathBuf::from("runs").join(format!(
-        "{}-sweep-{}",
-        mission.mission.name,
-        chrono::Utc::now().format("%Y%m%d-%H%M%S")
-    ))
+    crate::rundir::unused(&format!("{}-sweep-{}", mission.mission.name, crate::rundir::stamp()))
 }
