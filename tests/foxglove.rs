@@ -118,9 +118,10 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
 
     let mut channels: Vec<Value> = Vec::new();
     let mut server_info = false;
-    let mut subscribed: Option<u64> = None;
-    let mut poses = 0;
-    while poses < 10 {
+    let mut subscribed = false;
+    let (mut poses, mut paths) = (0, 0);
+    // The path was sent once, before any client: it comes as the subscription is made.
+    while poses < 10 || paths == 0 {
         let message = tokio::time::timeout(Duration::from_secs(30), socket.next())
             .await
             .expect("the server speaks within 30 s")
@@ -134,20 +135,30 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
                     Some("advertise") => channels.extend(op["channels"].as_array().unwrap().iter().cloned()),
                     _ => {}
                 }
-                if subscribed.is_none() {
-                    if let Some(pose) = channels.iter().find(|c| c["topic"] == "/vehicle/1/pose") {
-                        let id = pose["id"].as_u64().unwrap();
-                        let subscribe =
-                            serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": id}]});
-                        socket.send(Message::text(subscribe.to_string())).await.unwrap();
-                        subscribed = Some(id);
-                    }
+                let id = |topic: &str| channels.iter().find(|c| c["topic"] == topic).map(|c| c["id"].clone());
+                if let (false, Some(pose), Some(path)) = (subscribed, id("/vehicle/1/pose"), id("/vehicle/1/path")) {
+                    let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": [
+                        {"id": 7, "channelId": pose}, {"id": 8, "channelId": path},
+                    ]});
+                    socket.send(Message::text(subscribe.to_string())).await.unwrap();
+                    subscribed = true;
                 }
             }
             // Message data: opcode 1, u32 subscription id, u64 log time, payload.
             Message::Binary(data) if data.first() == Some(&1) => {
-                assert_eq!(u32::from_le_bytes(data[1..5].try_into().unwrap()), 7);
-                poses += 1;
+                match u32::from_le_bytes(data[1..5].try_into().unwrap()) {
+                    7 => poses += 1,
+                    8 => {
+                        assert_eq!(
+                            u64::from_le_bytes(data[5..13].try_into().unwrap()),
+                            0,
+                            "the path is of t = 0"
+                        );
+                        assert!(data.len() > 1000, "a path of many poses: {} bytes", data.len());
+                        paths += 1;
+                    }
+                    other => panic!("a message for subscription {other}"),
+                }
             }
             _ => {}
         }

@@ -4,7 +4,8 @@
 //! just `foxglove.websocket.v1` would be refused: this server accepts both names.
 //!
 //! The run never waits for a viewer: messages go through a bounded broadcast queue, and a client
-//! that falls behind loses the oldest (counted in the log).
+//! that falls behind loses the oldest (counted in the log). What is sent once (a planned path) is
+//! latched: a client that subscribes later gets its last message then.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -48,6 +49,8 @@ struct Data {
 struct Shared {
     channels: Mutex<Vec<ChannelInfo>>,
     data: broadcast::Sender<Data>,
+    /// The last message of each latched channel.
+    latched: Mutex<HashMap<u32, Data>>,
 }
 
 /// The server, running on a thread of its own until dropped.
@@ -64,6 +67,7 @@ impl Live {
         let shared = Arc::new(Shared {
             channels: Mutex::new(Vec::new()),
             data: broadcast::channel(BACKLOG).0,
+            latched: Mutex::new(HashMap::new()),
         });
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let (stop, stopped) = oneshot::channel();
@@ -111,6 +115,18 @@ impl Live {
             log_time,
             payload: payload.into(),
         });
+    }
+
+    /// `publish`, and keeps the message for every client that subscribes to `channel` later.
+    pub fn latch(&self, channel: u32, log_time: u64, payload: &[u8]) {
+        let data = Data {
+            channel,
+            log_time,
+            payload: payload.into(),
+        };
+        let mut latched = self.shared.latched.lock().expect("no panic while held");
+        latched.insert(channel, data.clone());
+        let _ = self.shared.data.send(data);
     }
 }
 
@@ -182,6 +198,16 @@ fn negotiate(request: &Request, mut response: Response) -> Result<Response, Erro
 }
 
 /// One client: handshake, server info and advertisements, then its subscriptions' messages.
+/// A message data frame: opcode 1, the subscription id, the log time, the payload.
+fn frame(subscription: u32, m: &Data) -> Vec<u8> {
+    let mut frame = Vec::with_capacity(13 + m.payload.len());
+    frame.push(1);
+    frame.extend_from_slice(&subscription.to_le_bytes());
+    frame.extend_from_slice(&m.log_time.to_le_bytes());
+    frame.extend_from_slice(&m.payload);
+    frame
+}
+
 async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
     let mut socket = tokio_tungstenite::accept_hdr_async(stream, negotiate).await?;
     let mut data = shared.data.subscribe();
@@ -206,6 +232,10 @@ async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
                             for s in ids("subscriptions") {
                                 if let (Some(id), Some(channel)) = (s["id"].as_u64(), s["channelId"].as_u64()) {
                                     subscriptions.insert(channel as u32, id as u32);
+                                    let latched = shared.latched.lock().expect("no panic while held").get(&(channel as u32)).cloned();
+                                    if let Some(m) = latched {
+                                        socket.send(Message::binary(frame(id as u32, &m))).await?;
+                                    }
                                 }
                             }
                         }
@@ -220,12 +250,7 @@ async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
             message = data.recv() => match message {
                 Ok(m) => {
                     if let Some(&subscription) = subscriptions.get(&m.channel) {
-                        let mut frame = Vec::with_capacity(13 + m.payload.len());
-                        frame.push(1);
-                        frame.extend_from_slice(&subscription.to_le_bytes());
-                        frame.extend_from_slice(&m.log_time.to_le_bytes());
-                        frame.extend_from_slice(&m.payload);
-                        socket.send(Message::binary(frame)).await?;
+                        socket.send(Message::binary(frame(subscription, &m))).await?;
                     }
                 }
                 Err(broadcast::error::RecvError::Lagged(n)) => lost += n,

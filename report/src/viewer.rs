@@ -37,6 +37,8 @@ const LINK_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"
 struct Topic {
     file: Arc<RawChannel>,
     live: u32,
+    /// Sent once, so kept for the live clients that subscribe later.
+    latched: bool,
 }
 
 struct Vehicle {
@@ -124,7 +126,10 @@ impl Viewer {
             json: Vec::new(),
         };
         for (id, path) in paths {
-            let drawn = viewer.topic::<PosesInFrame>(&format!("/vehicle/{id}/path"))?;
+            let drawn = Topic {
+                latched: true,
+                ..viewer.topic::<PosesInFrame>(&format!("/vehicle/{id}/path"))?
+            };
             let steps = (path.t_f() / PATH_STEP).ceil() as usize;
             let poses = (0..=steps)
                 .map(|k| {
@@ -162,8 +167,10 @@ impl Viewer {
         topic
             .file
             .log_with_meta(bytes, PartialMetadata::with_log_time(nanos(t)));
-        if let Some(live) = &self.live {
-            live.publish(topic.live, nanos(t), bytes);
+        match &self.live {
+            Some(live) if topic.latched => live.latch(topic.live, nanos(t), bytes),
+            Some(live) => live.publish(topic.live, nanos(t), bytes),
+            None => {}
         }
     }
 
@@ -260,5 +267,9 @@ fn topic(
         .schema(schema)
         .build_raw()
         .map_err(|e| anyhow!("channel {name}: {e}"))?;
-    Ok(Topic { file, live })
+    Ok(Topic {
+        file,
+        live,
+        latched: false,
+    })
 }
