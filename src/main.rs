@@ -29,7 +29,8 @@ struct Cli {
 struct MissionArgs {
     /// Mission file (TOML).
     file: PathBuf,
-    /// Override a mission key: `section.key=value`, or `vehicle.<id>.key=value`.
+    /// Override a mission key: `section.key=value`, `section.table.key=value`, or
+    /// `vehicle.<id>.key=value`.
     #[arg(long = "set", value_name = "K=V")]
     set: Vec<String>,
 }

@@ -561,6 +561,13 @@ goal_velocity = [0.75, 0.0]
 
         let e = parse("f.toml", &text, &["comms.loss=0.5".into()]).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("comms.loss"), "{e}");
+        // A table of a section is set as the section's keys are.
+        let m = parse("f.toml", &text, &["comms.burst.p_enter_bad=0.1".into()]).unwrap();
+        assert_eq!(m.comms.burst.as_ref().unwrap().p_enter_bad, 0.1);
+        let e = parse("f.toml", &text, &["comms.burst.p_enter_bad=2".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.burst.p_enter_bad"), "{e}");
+        let e = parse("f.toml", &text, &["comms.outage.start=1".into()]).unwrap_err();
+        assert!(e.message.contains("`comms.outage` is not a table"), "{e}");
         let bad = text.replace("to = \"*\"", "to = \"all\"");
         let e = parse("f.toml", &bad, &[]).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("comms.outage[0].to"), "{e}");

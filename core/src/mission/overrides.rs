@@ -1,4 +1,5 @@
-//! `--set section.key=value` (and `vehicle.<id>.key=value`) applied to a parsed mission file.
+//! `--set section.key=value` (`section.table.key=value` in a table of a section, and
+//! `vehicle.<id>.key=value`) applied to a parsed mission file.
 
 use super::diagnostics::Seg;
 use super::{Mission, MissionError};
@@ -13,8 +14,12 @@ pub(super) fn touches(o: &str, path: &[Seg], mission: &Mission) -> bool {
         (["vehicle", id, k], [Seg::Key(v), Seg::Index(i), Seg::Key(pk)]) if v == "vehicle" => {
             mission.vehicles.get(*i).is_some_and(|veh| id.parse() == Ok(veh.id)) && k == pk
         }
-        ([s, k], [Seg::Key(ps), Seg::Key(pk), ..]) => s == ps && k == pk,
-        _ => false,
+        (["vehicle", ..], _) => false,
+        (keys, _) => {
+            keys.len() >= 2
+                && path.len() >= keys.len()
+                && keys.iter().zip(path).all(|(k, p)| matches!(p, Seg::Key(pk) if pk == k))
+        }
     }
 }
 
@@ -47,15 +52,22 @@ pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Miss
                     .ok_or_else(|| bad(format!("no vehicle with id {id}")))?;
                 (vehicle, *k)
             }
-            [section, k] => {
-                let table = root
-                    .entry(section.to_string())
-                    .or_insert_with(|| toml::Value::Table(toml::Table::new()))
-                    .as_table_mut()
-                    .ok_or_else(|| bad(format!("`{section}` is not a section")))?;
+            [tables @ .., k] if !tables.is_empty() && tables[0] != "vehicle" => {
+                let mut table = &mut root;
+                for (n, name) in tables.iter().enumerate() {
+                    table = table
+                        .entry(name.to_string())
+                        .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+                        .as_table_mut()
+                        .ok_or_else(|| bad(format!("`{}` is not a table", tables[..=n].join("."))))?;
+                }
                 (table, *k)
             }
-            _ => return Err(bad("keys are `section.key` or `vehicle.<id>.key`".into())),
+            _ => {
+                return Err(bad(
+                    "keys are `section.key`, `section.table.key` or `vehicle.<id>.key`".into()
+                ))
+            }
         };
         table.insert(k.to_string(), value);
         // Each override is checked as it is applied, so that an error names the one at fault.
