@@ -68,6 +68,7 @@ enum Restart {
 enum Generated {
     /// Vehicles in parallel lanes 4 m apart on a ring, against a cross current (ring5 grown).
     Lanes {
+        /// How many vehicles (one lane each).
         #[arg(long, value_parser = clap::value_parser!(u32).range(2..=i64::from(mission::generate::MAX_VEHICLES)))]
         vehicles: u32,
         /// Loss probability of every link.
@@ -155,7 +156,8 @@ enum Command {
         /// The run directory.
         dir: PathBuf,
     },
-    /// Compare a lockstep tick with a raw Zenoh round trip between two processes.
+    /// Every speed figure beside its baseline: the plan, the in-process fleet, the lockstep tick
+    /// against a raw Zenoh round trip, the agents' memory and sockets.
     Bench {
         #[command(flatten)]
         mission: MissionArgs,
@@ -190,7 +192,7 @@ enum Command {
         #[command(flatten)]
         clock: ClockArgs,
     },
-    /// Role: the world and its lockstep clock.
+    /// Role: the world, which integrates the vehicles and keeps the fleet's clock.
     World {
         #[command(flatten)]
         mission: MissionArgs,
@@ -735,6 +737,11 @@ fn sweep(
     }
     fresh_out(out)?;
     let base = load(args, None)?;
+    if !processes && base.mission.clock == mission::ClockKind::Realtime {
+        return Err(Failure::Input(anyhow!(
+            "an in-process sweep runs lockstep only: the realtime clock is for fleets of processes (--processes)"
+        )));
+    }
     let mut grid = sweep::Grid {
         values: Vec::with_capacity(values.len()),
         seeds,

@@ -247,6 +247,23 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["sweep", &mission, "--loss", "0.5,0.5", "--seeds", "1"],
             "swept twice",
         ),
+        (
+            vec!["run", &mission, "--in-process", "--time-scale", "5"],
+            "applies to the realtime clock only",
+        ),
+        (
+            vec![
+                "sweep",
+                &mission,
+                "--loss",
+                "0",
+                "--seeds",
+                "1",
+                "--set",
+                "mission.clock=realtime",
+            ],
+            "an in-process sweep runs lockstep only",
+        ),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);

@@ -245,7 +245,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         if c.role != Role::Agent || c.poll().is_none_or(|code| code == Some(0)) {
                             continue;
                         }
-                        tracing::warn!("agent {} died ({:?}); starting it again", c.id, c.exit_code.flatten());
+                        let how = c.exit_code.flatten().map_or("killed by a signal".into(), |code| format!("exit code {code}"));
+                        tracing::warn!("agent {} died ({how}); starting it again", c.id);
                         let again = spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep)?;
                         match restarts.iter_mut().find(|r| r.id == again.id) {
                             Some(r) => r.restarts += 1,

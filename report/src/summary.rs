@@ -11,11 +11,29 @@ pub enum Mode {
     InProcess,
 }
 
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Mode::Processes => "processes",
+            Mode::InProcess => "in-process",
+        })
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Clock {
     Lockstep,
     Realtime,
+}
+
+impl std::fmt::Display for Clock {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Clock::Lockstep => "lockstep",
+            Clock::Realtime => "realtime",
+        })
+    }
 }
 
 /// One child process of `tcpf run`.

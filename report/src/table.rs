@@ -10,7 +10,7 @@ pub fn plan(plan: &Plan) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "t_f = {:.3} s   cost ({:?}) = {:.4}",
+        "t_f = {:.3} s   cost ({}) = {:.4}",
         plan.t_f, plan.cost_kind, plan.cost
     );
     match &plan.closest {
@@ -49,7 +49,7 @@ pub fn summary(summary: &Summary) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{} (seed {}, {:?}, {:?}): {}",
+        "{} (seed {}, {}, {}): {}",
         summary.mission,
         summary.seed,
         summary.mode,

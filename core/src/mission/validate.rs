@@ -80,6 +80,11 @@ impl Mission {
             format!("must be in (0, {MAX_TIME_SCALE}]"),
         )?;
         check(
+            m.clock == super::ClockKind::Realtime || m.time_scale == 1.0,
+            key("mission", "time_scale"),
+            "applies to the realtime clock only (mission.clock = \"realtime\", or --clock realtime): a lockstep fleet runs as fast as it can",
+        )?;
+        check(
             m.clock == super::ClockKind::Lockstep || m.control_period / m.time_scale >= MIN_WALL_PERIOD,
             key("mission", "time_scale"),
             format!(
