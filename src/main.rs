@@ -232,6 +232,9 @@ enum Command {
         /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
         #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
         live: Option<SocketAddr>,
+        /// Seconds to wait for the world.
+        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Duration,
     },
     /// Role: the agent of one vehicle.
     Agent {
@@ -390,7 +393,14 @@ fn main() -> ExitCode {
             clock,
             out,
             live,
-        } => record(&clocked(&mission, &clock), &zenoh, out.as_deref(), live),
+            startup_timeout,
+        } => record(
+            &clocked(&mission, &clock),
+            &zenoh,
+            out.as_deref(),
+            live,
+            startup_timeout,
+        ),
         Command::World {
             mission,
             zenoh,
@@ -778,13 +788,21 @@ fn record(
     zenoh: &ZenohArgs,
     out: Option<&Path>,
     live: Option<SocketAddr>,
+    startup_timeout: Duration,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = runtime()?
-        .block_on(tcpf_coordinator::recording::record(&mission, &plan, &dir, zenoh, live))
+        .block_on(tcpf_coordinator::recording::record(
+            &mission,
+            &plan,
+            &dir,
+            zenoh,
+            live,
+            startup_timeout,
+        ))
         .map_err(role_failure)?;
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());

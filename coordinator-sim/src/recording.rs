@@ -390,6 +390,7 @@ pub async fn record(
     dir: &RunDir,
     zenoh: &ZenohArgs,
     live: Option<SocketAddr>,
+    startup_timeout: Duration,
 ) -> Result<Summary> {
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
@@ -402,6 +403,9 @@ pub async fn record(
     let started = Instant::now();
     // A world that dies says no end: without this the recording would wait for it forever.
     let mut world_left: Option<Instant> = None;
+    // Nor would one that never comes (another mission name, endpoint or credential).
+    let mut world_seen = false;
+    let give_up_at = started + startup_timeout;
     let realtime = mission.mission.clock == ClockKind::Realtime;
     let interrupted = loop {
         if recording.complete() {
@@ -421,8 +425,15 @@ pub async fn record(
             _ = shutdown.recv() => break true,
             Some(p) = presence.recv() => {
                 if p.role == Role::World {
+                    world_seen |= p.alive;
                     world_left = (!p.alive).then(Instant::now);
                 }
+            }
+            _ = tokio::time::sleep_until(give_up_at.into()), if !world_seen => {
+                return Err(anyhow!(
+                    "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
+                    mission.mission.name
+                ));
             }
             _ = tokio::time::sleep_until(stall_at.unwrap_or_else(Instant::now).into()), if stall_at.is_some() => {
                 match recording.end {
