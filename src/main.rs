@@ -42,7 +42,7 @@ struct ClockArgs {
     #[arg(long, value_parser = ["lockstep", "realtime"])]
     clock: Option<String>,
     /// Realtime: simulated seconds per wall second (1: real time).
-    #[arg(long, value_name = "X")]
+    #[arg(long, value_name = "X", value_parser = time_scale, allow_hyphen_values = true)]
     time_scale: Option<f64>,
 }
 
@@ -78,6 +78,14 @@ enum Generated {
 }
 
 /// A probability on the command line: a number in [0, 1].
+fn time_scale(text: &str) -> Result<f64, String> {
+    let max = mission::MAX_TIME_SCALE;
+    match text.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= max => Ok(x),
+        _ => Err(format!("{text}: give simulated seconds per wall second, in (0, {max}]")),
+    }
+}
+
 fn probability(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(p) if (0.0..=1.0).contains(&p) => Ok(p),

@@ -248,6 +248,10 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "swept twice",
         ),
         (
+            vec!["run", &mission, "--clock", "realtime", "--time-scale", "0"],
+            "'--time-scale <X>'",
+        ),
+        (
             vec!["run", &mission, "--in-process", "--time-scale", "5"],
             "applies to the realtime clock only",
         ),

@@ -18,7 +18,7 @@ const MAX_NAME: usize = 64;
 /// kernel wakes a sleeping thread some tens of microseconds late.
 const MIN_WALL_PERIOD: f64 = 0.000_5;
 /// Simulated seconds per wall second, at most.
-const MAX_TIME_SCALE: f64 = 1000.0;
+pub const MAX_TIME_SCALE: f64 = 1000.0;
 
 pub(super) type Invalid = (Vec<Seg>, String);
 
