@@ -352,6 +352,12 @@ fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     let s = launch.summary();
     assert_eq!(s["interrupted"], true);
     assert_eq!(s["completed"], false);
+    // Told to stop, every child exited by itself (not killed: an exit code), having said what
+    // it refused. Which code depends on what it heard first: the signal, or the world's end.
+    for c in s["children"].as_array().unwrap() {
+        assert!(c["exit_code"].is_i64(), "{c}");
+        assert!(c["rejected"].is_u64(), "{c}");
+    }
     let telemetry = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
     let rows = telemetry.lines().count() as u64;
     assert_eq!(rows, 1 + 2 * s["ticks"].as_u64().unwrap(), "whole ticks only");

@@ -13,6 +13,7 @@ use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_core::mission::{ClockKind, Mission};
+use tcpf_core::msg::Report;
 use tcpf_core::planner::Plan;
 use tokio::process::{Child, Command};
 
@@ -54,6 +55,9 @@ pub fn child_runtime() -> Option<(&'static str, &'static str)> {
 }
 /// How long children get to exit by themselves after the end before they are killed.
 const GRACE: Duration = Duration::from_secs(3);
+/// After an interrupt, how long children get to stop (and report) once told to, before they are
+/// killed: Ctrl-C stops a run within 2 s.
+const INTERRUPT_GRACE: Duration = Duration::from_secs(1);
 /// A run in which no tick completes for this long has stalled.
 const STALL: Duration = Duration::from_secs(60);
 /// With `--restart on-failure`, how long a lockstep tick waits for an agent started again.
@@ -77,6 +81,24 @@ impl Process {
         }
         self.exit_code
     }
+}
+
+/// The child has exited and, unless a signal killed it, its exit report has come in (a report
+/// sent just before the exit may still be on its way).
+fn settled(c: &mut Process, recording: &Recording) -> bool {
+    match c.poll() {
+        None => false,
+        Some(None) => true,
+        Some(Some(_)) => report_of(recording, c).is_some(),
+    }
+}
+
+/// The exit report of this very process (a role started again reports once per life).
+fn report_of<'a>(recording: &'a Recording, c: &Process) -> Option<&'a Report> {
+    recording
+        .exit_reports
+        .iter()
+        .find(|r| r.role == c.role.as_str() && r.id == c.id && r.pid == c.pid)
 }
 
 /// A port on 127.0.0.1 that was free a moment ago.
@@ -264,10 +286,24 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let wall_time_s = started.elapsed().as_secs_f64();
     progress.finish();
 
-    if matches!(outcome, Outcome::Completed) {
-        // Let the children report and exit by themselves.
-        let deadline = Instant::now() + GRACE;
-        while Instant::now() < deadline && children.iter_mut().any(|c| c.poll().is_none()) {
+    // Let the children report and exit by themselves: at the end they do; after an interrupt
+    // they are told to, as a terminal's Ctrl-C would (a signal to the launcher alone does not).
+    let grace = match outcome {
+        Outcome::Completed => Some(GRACE),
+        Outcome::Interrupted => {
+            for c in children.iter_mut() {
+                if c.poll().is_none() {
+                    // SAFETY: kill(2) on the pid of a child not yet reaped, hence not reused.
+                    unsafe { libc::kill(c.pid as libc::pid_t, libc::SIGTERM) };
+                }
+            }
+            Some(INTERRUPT_GRACE)
+        }
+        Outcome::Failed(_) => None,
+    };
+    if let Some(grace) = grace {
+        let deadline = Instant::now() + grace;
+        while Instant::now() < deadline && children.iter_mut().any(|c| !settled(c, &recording)) {
             tokio::select! {
                 r = recording.step() => r?,
                 _ = check.tick() => {}
@@ -284,12 +320,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     }
     let _ = session.close().await;
 
-    let report = |c: &Process| {
-        recording
-            .exit_reports
-            .iter()
-            .find(|r| r.role == c.role.as_str() && r.id == c.id && r.pid == c.pid)
-    };
+    let report = |c: &Process| report_of(&recording, c);
     let children: Vec<ChildSummary> = retired
         .iter()
         .chain(&children)
