@@ -130,22 +130,18 @@ enum Command {
         json: bool,
     },
     /// Fault-injection experiment: every (value, seed) pair, summarised per value.
+    #[command(group(clap::ArgGroup::new("values").required(true).args(["loss", "param"])))]
     Sweep {
         #[command(flatten)]
         mission: MissionArgs,
         /// Loss probabilities to sweep (comms.loss), e.g. 0,0.3,0.6,0.9.
-        #[arg(
-            long,
-            value_delimiter = ',',
-            conflicts_with = "param",
-            required_unless_present = "param"
-        )]
+        #[arg(long, value_delimiter = ',')]
         loss: Vec<String>,
         /// Any mission key instead: KEY=V1,V2,...
         #[arg(long, value_name = "KEY=V1,V2,...")]
         param: Option<String>,
-        /// Seeds 1..=N for every value.
-        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        /// Seeds 1..=N for every value (each a run's --seed).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..=i64::MAX as u64))]
         seeds: u64,
         /// Run each as a real fleet of processes (one after the other) instead of in-process.
         #[arg(long)]

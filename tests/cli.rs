@@ -202,6 +202,11 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         ),
         (vec!["bench", &mission, "--count", "0"], "--count"),
         (vec!["sweep", &mission, "--loss", "0,0.5", "--seeds", "0"], "--seeds"),
+        (vec!["sweep", &mission, "--seeds", "1"], "--loss <LOSS>|--param"),
+        (
+            vec!["sweep", &mission, "--loss", "0", "--seeds", "9223372036854775808"],
+            "--seeds",
+        ),
         (
             vec!["sweep", &mission, "--param", "comms.nonsense=1,2", "--seeds", "1"],
             "comms.nonsense",
