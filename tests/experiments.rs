@@ -183,7 +183,7 @@ fn any_key_can_be_swept() {
         "--seeds",
         "1",
         "--out",
-        dir.to_str().unwrap(),
+        dir.join("typo").to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(2), "a typo in the swept key is bad input");
     assert!(String::from_utf8_lossy(&o.stderr).contains("comms.dealy"));
