@@ -33,6 +33,9 @@ struct MissionArgs {
     /// `vehicle.<id>.key=value`.
     #[arg(long = "set", value_name = "K=V")]
     set: Vec<String>,
+    /// The `set`s that stand for other flags, and those flags as typed: what an error names.
+    #[arg(skip)]
+    flags: Vec<(String, String)>,
 }
 
 /// Which clock the fleet runs on; on top of the mission's `[mission] clock` and `time_scale`.
@@ -47,11 +50,20 @@ struct ClockArgs {
 }
 
 impl ClockArgs {
-    /// The mission keys these flags stand for.
-    fn sets(&self) -> Vec<String> {
-        let clock = self.clock.iter().map(|c| format!("mission.clock={c}"));
-        let scale = self.time_scale.iter().map(|x| format!("mission.time_scale={x:?}"));
-        clock.chain(scale).collect()
+    /// The mission keys these flags stand for, each with its flag. `--clock lockstep` alone
+    /// also sets the time scale back to 1, which only the realtime clock may change.
+    fn sets(&self) -> Vec<(String, String)> {
+        let mut sets = Vec::new();
+        if let Some(c) = &self.clock {
+            sets.push((format!("mission.clock={c}"), format!("--clock {c}")));
+            if c == "lockstep" && self.time_scale.is_none() {
+                sets.push(("mission.time_scale=1.0".into(), format!("--clock {c}")));
+            }
+        }
+        if let Some(x) = self.time_scale {
+            sets.push((format!("mission.time_scale={x:?}"), format!("--time-scale {x}")));
+        }
+        sets
     }
 }
 
@@ -77,7 +89,7 @@ enum Generated {
     },
 }
 
-/// A probability on the command line: a number in [0, 1].
+/// A time scale on the command line, within the mission's bound.
 fn time_scale(text: &str) -> Result<f64, String> {
     let max = mission::MAX_TIME_SCALE;
     match text.parse::<f64>() {
@@ -86,6 +98,7 @@ fn time_scale(text: &str) -> Result<f64, String> {
     }
 }
 
+/// A probability on the command line: a number in [0, 1].
 fn probability(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(p) if (0.0..=1.0).contains(&p) => Ok(p),
@@ -268,9 +281,16 @@ enum Failure {
 
 /// The mission arguments with the clock flags as the `--set`s they stand for.
 fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
+    let sets = clock.sets();
     MissionArgs {
         file: args.file.clone(),
-        set: args.set.iter().cloned().chain(clock.sets()).collect(),
+        set: args
+            .set
+            .iter()
+            .cloned()
+            .chain(sets.iter().map(|s| s.0.clone()))
+            .collect(),
+        flags: args.flags.iter().cloned().chain(sets).collect(),
     }
 }
 
@@ -291,7 +311,12 @@ fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
     if let Some(seed) = seed {
         sets.push(format!("mission.seed={seed}"));
     }
-    mission::parse(&name, &text, &sets).map_err(|e| Failure::Input(e.into()))
+    mission::parse(&name, &text, &sets).map_err(|mut e| {
+        for (set, flag) in &args.flags {
+            e.message = e.message.replace(&format!("--set {set}"), flag);
+        }
+        Failure::Input(e.into())
+    })
 }
 
 /// A duration on the command line: seconds, finite, positive and at most a day.
@@ -751,11 +776,6 @@ fn sweep(
     }
     fresh_out(out)?;
     let base = load(args, None)?;
-    if !processes && base.mission.clock == mission::ClockKind::Realtime {
-        return Err(Failure::Input(anyhow!(
-            "an in-process sweep runs lockstep only: the realtime clock is for fleets of processes (--processes)"
-        )));
-    }
     let mut grid = sweep::Grid {
         values: Vec::with_capacity(values.len()),
         seeds,
@@ -764,9 +784,16 @@ fn sweep(
         let mut one = MissionArgs {
             file: args.file.clone(),
             set: args.set.clone(),
+            flags: args.flags.clone(),
         };
         one.set.push(format!("{key}={value}"));
-        grid.values.push((value.clone(), load(&one, None)?));
+        let mission = load(&one, None)?;
+        if !processes && mission.mission.clock == mission::ClockKind::Realtime {
+            return Err(Failure::Input(anyhow!(
+                "an in-process sweep runs lockstep only: the realtime clock is for fleets of processes (--processes)"
+            )));
+        }
+        grid.values.push((value.clone(), mission));
     }
     let out = out.map_or_else(|| tcpf_report::sweep::default_out(&base), Path::to_path_buf);
     let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values).map_err(Failure::Failed)?;

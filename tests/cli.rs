@@ -5,7 +5,7 @@ use std::process::Output;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{kill, paper, scratch, tcpf, text, Reaper};
+use common::{exited, free_endpoint, kill, paper, scratch, tcpf, text, Reaper};
 
 #[test]
 fn plan_json_has_the_contract_fields() {
@@ -273,6 +273,21 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             ],
             "an in-process sweep runs lockstep only",
         ),
+        (
+            vec![
+                "sweep",
+                &mission,
+                "--param",
+                "mission.clock=lockstep,realtime",
+                "--seeds",
+                "1",
+            ],
+            "an in-process sweep runs lockstep only",
+        ),
+        (
+            vec!["run", &mission, "--in-process", "--time-scale", "5"],
+            "(from --time-scale 5)",
+        ),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);
@@ -367,34 +382,21 @@ fn roles_waiting_at_startup_honour_sigterm_and_sigint() {
 fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
     let out = scratch("no-world").join("p");
     // Nobody listens there: the world of a mistyped endpoint, or of another mission.
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
     let mut recorder = Reaper(
         std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
             .args(["record", &paper("b-current"), "--startup-timeout", "1"])
-            .args(["-e", &format!("tcp/127.0.0.1:{port}"), "--out", out.to_str().unwrap()])
+            .args(["-e", &free_endpoint(), "--out", out.to_str().unwrap()])
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::piped())
             .spawn()
             .unwrap(),
     );
-    let deadline = Instant::now() + Duration::from_secs(20);
-    let status = loop {
-        if let Some(status) = recorder.0.try_wait().unwrap() {
-            break status;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "the recorder still waits for a world that never comes"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(&mut recorder.0.stderr.take().unwrap(), &mut stderr).unwrap();
-    assert_eq!(status.code(), Some(1), "{stderr}");
+    let (code, stderr) = exited(
+        &mut recorder.0,
+        Duration::from_secs(20),
+        "the recorder still waits for a world that never comes",
+    );
+    assert_eq!(code, Some(1), "{stderr}");
     assert!(
         stderr.contains("no world of mission paper-b-current within 1s"),
         "{stderr}"

@@ -1,15 +1,14 @@
 //! `tcpf run` as a fleet of processes over Zenoh, spawned as a user would. Every test kills what
 //! it started, whatever happens, and checks that no process is left behind.
 
-use std::io::Read;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, assert_none_left, assert_same_run, config, descendants, free_endpoint, kill, paper, run_in_process, scratch,
-    Launch,
+    alive, assert_none_left, assert_same_run, config, descendants, exited, free_endpoint, kill, paper, run_in_process,
+    scratch, Launch,
 };
 
 #[test]
@@ -389,42 +388,26 @@ fn role(args: &[&str], stderr: Stdio) -> Child {
 }
 
 /// The planner, a world that waits for one recorder and the agents `ids` of `mission`, started
-/// by hand on a free loopback endpoint with the `clock` options (the world is the second), and
-/// that endpoint.
-fn by_hand(mission: &str, ids: &[&str], clock: &[&str]) -> (Fleet, String) {
+/// by hand on a free loopback endpoint with the `clock` options (the world is the second, its
+/// log `world.log` in `dir`), and that endpoint.
+fn by_hand(mission: &str, ids: &[&str], clock: &[&str], dir: &Path) -> (Fleet, String) {
     let endpoint = free_endpoint();
     let start = |args: &[&str]| role(&[args, clock].concat(), Stdio::null());
     let mut fleet = Fleet(vec![start(&["planner", mission, "-l", &endpoint])]);
-    fleet
-        .0
-        .push(start(&["world", mission, "-e", &endpoint, "--recorders", "1"]));
+    let world_log = std::fs::File::create(dir.join("world.log")).unwrap();
+    let world = [&["world", mission, "-e", &endpoint, "--recorders", "1"], clock].concat();
+    fleet.0.push(role(&world, Stdio::from(world_log)));
     for id in ids {
         fleet.0.push(start(&["agent", mission, "--id", id, "-e", &endpoint]));
     }
     (fleet, endpoint)
 }
 
-/// Waits for `child` to exit (at most `limit`, or says `what` is still running) and returns its
-/// exit code and standard error.
-fn exited(child: &mut Child, limit: Duration, what: &str) -> (Option<i32>, String) {
-    let started = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        assert!(started.elapsed() < limit, "{what}");
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut stderr = String::new();
-    child.stderr.take().unwrap().read_to_string(&mut stderr).unwrap();
-    (status.code(), stderr)
-}
-
 #[test]
 fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     let dir = scratch("by-hand");
     let mission = paper("b-current");
-    let (mut fleet, endpoint) = by_hand(&mission, &["2", "1"], &[]);
+    let (mut fleet, endpoint) = by_hand(&mission, &["2", "1"], &[], &dir);
     let out = dir.join("p");
     let record = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
@@ -449,7 +432,7 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
     let dir = scratch(name);
     let mission = paper("b-current");
     // Agent 2 never comes, so the world waits for it until it is killed, and never says End.
-    let (mut fleet, endpoint) = by_hand(&mission, &["1"], clock);
+    let (mut fleet, endpoint) = by_hand(&mission, &["1"], clock, &dir);
     let out = dir.join("p");
     let record = [
         &["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()],
@@ -457,7 +440,15 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
     ]
     .concat();
     let mut recorder = Fleet(vec![role(&record, Stdio::piped())]);
-    std::thread::sleep(Duration::from_secs(2));
+    // Once the world has met the recorder, the recorder has met the world too.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !std::fs::read_to_string(dir.join("world.log"))
+        .unwrap()
+        .contains("a recorder is here")
+    {
+        assert!(Instant::now() < deadline, "the world never met the recorder");
+        std::thread::sleep(Duration::from_millis(20));
+    }
     fleet.0[1].kill().unwrap();
     let (code, stderr) = exited(
         &mut recorder.0[0],
@@ -491,8 +482,8 @@ fn roles_on_another_clock_than_the_worlds_refuse_to_run() {
     let realtime = ["--clock", "realtime", "--time-scale", "10"];
     // A realtime world; agent 2 and the recorder left on the default lockstep clock. The world
     // has not started when they come, so they learn its clock only once it runs.
-    let (_fleet, endpoint) = by_hand(&mission, &["1"], &realtime);
     let dir = scratch("wrong-clock");
+    let (_fleet, endpoint) = by_hand(&mission, &["1"], &realtime, &dir);
     let out = dir.join("p");
     let mut late = Fleet(vec![
         role(&["agent", &mission, "--id", "2", "-e", &endpoint], Stdio::piped()),
@@ -512,8 +503,10 @@ fn roles_on_another_clock_than_the_worlds_refuse_to_run() {
         assert!(stderr.contains(&why), "{stderr}");
     }
     // A lockstep world (and its recorder), and a realtime agent.
-    let (_fleet, endpoint) = by_hand(&mission, &["1"], &[]);
-    let out = dir.join("q");
+    let second = dir.join("lockstep");
+    std::fs::create_dir_all(&second).unwrap();
+    let (_fleet, endpoint) = by_hand(&mission, &["1"], &[], &second);
+    let out = second.join("p");
     let agent = role(
         &["agent", &mission, "--id", "2", "-e", &endpoint, "--clock", "realtime"],
         Stdio::piped(),

@@ -58,6 +58,8 @@ const GRACE: Duration = Duration::from_secs(3);
 /// After an interrupt, how long children get to stop (and report) once told to, before they are
 /// killed: Ctrl-C stops a run within 2 s.
 const INTERRUPT_GRACE: Duration = Duration::from_secs(1);
+/// How long a report may lag behind its sender's exit.
+const REPORT_SETTLE: Duration = Duration::from_millis(200);
 /// A run in which no tick completes for this long has stalled.
 const STALL: Duration = Duration::from_secs(60);
 /// With `--restart on-failure`, how long a lockstep tick waits for an agent started again.
@@ -83,14 +85,9 @@ impl Process {
     }
 }
 
-/// The child has exited and, unless a signal killed it, its exit report has come in (a report
-/// sent just before the exit may still be on its way).
-fn settled(c: &mut Process, recording: &Recording) -> bool {
-    match c.poll() {
-        None => false,
-        Some(None) => true,
-        Some(Some(_)) => report_of(recording, c).is_some(),
-    }
+/// The child's exit report has come in, or it was killed by a signal and sends none.
+fn reported(c: &mut Process, recording: &Recording) -> bool {
+    c.poll() == Some(None) || report_of(recording, c).is_some()
 }
 
 /// The exit report of this very process (a role started again reports once per life).
@@ -303,7 +300,17 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     };
     if let Some(grace) = grace {
         let deadline = Instant::now() + grace;
-        while Instant::now() < deadline && children.iter_mut().any(|c| !settled(c, &recording)) {
+        // Once every child has exited, a report still missing has REPORT_SETTLE to come: one
+        // sent just before the exit may be on its way, but a role stopped while it started, or
+        // by an error, sends none.
+        let mut exited: Option<Instant> = None;
+        while Instant::now() < deadline {
+            if children.iter_mut().all(|c| c.poll().is_some()) {
+                let since = *exited.get_or_insert_with(Instant::now);
+                if since.elapsed() >= REPORT_SETTLE || children.iter_mut().all(|c| reported(c, &recording)) {
+                    break;
+                }
+            }
             tokio::select! {
                 r = recording.step() => r?,
                 _ = check.tick() => {}

@@ -195,13 +195,12 @@ impl Recording {
                 }
                 // A realtime world would send no record: say so rather than wait for one.
                 _ = tokio::time::sleep_until(self.ask_at.unwrap_or_else(tokio::time::Instant::now)), if self.ask_at.is_some() => {
-                    self.ask_at = match ask_clock(&self.session, &self.keys, &self.rejected).await? {
-                        Some(clock) => {
-                            check_clock("recorder", self.realtime, self.time_scale, &clock)?;
-                            None
-                        }
-                        None => Some(tokio::time::Instant::now() + CLOCK_POLL),
-                    };
+                    // Set before the query: a step dropped while it waits asks again in turn.
+                    self.ask_at = Some(tokio::time::Instant::now() + CLOCK_POLL);
+                    if let Some(clock) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
+                        check_clock("recorder", self.realtime, self.time_scale, &clock)?;
+                        self.ask_at = None;
+                    }
                 }
             },
             Machine::Realtime {

@@ -197,7 +197,6 @@ fn negotiate(request: &Request, mut response: Response) -> Result<Response, Erro
     }
 }
 
-/// One client: handshake, server info and advertisements, then its subscriptions' messages.
 /// A message data frame: opcode 1, the subscription id, the log time, the payload.
 fn frame(subscription: u32, m: &Data) -> Vec<u8> {
     let mut frame = Vec::with_capacity(13 + m.payload.len());
@@ -208,6 +207,7 @@ fn frame(subscription: u32, m: &Data) -> Vec<u8> {
     frame
 }
 
+/// One client: handshake, server info and advertisements, then its subscriptions' messages.
 async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
     let mut socket = tokio_tungstenite::accept_hdr_async(stream, negotiate).await?;
     let mut data = shared.data.subscribe();

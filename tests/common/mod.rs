@@ -2,6 +2,7 @@
 // Each test crate uses its own subset of these.
 #![allow(dead_code)]
 
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -248,4 +249,20 @@ pub fn free_endpoint() -> String {
         .unwrap()
         .port();
     format!("tcp/127.0.0.1:{port}")
+}
+
+/// Waits for `child` to exit (at most `limit`, or says `what` is still running) and returns its
+/// exit code and standard error.
+pub fn exited(child: &mut Child, limit: Duration, what: &str) -> (Option<i32>, String) {
+    let started = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(started.elapsed() < limit, "{what}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut stderr = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut stderr).unwrap();
+    (status.code(), stderr)
 }

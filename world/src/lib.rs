@@ -286,7 +286,17 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             return Ok(Exit::Interrupted);
         };
         match arrived {
-            Ok(Some(p)) => track(p, &mut present),
+            Ok(Some(p)) => {
+                let recorder = p.alive && p.role == Role::Record;
+                track(p, &mut present);
+                if recorder {
+                    tracing::info!(
+                        "world: a recorder is here ({} of {})",
+                        recorders(&present),
+                        options.recorders
+                    );
+                }
+            }
             Ok(None) => return Err(anyhow!("liveliness subscription closed")),
             Err(_) => {
                 let missing: Vec<u32> = ids.iter().copied().filter(|i| !agent(i, &present)).collect();

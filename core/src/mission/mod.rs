@@ -440,7 +440,8 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
     };
     mission.validate().map_err(|(path, message)| {
         let key = path_string(&path);
-        match overrides.iter().find(|o| overrides::touches(o, &path, &mission)) {
+        // The last override of a key is the one in effect.
+        match overrides.iter().rev().find(|o| overrides::touches(o, &path, &mission)) {
             Some(o) => err(None, Some(key), format!("{message} (from --set {o})")),
             None => err(line_of_key(text, table, &path), Some(key), message),
         }
@@ -547,6 +548,26 @@ goal_velocity = [0.75, 0.0]
         let e = parse("x.toml", PAPER, &["comms.loss=1.5".into()]).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("comms.loss"));
         assert!(e.message.contains("--set comms.loss=1.5"), "{e}");
+        // A table the file does not have, set key by key: whole after its last key.
+        let burst = [
+            "comms.burst.p_enter_bad=0.1".to_string(),
+            "comms.burst.p_leave_bad=0.2".into(),
+        ];
+        let m = parse("x.toml", PAPER, &burst).unwrap();
+        assert_eq!(m.comms.burst.as_ref().unwrap().p_leave_bad, 0.2);
+        let e = parse("x.toml", PAPER, &burst[..1]).unwrap_err();
+        assert!(
+            e.message
+                .contains("--set comms.burst.p_enter_bad=0.1: missing field `p_leave_bad`"),
+            "{e}"
+        );
+        // The last override of a key is the one named.
+        let twice = [
+            "comms.burst={ p_enter_bad = 0.1, p_leave_bad = 0.2 }".to_string(),
+            "comms.burst.loss_bad=2".into(),
+        ];
+        let e = parse("x.toml", PAPER, &twice).unwrap_err();
+        assert!(e.message.contains("(from --set comms.burst.loss_bad=2)"), "{e}");
     }
 
     #[test]

@@ -25,6 +25,7 @@ pub(super) fn touches(o: &str, path: &[Seg], mission: &Mission) -> bool {
 
 pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Mission, MissionError> {
     let mut root: toml::Table = toml::from_str(text).expect("the file parsed once already");
+    let mut failing = None;
     for o in overrides {
         let bad = |message: String| MissionError {
             file: file.to_string(),
@@ -70,12 +71,18 @@ pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Miss
             }
         };
         table.insert(k.to_string(), value);
-        // Each override is checked as it is applied, so that an error names the one at fault.
-        toml::Value::Table(root.clone())
-            .try_into::<Mission>()
-            .map_err(|e| bad(e.message().trim().to_string()))?;
+        // Each override is checked as it is applied, so that an error names the one at fault;
+        // but a table set key by key is whole only after its last key, so a failure stands only
+        // if no later override mends it.
+        failing = match toml::Value::Table(root.clone()).try_into::<Mission>() {
+            Ok(_) => None,
+            Err(e) => failing.or_else(|| Some(bad(e.message().trim().to_string()))),
+        };
     }
-    Ok(toml::Value::Table(root)
-        .try_into::<Mission>()
-        .expect("checked after each override"))
+    match failing {
+        Some(e) => Err(e),
+        None => Ok(toml::Value::Table(root)
+            .try_into::<Mission>()
+            .expect("checked after the last override")),
+    }
 }
