@@ -12,7 +12,7 @@ use serde::Serialize;
 use tcpf_core::lockstep::{Reject, Timing};
 use tcpf_core::msg::{Checked, Clock, PathMsg, PeriodTiming, Rejections, Report, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, oneshot};
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Reliability};
 use zenoh::sample::SampleKind;
@@ -441,6 +441,34 @@ pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> R
         }
     }
     Ok(found)
+}
+
+/// Asks for the world's clock every `every` until it answers, on a task of its own: a query
+/// dropped halfway (by a `select!` that went another way) would leave its reply a closed channel.
+/// The answer comes through the receiver; dropping the receiver stops the asking.
+pub fn await_clock(
+    session: &Session,
+    keys: &Keys,
+    rejected: &Rejected,
+    every: Duration,
+) -> oneshot::Receiver<Result<Clock>> {
+    let (tx, rx) = oneshot::channel();
+    let (session, keys, rejected) = (session.clone(), keys.clone(), rejected.clone());
+    tokio::spawn(async move {
+        while !tx.is_closed() {
+            let answer = match ask_clock(&session, &keys, &rejected).await {
+                Ok(None) => {
+                    tokio::time::sleep(every).await;
+                    continue;
+                }
+                Ok(Some(clock)) => Ok(clock),
+                Err(e) => Err(e),
+            };
+            let _ = tx.send(answer);
+            return;
+        }
+    });
+    rx
 }
 
 /// Tells the recorder who this process was, what it refused and, in realtime, how it kept its

@@ -9,15 +9,15 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
-use tcpf_bus::typed::ask_clock;
-use tcpf_bus::typed::{presence, subscribe_as, Received, Rejected};
+use tcpf_bus::typed::{await_clock, presence, subscribe_as, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Command, End, Loss, Lost, Report, State, TickRecord};
+use tcpf_core::msg::{Clock as WorldClock, Command, End, Loss, Lost, Report, State, TickRecord};
 use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
 use tokio::sync::mpsc::{self, Receiver};
+use tokio::sync::oneshot;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
@@ -54,6 +54,16 @@ const RECORDER_PHASE: f64 = 0.9;
 const REPORT_GRACE: Duration = Duration::from_secs(2);
 /// How often the recorder asks for the clock before the world has started.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
+
+/// The world's clock once `await_clock` has it (never, while `clock` is `None`).
+async fn answered(clock: &mut Option<oneshot::Receiver<Result<WorldClock>>>) -> Result<WorldClock> {
+    match clock {
+        Some(answer) => answer
+            .await
+            .map_err(|_| anyhow!("the recorder stopped asking for the clock"))?,
+        None => std::future::pending().await,
+    }
+}
 
 enum Machine {
     Lockstep(Recorder),
@@ -97,8 +107,8 @@ pub struct Recording {
     /// The clock this recorder runs, which must be the world's.
     realtime: bool,
     time_scale: f64,
-    /// Until the world's clock has answered (it does once the run has started), when to ask.
-    ask_at: Option<tokio::time::Instant>,
+    /// The world's clock, until it has answered (it does once the run has started).
+    clock: Option<oneshot::Receiver<Result<WorldClock>>>,
 }
 
 impl Recording {
@@ -129,6 +139,7 @@ impl Recording {
                 control_period: dt,
             },
         };
+        let clock = await_clock(session, &keys, &rejected, CLOCK_POLL);
         Ok(Recording {
             rejected,
             machine,
@@ -144,7 +155,7 @@ impl Recording {
             token: None,
             realtime: mission.mission.clock == ClockKind::Realtime,
             time_scale: mission.mission.time_scale,
-            ask_at: Some(tokio::time::Instant::now()),
+            clock: Some(clock),
         })
     }
 
@@ -194,13 +205,9 @@ impl Recording {
                     }
                 }
                 // A realtime world would send no record: say so rather than wait for one.
-                _ = tokio::time::sleep_until(self.ask_at.unwrap_or_else(tokio::time::Instant::now)), if self.ask_at.is_some() => {
-                    // Set before the query: a step dropped while it waits asks again in turn.
-                    self.ask_at = Some(tokio::time::Instant::now() + CLOCK_POLL);
-                    if let Some(clock) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
-                        check_clock("recorder", self.realtime, self.time_scale, &clock)?;
-                        self.ask_at = None;
-                    }
+                answer = answered(&mut self.clock), if self.clock.is_some() => {
+                    self.clock = None;
+                    check_clock("recorder", self.realtime, self.time_scale, &answer?)?;
                 }
             },
             Machine::Realtime {
@@ -214,14 +221,12 @@ impl Recording {
                     sampler.sample(beat.tick, |states, commands| failure = telemetry.tick(states, commands));
                     failure?;
                 }
-                _ = tokio::time::sleep_until(self.ask_at.unwrap_or_else(tokio::time::Instant::now)), if self.ask_at.is_some() => {
-                    self.ask_at = Some(tokio::time::Instant::now() + CLOCK_POLL);
-                    if let Some(clock) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
-                        check_clock("recorder", self.realtime, self.time_scale, &clock)?;
-                        let fleet = FleetClock::new(&clock, *control_period);
-                        *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
-                        self.ask_at = None;
-                    }
+                answer = answered(&mut self.clock), if self.clock.is_some() => {
+                    self.clock = None;
+                    let clock = answer?;
+                    check_clock("recorder", self.realtime, self.time_scale, &clock)?;
+                    let fleet = FleetClock::new(&clock, *control_period);
+                    *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
                 }
                 Some(m) = self.inbox.recv() => match m.message {
                     Message::Tick(_) => {}
