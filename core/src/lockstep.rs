@@ -10,7 +10,9 @@ use crate::roster::Roster;
 
 use crate::agent::Agent;
 use crate::mission::Mission;
-use crate::msg::{tally, Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, PROTOCOL_VERSION};
+use crate::msg::{
+    tally, Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, TickRecord, PROTOCOL_VERSION,
+};
 use crate::path::GeneralizedPath;
 use crate::world::World;
 
@@ -157,15 +159,20 @@ impl WorldNode {
             .map(|(_, (id, _))| *id)
     }
 
-    /// Closes the tick (`observe` sees it), then either ends the run or integrates to the next.
-    /// Call when `waiting_for` is empty.
-    pub fn advance(&mut self, observe: impl FnOnce(&[State], &[Option<Command>])) -> Option<End> {
+    /// Closes the tick (`observe` sees its record: the states and the commands held), then either
+    /// ends the run or integrates to the next. Call when `waiting_for` is empty.
+    pub fn advance(&mut self, observe: impl FnOnce(TickRecord<'_>)) -> Option<End> {
         let tick = self.tick();
         // A lost vehicle's pending command was dropped when it was lost: what is pending is held.
         for (arrived, c) in self.arrived.iter_mut().zip(&self.pending) {
             *arrived |= c.as_ref().is_some_and(|c| c.gamma >= self.t_f);
         }
-        observe(&self.states, &self.pending);
+        observe(TickRecord {
+            version: PROTOCOL_VERSION,
+            tick,
+            states: self.states[..].into(),
+            commands: self.pending[..].into(),
+        });
         let done = self
             .arrived
             .iter()
@@ -573,7 +580,7 @@ mod tests {
         assert_eq!(world.waiting_for(), vec![2]);
         world.on_lost(2, LossReason::Gone);
         assert!(world.waiting_for().is_empty());
-        assert!(world.advance(|_, held| assert!(held[1].is_none())).is_none());
+        assert!(world.advance(|record| assert!(record.commands[1].is_none())).is_none());
         assert_eq!(world.tick(), 1);
         assert_eq!(world.waiting_for(), vec![1], "a lost vehicle is never waited for again");
         assert_eq!(

@@ -3,13 +3,11 @@
 //! lockstep shells pass their messages over Zenoh. Nothing here decides anything the machines do
 //! not: that is what makes in-process and process runs bit-identical.
 
-use std::borrow::Cow;
-
 use crate::agent::Agent;
 use crate::lockstep::{AgentNode, WorldNode};
 use crate::metrics::Results;
 use crate::mission::Mission;
-use crate::msg::{Command, Gamma, LossReason, State, TickRecord, PROTOCOL_VERSION};
+use crate::msg::{Command, Gamma, LossReason, State, PROTOCOL_VERSION};
 use crate::planner::Plan;
 use crate::record::Recorder;
 use crate::world::World;
@@ -108,14 +106,7 @@ impl Fleet {
             }
             refused.drain(..).for_each(|n| self.silence(n));
             // As the tick closes, the recorder takes the world's record of it.
-            let tick = self.world.tick();
-            let end = self.world.advance(|states, commands| {
-                let record = TickRecord {
-                    version: PROTOCOL_VERSION,
-                    tick,
-                    states: Cow::Borrowed(states),
-                    commands: Cow::Borrowed(commands),
-                };
+            let end = self.world.advance(|record| {
                 self.recorder
                     .on_tick(record)
                     .expect("the world's record of the next tick");

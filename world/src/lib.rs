@@ -18,7 +18,7 @@ use tcpf_bus::typed::{
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, TickRecord, PROTOCOL_VERSION};
+use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
@@ -141,16 +141,8 @@ impl Stepper {
     /// Advances every tick that waits for nobody, publishing each one's states, or the end.
     fn step(&self, stepped: &mut Stepped) {
         while !stepped.over && !stepped.node.waiting() {
-            let tick = stepped.node.tick();
             let mut recorded = Ok(());
-            let closed = stepped.node.advance(|states, commands| {
-                recorded = self.tick_out.put_now(&TickRecord {
-                    version: PROTOCOL_VERSION,
-                    tick,
-                    states: states.into(),
-                    commands: commands.into(),
-                })
-            });
+            let closed = stepped.node.advance(|record| recorded = self.tick_out.put_now(&record));
             if let Err(e) = recorded {
                 let _ = self.ends.send(Err(e));
             }
