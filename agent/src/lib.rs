@@ -11,8 +11,8 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    ask_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, subscribe_with, Outlet, Presence,
-    Received, Rejected,
+    answered, ask_clock, await_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, subscribe_with,
+    Outlet, Presence, Received, Rejected,
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
@@ -391,20 +391,25 @@ fn check_clock(mission: &Mission, clock: &Clock) -> Result<()> {
 impl Shell {
     /// Realtime: asks for the world's clock until it has started (`None` on a signal).
     async fn wait_for_clock(&mut self, mission: &Mission, deadline: tokio::time::Instant) -> Result<Option<Clock>> {
-        loop {
-            if let Some(clock) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
+        let mut answer = Some(await_clock(
+            &self.session,
+            &self.keys,
+            &self.rejected,
+            CLOCK_POLL,
+            CLOCK_POLL,
+        ));
+        let waited = tokio::time::timeout_at(deadline, answered(&mut answer));
+        match self.shutdown.unless(waited).await {
+            None => Ok(None),
+            Some(Err(_)) => Err(anyhow!(
+                "agent {}: the world did not start the clock of mission {} in time",
+                self.id,
+                mission.mission.name
+            )),
+            Some(Ok(clock)) => {
+                let clock = clock?;
                 check_clock(mission, &clock)?;
-                return Ok(Some(clock));
-            }
-            if tokio::time::Instant::now() >= deadline {
-                return Err(anyhow!(
-                    "agent {}: the world did not start the clock of mission {} in time",
-                    self.id,
-                    mission.mission.name
-                ));
-            }
-            if self.shutdown.unless(tokio::time::sleep(CLOCK_POLL)).await.is_none() {
-                return Ok(None);
+                Ok(Some(clock))
             }
         }
     }
@@ -433,23 +438,16 @@ impl Shell {
     ) -> Result<Exit> {
         let id = self.id;
         feed.start();
-        // When to ask next, and how long to wait after that: a fleet of hundreds waiting for its
-        // world to start must not flood the router with queries.
-        let mut ask = unchecked.then(|| (tokio::time::Instant::now(), CLOCK_POLL));
+        let mut clock =
+            unchecked.then(|| await_clock(&self.session, &self.keys, &self.rejected, CLOCK_POLL, CLOCK_POLL_MAX));
         let exit = loop {
             // Woken once per timeout while the fleet moves on, to look whether it still waits.
             let stale_at = feed.lock().waiting_since.unwrap_or_else(Instant::now) + options.stale_timeout;
             tokio::select! {
                 Some(e) = faults.recv() => return Err(e),
-                _ = tokio::time::sleep_until(ask.map_or_else(tokio::time::Instant::now, |a| a.0)), if ask.is_some() => {
-                    let wait = ask.map_or(CLOCK_POLL, |a| a.1);
-                    ask = match ask_clock(&self.session, &self.keys, &self.rejected).await? {
-                        Some(clock) => {
-                            check_clock(mission, &clock)?;
-                            None
-                        }
-                        None => Some((tokio::time::Instant::now() + wait, (wait * 2).min(CLOCK_POLL_MAX))),
-                    };
+                answer = answered(&mut clock), if clock.is_some() => {
+                    clock = None;
+                    check_clock(mission, &answer?)?;
                 }
                 Some(p) = self.presence.recv() => match p.role {
                     Role::World | Role::Planner if !p.alive => {

@@ -443,22 +443,23 @@ pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> R
     Ok(found)
 }
 
-/// Asks for the world's clock every `every` until it answers, on a task of its own: a query
-/// dropped halfway (by a `select!` that went another way) would leave its reply a closed channel.
-/// The answer comes through the receiver; dropping the receiver stops the asking.
-pub fn await_clock(
-    session: &Session,
-    keys: &Keys,
-    rejected: &Rejected,
-    every: Duration,
-) -> oneshot::Receiver<Result<Clock>> {
+/// The world's clock, asked for until the world answers (it does once the run has started).
+pub type ClockAnswer = oneshot::Receiver<Result<Clock>>;
+
+/// Asks for the world's clock until it answers, first after `first`, then twice as long each
+/// time up to `max` (a fleet of hundreds waiting for its world must not flood the router), on a
+/// task of its own: a query dropped halfway (by a `select!` that went another way) would leave
+/// its reply a closed channel. Dropping the receiver stops the asking.
+pub fn await_clock(session: &Session, keys: &Keys, rejected: &Rejected, first: Duration, max: Duration) -> ClockAnswer {
     let (tx, rx) = oneshot::channel();
     let (session, keys, rejected) = (session.clone(), keys.clone(), rejected.clone());
     tokio::spawn(async move {
+        let mut wait = first;
         while !tx.is_closed() {
             let answer = match ask_clock(&session, &keys, &rejected).await {
                 Ok(None) => {
-                    tokio::time::sleep(every).await;
+                    tokio::time::sleep(wait).await;
+                    wait = (wait * 2).min(max);
                     continue;
                 }
                 Ok(Some(clock)) => Ok(clock),
@@ -469,6 +470,16 @@ pub fn await_clock(
         }
     });
     rx
+}
+
+/// The clock `await_clock` got; never, while `answer` is `None` (for a `select!` branch).
+pub async fn answered(answer: &mut Option<ClockAnswer>) -> Result<Clock> {
+    match answer {
+        Some(answer) => answer
+            .await
+            .map_err(|_| anyhow!("the task asking for the world's clock stopped"))?,
+        None => std::future::pending().await,
+    }
 }
 
 /// Tells the recorder who this process was, what it refused and, in realtime, how it kept its

@@ -9,15 +9,14 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
-use tcpf_bus::typed::{await_clock, presence, subscribe_as, Received, Rejected};
+use tcpf_bus::typed::{answered, await_clock, presence, subscribe_as, ClockAnswer, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Clock as WorldClock, Command, End, Loss, Lost, Report, State, TickRecord};
+use tcpf_core::msg::{Command, End, Loss, Lost, Report, State, TickRecord};
 use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
 use tokio::sync::mpsc::{self, Receiver};
-use tokio::sync::oneshot;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
@@ -54,16 +53,6 @@ const RECORDER_PHASE: f64 = 0.9;
 const REPORT_GRACE: Duration = Duration::from_secs(2);
 /// How often the recorder asks for the clock before the world has started.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
-
-/// The world's clock once `await_clock` has it (never, while `clock` is `None`).
-async fn answered(clock: &mut Option<oneshot::Receiver<Result<WorldClock>>>) -> Result<WorldClock> {
-    match clock {
-        Some(answer) => answer
-            .await
-            .map_err(|_| anyhow!("the recorder stopped asking for the clock"))?,
-        None => std::future::pending().await,
-    }
-}
 
 enum Machine {
     Lockstep(Recorder),
@@ -108,7 +97,7 @@ pub struct Recording {
     realtime: bool,
     time_scale: f64,
     /// The world's clock, until it has answered (it does once the run has started).
-    clock: Option<oneshot::Receiver<Result<WorldClock>>>,
+    clock: Option<ClockAnswer>,
 }
 
 impl Recording {
@@ -139,7 +128,7 @@ impl Recording {
                 control_period: dt,
             },
         };
-        let clock = await_clock(session, &keys, &rejected, CLOCK_POLL);
+        let clock = await_clock(session, &keys, &rejected, CLOCK_POLL, CLOCK_POLL);
         Ok(Recording {
             rejected,
             machine,
