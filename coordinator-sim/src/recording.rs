@@ -93,8 +93,8 @@ pub struct Recording {
     _subscribers: Vec<Subscriber<()>>,
     /// Withdrawn once the recording is complete: the world waits for its recorders to leave.
     token: Option<LivelinessToken>,
-    /// The clock this recorder runs, which must be the world's.
-    realtime: bool,
+    /// The time scale this recorder runs at, which must be the world's (its clock is the
+    /// machine's).
     time_scale: f64,
     /// The world's clock, until it has answered (it does once the run has started).
     clock: Option<ClockAnswer>,
@@ -142,7 +142,6 @@ impl Recording {
             first: None,
             _subscribers: subscribers,
             token: None,
-            realtime: mission.mission.clock == ClockKind::Realtime,
             time_scale: mission.mission.time_scale,
             clock: Some(clock),
         })
@@ -176,8 +175,8 @@ impl Recording {
                                 self.rejected.reject(why, &m.key);
                             }
                         }
-                        Message::State(s) => self.rejected.check(&m.key, s.id, || recorder.on_state(s)),
-                        Message::Command(c) => self.rejected.check(&m.key, c.id, || recorder.on_command(c)),
+                        // A lockstep recorder takes states and commands from the tick record.
+                        Message::State(_) | Message::Command(_) => {}
                         Message::End(e) => match recorder.on_end(e.clone()) {
                             Ok(()) => self.end = Some(e),
                             Err(why) => self.rejected.reject(why, &m.key),
@@ -196,7 +195,7 @@ impl Recording {
                 // A realtime world would send no record: say so rather than wait for one.
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
-                    check_clock("recorder", self.realtime, self.time_scale, &answer?)?;
+                    check_clock("recorder", false, self.time_scale, &answer?)?;
                 }
             },
             Machine::Realtime {
@@ -213,7 +212,7 @@ impl Recording {
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
                     let clock = answer?;
-                    check_clock("recorder", self.realtime, self.time_scale, &clock)?;
+                    check_clock("recorder", true, self.time_scale, &clock)?;
                     let fleet = FleetClock::new(&clock, *control_period);
                     *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
                 }
