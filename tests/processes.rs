@@ -449,9 +449,8 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
         assert!(Instant::now() < deadline, "the world never met the recorder");
         std::thread::sleep(Duration::from_millis(20));
     }
-    // The recorder's first look at who is present (its liveliness history) may still be on its
-    // way: were it to arrive after the world's token went, the world would seem back.
-    std::thread::sleep(Duration::from_millis(500));
+    // Killed at once: should the recorder's first look at who is present (its liveliness
+    // history) arrive after the world's token went, it asks again and finds the world gone.
     fleet.0[1].kill().unwrap();
     let (code, stderr) = exited(
         &mut recorder.0[0],

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, metronome, Beat, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
-use tcpf_bus::typed::{answered, await_clock, presence, subscribe_as, ClockAnswer, Received, Rejected};
+use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
@@ -32,6 +32,12 @@ use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
 /// How long `tcpf record` waits, after the world's end (or after the world left without one),
 /// for a tick that does not come whole.
 const END_STALL: Duration = Duration::from_secs(5);
+/// How often `tcpf record` asks whether a world it believes present is still there: liveliness
+/// events are not ordered with the subscription's first look (Zenoh replays a token it already
+/// knew on a task of its own, which may run after the token's deletion), so a world that died as
+/// the recorder came could otherwise seem present forever. Two answers in a row without the
+/// world, not one (a slow answer may be cut short), say it has gone.
+const CONFIRM_WORLD: Duration = Duration::from_secs(5);
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
 /// fleet sends, so it may lag behind a fast lockstep fleet by many ticks (one message each).
 const INBOX: usize = 65_536;
@@ -389,7 +395,8 @@ pub async fn record(
     dir.write_plan(plan)?;
     let session = zenoh.open().await?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
-    let (_presence, mut presence) = presence(&session, &Keys::new(&mission.mission.name)).await?;
+    let keys = Keys::new(&mission.mission.name);
+    let (_presence, mut presence) = presence(&session, &keys).await?;
     recording.declare().await?;
     let progress = Ticks::new(mission);
     let started = Instant::now();
@@ -399,6 +406,8 @@ pub async fn record(
     let mut world_seen = false;
     let give_up_at = started + startup_timeout;
     let realtime = mission.mission.clock == ClockKind::Realtime;
+    let mut confirmed = started;
+    let mut doubted = false;
     let interrupted = loop {
         if recording.complete() {
             break false;
@@ -420,6 +429,15 @@ pub async fn record(
                     world_seen |= p.alive;
                     world_left = (!p.alive).then(Instant::now);
                 }
+            }
+            _ = tokio::time::sleep_until((confirmed + CONFIRM_WORLD).into()), if world_seen && world_left.is_none() => {
+                let there = present(&session, &keys).await?.iter().any(|(role, _)| *role == Role::World);
+                if !there && doubted {
+                    tracing::warn!("recorder: the world's token is gone, though its leaving was never seen");
+                    world_left = Some(Instant::now());
+                }
+                doubted = !there;
+                confirmed = Instant::now();
             }
             _ = tokio::time::sleep_until(give_up_at.into()), if !world_seen => {
                 return Err(anyhow!(
