@@ -11,7 +11,10 @@ use tcpf_core::msg::{Command, End, Gamma, State, PROTOCOL_VERSION};
 use zenoh::qos::CongestionControl;
 
 mod common;
-use common::{assert_none_left, assert_same_run, descendants, paper, run_in_process, scratch, Launch};
+use common::{
+    assert_none_left, assert_same_run, descendants, paper, run_in_process, scratch, summary, wait_until_simulated,
+    Launch,
+};
 
 const MISSION: &str = "paper-b-current";
 const SLOWER: [&str; 2] = ["--set", "mission.control_period=0.005"];
@@ -389,5 +392,62 @@ async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
         logs < 1_000_000,
         "refusals are logged as counts, not one line each: {logs} bytes"
     );
+    assert_none_left(&s);
+}
+
+/// A participant whose clock or tick count is wrong, in a realtime run: one state, command and γ
+/// of each vehicle stamped a billion ticks ahead, sent a few times once the run is under way. Each
+/// role refuses them as `future`; held as the freshest, they made every genuine message after them
+/// `past`, and the vehicles never arrived.
+#[tokio::test(flavor = "multi_thread")]
+async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrives_on_time() {
+    let dir = scratch("ahead");
+    let realtime = ["--clock", "realtime", "--time-scale", "10"];
+    let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &realtime);
+    endpoint(&launch);
+    let session = zenoh::open(zenoh::Config::from_file(dir.join("p/zenoh.json5")).unwrap())
+        .await
+        .unwrap();
+    tokio::task::block_in_place(|| wait_until_simulated(&dir.join("p"), 2.0));
+    let (state, command, gamma) = samples();
+    let far = 1_000_000_000;
+    for round in 0..5 {
+        for id in [1, 2] {
+            let tick = far + round;
+            let s = State { tick, id, ..state };
+            put(&session, &key(&format!("state/{id}")), postcard::to_stdvec(&s).unwrap()).await;
+            let c = Command {
+                tick,
+                id,
+                ..command.clone()
+            };
+            put(&session, &key(&format!("cmd/{id}")), postcard::to_stdvec(&c).unwrap()).await;
+            let g = Gamma {
+                tick,
+                from: id,
+                ..gamma
+            };
+            put(&session, &key(&format!("gamma/{id}")), postcard::to_stdvec(&g).unwrap()).await;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
+    session.close().await.unwrap();
+    let s = launch.summary();
+    assert!(status.success(), "{s}");
+    // Each round: two states to the agents and two to the recorder, two commands to the world
+    // and two to the recorder, one γ to each agent.
+    assert_eq!(s["rejections"]["future"], 5 * 10, "{}", s["rejections"]);
+    run_in_process(&paper("b-current"), &dir.join("i"), &[]);
+    let lockstep = summary(&dir.join("i"));
+    for (l, r) in s["vehicles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(lockstep["vehicles"].as_array().unwrap())
+    {
+        let (ours, theirs) = (l["arrival_time"].as_f64().unwrap(), r["arrival_time"].as_f64().unwrap());
+        assert!((ours - theirs).abs() < 0.3, "arrival {ours:.3} s against lockstep's {theirs:.3} s");
+    }
     assert_none_left(&s);
 }

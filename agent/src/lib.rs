@@ -540,12 +540,12 @@ impl Shell {
                     }
                 }
                 Some(s) = queued.states.recv() => {
-                    if let Err(e) = node.on_state(s.message) {
+                    if let Err(e) = node.on_state(s.message, fleet.horizon()) {
                         self.rejected.reject(e, &s.key);
                     }
                 }
                 Some(g) = queued.gammas.recv() => {
-                    self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message));
+                    self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message, fleet.horizon()));
                 }
                 Some(p) = self.presence.recv() => {
                     if p.role == Role::World && !p.alive && away.is_none() {

@@ -11,6 +11,7 @@
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use tcpf_core::msg::Clock;
+use tcpf_core::realtime::AHEAD_LIMIT_WALL_S;
 use tokio::sync::mpsc;
 
 /// A role whose clock is not the world's: bad input (exit 2), not a failure of the run.
@@ -100,6 +101,11 @@ impl FleetClock {
 
     pub fn period(&self) -> Duration {
         self.period
+    }
+
+    /// The latest tick a message may carry now: this clock's, and `AHEAD_LIMIT_WALL_S` more.
+    pub fn horizon(&self) -> u64 {
+        (self.periods_now() + AHEAD_LIMIT_WALL_S / self.period.as_secs_f64()).ceil() as u64
     }
 }
 

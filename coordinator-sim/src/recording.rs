@@ -64,8 +64,8 @@ enum Machine {
     Lockstep(Recorder),
     Realtime {
         sampler: Sampler,
-        /// Once the world has started its clock.
-        beats: Option<Receiver<Beat>>,
+        /// Once the world has started its clock: the fleet's clock here, and its beats.
+        beats: Option<(FleetClock, Receiver<Beat>)>,
         control_period: f64,
     },
 }
@@ -209,7 +209,7 @@ impl Recording {
                 beats,
                 control_period,
             } => tokio::select! {
-                Some(beat) = async { beats.as_mut()?.recv().await }, if beats.is_some() => {
+                Some(beat) = async { beats.as_mut()?.1.recv().await }, if beats.is_some() => {
                     let mut failure = Ok(());
                     let telemetry = &mut self.telemetry;
                     sampler.sample(beat.tick, |states, commands| failure = telemetry.tick(states, commands));
@@ -220,19 +220,22 @@ impl Recording {
                     let clock = answer?;
                     check_clock("recorder", true, self.time_scale, &clock)?;
                     let fleet = FleetClock::new(&clock, *control_period);
-                    *beats = Some(metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64));
+                    *beats = Some((fleet, metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64)));
                 }
-                Some(m) = self.inbox.recv() => match m.message {
-                    Message::Tick(_) => {}
-                    Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s)),
-                    Message::Command(c) => self.rejected.check(&m.key, c.id, || sampler.on_command(c)),
-                    Message::End(e) => match sampler.on_end(e.clone()) {
-                        Ok(()) => self.end = Some(e),
-                        Err(why) => self.rejected.reject(why, &m.key),
-                    },
-                    Message::Report(r) => self.exit_reports.push(r),
-                    Message::Loss(_) => {}
-                },
+                // Messages wait for the clock, which says how far ahead of it they may be.
+                Some(m) = self.inbox.recv(), if beats.is_some() => {
+                    let horizon = beats.as_ref().map_or(0, |(fleet, _)| fleet.horizon());
+                    match m.message {
+                        Message::Tick(_) | Message::Loss(_) => {}
+                        Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s, horizon)),
+                        Message::Command(c) => self.rejected.check(&m.key, c.id, || sampler.on_command(c, horizon)),
+                        Message::End(e) => match sampler.on_end(e.clone()) {
+                            Ok(()) => self.end = Some(e),
+                            Err(why) => self.rejected.reject(why, &m.key),
+                        },
+                        Message::Report(r) => self.exit_reports.push(r),
+                    }
+                }
             },
         }
         let mut failure = Ok(());

@@ -85,6 +85,21 @@ impl Lateness {
     }
 }
 
+/// How far ahead of a receiver's clock a message's tick may be, in wall seconds. The hosts'
+/// clocks agree to within milliseconds (NTP), so a message further ahead comes from a sender
+/// whose clock or tick count is wrong: held as the freshest, it would make every genuine message
+/// `past` until the fleet caught up with it.
+pub const AHEAD_LIMIT_WALL_S: f64 = 1.0;
+
+/// `tick` against `horizon`, the latest tick the receiver's clock allows now.
+fn not_ahead(tick: u64, horizon: u64) -> Result<(), Reject> {
+    if tick > horizon {
+        Err(Reject::Future)
+    } else {
+        Ok(())
+    }
+}
+
 /// A second message for a sender where a newer or equal one is held.
 fn older<T: PartialEq>(held_tick: u64, tick: u64, held: &T, message: &T) -> Result<(), Reject> {
     match tick.cmp(&held_tick) {
@@ -141,14 +156,16 @@ impl RealtimeAgent {
         &self.agent
     }
 
-    /// A state of this agent's vehicle: the freshest is kept.
-    pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
+    /// A state of this agent's vehicle, `horizon` the latest tick this agent's clock allows:
+    /// the freshest is kept.
+    pub fn on_state(&mut self, state: State, horizon: u64) -> Result<(), Reject> {
         if state.id != self.agent.id() {
             return Err(Reject::UnknownVehicle);
         }
         if !state.finite() {
             return Err(Reject::NonFinite);
         }
+        not_ahead(state.tick, horizon)?;
         match &self.state {
             Some(held) => older(held.tick, state.tick, held, &state)?,
             None if self.rejoin => self.agent.rejoin(state.position),
@@ -160,13 +177,14 @@ impl RealtimeAgent {
 
     /// A neighbour's γ: the newest since the last instant is kept. One without a sample is no
     /// transmission (lockstep's "nothing this instant"), so there is nothing to keep.
-    pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {
+    pub fn on_gamma(&mut self, gamma: Gamma, horizon: u64) -> Result<(), Reject> {
         if !self.agent.neighbours().any(|j| j == gamma.from) {
             return Err(Reject::NotANeighbour);
         }
         if !gamma.finite() {
             return Err(Reject::NonFinite);
         }
+        not_ahead(gamma.tick, horizon)?;
         if gamma.sample.is_none() {
             return Ok(());
         }
@@ -295,15 +313,14 @@ impl RealtimeWorld {
         &self.states
     }
 
-    /// A vehicle's command: the freshest is held until a fresher one comes.
-    pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
+    /// A vehicle's command, `horizon` the latest tick the world's clock allows: the freshest is
+    /// held until a fresher one comes.
+    pub fn on_command(&mut self, command: Command, horizon: u64) -> Result<(), Reject> {
         let n = self.ids.position(command.id).ok_or(Reject::UnknownVehicle)?;
         if !command.finite() {
             return Err(Reject::NonFinite);
         }
-        if command.tick > self.max_ticks {
-            return Err(Reject::Future);
-        }
+        not_ahead(command.tick, horizon.min(self.max_ticks))?;
         if let Some(held) = &self.held[n] {
             older(held.tick, command.tick, held, &command)?;
         }
@@ -430,11 +447,13 @@ impl Sampler {
         self.ids.position(id).ok_or(Reject::UnknownVehicle)
     }
 
-    pub fn on_state(&mut self, state: State) -> Result<(), Reject> {
+    /// A vehicle's state, `horizon` the latest tick the recorder's clock allows.
+    pub fn on_state(&mut self, state: State, horizon: u64) -> Result<(), Reject> {
         let n = self.index(state.id)?;
         if !state.finite() {
             return Err(Reject::NonFinite);
         }
+        not_ahead(state.tick, horizon)?;
         if let Some(held) = &self.states[n] {
             older(held.tick, state.tick, held, &state)?;
         }
@@ -442,11 +461,13 @@ impl Sampler {
         Ok(())
     }
 
-    pub fn on_command(&mut self, command: Command) -> Result<(), Reject> {
+    /// A vehicle's command, `horizon` the latest tick the recorder's clock allows.
+    pub fn on_command(&mut self, command: Command, horizon: u64) -> Result<(), Reject> {
         let n = self.index(command.id)?;
         if !command.finite() {
             return Err(Reject::NonFinite);
         }
+        not_ahead(command.tick, horizon)?;
         let mut command = command;
         if let Some(held) = &mut self.commands[n] {
             // Receptions are cleared once sampled, so compare ticks only for what is held.
@@ -539,7 +560,7 @@ impl Sampler {
 mod tests {
     use super::*;
     use crate::fixtures::case_b;
-    use crate::msg::Reception;
+    use crate::msg::{Reception, Sample};
 
     /// Vehicle `id` at `position`, at rest, measured at `tick` of period `dt`.
     fn still(id: u32, tick: u64, dt: f64, position: [f64; 2]) -> State {
@@ -556,10 +577,16 @@ mod tests {
         }
     }
 
+    /// How far ahead of the tick under way the machines of `on_time` take messages.
+    const AHEAD: u64 = 100;
+    /// A horizon beyond every tick the other tests send.
+    const HORIZON: u64 = 1_000;
+
     /// Case (b) with every machine on time, the agents phased half a period after the world as
-    /// the shells do; the recorder samples every `sampled`-th period. Returns what it recorded,
-    /// and whether the world and the agents kept their periods.
-    fn on_time(sampled: u64) -> (Results, bool) {
+    /// the shells do; the recorder samples every `sampled`-th period. With `forged`, at tick 100
+    /// every machine is also handed a message stamped a billion ticks ahead. Returns what the
+    /// recorder recorded, and whether the world and the agents kept their periods.
+    fn on_time(sampled: u64, forged: bool) -> (Results, bool) {
         let (m, paths, t_f) = case_b();
         let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]);
         let mut agents: Vec<RealtimeAgent> = paths
@@ -569,19 +596,47 @@ mod tests {
         let mut sampler = Sampler::new(&[1, 2], t_f, m.mission.control_period);
         let mut tick = 0;
         let end = loop {
+            let horizon = tick + AHEAD;
             for (agent, &state) in agents.iter_mut().zip(world.states()) {
-                agent.on_state(state).unwrap();
-                sampler.on_state(state).unwrap();
+                agent.on_state(state, horizon).unwrap();
+                sampler.on_state(state, horizon).unwrap();
             }
             let actions: Vec<Action> = agents.iter_mut().filter_map(|a| a.act(tick, 0.0, 0.001, 0)).collect();
+            if forged && tick == 100 {
+                let far = 1_000_000_000;
+                let state = State {
+                    tick: far,
+                    ..world.states()[0]
+                };
+                assert_eq!(agents[0].on_state(state, horizon), Err(Reject::Future));
+                assert_eq!(sampler.on_state(state, horizon), Err(Reject::Future));
+                let gamma = Gamma {
+                    version: PROTOCOL_VERSION,
+                    tick: far,
+                    from: 1,
+                    sample: Some(Sample {
+                        t: 1.0,
+                        gamma: 1.0,
+                        gamma_dot: 1.0,
+                        position: state.position,
+                    }),
+                };
+                assert_eq!(agents[1].on_gamma(gamma, horizon), Err(Reject::Future));
+                let command = Command {
+                    tick: far,
+                    ..actions[0].command.clone()
+                };
+                assert_eq!(world.on_command(command.clone(), horizon), Err(Reject::Future));
+                assert_eq!(sampler.on_command(command, horizon), Err(Reject::Future));
+            }
             for action in &actions {
                 for (other, agent) in agents.iter_mut().enumerate() {
                     if let Some(g) = action.gamma.filter(|g| g.from != paths[other].0) {
-                        agent.on_gamma(g).unwrap();
+                        agent.on_gamma(g, horizon).unwrap();
                     }
                 }
-                world.on_command(action.command.clone()).unwrap();
-                sampler.on_command(action.command.clone()).unwrap();
+                world.on_command(action.command.clone(), horizon).unwrap();
+                sampler.on_command(action.command.clone(), horizon).unwrap();
             }
             if tick.is_multiple_of(sampled) {
                 sampler.sample(tick, |_, _| {});
@@ -608,7 +663,7 @@ mod tests {
     /// On time: the same arrivals as lockstep within a few periods.
     #[test]
     fn on_time_realtime_machines_arrive_as_lockstep_does() {
-        let (results, kept) = on_time(1);
+        let (results, kept) = on_time(1, false);
         assert_arrived_as_lockstep(&results);
         assert!(
             (results.max_coordination_error - 0.362).abs() < 0.05,
@@ -618,15 +673,26 @@ mod tests {
         assert!(kept);
     }
 
+    /// A sender whose clock or tick count is wrong: its message, a billion ticks ahead, is
+    /// `future` to every machine and changes nothing; held, it would have made every genuine
+    /// message after it `past`.
+    #[test]
+    fn a_message_far_ahead_of_the_receivers_clock_is_refused_and_changes_nothing() {
+        let (forged, kept) = on_time(1, true);
+        assert_arrived_as_lockstep(&forged);
+        assert_eq!(forged, on_time(1, false).0);
+        assert!(kept);
+    }
+
     /// A recorder that samples one period in fifty (its beat far behind) still records the
     /// arrivals that ended the run (finishing samples the period before the end) and every γ
     /// judged.
     #[test]
     fn a_recorder_behind_its_beat_still_sees_the_arrivals_that_ended_the_run() {
-        let (behind, _) = on_time(50);
+        let (behind, _) = on_time(50, false);
         assert_arrived_as_lockstep(&behind);
         // Nor does it lose the receptions of the commands it never sampled.
-        let (on_time, _) = on_time(1);
+        let (on_time, _) = on_time(1, false);
         assert_eq!(behind.links, on_time.links);
         assert!(on_time.links.iter().all(|l| l.sent > 500), "{:?}", on_time.links);
     }
@@ -646,8 +712,8 @@ mod tests {
         };
         let (before, after) = (command(99, t_f - 0.001), command(100, t_f + 0.009));
         let mut sampler = Sampler::new(&[1], t_f, dt);
-        sampler.on_state(state).unwrap();
-        sampler.on_command(before).unwrap();
+        sampler.on_state(state, HORIZON).unwrap();
+        sampler.on_command(before, HORIZON).unwrap();
         let mut rows = 0;
         sampler.sample(99, |_, _| rows += 1);
         sampler
@@ -659,7 +725,7 @@ mod tests {
             .unwrap();
         sampler.finish(|_, _| rows += 1);
         assert_eq!(rows, 1, "nothing new since tick 99: no period more");
-        sampler.on_command(after).unwrap();
+        sampler.on_command(after, HORIZON).unwrap();
         sampler.finish(|_, _| rows += 1);
         assert_eq!(rows, 2);
         let arrival = sampler.results().vehicles[0].arrival_time.expect("arrived");
@@ -677,18 +743,21 @@ mod tests {
             "nothing measured, nothing commanded"
         );
         let state = still(2, 5, m.mission.control_period, [0.0, 5.0]);
-        agent.on_state(state).unwrap();
-        assert_eq!(agent.on_state(State { tick: 4, ..state }), Err(Reject::Past));
-        assert_eq!(agent.on_state(state), Err(Reject::Duplicate));
+        agent.on_state(state, HORIZON).unwrap();
+        assert_eq!(agent.on_state(State { tick: 4, ..state }, HORIZON), Err(Reject::Past));
+        assert_eq!(agent.on_state(state, HORIZON), Err(Reject::Duplicate));
         let command = agent.act(8, 0.0, 0.001, 0).expect("a state to act on").command;
         assert_eq!(agent.timing().stale_states, 1, "a state three periods old");
         assert!(agent.act(8, 0.0, 0.001, 0).is_none(), "tick 8 is done");
-        world.on_command(command.clone()).unwrap();
+        world.on_command(command.clone(), HORIZON).unwrap();
         assert_eq!(
-            world.on_command(Command {
-                tick: 7,
-                ..command.clone()
-            }),
+            world.on_command(
+                Command {
+                    tick: 7,
+                    ..command.clone()
+                },
+                HORIZON
+            ),
             Err(Reject::Past)
         );
         world.advance_to(10, 0.0, 0.001, 0);
@@ -700,8 +769,10 @@ mod tests {
         assert_eq!(world.timing().rejoins, vec![(1, 1)]);
         // A command is held one simulated second at most: then the vehicle drifts.
         let mut one = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), false);
-        one.on_state(world.states()[0]).unwrap();
-        world.on_command(one.act(10, 0.0, 0.001, 0).unwrap().command).unwrap();
+        one.on_state(world.states()[0], HORIZON).unwrap();
+        world
+            .on_command(one.act(10, 0.0, 0.001, 0).unwrap().command, HORIZON)
+            .unwrap();
         world.advance_to(112, 0.0, 0.001, 0);
         let timing = world.timing();
         assert_eq!(timing.late_commands, 100, "ticks 11 to 110 held the command of tick 10");
@@ -719,8 +790,8 @@ mod tests {
         let state = |id, tick| still(id, tick, m.mission.control_period, [0.0, 5.0 * id as f64]);
         let instants: Vec<u64> = (0..1000).filter(|&k| one.is_comm_tick(k)).take(4).collect();
         let mut gamma = |k: u64| one.broadcast(k, &state(1, k)).expect("an instant of vehicle 1");
-        two.on_state(state(2, instants[0])).unwrap();
-        two.on_gamma(gamma(instants[0])).unwrap();
+        two.on_state(state(2, instants[0]), HORIZON).unwrap();
+        two.on_gamma(gamma(instants[0]), HORIZON).unwrap();
         let judged = two.act(instants[0], 0.0, 0.001, 0).unwrap().command.receptions;
         assert_eq!(
             judged,
@@ -731,16 +802,16 @@ mod tests {
         );
         assert_eq!(two.timing().overtaken, vec![]);
         // Vehicle 2 wakes too late for its next instant: two of vehicle 1's γ are waiting.
-        two.on_gamma(gamma(instants[1])).unwrap();
-        two.on_gamma(gamma(instants[2])).unwrap();
-        two.on_state(state(2, instants[2])).unwrap();
+        two.on_gamma(gamma(instants[1]), HORIZON).unwrap();
+        two.on_gamma(gamma(instants[2]), HORIZON).unwrap();
+        two.on_state(state(2, instants[2]), HORIZON).unwrap();
         let judged = two.act(instants[2], 0.0, 0.001, 0).unwrap().command.receptions;
         assert_eq!(judged.len(), 1, "one γ judged: the newer");
         assert_eq!(two.timing().overtaken, vec![(1, 1)]);
         // Late or repeated on the way: no newer than what was judged, so refused, not counted.
-        assert_eq!(two.on_gamma(gamma(instants[1])), Err(Reject::Past));
-        assert_eq!(two.on_gamma(gamma(instants[2])), Err(Reject::Duplicate));
-        two.on_gamma(gamma(instants[3])).unwrap();
+        assert_eq!(two.on_gamma(gamma(instants[1]), HORIZON), Err(Reject::Past));
+        assert_eq!(two.on_gamma(gamma(instants[2]), HORIZON), Err(Reject::Duplicate));
+        two.on_gamma(gamma(instants[3]), HORIZON).unwrap();
         assert_eq!(two.timing().overtaken, vec![(1, 1)], "waiting, not yet overtaken");
     }
 

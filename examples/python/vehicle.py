@@ -22,6 +22,8 @@ import time
 import tomllib
 
 VERSION = 6
+# How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
+AHEAD_LIMIT_WALL_S = 1.0
 F64 = struct.Struct("<d")
 
 # Message layouts: the fields in order, as postcard writes them (PROTOCOL.md, "Encoding"). A type is
@@ -174,6 +176,7 @@ class Vehicle:
     def __init__(self, vid, position, heading, current, max_ticks):
         self.id, self.position, self.heading, self.current = vid, position, heading, current
         self.t, self.max_ticks = 0.0, max_ticks
+        self.clock = None  # (epoch, time scale, dt) once the world has answered
         self.lock = threading.Lock()
         self.command = None  # the freshest usable Command
         self.older = 0  # commands ignored: not newer than the one held
@@ -199,8 +202,8 @@ class Vehicle:
             return self.refuse(e.kind)
         if c["id"] != self.id:
             return self.refuse("wrong_sender")
-        if c["tick"] > self.max_ticks:
-            # As the world does: held, such a command would shut out every later one.
+        if c["tick"] > self.horizon():
+            # As the roles do: a command from a wrong clock, held, would shut out every later one.
             return self.refuse("future")
         with self.lock:
             if self.command is not None and c["tick"] <= self.command["tick"]:
@@ -208,6 +211,14 @@ class Vehicle:
                 self.older += 1
             else:
                 self.command = c
+
+    def horizon(self):
+        """The latest tick a command may carry now: this clock's, and AHEAD_LIMIT_WALL_S more."""
+        if self.clock is None:
+            return self.max_ticks
+        epoch, scale, dt = self.clock
+        ahead = math.ceil(max(0.0, time.time() - epoch + AHEAD_LIMIT_WALL_S) * scale / dt)
+        return min(self.max_ticks, ahead)
 
     def on_end(self, sample):
         try:
@@ -329,6 +340,7 @@ def get_clock(session, key, timeout, ship):
 def drive(ship, publisher, clock, dt, log):
     """Publishes State k at the wall time of tick k, k up to max_ticks or until stopped."""
     scale, epoch = clock["time_scale"], clock["epoch"]
+    ship.clock = (epoch, scale, dt)
 
     def deadline(k):
         return epoch + k * dt / scale
@@ -425,6 +437,10 @@ def self_test():
         "version 3 refused": refused_as(STATE, encode(STATE, dict(state, version=3))) == "wrong_version",
         "NaN refused": refused_as(STATE, encode(STATE, dict(state, t=math.nan))) == "non_finite",
     }
+    ship = Vehicle(2, [0.0, 0.0], 0.0, [0.0, 0.0], 12000)
+    checks["no clock yet: commands up to max_ticks"] = ship.horizon() == 12000
+    ship.clock = (time.time(), 10.0, 0.01)
+    checks["at t = 0, x10: commands up to a wall second ahead"] = 1000 <= ship.horizon() <= 1002
     for n, hex_ in [(0, "00"), (127, "7f"), (128, "8001"), (300, "ac02"), (2**32, "8080808010")]:
         checks[f"varint {n}"] = encode(U64, n) == bytes.fromhex(hex_) and Reader(varint(n)).uint(64) == n
     for t, m in [(STATE, state), (COMMAND, command), (END, end), (CLOCK, clock)]:

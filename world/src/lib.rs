@@ -482,7 +482,7 @@ impl Shell {
                     }
                 }
                 Some(c) = commands.recv() => {
-                    self.rejected.check(&c.key, c.message.id, || node.on_command(c.message));
+                    self.rejected.check(&c.key, c.message.id, || node.on_command(c.message, fleet.horizon()));
                 }
                 Some(p) = self.presence.recv() => {
                     if p.role == Role::Agent && ids.contains(&p.id) {
