@@ -133,6 +133,10 @@ enum Command {
         /// More than the agents' stale timeout (3 s).
         #[arg(long, default_value = "10", value_parser = seconds, allow_hyphen_values = true)]
         command_timeout: Duration,
+        /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
+        /// own, with the run directory's `zenoh.json5` (-c).
+        #[arg(long, value_name = "N", default_value_t = 0)]
+        recorders: usize,
     },
     /// Solve the trajectory generation problem and print the plan.
     Plan {
@@ -381,14 +385,18 @@ fn main() -> ExitCode {
             seed,
             live,
             command_timeout,
+            recorders,
         } => run(
             &clocked(&mission, &clock),
             out.as_deref(),
             in_process,
             seed,
-            live,
-            command_timeout,
-            restart == Restart::OnFailure,
+            launcher::Options {
+                live,
+                command_timeout,
+                restart: restart == Restart::OnFailure,
+                recorders,
+            },
         ),
         Command::Bench { mission, count } => bench(&mission, count),
         Command::Report { dir } => report(&dir),
@@ -491,9 +499,7 @@ fn run(
     out: Option<&Path>,
     in_process: bool,
     seed: Option<u64>,
-    live: Option<SocketAddr>,
-    command_timeout: Duration,
-    restart: bool,
+    options: launcher::Options,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
     let realtime = mission.mission.clock == mission::ClockKind::Realtime;
@@ -502,17 +508,22 @@ fn run(
             "--in-process runs lockstep only: the realtime clock is for fleets of processes"
         )));
     }
-    if in_process && restart {
+    if in_process && options.restart {
         return Err(Failure::Input(anyhow!(
             "--restart: an in-process run has no agent processes to start again"
         )));
     }
+    if in_process && options.recorders > 0 {
+        return Err(Failure::Input(anyhow!(
+            "--recorders: an in-process run has no bus for other recorders to join"
+        )));
+    }
     // The agents' default stale timeout: a neighbour waiting for a silent agent gives up on it
     // first, so that only the silent one is lost.
-    if command_timeout <= Duration::from_secs(3) {
+    if options.command_timeout <= Duration::from_secs(3) {
         return Err(Failure::Input(anyhow!(
             "--command-timeout {:?}: must exceed the agents' stale timeout (3 s), or an agent waiting for a silent neighbour would be lost with it",
-            command_timeout
+            options.command_timeout
         )));
     }
     if !in_process && !realtime {
@@ -522,21 +533,11 @@ fn run(
     fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = if in_process {
-        inprocess::run(&mission, &plan, &dir, live).map_err(Failure::Failed)?
+        inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::Failed)?
     } else {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
-            .block_on(launcher::run(
-                &mission,
-                &plan,
-                &dir,
-                &exe,
-                launcher::Options {
-                    live,
-                    command_timeout,
-                    restart,
-                },
-            ))
+            .block_on(launcher::run(&mission, &plan, &dir, &exe, options))
             .map_err(Failure::Failed)?
     };
     print!("{}", table::summary(&summary));
@@ -684,12 +685,7 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
                     }
                 }
             });
-            let options = launcher::Options {
-                live: None,
-                command_timeout: launcher::COMMAND_TIMEOUT,
-                restart: false,
-            };
-            let summary = launcher::run(&mission, &plan, &dir, &exe, options).await;
+            let summary = launcher::run(&mission, &plan, &dir, &exe, launcher::Options::default()).await;
             let busiest = tokio::time::timeout(Duration::from_secs(2), sampling).await;
             summary.map(|s| (s, busiest.ok().and_then(Result::ok).unwrap_or_default()))
         })

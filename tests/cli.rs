@@ -288,6 +288,10 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["run", &mission, "--in-process", "--time-scale", "5"],
             "(from --time-scale 5)",
         ),
+        (
+            vec!["run", &mission, "--in-process", "--recorders", "1"],
+            "no bus for other recorders to join",
+        ),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);

@@ -447,7 +447,10 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
         .zip(lockstep["vehicles"].as_array().unwrap())
     {
         let (ours, theirs) = (l["arrival_time"].as_f64().unwrap(), r["arrival_time"].as_f64().unwrap());
-        assert!((ours - theirs).abs() < 0.3, "arrival {ours:.3} s against lockstep's {theirs:.3} s");
+        assert!(
+            (ours - theirs).abs() < 0.3,
+            "arrival {ours:.3} s against lockstep's {theirs:.3} s"
+        );
     }
     assert_none_left(&s);
 }

@@ -426,6 +426,37 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     assert_same_run(&out, &dir.join("i"));
 }
 
+/// `tcpf run --recorders 1` holds the run until another recorder has joined with the run
+/// directory's Zenoh configuration; that recorder then records the same run, tick for tick.
+#[test]
+fn a_run_waits_for_a_recorder_from_elsewhere_which_records_the_same_run() {
+    let dir = scratch("joined");
+    let mission = paper("b-current");
+    let mut launch = Launch::start(&mission, &dir.join("p"), &["--recorders", "1"]);
+    launch.wait_for("endpoint", "tcp/");
+    launch.wait_for("logs/world.log", "a recorder is here (1 of 2)");
+    std::thread::sleep(Duration::from_secs(1));
+    assert!(
+        launch.child.try_wait().unwrap().is_none(),
+        "the run went on without the recorder"
+    );
+    let telemetry = std::fs::read_to_string(dir.join("p/telemetry.csv")).unwrap_or_default();
+    assert!(telemetry.lines().count() <= 1, "no tick before the recorder came");
+    let joined = dir.join("joined");
+    let record = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["record", dir.join("p/mission.toml").to_str().unwrap()])
+        .args(["-c", dir.join("p/zenoh.json5").to_str().unwrap()])
+        .args(["--out", joined.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(record.status.success(), "{}", String::from_utf8_lossy(&record.stderr));
+    assert!(launch.wait(Duration::from_secs(60)).success());
+    run_in_process(&mission, &dir.join("i"), &[]);
+    assert_same_run(&dir.join("p"), &dir.join("i"));
+    assert_same_run(&joined, &dir.join("i"));
+    assert_none_left(&launch.summary());
+}
+
 /// A recorder of a world that is killed before it announces the end: it says so within seconds,
 /// writes the run directory (not completed) and exits 1, on either clock.
 fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {

@@ -168,7 +168,7 @@ enum Outcome {
 
 /// How long the world waits for an agent's command of a tick, unless told otherwise: well past
 /// the agents' stale timeout (3 s), so that a neighbour given up on is not also lost at once.
-pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
+const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// How `tcpf run` runs its children.
 #[derive(Debug, Clone)]
@@ -179,6 +179,19 @@ pub struct Options {
     pub command_timeout: Duration,
     /// Start an agent that died again, so that it rejoins.
     pub restart: bool,
+    /// Recorders from elsewhere the run waits for, besides its own.
+    pub recorders: usize,
+}
+
+impl Default for Options {
+    fn default() -> Options {
+        Options {
+            live: None,
+            command_timeout: COMMAND_TIMEOUT,
+            restart: false,
+            recorders: 0,
+        }
+    }
 }
 
 /// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
@@ -187,6 +200,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         live,
         command_timeout,
         restart,
+        recorders,
     } = options;
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
@@ -210,6 +224,13 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         .await
         .map_err(|e| anyhow!("cannot open the Zenoh session: {e}"))?;
     crate::access::announce(&dir.path, &endpoint)?;
+    if recorders > 0 {
+        eprintln!(
+            "waiting for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
+            dir.path.join("mission.toml").display(),
+            zenoh_file.display()
+        );
+    }
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
     // Every role is a client of this session, the router: the recorder's subscriptions are in
     // its routes before the world can see its token.
@@ -221,7 +242,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let mut world_args = common.clone();
     world_args.extend([
         "--recorders".to_string(),
-        "1".to_string(),
+        (1 + recorders).to_string(),
         "--command-timeout".to_string(),
         command_timeout.as_secs_f64().to_string(),
     ]);

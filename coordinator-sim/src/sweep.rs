@@ -129,18 +129,7 @@ pub async fn run_processes(grid: &Grid, out: &Path, exe: &Path, sweep: &mut Swee
         let value = &grid.values[v].0;
         let name = format!("{}-seed{seed}", value.replace(['/', ' ', '"'], "_"));
         let dir = RunDir::create(Some(&out.join("runs").join(name)), &mission)?;
-        let summary = crate::launcher::run(
-            &mission,
-            &plans[v],
-            &dir,
-            exe,
-            crate::launcher::Options {
-                live: None,
-                command_timeout: crate::launcher::COMMAND_TIMEOUT,
-                restart: false,
-            },
-        )
-        .await?;
+        let summary = crate::launcher::run(&mission, &plans[v], &dir, exe, crate::launcher::Options::default()).await?;
         if summary.interrupted {
             bar.finish_and_clear();
             return Ok(true);
