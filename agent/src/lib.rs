@@ -11,8 +11,8 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    answered, ask_clock, await_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, subscribe_with,
-    Outlet, Presence, Received, Rejected,
+    answered, ask_clock, await_clock, fetch_paths, linger, presence, queue, report, subscribe, subscribe_into,
+    subscribe_with, Outlet, Presence, Received, Rejected,
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
@@ -372,6 +372,10 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 .await?
         }
     };
+    // The recorders wait for this agent's report, and leave once they have every one.
+    if matches!(exit, Exit::Ended) {
+        linger(&shell.session, &shell.keys, &[Role::Record]).await;
+    }
     let _ = token.undeclare().await;
     let _ = shell.session.close().await;
     Ok(exit)

@@ -321,6 +321,30 @@ pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>>
     Ok(present)
 }
 
+/// How long a role stays after its last words for those who should hear them to leave, and how
+/// often it looks.
+const LINGER: Duration = Duration::from_secs(2);
+const LINGER_POLL: Duration = Duration::from_millis(20);
+
+/// Stays until no process of `roles` is present, or `LINGER` has passed: a session closed at once
+/// may take its last messages with it (over QUIC, closing a connection drops what it has not yet
+/// delivered), and those who wait for them (recorders for reports, agents for the end) leave once
+/// they have them.
+pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
+    let until = tokio::time::Instant::now() + LINGER;
+    while tokio::time::Instant::now() < until {
+        match present(session, keys).await {
+            Ok(p) if p.iter().all(|(role, _)| !roles.contains(role)) => return,
+            Ok(_) => {}
+            Err(e) => {
+                tracing::warn!("{e}");
+                return;
+            }
+        }
+        tokio::time::sleep(LINGER_POLL).await;
+    }
+}
+
 /// Follows every liveliness token of the mission, those already there included.
 pub async fn presence(session: &Session, keys: &Keys) -> Result<(Subscriber<()>, mpsc::UnboundedReceiver<Presence>)> {
     let (tx, rx) = mpsc::unbounded_channel();
@@ -506,8 +530,7 @@ pub async fn report(
         timing: realtime,
         published,
     };
-    Outlet::last_words(session, keys.report(role, id))
-        .await?
-        .put(&report)
-        .await
+    // Without a publisher declared for it now: over QUIC, a message can overtake the
+    // declaration it refers to (they travel on different streams), and the router drops it.
+    say_now(session, keys.report(role, id), &report)
 }

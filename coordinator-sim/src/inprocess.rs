@@ -67,6 +67,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         time_scale: None,
         timing: Vec::new(),
         restarts: Vec::new(),
+        unreported: Vec::new(),
     };
     dir.write_summary(&summary)?;
     tcpf_report::report::write(&dir.path)?;

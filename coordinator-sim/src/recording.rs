@@ -97,8 +97,11 @@ pub struct Recording {
     /// When the first tick was written.
     first: Option<Instant>,
     _subscribers: Vec<Subscriber<()>>,
-    /// Withdrawn once the recording is complete: the world waits for its recorders to leave.
+    /// Withdrawn once the recording is complete and every report it waits for is in: the world
+    /// and the agents wait for the recorders to leave before they close their sessions.
     token: Option<LivelinessToken>,
+    /// The mission's vehicles.
+    ids: Vec<u32>,
     /// The time scale this recorder runs at, which must be the world's (its clock is the
     /// machine's).
     time_scale: f64,
@@ -148,6 +151,7 @@ impl Recording {
             first: None,
             _subscribers: subscribers,
             token: None,
+            ids,
             time_scale: mission.mission.time_scale,
             clock: Some(clock),
         })
@@ -251,7 +255,7 @@ impl Recording {
             self.progress = Instant::now();
             self.first.get_or_insert(self.progress);
         }
-        if self.complete() {
+        if self.complete() && self.unreported().is_empty() {
             if let Some(token) = self.token.take() {
                 let _ = token.undeclare().await;
             }
@@ -265,6 +269,11 @@ impl Recording {
             Machine::Lockstep(recorder) => recorder.complete(),
             Machine::Realtime { sampler, .. } => sampler.ended(),
         }
+    }
+
+    /// The roles whose exit report the end calls for and has not come.
+    pub fn unreported(&self) -> Vec<(Role, u32)> {
+        unreported(&self.ids, self.end.as_ref(), &self.exit_reports)
     }
 
     pub fn ticks(&self) -> u64 {
@@ -346,6 +355,17 @@ impl Recording {
             }
         }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
+        let unreported = if interrupted { Vec::new() } else { self.unreported() };
+        for &(role, id) in &unreported {
+            tracing::warn!(
+                "recorder: no exit report from {role} {id}: its refusals, timing and γ counts are not in the summary"
+            );
+            if role == Role::Agent && !realtime {
+                reproducible_reasons.push(format!(
+                    "agent {id} sent no exit report: whether it went on without a silent neighbour's γ is unknown"
+                ));
+            }
+        }
         if realtime {
             reproducible_reasons.push("the realtime clock: what happens depends on timing".into());
         }
@@ -375,6 +395,7 @@ impl Recording {
             time_scale: realtime.then_some(mission.mission.time_scale),
             timing: Summary::timing_of(&self.exit_reports),
             restarts,
+            unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
         };
         self.telemetry.finish()?;
         dir.write_summary(&summary)?;
@@ -466,15 +487,8 @@ pub async fn record(
     progress.finish();
     let wall_time_s = started.elapsed().as_secs_f64();
     // The world and the agents report as they exit, just after the end: a moment for them.
-    let roles = 1 + mission.vehicles.len();
     let _ = tokio::time::timeout(REPORT_GRACE, async {
-        let reported = |r: &Recording| {
-            r.exit_reports
-                .iter()
-                .filter(|r| r.role != Role::Planner.as_str())
-                .count()
-        };
-        while !interrupted && reported(&recording) < roles {
+        while !interrupted && !recording.unreported().is_empty() {
             if recording.step().await.is_err() {
                 break;
             }
@@ -494,4 +508,63 @@ pub async fn record(
             restarts: Vec::new(),
         },
     )
+}
+
+/// Of a mission of vehicles `ids`, the roles whose exit report `end` calls for and that are not
+/// among `reports`: the world, and the agent of every vehicle the world did not give up on (an
+/// agent started again reports once per life; any one will do). None before the end.
+fn unreported(ids: &[u32], end: Option<&End>, reports: &[Report]) -> Vec<(Role, u32)> {
+    let Some(end) = end else {
+        return Vec::new();
+    };
+    let agents = ids.iter().filter(|&&id| end.lost.iter().all(|l| l.id != id));
+    std::iter::once((Role::World, 0))
+        .chain(agents.map(|&id| (Role::Agent, id)))
+        .filter(|&(role, id)| !reports.iter().any(|r| r.role == role.as_str() && r.id == id))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tcpf_core::msg::{LossReason, PROTOCOL_VERSION};
+
+    fn report(role: Role, id: u32) -> Report {
+        Report {
+            version: PROTOCOL_VERSION,
+            role: role.as_str().into(),
+            id,
+            pid: 1,
+            rejected: Default::default(),
+            stale_timeouts: 0,
+            late_gammas: vec![],
+            timing: None,
+            published: 0,
+        }
+    }
+
+    #[test]
+    fn the_end_calls_for_the_worlds_report_and_every_live_agents() {
+        let end = End {
+            version: PROTOCOL_VERSION,
+            ticks: 100,
+            lost: vec![Lost {
+                id: 3,
+                tick: 50,
+                reason: LossReason::Gone,
+            }],
+        };
+        assert_eq!(unreported(&[1, 2, 3], None, &[]), vec![], "nothing before the end");
+        assert_eq!(
+            unreported(
+                &[1, 2, 3],
+                Some(&end),
+                &[report(Role::Planner, 0), report(Role::Agent, 2)]
+            ),
+            vec![(Role::World, 0), (Role::Agent, 1)],
+            "the planner's report is not waited for, nor a lost vehicle's agent's"
+        );
+        let all = [report(Role::Agent, 1), report(Role::World, 0), report(Role::Agent, 2)];
+        assert_eq!(unreported(&[1, 2, 3], Some(&end), &all), vec![]);
+    }
 }

@@ -101,6 +101,10 @@ pub struct Summary {
     /// Agents started again after they died (`--restart on-failure`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub restarts: Vec<Restarts>,
+    /// Roles whose exit report never reached the recorder ("agent 2"): their refusals, timing
+    /// and γ counts are missing from this summary.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unreported: Vec<String>,
 }
 
 impl Summary {

@@ -132,6 +132,12 @@ pub fn summary(summary: &Summary) -> String {
     for r in &summary.restarts {
         let _ = writeln!(s, "agent {} restarted {} time(s)", r.id, r.restarts);
     }
+    for role in &summary.unreported {
+        let _ = writeln!(
+            s,
+            "NO REPORT from {role}: its refusals, timing and γ counts are missing above"
+        );
+    }
     if !summary.timing_kept() {
         let _ = writeln!(
             s,

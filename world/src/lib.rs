@@ -13,8 +13,8 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    fetch_paths, presence, present, report, say_now, subscribe, subscribe_with, ClockServer, Outlet, Presence,
-    Received, Rejected,
+    fetch_paths, linger, presence, report, say_now, subscribe, subscribe_with, ClockServer, Outlet, Presence, Received,
+    Rejected,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::{ClockKind, Mission};
@@ -27,9 +27,6 @@ use zenoh::Session;
 /// How far ahead of now a realtime world sets t = 0: every process waiting for the clock (each
 /// asks a few times a second) has it before the first period, so nobody starts late.
 const REALTIME_LEAD_S: f64 = 0.5;
-/// How long the world stays after the end for the others to leave, and how often it looks.
-const LINGER: Duration = Duration::from_secs(2);
-const LINGER_POLL: Duration = Duration::from_millis(20);
 
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -322,7 +319,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     };
     tracing::info!("world: {exit:?}");
     if matches!(exit, Exit::Ended { .. }) {
-        shell.linger().await;
+        linger(&shell.session, &shell.keys, &[Role::Agent, Role::Record]).await;
     }
     let _ = token.undeclare().await;
     let _ = shell.session.close().await;
@@ -330,24 +327,6 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
 }
 
 impl Shell {
-    /// After the end, stays until the agents and recorders have left (they leave once they have
-    /// the end) or `LINGER` has passed: a session closed at once may take its last messages with
-    /// it (over QUIC, closing a connection drops what it has not yet delivered).
-    async fn linger(&self) {
-        let until = tokio::time::Instant::now() + LINGER;
-        while tokio::time::Instant::now() < until {
-            match present(&self.session, &self.keys).await {
-                Ok(p) if p.iter().all(|(role, _)| !matches!(role, Role::Agent | Role::Record)) => return,
-                Ok(_) => {}
-                Err(e) => {
-                    tracing::warn!("world: {e}");
-                    return;
-                }
-            }
-            tokio::time::sleep(LINGER_POLL).await;
-        }
-    }
-
     async fn lockstep(
         &mut self,
         paths: &[(u32, GeneralizedPath)],
