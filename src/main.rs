@@ -281,6 +281,7 @@ enum Command {
 enum Failure {
     Input(anyhow::Error),
     Failed(anyhow::Error),
+    Interrupted(anyhow::Error),
 }
 
 /// The mission arguments with the clock flags as the `--set`s they stand for.
@@ -302,6 +303,8 @@ fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
 fn role_failure(e: anyhow::Error) -> Failure {
     if e.downcast_ref::<tcpf_bus::clock::WrongClock>().is_some() {
         Failure::Input(e)
+    } else if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() {
+        Failure::Interrupted(e)
     } else {
         Failure::Failed(e)
     }
@@ -477,6 +480,10 @@ fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             ExitCode::from(1)
         }
+        Err(Failure::Interrupted(e)) => {
+            eprintln!("{e:#}");
+            ExitCode::from(130)
+        }
     }
 }
 
@@ -553,6 +560,16 @@ fn runtime() -> Result<tokio::runtime::Runtime, Failure> {
     tokio::runtime::Runtime::new().map_err(|e| Failure::Failed(e.into()))
 }
 
+/// Runs a role on a runtime of its own, and leaves without waiting for the runtime's blocking
+/// threads: Zenoh opens a session on one, which a signal cannot stop (it waits out its connect
+/// timeout, a minute in configs/zenoh/).
+fn role<F: std::future::Future>(work: F) -> Result<F::Output, Failure> {
+    let rt = runtime()?;
+    let out = rt.block_on(work);
+    rt.shutdown_background();
+    Ok(out)
+}
+
 fn code(ok: bool, interrupted: bool) -> ExitCode {
     match (ok, interrupted) {
         (_, true) => ExitCode::from(130),
@@ -564,9 +581,7 @@ fn code(ok: bool, interrupted: bool) -> ExitCode {
 fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
-    let exit = runtime()?
-        .block_on(planner_node::run(&mission, &plan, zenoh))
-        .map_err(Failure::Failed)?;
+    let exit = role(planner_node::run(&mission, &plan, zenoh))?.map_err(role_failure)?;
     Ok(code(
         exit == planner_node::Exit::Ended,
         exit == planner_node::Exit::Interrupted,
@@ -591,9 +606,7 @@ fn world(args: &MissionArgs, zenoh: &ZenohArgs, options: tcpf_world::Options) ->
             )));
         }
     }
-    let exit = runtime()?
-        .block_on(tcpf_world::run(&mission, zenoh, &options))
-        .map_err(Failure::Failed)?;
+    let exit = role(tcpf_world::run(&mission, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
         matches!(exit, tcpf_world::Exit::Ended { lost: 0, .. }),
         exit == tcpf_world::Exit::Interrupted,
@@ -618,9 +631,7 @@ fn agent(
         startup_timeout,
         stale_timeout,
     };
-    let exit = runtime()?
-        .block_on(tcpf_agent::run(&mission, id, zenoh, &options))
-        .map_err(role_failure)?;
+    let exit = role(tcpf_agent::run(&mission, id, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
         exit == tcpf_agent::Exit::Ended,
         exit == tcpf_agent::Exit::Interrupted,
@@ -821,16 +832,15 @@ fn record(
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
-    let summary = runtime()?
-        .block_on(tcpf_coordinator::recording::record(
-            &mission,
-            &plan,
-            &dir,
-            zenoh,
-            live,
-            startup_timeout,
-        ))
-        .map_err(role_failure)?;
+    let summary = role(tcpf_coordinator::recording::record(
+        &mission,
+        &plan,
+        &dir,
+        zenoh,
+        live,
+        startup_timeout,
+    ))?
+    .map_err(role_failure)?;
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());
     let realtime = mission.mission.clock == mission::ClockKind::Realtime;

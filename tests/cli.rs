@@ -455,3 +455,50 @@ fn bench_prints_every_figure_beside_its_baseline() {
         "{sockets:?}"
     );
 }
+
+/// A client of a router that is not up waits for it (a minute in configs/zenoh/); each role
+/// stops at Ctrl-C instead, exit 130, and says so.
+#[test]
+fn roles_waiting_for_their_router_stop_at_ctrl_c() {
+    let mission = paper("b-current");
+    let client = format!("{}/configs/zenoh/shore.json5", env!("CARGO_MANIFEST_DIR"));
+    let endpoint = free_endpoint();
+    let out = scratch("waiting-sigint");
+    let out = out.to_str().unwrap();
+    let roles: [&[&str]; 4] = [
+        &["planner", &mission],
+        &["world", &mission],
+        &["agent", &mission, "--id", "1"],
+        &["record", &mission, "--out", out],
+    ];
+    let mut waiting: Vec<Reaper> = roles
+        .iter()
+        .map(|args| {
+            Reaper(
+                std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+                    .args(*args)
+                    .args(["-c", &client, "-e", &endpoint])
+                    .stdout(std::process::Stdio::null())
+                    .stderr(std::process::Stdio::piped())
+                    .spawn()
+                    .unwrap(),
+            )
+        })
+        .collect();
+    std::thread::sleep(Duration::from_secs(2));
+    for (role, child) in roles.iter().zip(&mut waiting) {
+        assert!(
+            child.0.try_wait().unwrap().is_none(),
+            "{} waits for its router",
+            role[0]
+        );
+        kill("-INT", child.0.id());
+        let (code, stderr) = exited(&mut child.0, Duration::from_secs(10), "a waiting role ignored Ctrl-C");
+        assert_eq!(code, Some(130), "{}: {stderr}", role[0]);
+        assert!(
+            stderr.contains("interrupted while the Zenoh session was opening"),
+            "{}: {stderr}",
+            role[0]
+        );
+    }
+}

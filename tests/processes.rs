@@ -237,7 +237,7 @@ fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicl
     while std::fs::read_to_string(dir.join("telemetry.csv")).map_or(0, |t| t.lines().count()) < 3 * (lost_tick + 3000) {
         let world = std::fs::read_to_string(dir.join("logs/world.log")).unwrap();
         assert!(
-            !world.contains("world: Ended"),
+            !world.contains("world: ended"),
             "the world ended before the recorder wrote past the loss"
         );
         assert!(Instant::now() < deadline, "the recording stalls after the loss");

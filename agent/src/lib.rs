@@ -53,6 +53,17 @@ pub enum Exit {
     Interrupted,
 }
 
+impl std::fmt::Display for Exit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Exit::Ended => "ended",
+            Exit::Orphaned => "stopped: the world or the planner is gone",
+            Exit::Lost => "stopped: the world gave up on this vehicle",
+            Exit::Interrupted => "interrupted",
+        })
+    }
+}
+
 /// What both clocks' loops work with.
 struct Shell {
     id: u32,
@@ -199,7 +210,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let realtime = mission.mission.clock == ClockKind::Realtime;
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open().await?;
+    let session = zenoh.open_unless(&mut shutdown).await?;
     let rejected = Rejected::default();
     let (presence_subscriber, mut presence) = presence(&session, &keys).await?;
     let ids = [id];
@@ -499,7 +510,7 @@ impl Shell {
             let fed = feed.lock();
             (fed.node.agent().gamma(), fed.node.timing().clone())
         };
-        tracing::info!("agent {id}: {exit:?} at γ = {gamma:.3}");
+        tracing::info!("agent {id}: {exit} at γ = {gamma:.3}");
         report(
             &self.session,
             &self.keys,
@@ -573,7 +584,7 @@ impl Shell {
         };
         let timing = node.timing();
         tracing::info!(
-            "agent {id}: {exit:?} at γ = {:.3}; period lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped, {} stale states",
+            "agent {id}: {exit} at γ = {:.3}; period lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped, {} stale states",
             node.agent().gamma(),
             timing.lateness_p50_ms,
             timing.lateness_p99_ms,

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 use anyhow::{anyhow, Context, Result};
 use zenoh::{Config, Session};
 
+use crate::signals::{Interrupted, Shutdown};
+
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct ZenohArgs {
     /// Zenoh configuration file (JSON5); the other options apply on top of it.
@@ -62,12 +64,26 @@ impl ZenohArgs {
         Ok(config)
     }
 
+    /// `open`, unless a signal comes first: a client waits up to its connect timeout (a minute in
+    /// configs/zenoh/) for a router that is not up, and Ctrl-C must not wait with it.
+    /// Zenoh's open blocks the thread that polls it while it waits, so it opens on a task of
+    /// its own.
+    pub async fn open_unless(&self, shutdown: &mut Shutdown) -> Result<Session> {
+        let args = self.clone();
+        let opening = tokio::spawn(async move { args.open().await });
+        match shutdown.unless(opening).await {
+            Some(opened) => opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
+            None => Err(Interrupted("while the Zenoh session was opening").into()),
+        }
+    }
+
     pub async fn open(&self) -> Result<Session> {
         let config = self.config()?;
         zenoh::open(config).await.map_err(|e| anyhow!("{e}")).context(
             "cannot open the Zenoh session: nothing answered at the endpoints to connect to, or \
-                 a TLS handshake was refused (is the router up and reachable, and does it accept this \
-                 host's certificate?)",
+                 a TLS handshake failed (is the router up and reachable? does it accept this host's \
+                 certificate? is the router's certificate valid for the address connected to, and \
+                 signed by the CA this host trusts? RUST_LOG=zenoh=debug says which)",
         )
     }
 }

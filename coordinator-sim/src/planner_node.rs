@@ -22,11 +22,21 @@ pub enum Exit {
     Interrupted,
 }
 
+impl std::fmt::Display for Exit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Exit::Ended => "ended",
+            Exit::WorldGone => "stopped: the world left without announcing the end",
+            Exit::Interrupted => "interrupted",
+        })
+    }
+}
+
 /// Serves `plan` until the world goes away (having announced the end, or not), or a signal.
 pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open().await?;
+    let session = zenoh.open_unless(&mut shutdown).await?;
     let rejected = Rejected::default();
     let paths: Vec<(KeyExpr<'static>, Vec<u8>)> = plan
         .vehicles
@@ -95,7 +105,7 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
             _ = shutdown.recv() => break Exit::Interrupted,
         }
     };
-    tracing::info!("planner: {exit:?}");
+    tracing::info!("planner: {exit}");
     report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default(), None).await?;
     if matches!(exit, Exit::Ended) {
         linger(&session, &keys, &[Role::Record]).await;

@@ -417,7 +417,7 @@ pub async fn record(
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
-    let session = zenoh.open().await?;
+    let session = zenoh.open_unless(&mut shutdown).await?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
     let keys = Keys::new(&mission.mission.name);
     let (_presence, mut presence) = presence(&session, &keys).await?;

@@ -78,9 +78,18 @@ pub fn summary(summary: &Summary) -> String {
         r.min_clearance_to_last_arrival
     );
     for l in &r.links {
+        // What the network lost: published, less what arrived (sent on to the link model, or
+        // overtaken before it could be). A sender started again reports once per life, and a
+        // killed life not at all: then more may have arrived than its reports say it published.
+        let arrived = l.sent + l.overtaken.unwrap_or(0);
+        let lost = match (l.published, l.overtaken) {
+            (Some(p), Some(_)) if p >= arrived => format!(", never arrived {}", p - arrived),
+            (Some(_), _) => ", never arrived ? (a life of the sender never reported)".into(),
+            (None, _) => String::new(),
+        };
         let _ = writeln!(
             s,
-            "link {}→{}: {}sent {}, delivered {}, dropped {}{}",
+            "link {}→{}: {}sent {}, delivered {}, dropped {}{}{lost}",
             l.from,
             l.to,
             l.published.map_or(String::new(), |p| format!(
@@ -116,13 +125,16 @@ pub fn summary(summary: &Summary) -> String {
         let p = &t.timing;
         let _ = write!(
             s,
-            "timing {} {}: lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped",
-            t.role, t.id, p.lateness_p50_ms, p.lateness_p99_ms, p.lateness_max_ms, p.overruns, p.skipped
+            "timing {} {}: lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} periods, {} overruns, {} skipped",
+            t.role, t.id, p.lateness_p50_ms, p.lateness_p99_ms, p.lateness_max_ms, p.periods, p.overruns, p.skipped
         );
         if t.role == "world" {
             let _ = write!(s, ", {} late commands", p.late_commands);
             for (id, n) in &p.without_command {
-                let _ = write!(s, ", vehicle {id} without a command for {n} periods");
+                let _ = write!(s, ", vehicle {id} without a command for {n} period(s)");
+            }
+            for (id, n) in &p.rejoins {
+                let _ = write!(s, ", agent {id} came back {n} time(s)");
             }
         } else {
             let _ = write!(s, ", {} stale states", p.stale_states);
@@ -139,9 +151,16 @@ pub fn summary(summary: &Summary) -> String {
         );
     }
     if !summary.timing_kept() {
+        let by: Vec<String> = summary
+            .timing
+            .iter()
+            .filter(|t| !t.timing.kept())
+            .map(|t| format!("{} {}", t.role, t.id))
+            .collect();
         let _ = writeln!(
             s,
-            "TIMING VIOLATED: a realtime role overran, skipped periods or used late commands or stale states (see above)"
+            "TIMING VIOLATED by {}: overruns, skipped periods, late commands or stale states (see above, against each role's periods)",
+            by.join(", ")
         );
     }
     match summary.time_scale {

@@ -53,6 +53,15 @@ pub enum Exit {
     Interrupted,
 }
 
+impl std::fmt::Display for Exit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Exit::Ended { ticks, lost } => write!(f, "ended after {ticks} ticks, {lost} vehicle(s) lost"),
+            Exit::Interrupted => write!(f, "interrupted"),
+        }
+    }
+}
+
 /// What both clocks' loops work with.
 struct Shell {
     keys: Keys,
@@ -192,7 +201,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         None => ids.clone(),
     };
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open().await?;
+    let session = zenoh.open_unless(&mut shutdown).await?;
     let rejected = Rejected::default();
     let (_presence, mut presence) = presence(&session, &keys).await?;
     let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
@@ -289,11 +298,13 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             Ok(None) => return Err(anyhow!("liveliness subscription closed")),
             Err(_) => {
                 let missing: Vec<u32> = ids.iter().copied().filter(|i| !agent(i, &present)).collect();
+                let recorders = match options.recorders.saturating_sub(recorders(&present)) {
+                    0 => String::new(),
+                    n => format!(" and {n} of {} recorders", options.recorders),
+                };
                 return Err(anyhow!(
-                    "world: after {:?}, agents {missing:?} and {} of {} recorders still missing",
+                    "world: after {:?}, agents {missing:?}{recorders} still missing",
                     options.startup_timeout,
-                    options.recorders.saturating_sub(recorders(&present)),
-                    options.recorders
                 ));
             }
         }
@@ -317,7 +328,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         Inbound::Queued(commands) => shell.realtime(mission, &paths, &simulated, commands).await?,
         Inbound::Fed { stepper, mut ends } => shell.lockstep(&paths, &stepper, &mut ends, options).await?,
     };
-    tracing::info!("world: {exit:?}");
+    tracing::info!("world: {exit}");
     if matches!(exit, Exit::Ended { .. }) {
         linger(&shell.session, &shell.keys, &[Role::Agent, Role::Record]).await;
     }
