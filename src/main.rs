@@ -133,8 +133,8 @@ enum Command {
         /// More than the agents' stale timeout (3 s).
         #[arg(long, default_value = "10", value_parser = seconds, allow_hyphen_values = true)]
         command_timeout: Duration,
-        /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
-        /// own, with the run directory's `zenoh.json5` (-c).
+        /// Start the run only once N more recorders have joined (within a minute): `tcpf record` or
+        /// tools of your own, with the run directory's `zenoh.json5` (-c).
         #[arg(long, value_name = "N", default_value_t = 0)]
         recorders: usize,
     },

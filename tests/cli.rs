@@ -456,13 +456,26 @@ fn bench_prints_every_figure_beside_its_baseline() {
     );
 }
 
-/// A client of a router that is not up waits for it (a minute in configs/zenoh/); each role
-/// stops at Ctrl-C instead, exit 130, and says so.
+/// Whether process `pid` catches SIGINT yet.
+fn catches_sigint(pid: u32) -> bool {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("SigCgt:"))
+        .and_then(|mask| u64::from_str_radix(mask.trim(), 16).ok())
+        .is_some_and(|mask| mask & (1 << (2 - 1)) != 0)
+}
+
+/// A client of a router that does not answer waits for it (a minute in configs/zenoh/); each
+/// role stops at Ctrl-C instead, exit 130, and says so.
 #[test]
 fn roles_waiting_for_their_router_stop_at_ctrl_c() {
     let mission = paper("b-current");
     let client = format!("{}/configs/zenoh/shore.json5", env!("CARGO_MANIFEST_DIR"));
-    let endpoint = free_endpoint();
+    // A listener that never accepts: connections wait in its backlog, Zenoh's handshake is never
+    // answered, and the port stays ours for the test.
+    let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let endpoint = format!("tcp/{}", silent.local_addr().unwrap());
     let out = scratch("waiting-sigint");
     let out = out.to_str().unwrap();
     let roles: [&[&str]; 4] = [
@@ -485,8 +498,14 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
             )
         })
         .collect();
-    std::thread::sleep(Duration::from_secs(2));
     for (role, child) in roles.iter().zip(&mut waiting) {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while !catches_sigint(child.0.id()) {
+            assert!(Instant::now() < deadline, "{} never handled SIGINT", role[0]);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        // Past the handler's installation, into the session's opening.
+        std::thread::sleep(Duration::from_millis(500));
         assert!(
             child.0.try_wait().unwrap().is_none(),
             "{} waits for its router",

@@ -284,8 +284,9 @@ impl Outlet {
     }
 }
 
-/// Publishes one message on `key` at once, without a declared publisher, from a thread that
-/// must not await: for a rare message such as a vehicle's loss.
+/// Publishes one message on `key` at once, without a declared publisher: for a rare message such
+/// as a vehicle's loss (from a Zenoh callback, which must not await) or a process's report. Over
+/// QUIC a message may overtake the declaration of a publisher made just before it.
 pub fn say_now<T: Serialize>(session: &Session, key: String, message: &T) -> Result<()> {
     session
         .put(key.clone(), encode(message))
@@ -532,5 +533,6 @@ pub async fn report(
     };
     // Without a publisher declared for it now: over QUIC, a message can overtake the
     // declaration it refers to (they travel on different streams), and the router drops it.
+    // Its one wait, if the link is congested, is the process's last.
     say_now(session, keys.report(role, id), &report)
 }

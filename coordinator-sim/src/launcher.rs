@@ -226,7 +226,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     crate::access::announce(&dir.path, &endpoint)?;
     if recorders > 0 {
         eprintln!(
-            "waiting for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
+            "waiting up to a minute for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
             dir.path.join("mission.toml").display(),
             zenoh_file.display()
         );
@@ -296,7 +296,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                     }
                 }
                 if recording.progress.elapsed() > STALL {
-                    break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {})", STALL.as_secs(), recording.ticks()));
+                    break Outcome::Failed(match recording.ticks() {
+                        0 => format!("the run did not start within {} s (see logs/world.log: who is missing)", STALL.as_secs()),
+                        ticks => format!("no tick completed for {} s (stuck after tick {ticks})", STALL.as_secs()),
+                    });
                 }
             }
         }

@@ -8,7 +8,7 @@ use tcpf_bus::codec::encode;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::typed::{linger, presence, report, subscribe, Rejected};
+use tcpf_bus::typed::{presence, report, subscribe, Rejected};
 use tcpf_core::lockstep::Timing;
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
@@ -107,9 +107,6 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
     };
     tracing::info!("planner: {exit}");
     report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default(), None).await?;
-    if matches!(exit, Exit::Ended) {
-        linger(&session, &keys, &[Role::Record]).await;
-    }
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)

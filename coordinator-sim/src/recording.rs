@@ -16,6 +16,7 @@ use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Command, End, Loss, Lost, Report, State, TickRecord};
 use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
+use tcpf_core::watch::WorldWatch;
 use tokio::sync::mpsc::{self, Receiver};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
@@ -32,12 +33,6 @@ use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
 /// How long `tcpf record` waits, after the world's end (or after the world left without one),
 /// for a tick that does not come whole.
 const END_STALL: Duration = Duration::from_secs(5);
-/// How often `tcpf record` asks whether a world it believes present is still there: liveliness
-/// events are not ordered with the subscription's first look (Zenoh replays a token it already
-/// knew on a task of its own, which may run after the token's deletion), so a world that died as
-/// the recorder came could otherwise seem present forever. Two answers in a row without the
-/// world, not one (a slow answer may be cut short), say it has gone.
-const CONFIRM_WORLD: Duration = Duration::from_secs(5);
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
 /// fleet sends, so it may lag behind a fast lockstep fleet by many ticks (one message each).
 const INBOX: usize = 65_536;
@@ -50,6 +45,13 @@ enum Message {
     End(End),
     Loss(Loss),
     Report(Report),
+}
+
+impl Message {
+    /// Sent by the world: what says it is still there.
+    fn is_the_worlds(&self) -> bool {
+        matches!(self, Message::Tick(_) | Message::State(_) | Message::End(_))
+    }
 }
 
 /// Where in its period the realtime recorder samples: after the agents' commands of the period
@@ -102,6 +104,8 @@ pub struct Recording {
     token: Option<LivelinessToken>,
     /// The mission's vehicles.
     ids: Vec<u32>,
+    /// Messages taken from the world so far.
+    pub from_world: u64,
     /// The time scale this recorder runs at, which must be the world's (its clock is the
     /// machine's).
     time_scale: f64,
@@ -152,17 +156,22 @@ impl Recording {
             _subscribers: subscribers,
             token: None,
             ids,
+            from_world: 0,
             time_scale: mission.mission.time_scale,
             clock: Some(clock),
         })
     }
 
-    /// Declares the recorder's token: the world, which waits for it, may start.
+    /// Declares the recorder's token: the world, which waits for it, may start. Its id is
+    /// random: process ids repeat across hosts and containers, and the world counts recorders
+    /// by their tokens.
     pub async fn declare(&mut self) -> Result<()> {
+        use std::hash::{BuildHasher, Hasher};
+        let id = std::collections::hash_map::RandomState::new().build_hasher().finish() as u32;
         let token = self
             .session
             .liveliness()
-            .declare_token(self.keys.alive(Role::Record, std::process::id()))
+            .declare_token(self.keys.alive(Role::Record, id))
             .await
             .map_err(|e| anyhow!("liveliness token: {e}"))?;
         self.token = Some(token);
@@ -179,6 +188,7 @@ impl Recording {
                     let Some(m) = m else {
                         return Err(anyhow!("the recorder's subscriptions closed"));
                     };
+                    self.from_world += m.message.is_the_worlds() as u64;
                     match m.message {
                         Message::Tick(t) => {
                             if let Err(why) = recorder.on_tick(t) {
@@ -228,7 +238,11 @@ impl Recording {
                 }
                 // Messages wait for the clock, which says how far ahead of it they may be.
                 Some(m) = self.inbox.recv(), if beats.is_some() => {
-                    let horizon = beats.as_ref().map_or(0, |(fleet, _)| fleet.horizon());
+                    self.from_world += m.message.is_the_worlds() as u64;
+                    let Some((fleet, _)) = beats else {
+                        unreachable!("taken only once the clock is known")
+                    };
+                    let horizon = fleet.horizon();
                     match m.message {
                         Message::Tick(_) | Message::Loss(_) => {}
                         Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s, horizon)),
@@ -425,45 +439,59 @@ pub async fn record(
     let progress = Ticks::new(mission);
     let started = Instant::now();
     // A world that dies says no end: without this the recording would wait for it forever.
-    let mut world_left: Option<Instant> = None;
+    let mut world = WorldWatch::new(started);
+    let mut from_world = recording.from_world;
+    // Who is present, asked on a task of its own while the recording goes on.
+    let mut asking: Option<tokio::task::JoinHandle<Option<bool>>> = None;
     // Nor would one that never comes (another mission name, endpoint or credential).
-    let mut world_seen = false;
     let give_up_at = started + startup_timeout;
     let realtime = mission.mission.clock == ClockKind::Realtime;
-    let mut confirmed = started;
-    let mut doubted = false;
     let interrupted = loop {
         if recording.complete() {
             break false;
         }
         // When to give up: END_STALL without a tick after the end or after the world left; a
         // realtime recording goes on sampling without a world, so there only its absence counts.
-        let stall_at = match world_left {
+        let stall_at = match world.left() {
             Some(left) if realtime => Some(left + END_STALL),
-            _ => (recording.end.is_some() || world_left.is_some()).then(|| recording.progress + END_STALL),
+            left => (recording.end.is_some() || left.is_some()).then(|| recording.progress + END_STALL),
         };
+        let ask_at = world.ask_at().filter(|_| asking.is_none());
         tokio::select! {
             r = recording.step() => {
                 r?;
                 progress.set(recording.ticks());
+                if recording.from_world > from_world {
+                    from_world = recording.from_world;
+                    world.heard(Instant::now());
+                }
             }
             _ = shutdown.recv() => break true,
             Some(p) = presence.recv() => {
                 if p.role == Role::World {
-                    world_seen |= p.alive;
-                    world_left = (!p.alive).then(Instant::now);
+                    world.on_presence(p.alive, Instant::now());
                 }
             }
-            _ = tokio::time::sleep_until((confirmed + CONFIRM_WORLD).into()), if world_seen && world_left.is_none() => {
-                let there = present(&session, &keys).await?.iter().any(|(role, _)| *role == Role::World);
-                if !there && doubted {
+            _ = tokio::time::sleep_until(ask_at.unwrap_or_else(Instant::now).into()), if ask_at.is_some() => {
+                let (session, keys) = (session.clone(), keys.clone());
+                asking = Some(tokio::spawn(async move {
+                    match present(&session, &keys).await {
+                        Ok(present) => Some(present.iter().any(|(role, _)| *role == Role::World)),
+                        Err(e) => {
+                            tracing::warn!("recorder: {e}");
+                            None
+                        }
+                    }
+                }));
+            }
+            answer = async { asking.as_mut().expect("asked").await }, if asking.is_some() => {
+                asking = None;
+                world.on_answer(answer.ok().flatten(), Instant::now());
+                if world.left().is_some() {
                     tracing::warn!("recorder: the world's token is gone, though its leaving was never seen");
-                    world_left = Some(Instant::now());
                 }
-                doubted = !there;
-                confirmed = Instant::now();
             }
-            _ = tokio::time::sleep_until(give_up_at.into()), if !world_seen => {
+            _ = tokio::time::sleep_until(give_up_at.into()), if !world.seen() => {
                 return Err(anyhow!(
                     "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
                     mission.mission.name
@@ -484,6 +512,9 @@ pub async fn record(
             }
         }
     };
+    if let Some(question) = asking {
+        question.abort();
+    }
     progress.finish();
     let wall_time_s = started.elapsed().as_secs_f64();
     // The world and the agents report as they exit, just after the end: a moment for them.

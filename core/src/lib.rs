@@ -18,4 +18,5 @@ pub mod record;
 pub mod roster;
 pub mod sim;
 pub mod telemetry;
+pub mod watch;
 pub mod world;

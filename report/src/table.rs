@@ -84,7 +84,8 @@ pub fn summary(summary: &Summary) -> String {
         let arrived = l.sent + l.overtaken.unwrap_or(0);
         let lost = match (l.published, l.overtaken) {
             (Some(p), Some(_)) if p >= arrived => format!(", never arrived {}", p - arrived),
-            (Some(_), _) => ", never arrived ? (a life of the sender never reported)".into(),
+            (Some(_), Some(_)) => ", never arrived ? (a life of the sender never reported)".into(),
+            (Some(_), None) => ", never arrived ? (the receiver never reported)".into(),
             (None, _) => String::new(),
         };
         let _ = writeln!(

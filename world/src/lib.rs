@@ -297,14 +297,19 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             }
             Ok(None) => return Err(anyhow!("liveliness subscription closed")),
             Err(_) => {
-                let missing: Vec<u32> = ids.iter().copied().filter(|i| !agent(i, &present)).collect();
-                let recorders = match options.recorders.saturating_sub(recorders(&present)) {
-                    0 => String::new(),
-                    n => format!(" and {n} of {} recorders", options.recorders),
-                };
+                let agents: Vec<u32> = ids.iter().copied().filter(|i| !agent(i, &present)).collect();
+                let mut missing = Vec::new();
+                if !agents.is_empty() {
+                    missing.push(format!("agents {agents:?}"));
+                }
+                match options.recorders.saturating_sub(recorders(&present)) {
+                    0 => {}
+                    n => missing.push(format!("{n} of {} recorders", options.recorders)),
+                }
                 return Err(anyhow!(
-                    "world: after {:?}, agents {missing:?}{recorders} still missing",
+                    "world: after {:?}, {} still missing",
                     options.startup_timeout,
+                    missing.join(" and ")
                 ));
             }
         }
