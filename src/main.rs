@@ -769,9 +769,21 @@ fn sweep(
             loss.iter().map(|s| s.trim().to_string()).collect(),
         ),
     };
-    if values.iter().any(|v| v.is_empty()) || seeds == 0 {
+    if values.iter().any(|v| v.is_empty()) {
+        return Err(Failure::Input(anyhow!("{key}: an empty value in {}", values.join(","))));
+    }
+    if key == "mission.seed" {
         return Err(Failure::Input(anyhow!(
-            "a sweep needs non-empty values and --seeds ≥ 1"
+            "mission.seed: the sweep gives each run its seed (--seeds N: 1 to N); sweep another key"
+        )));
+    }
+    if let Some(set) = args
+        .set
+        .iter()
+        .find(|s| s.split_once('=').is_some_and(|(k, _)| k.trim() == key))
+    {
+        return Err(Failure::Input(anyhow!(
+            "--set {set}: {key} is the key the sweep sets, value by value"
         )));
     }
     if let Some(v) = values
@@ -802,16 +814,19 @@ fn sweep(
         }
         grid.values.push((value.clone(), mission));
     }
+    // Every value planned before anything is written: an infeasible one leaves no directory.
+    let plans = grid.plans().map_err(Failure::Failed)?;
     let out = out.map_or_else(|| tcpf_report::sweep::default_out(&base), Path::to_path_buf);
-    let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values).map_err(Failure::Failed)?;
+    let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values)
+        .map_err(|e| Failure::Failed(anyhow!("{}: cannot write the sweep there: {e}", out.display())))?;
     let interrupted = if processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
-            .block_on(sweep::run_processes(&grid, &out, &exe, &mut rows))
+            .block_on(sweep::run_processes(&grid, &plans, &out, &exe, &mut rows))
             .map_err(Failure::Failed)?
     } else {
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        sweep::run_in_process(&grid, threads, &mut rows).map_err(Failure::Failed)?
+        sweep::run_in_process(&grid, &plans, threads, &mut rows).map_err(Failure::Failed)?
     };
     let mode = if processes { "processes" } else { "in-process" };
     let summary = rows.summary(&base.mission.name, &key, seeds, mode);

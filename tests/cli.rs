@@ -292,6 +292,27 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["run", &mission, "--in-process", "--recorders", "1"],
             "no bus for other recorders to join",
         ),
+        (
+            vec!["sweep", &mission, "--param", "mission.seed=1,2", "--seeds", "1"],
+            "the sweep gives each run its seed",
+        ),
+        (
+            vec![
+                "sweep",
+                &mission,
+                "--loss",
+                "0",
+                "--set",
+                "comms.loss=0.5",
+                "--seeds",
+                "1",
+            ],
+            "comms.loss is the key the sweep sets",
+        ),
+        (
+            vec!["sweep", &mission, "--loss", "0,,0.5", "--seeds", "1"],
+            "comms.loss: an empty value in 0,,0.5",
+        ),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);

@@ -55,7 +55,7 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert_eq!(
         csv.lines().next().unwrap(),
-        "loss,seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s"
+        "loss,seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s,last_arrival"
     );
     assert_eq!(rows.len(), 60);
     // The json's mean is the csv's mean.
@@ -310,4 +310,94 @@ fn contradictory_fault_settings_are_bad_input() {
     let o = tcpf(&["plan", &config("outage"), "--set", "comms.delay=-1"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("comms.delay"));
+}
+
+/// What a sweep cannot average it says: runs in which a vehicle never arrived are counted, and
+/// their spread and last arrival left out, in the table and sweep.json; a swept key that changes
+/// nothing and values that cannot be plotted are named. An infeasible value fails the sweep
+/// before anything is written.
+#[test]
+fn a_sweep_says_what_it_could_not_average() {
+    let dir = scratch("sweep-says");
+    let short = dir.join("short");
+    let o = ok(tcpf(&[
+        "sweep",
+        &config("paper/d-lossy"),
+        "--loss",
+        "0,0.9",
+        "--set",
+        "mission.max_duration=57.5",
+        "--seeds",
+        "10",
+        "--out",
+        short.to_str().unwrap(),
+    ]));
+    let printed = String::from_utf8_lossy(&o.stdout);
+    let summary = json(&short.join("sweep.json"));
+    let (all, lossy) = (&summary["values"][0], &summary["values"][1]);
+    assert_eq!((all["runs"].as_u64(), all["arrived"].as_u64()), (Some(10), Some(10)));
+    let arrived = lossy["arrived"].as_u64().unwrap();
+    assert!(
+        (1..10).contains(&arrived),
+        "at loss 0.9 some runs do not arrive in 57.5 s: {arrived}"
+    );
+    assert!(
+        printed.contains(&format!(
+            "comms.loss = 0.9: in {} of 10 runs a vehicle never arrived",
+            10 - arrived
+        )),
+        "{printed}"
+    );
+    let last = all["last_arrival"]["mean"].as_f64().unwrap();
+    assert!(
+        (last - 55.467).abs() < 0.01,
+        "without loss, case (d)'s fleet arrives as case (b)'s, at 55.467 s: {last}"
+    );
+
+    let idle = dir.join("idle");
+    let o = ok(tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--param",
+        "comms.threshold=0,0.5",
+        "--seeds",
+        "1",
+        "--out",
+        idle.to_str().unwrap(),
+    ]));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("every value of comms.threshold gave the same results"),
+        "periodic sending has no threshold"
+    );
+    let words = dir.join("words");
+    let o = ok(tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--param",
+        "comms.trigger=periodic,event",
+        "--seeds",
+        "1",
+        "--out",
+        words.to_str().unwrap(),
+    ]));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("no plots: the values of comms.trigger are not numbers"));
+    assert!(!words.join("sweep-error.svg").exists());
+
+    let infeasible = dir.join("infeasible");
+    let o = tcpf(&[
+        "sweep",
+        &config("paper/a-nominal"),
+        "--param",
+        "planner.clearance=1,4",
+        "--seeds",
+        "1",
+        "--out",
+        infeasible.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("value 4: infeasible plan"));
+    assert!(
+        !infeasible.exists(),
+        "nothing written, so the same --out can be used again"
+    );
 }

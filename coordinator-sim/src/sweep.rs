@@ -43,7 +43,7 @@ impl Grid {
     }
 
     /// One plan per value: the plan does not depend on the seed.
-    fn plans(&self) -> Result<Vec<Plan>> {
+    pub fn plans(&self) -> Result<Vec<Plan>> {
         self.values
             .iter()
             .map(|(value, mission)| {
@@ -72,8 +72,7 @@ fn interrupt_flag() -> Result<Arc<AtomicBool>> {
 
 /// Every run in-process, spread over `threads` threads, each row pushed into `sweep` in grid
 /// order. Returns whether a signal cut the sweep short (the rows finished are kept).
-pub fn run_in_process(grid: &Grid, threads: usize, sweep: &mut Sweep) -> Result<bool> {
-    let plans = grid.plans()?;
+pub fn run_in_process(grid: &Grid, plans: &[Plan], threads: usize, sweep: &mut Sweep) -> Result<bool> {
     let runs = grid.runs()?;
     let stop = interrupt_flag()?;
     let next = AtomicU64::new(0);
@@ -82,7 +81,7 @@ pub fn run_in_process(grid: &Grid, threads: usize, sweep: &mut Sweep) -> Result<
     let written = std::thread::scope(|s| -> Result<()> {
         for _ in 0..threads.max(1) {
             let tx = tx.clone();
-            let (next, stop, plans) = (&next, &stop, &plans);
+            let (next, stop) = (&next, &stop);
             s.spawn(move || loop {
                 if stop.load(Ordering::Relaxed) {
                     break;
@@ -120,8 +119,7 @@ pub fn run_in_process(grid: &Grid, threads: usize, sweep: &mut Sweep) -> Result<
 
 /// Every run as a real fleet of processes, one after the other, each with its run directory.
 /// Returns whether a signal cut the sweep short.
-pub async fn run_processes(grid: &Grid, out: &Path, exe: &Path, sweep: &mut Sweep) -> Result<bool> {
-    let plans = grid.plans()?;
+pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, sweep: &mut Sweep) -> Result<bool> {
     let runs = grid.runs()?;
     let bar = progress(runs);
     for k in 0..runs {

@@ -24,6 +24,9 @@ pub struct Row {
     pub delivered_fraction: Option<f64>,
     /// γ broadcasts per vehicle per second of the run.
     pub messages_per_vehicle_s: f64,
+    /// The last vehicle's arrival time; `None` if a vehicle never arrived. Where a delay costs,
+    /// it costs here (a fleet that waits arrives late, together).
+    pub last_arrival: Option<f64>,
 }
 
 impl Row {
@@ -36,12 +39,15 @@ impl Row {
             seed,
             max_coordination_error: r.max_coordination_error,
             min_clearance: r.min_clearance,
-            arrival_spread: arrivals.map(|a| {
+            arrival_spread: arrivals.as_ref().map(|a| {
                 a.iter().copied().fold(f64::NEG_INFINITY, f64::max) - a.iter().copied().fold(f64::INFINITY, f64::min)
             }),
             delivered_fraction: (sent > 0).then(|| delivered as f64 / sent as f64),
             messages_per_vehicle_s: r.vehicles.iter().map(|v| v.gamma_sent).sum::<u64>() as f64
                 / (r.vehicles.len() as f64 * r.ticks as f64 * dt),
+            last_arrival: arrivals
+                .as_ref()
+                .map(|a| a.iter().copied().fold(f64::NEG_INFINITY, f64::max)),
         }
     }
 }
@@ -96,6 +102,8 @@ impl Running {
 #[derive(Debug, Clone, Default)]
 struct PerValue {
     runs: usize,
+    arrived: usize,
+    last_arrival: Running,
     max_coordination_error: Running,
     min_clearance: Running,
     arrival_spread: Running,
@@ -107,6 +115,10 @@ struct PerValue {
 pub struct ValueSummary {
     pub value: String,
     pub runs: usize,
+    /// Runs in which every vehicle arrived: the statistics of `arrival_spread` and
+    /// `last_arrival` are over these only.
+    pub arrived: usize,
+    pub last_arrival: Option<Stats>,
     pub max_coordination_error: Option<Stats>,
     pub min_clearance: Option<Stats>,
     pub arrival_spread: Option<Stats>,
@@ -143,7 +155,7 @@ impl Sweep {
         let mut csv = std::io::BufWriter::new(std::fs::File::create(out.join("sweep.csv"))?);
         writeln!(
             csv,
-            "{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s"
+            "{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s,last_arrival"
         )?;
         csv.flush()?;
         Ok(Sweep {
@@ -156,14 +168,15 @@ impl Sweep {
     pub fn push(&mut self, r: &Row) -> Result<()> {
         writeln!(
             self.csv,
-            "{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{}",
             r.value,
             r.seed,
             r.max_coordination_error,
             r.min_clearance,
             cell(r.arrival_spread),
             cell(r.delivered_fraction),
-            r.messages_per_vehicle_s
+            r.messages_per_vehicle_s,
+            cell(r.last_arrival)
         )?;
         self.csv.flush()?;
         let v = match self.values.iter_mut().find(|(v, _)| *v == r.value) {
@@ -171,6 +184,8 @@ impl Sweep {
             None => anyhow::bail!("row for value {} which the sweep does not have", r.value),
         };
         v.runs += 1;
+        v.arrived += r.last_arrival.is_some() as usize;
+        v.last_arrival.push(r.last_arrival);
         v.max_coordination_error.push(Some(r.max_coordination_error));
         v.min_clearance.push(Some(r.min_clearance));
         v.arrival_spread.push(r.arrival_spread);
@@ -197,6 +212,8 @@ impl Sweep {
                 .map(|(value, v)| ValueSummary {
                     value: value.clone(),
                     runs: v.runs,
+                    arrived: v.arrived,
+                    last_arrival: v.last_arrival.stats(),
                     max_coordination_error: v.max_coordination_error.stats(),
                     min_clearance: v.min_clearance.stats(),
                     arrival_spread: v.arrival_spread.stats(),
@@ -218,6 +235,13 @@ pub fn write(out: &Path, summary: &SweepSummary) -> Result<String> {
     std::fs::write(out.join("sweep.json"), serde_json::to_string_pretty(summary)? + "\n")?;
 
     let numeric: Option<Vec<f64>> = summary.values.iter().map(|v| v.value.parse::<f64>().ok()).collect();
+    let mut table = table(summary);
+    if numeric.is_none() {
+        table.push_str(&format!(
+            "no plots: the values of {} are not numbers (sweep.csv and sweep.json have every figure)\n",
+            summary.parameter
+        ));
+    }
     let mut figures = String::new();
     if let Some(xs) = numeric {
         for (name, title, unit, pick) in [
@@ -262,7 +286,6 @@ pub fn write(out: &Path, summary: &SweepSummary) -> Result<String> {
             ));
         }
     }
-    let table = table(summary);
     let html = format!(
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>tcpf sweep: {m}</title><style>body{{font-family:sans-serif;max-width:860px;margin:2em auto}}</style></head><body><h1>tcpf sweep: {m} over {p}</h1><pre>{t}</pre>{figures}</body></html>\n",
         m = summary.mission,
@@ -277,22 +300,65 @@ pub fn table(summary: &SweepSummary) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10} {:>10}",
-        summary.parameter, "runs", "coordination error s", "clearance m", "spread s", "delivered", "msg/veh/s"
+        "{:>12} {:>5} {:>7} {:>22} {:>22} {:>10} {:>14} {:>10} {:>10}",
+        summary.parameter,
+        "runs",
+        "arrived",
+        "coordination error s",
+        "clearance m",
+        "spread s",
+        "last arrival s",
+        "delivered",
+        "msg/veh/s"
     );
     let f = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3} ± {:.3}", s.mean, s.std));
     let m = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3}", s.mean));
     for v in &summary.values {
         let _ = writeln!(
             s,
-            "{:>12} {:>5} {:>22} {:>22} {:>10} {:>10} {:>10}",
+            "{:>12} {:>5} {:>7} {:>22} {:>22} {:>10} {:>14} {:>10} {:>10}",
             v.value,
             v.runs,
+            v.arrived,
             f(v.max_coordination_error),
             f(v.min_clearance),
             m(v.arrival_spread),
+            m(v.last_arrival),
             m(v.delivered_fraction),
             m(v.messages_per_vehicle_s)
+        );
+    }
+    for v in summary.values.iter().filter(|v| v.arrived < v.runs) {
+        let _ = writeln!(
+            s,
+            "{} = {}: in {} of {} runs a vehicle never arrived (or was lost); spread and last arrival are over the {} that did",
+            summary.parameter,
+            v.value,
+            v.runs - v.arrived,
+            v.runs,
+            v.arrived
+        );
+    }
+    let same = |a: &ValueSummary, b: &ValueSummary| {
+        (
+            a.max_coordination_error,
+            a.min_clearance,
+            a.arrival_spread,
+            a.delivered_fraction,
+            a.messages_per_vehicle_s,
+        ) == (
+            b.max_coordination_error,
+            b.min_clearance,
+            b.arrival_spread,
+            b.delivered_fraction,
+            b.messages_per_vehicle_s,
+        )
+    };
+    if summary.values.len() > 1 && summary.values.windows(2).all(|w| same(&w[0], &w[1])) {
+        let _ = writeln!(
+            s,
+            "every value of {} gave the same results: does it act with this mission's other settings?",
+            summary.parameter
         );
     }
     if summary.interrupted {
