@@ -401,3 +401,33 @@ fn a_sweep_says_what_it_could_not_average() {
         "nothing written, so the same --out can be used again"
     );
 }
+
+/// Bursty loss on a mission file without a `[comms.burst]` table: one of its keys swept, the
+/// other set, the table is whole only with both, in every run.
+#[test]
+fn a_table_absent_from_the_file_can_be_swept_key_by_key() {
+    let dir = scratch("sweep-burst");
+    ok(tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--param",
+        "comms.burst.p_enter_bad=0.02,0.1",
+        "--set",
+        "comms.burst.p_leave_bad=0.2",
+        "--seeds",
+        "2",
+        "--out",
+        dir.to_str().unwrap(),
+    ]));
+    let summary = json(&dir.join("sweep.json"));
+    let delivered: Vec<f64> = summary["values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["delivered_fraction"]["mean"].as_f64().unwrap())
+        .collect();
+    assert!(
+        delivered[0] > delivered[1],
+        "longer bad spells lose more: {delivered:?}"
+    );
+}
