@@ -739,7 +739,8 @@ fn report(dir: &Path) -> Result<ExitCode, Failure> {
             dir.display()
         )));
     }
-    tcpf_report::report::write(dir).map_err(Failure::Failed)?;
+    // What it cannot read or make sense of is the directory's fault: bad input.
+    tcpf_report::report::write(dir).map_err(Failure::Input)?;
     println!("{}", dir.join("report.html").display());
     Ok(ExitCode::SUCCESS)
 }

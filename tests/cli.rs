@@ -542,3 +542,21 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
         );
     }
 }
+
+/// `tcpf report` of a run directory that lost a file: bad input, named.
+#[test]
+fn a_report_of_a_run_directory_without_its_telemetry_names_the_file() {
+    let out = scratch("report-missing");
+    let o = tcpf(&[
+        "run",
+        &paper("a-nominal"),
+        "--in-process",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    std::fs::remove_file(out.join("telemetry.csv")).unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("telemetry.csv"), "{}", text(&o));
+}
