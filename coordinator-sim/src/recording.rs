@@ -439,7 +439,9 @@ pub async fn record(
     let progress = Ticks::new(mission);
     let started = Instant::now();
     // A world that dies says no end: without this the recording would wait for it forever.
-    let mut world = WorldWatch::new(started);
+    let mut world = WorldWatch::new(0.0);
+    let now = || started.elapsed().as_secs_f64();
+    let instant = |s: f64| started + Duration::from_secs_f64(s);
     let mut from_world = recording.from_world;
     // Who is present, asked on a task of its own while the recording goes on.
     let mut asking: Option<tokio::task::JoinHandle<Option<bool>>> = None;
@@ -453,23 +455,23 @@ pub async fn record(
         // When to give up: END_STALL without a tick after the end or after the world left; a
         // realtime recording goes on sampling without a world, so there only its absence counts.
         let stall_at = match world.left() {
-            Some(left) if realtime => Some(left + END_STALL),
+            Some(left) if realtime => Some(instant(left) + END_STALL),
             left => (recording.end.is_some() || left.is_some()).then(|| recording.progress + END_STALL),
         };
-        let ask_at = world.ask_at().filter(|_| asking.is_none());
+        let ask_at = world.ask_at().filter(|_| asking.is_none()).map(instant);
         tokio::select! {
             r = recording.step() => {
                 r?;
                 progress.set(recording.ticks());
                 if recording.from_world > from_world {
                     from_world = recording.from_world;
-                    world.heard(Instant::now());
+                    world.heard(now());
                 }
             }
             _ = shutdown.recv() => break true,
             Some(p) = presence.recv() => {
                 if p.role == Role::World {
-                    world.on_presence(p.alive, Instant::now());
+                    world.on_presence(p.alive, now());
                 }
             }
             _ = tokio::time::sleep_until(ask_at.unwrap_or_else(Instant::now).into()), if ask_at.is_some() => {
@@ -486,7 +488,7 @@ pub async fn record(
             }
             answer = async { asking.as_mut().expect("asked").await }, if asking.is_some() => {
                 asking = None;
-                world.on_answer(answer.ok().flatten(), Instant::now());
+                world.on_answer(answer.ok().flatten(), now());
                 if world.left().is_some() {
                     tracing::warn!("recorder: the world's token is gone, though its leaving was never seen");
                 }

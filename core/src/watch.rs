@@ -4,25 +4,24 @@
 //! that died as the recorder came could seem present forever. So a world silent for a while is
 //! asked after (who is present, by tokens), and taken for gone on two answers in a row without
 //! it and nothing heard from it in between: one answer may be cut short on a busy link, and a
-//! lockstep world may be silent for seconds while it waits for a slow agent. Times are inputs.
-
-use std::time::{Duration, Instant};
+//! lockstep world may be silent for seconds while it waits for a slow agent. Times are inputs:
+//! seconds on the recorder's monotonic clock.
 
 /// How long the world may be silent before the recorder asks whether it is still there, and how
-/// often it asks again.
-pub const SILENCE: Duration = Duration::from_secs(5);
+/// often it asks again, in seconds.
+pub const SILENCE_S: f64 = 5.0;
 
 pub struct WorldWatch {
     seen: bool,
-    left: Option<Instant>,
+    left: Option<f64>,
     /// The world's last message, its token's arrival, or the last question about it.
-    quiet_since: Instant,
+    quiet_since: f64,
     /// The last answer was without the world, and nothing came from it since.
     doubted: bool,
 }
 
 impl WorldWatch {
-    pub fn new(now: Instant) -> WorldWatch {
+    pub fn new(now: f64) -> WorldWatch {
         WorldWatch {
             seen: false,
             left: None,
@@ -32,27 +31,27 @@ impl WorldWatch {
     }
 
     /// The world's token came (`alive`) or went.
-    pub fn on_presence(&mut self, alive: bool, now: Instant) {
+    pub fn on_presence(&mut self, alive: bool, now: f64) {
         self.seen |= alive;
         self.left = (!alive).then_some(now);
         self.heard(now);
     }
 
     /// A message from the world.
-    pub fn heard(&mut self, now: Instant) {
+    pub fn heard(&mut self, now: f64) {
         self.quiet_since = now;
         self.doubted = false;
     }
 
     /// When to ask whether the world is there, if at all: it is believed present and has been
     /// silent for `SILENCE`.
-    pub fn ask_at(&self) -> Option<Instant> {
-        (self.seen && self.left.is_none()).then(|| self.quiet_since + SILENCE)
+    pub fn ask_at(&self) -> Option<f64> {
+        (self.seen && self.left.is_none()).then_some(self.quiet_since + SILENCE_S)
     }
 
     /// The answer to that question: whether the world's token is among those present, or `None`
     /// when the question failed (which says nothing).
-    pub fn on_answer(&mut self, there: Option<bool>, now: Instant) {
+    pub fn on_answer(&mut self, there: Option<bool>, now: f64) {
         match there {
             Some(true) => self.heard(now),
             Some(false) if self.doubted => self.left = Some(now),
@@ -69,7 +68,7 @@ impl WorldWatch {
     }
 
     /// When the world was found gone, if it was.
-    pub fn left(&self) -> Option<Instant> {
+    pub fn left(&self) -> Option<f64> {
         self.left
     }
 }
@@ -80,9 +79,8 @@ mod tests {
 
     #[test]
     fn a_silent_world_is_gone_after_two_answers_without_it() {
-        let t0 = Instant::now();
-        let at = |s: u64| t0 + Duration::from_secs(s);
-        let mut watch = WorldWatch::new(t0);
+        let at = |s: u64| s as f64;
+        let mut watch = WorldWatch::new(0.0);
         assert_eq!(watch.ask_at(), None, "nothing to ask before the world came");
         watch.on_presence(true, at(1));
         assert_eq!(watch.ask_at(), Some(at(6)));
@@ -100,10 +98,9 @@ mod tests {
 
     #[test]
     fn what_comes_between_two_answers_without_the_world_keeps_it() {
-        let t0 = Instant::now();
-        let at = |s: u64| t0 + Duration::from_secs(s);
-        let mut watch = WorldWatch::new(t0);
-        watch.on_presence(true, t0);
+        let at = |s: u64| s as f64;
+        let mut watch = WorldWatch::new(0.0);
+        watch.on_presence(true, 0.0);
         watch.on_answer(Some(false), at(5));
         watch.heard(at(7));
         watch.on_answer(Some(false), at(12));
