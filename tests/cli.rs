@@ -560,3 +560,24 @@ fn a_report_of_a_run_directory_without_its_telemetry_names_the_file() {
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("telemetry.csv"), "{}", text(&o));
 }
+
+/// `tcpf report` of a lockstep run whose telemetry was cut short at a row's end: the report is
+/// written from what is there, and says the file is short.
+#[test]
+fn a_report_of_a_cut_telemetry_says_so() {
+    let out = scratch("report-cut");
+    let o = tcpf(&[
+        "run",
+        &paper("a-nominal"),
+        "--in-process",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
+    let half: Vec<&str> = telemetry.lines().take(telemetry.lines().count() / 2).collect();
+    std::fs::write(out.join("telemetry.csv"), half.join("\n") + "\n").unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("the file was cut short"), "{}", text(&o));
+}

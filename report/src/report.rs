@@ -140,6 +140,18 @@ pub fn write(dir: &Path) -> Result<()> {
     let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| anyhow!("{e}"))?;
     let summary: Value = serde_json::from_str(&read("summary.json")?).context("summary.json")?;
     let tracks = read_telemetry(&dir.join("telemetry.csv"))?;
+    // A lockstep recording has a row per vehicle and tick (a realtime one, a row per period the
+    // recorder sampled): fewer, and the file was cut short.
+    let ticks = summary["ticks"].as_u64().unwrap_or(0);
+    if summary["clock"] == "lockstep" {
+        if let Some((id, track)) = tracks.iter().find(|(_, t)| (t.t.len() as u64) < ticks) {
+            tracing::warn!(
+                "{}: vehicle {id} has {} rows of the {ticks} ticks summary.json counts: the file was cut short, and the report shows what is there",
+                dir.join("telemetry.csv").display(),
+                track.t.len()
+            );
+        }
+    }
     let messages = read_messages(&dir.join("messages.csv"))?;
     let html = page(&mission, &summary, &tracks, &messages);
     std::fs::write(dir.join("report.html"), html)
