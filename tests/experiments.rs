@@ -431,3 +431,22 @@ fn a_table_absent_from_the_file_can_be_swept_key_by_key() {
         "longer bad spells lose more: {delivered:?}"
     );
 }
+
+/// One value is one point, and a line through one point draws nothing: it is marked.
+#[test]
+fn a_sweep_of_one_value_plots_its_point() {
+    let dir = scratch("sweep-one");
+    ok(tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--loss",
+        "0.5",
+        "--seeds",
+        "1",
+        "--out",
+        dir.to_str().unwrap(),
+    ]));
+    let svg = std::fs::read_to_string(dir.join("sweep-error.svg")).unwrap();
+    assert!(svg.contains("<circle"), "the mean at loss 0.5 is marked");
+    assert!(svg.contains("mean over 1 seed\n"), "one seed, singular");
+}

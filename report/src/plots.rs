@@ -29,6 +29,8 @@ pub struct Chart<'a> {
     pub markers: Vec<(f64, f64, String)>,
     /// Named sets of points drawn as small dots, one colour each.
     pub dots: Vec<Series>,
+    /// Start the y axis at zero (counts and rates, whose small wobbles are not a trend).
+    pub y_from_zero: bool,
 }
 
 impl<'a> Chart<'a> {
@@ -44,6 +46,7 @@ impl<'a> Chart<'a> {
             labels: Vec::new(),
             markers: Vec::new(),
             dots: Vec::new(),
+            y_from_zero: false,
         }
     }
 
@@ -58,6 +61,7 @@ impl<'a> Chart<'a> {
             .series
             .iter()
             .flat_map(|s| s.points.iter().map(|p| p.1))
+            .chain(self.y_from_zero.then_some(0.0))
             .chain(self.levels.iter().map(|l| l.0))
             .chain(self.bands.iter().flat_map(|b| b.1.iter().flat_map(|p| [p.1, p.2])))
             .chain(self.markers.iter().map(|m| m.1))
@@ -143,6 +147,10 @@ impl<'a> Chart<'a> {
                 .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(2)))?
                 .label(s.name.clone())
                 .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], color.stroke_width(2)));
+            // A line through one point is drawn as nothing.
+            if let [point] = s.points.as_slice() {
+                chart.draw_series(std::iter::once(Circle::new(*point, 4, color.filled())))?;
+            }
         }
         for (k, s) in self.dots.iter().enumerate() {
             let color = Palette99::pick(k).to_rgba();

@@ -270,12 +270,17 @@ pub fn write(out: &Path, summary: &SweepSummary) -> Result<String> {
                 .filter_map(|(x, v)| pick(v).map(|s| (*x, s)))
                 .collect();
             let mut chart = Chart::new(title, &summary.parameter, unit);
+            chart.y_from_zero = name == "sweep-messages.svg";
             chart.bands.push((
                 "min–max".into(),
                 points.iter().map(|(x, s)| (*x, s.min, s.max)).collect(),
             ));
             chart.series.push(Series {
-                name: format!("mean over {} seeds", summary.seeds),
+                name: format!(
+                    "mean over {} seed{}",
+                    summary.seeds,
+                    if summary.seeds == 1 { "" } else { "s" }
+                ),
                 points: points.iter().map(|(x, s)| (*x, s.mean)).collect(),
             });
             let svg = chart.svg(800, 400);
