@@ -543,10 +543,9 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
     }
 }
 
-/// `tcpf report` of a run directory that lost a file: bad input, named.
-#[test]
-fn a_report_of_a_run_directory_without_its_telemetry_names_the_file() {
-    let out = scratch("report-missing");
+/// Case (a) run in-process into a scratch directory `name`, for `tcpf report` to read again.
+fn a_run_to_report(name: &str) -> std::path::PathBuf {
+    let out = scratch(name);
     let o = tcpf(&[
         "run",
         &paper("a-nominal"),
@@ -555,6 +554,13 @@ fn a_report_of_a_run_directory_without_its_telemetry_names_the_file() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
+    out
+}
+
+/// `tcpf report` of a run directory that lost a file: bad input, named.
+#[test]
+fn a_report_of_a_run_directory_without_its_telemetry_names_the_file() {
+    let out = a_run_to_report("report-missing");
     std::fs::remove_file(out.join("telemetry.csv")).unwrap();
     let o = tcpf(&["report", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
@@ -565,15 +571,7 @@ fn a_report_of_a_run_directory_without_its_telemetry_names_the_file() {
 /// written from what is there, and says the file is short.
 #[test]
 fn a_report_of_a_cut_telemetry_says_so() {
-    let out = scratch("report-cut");
-    let o = tcpf(&[
-        "run",
-        &paper("a-nominal"),
-        "--in-process",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    let out = a_run_to_report("report-cut");
     let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
     let half: Vec<&str> = telemetry.lines().take(telemetry.lines().count() / 2).collect();
     std::fs::write(out.join("telemetry.csv"), half.join("\n") + "\n").unwrap();
