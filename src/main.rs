@@ -817,8 +817,8 @@ fn sweep(
     // Every value planned before anything is written: an infeasible one leaves no directory.
     let plans = grid.plans().map_err(Failure::Failed)?;
     // The file alone may be incomplete (a table set key by key, the swept key among them).
-    let base = grid.values[0].1.clone();
-    let out = out.map_or_else(|| tcpf_report::sweep::default_out(&base), Path::to_path_buf);
+    let base = &grid.values[0].1;
+    let out = out.map_or_else(|| tcpf_report::sweep::default_out(base), Path::to_path_buf);
     let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values)
         .map_err(|e| Failure::Failed(anyhow!("{}: cannot write the sweep there: {e}", out.display())))?;
     let interrupted = if processes {

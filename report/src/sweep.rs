@@ -32,6 +32,11 @@ pub struct Row {
 impl Row {
     pub fn new(value: &str, seed: u64, r: &Results, dt: f64) -> Row {
         let arrivals: Option<Vec<f64>> = r.vehicles.iter().map(|v| v.arrival_time).collect();
+        // The first and the last arrival, if every vehicle arrived.
+        let span = arrivals.map(|a| {
+            let first = a.iter().copied().fold(f64::INFINITY, f64::min);
+            (first, a.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+        });
         let sent: u64 = r.links.iter().map(|l| l.sent).sum();
         let delivered: u64 = r.links.iter().map(|l| l.delivered).sum();
         Row {
@@ -39,15 +44,11 @@ impl Row {
             seed,
             max_coordination_error: r.max_coordination_error,
             min_clearance: r.min_clearance,
-            arrival_spread: arrivals.as_ref().map(|a| {
-                a.iter().copied().fold(f64::NEG_INFINITY, f64::max) - a.iter().copied().fold(f64::INFINITY, f64::min)
-            }),
+            arrival_spread: span.map(|(first, last)| last - first),
             delivered_fraction: (sent > 0).then(|| delivered as f64 / sent as f64),
             messages_per_vehicle_s: r.vehicles.iter().map(|v| v.gamma_sent).sum::<u64>() as f64
                 / (r.vehicles.len() as f64 * r.ticks as f64 * dt),
-            last_arrival: arrivals
-                .as_ref()
-                .map(|a| a.iter().copied().fold(f64::NEG_INFINITY, f64::max)),
+            last_arrival: span.map(|(_, last)| last),
         }
     }
 }
