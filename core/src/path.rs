@@ -82,7 +82,7 @@ struct ProfileOnTheWire {
 impl From<ProfileOnTheWire> for SpeedProfile {
     fn from(p: ProfileOnTheWire) -> SpeedProfile {
         SpeedProfile {
-            lambda: (p.etaf / p.eta0).ln(),
+            lambda: log_ratio(p.eta0, p.etaf),
             eta0: p.eta0,
             etaf: p.etaf,
             t_f: p.t_f,
@@ -94,9 +94,16 @@ impl From<ProfileOnTheWire> for SpeedProfile {
 /// Below this |ln(ηf/η0)| the profile is treated as constant (eqs. 17–18, first branch).
 const EQUAL_ETA: f64 = 1e-12;
 
+/// ln(ηf/η0) as ln_1p((ηf − η0)/η0): the quotient ηf/η0 rounds to within 1e-16 of 1, which is
+/// all of ln's answer when the two are close (at a difference of 1e-9, τ_f off by 6e-7); the
+/// difference is exact.
+fn log_ratio(eta0: f64, etaf: f64) -> f64 {
+    ((etaf - eta0) / eta0).ln_1p()
+}
+
 impl SpeedProfile {
     pub fn new(eta0: f64, etaf: f64, t_f: f64) -> SpeedProfile {
-        let lambda = (etaf / eta0).ln();
+        let lambda = log_ratio(eta0, etaf);
         // eq. 17
         let tau_f = if lambda.abs() < EQUAL_ETA {
             eta0 * t_f
@@ -280,7 +287,14 @@ mod tests {
 
     #[test]
     fn tau_of_t_integrates_the_speed_profile() {
-        for (eta0, etaf) in [(0.5, 0.75), (0.9, 0.2), (0.6, 0.6), (0.6, 0.6 + 1e-13)] {
+        // Near-equal: 1e-9 apart takes eq. 18's exponential, 1e-13 apart its constant branch.
+        for (eta0, etaf) in [
+            (0.5, 0.75),
+            (0.9, 0.2),
+            (0.6, 0.6),
+            (0.6, 0.6 + 1e-9),
+            (0.6, 0.6 + 1e-13),
+        ] {
             let profile = SpeedProfile::new(eta0, etaf, 45.0);
             // RK4 on dτ/dt = η(τ).
             let (mut tau, dt) = (0.0, 0.01);
