@@ -211,19 +211,24 @@ fn a_threshold_sweep_shows_messages_traded_for_coordination() {
         .skip(1)
         .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
         .collect();
-    let (error, rate) = (|r: &Vec<f64>| r[2], |r: &Vec<f64>| r[6]);
-    // δ = 0 sends at every instant (10 a second), as periodic sending does.
-    assert!((rate(&rows[0]) - 10.0).abs() < 0.01, "{}", rate(&rows[0]));
-    assert!(
-        rate(&rows[1]) < 0.1 * rate(&rows[0]),
-        "δ = 0.02 s cuts messages tenfold"
-    );
-    assert!(rate(&rows[2]) < rate(&rows[1]));
-    assert!(error(&rows[1]) < 1.05 * error(&rows[0]), "at the same error");
-    assert!(
-        error(&rows[2]) > 1.25 * error(&rows[0]),
-        "a coarse threshold costs coordination"
-    );
+    let (error, rate, last) = (|r: &Vec<f64>| r[2], |r: &Vec<f64>| r[6], |r: &Vec<f64>| r[7]);
+    // docs/LINKS.md, to the places it prints: δ = 0 sends at every instant (10 a second), as
+    // periodic sending does; 0.02 s cuts that twentyfold at the same error; 0.5 s costs
+    // coordination, and moves the arrival.
+    let printed = |x: f64, figure: f64| (x - figure).abs() <= 0.005 + 1e-9;
+    for (row, (r, e, a)) in rows
+        .iter()
+        .zip([(10.0, 0.36, 55.47), (0.54, 0.36, 55.44), (0.21, 0.56, 52.68)])
+    {
+        assert!(
+            printed(rate(row), r) && printed(error(row), e) && printed(last(row), a),
+            "threshold {}: {} broadcasts per vehicle and second, error {} s, last arrival {} s",
+            row[0],
+            rate(row),
+            error(row),
+            last(row)
+        );
+    }
     let plot = std::fs::read_to_string(dir.join("sweep-messages.svg")).unwrap();
     assert!(plot.contains("broadcasts per vehicle per second"));
 }

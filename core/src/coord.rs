@@ -66,7 +66,16 @@ mod tests {
     fn ahead_slows_down_behind_speeds_up_saturated() {
         assert!((speed(1.0, 0.0, 0.5, Some(0.4)) - 0.8).abs() < 1e-15);
         assert!((speed(1.0, 0.0, 0.5, Some(-7.0)) - 1.5).abs() < 1e-15);
-        assert!(speed(1.0, std::f64::consts::FRAC_PI_2, 0.5, None).is_finite());
+    }
+
+    #[test]
+    fn the_speed_is_floored_at_a_right_angle() {
+        // D13: at ψ_e = π/2, cos ψ_e is 6e-17 in floating point; the floor 10⁻³ makes v_d·1000.
+        assert_eq!(speed(1.0, std::f64::consts::FRAC_PI_2, 0.5, None), 1000.0);
+        assert_eq!(
+            speed(0.5, -std::f64::consts::FRAC_PI_2, 0.5, Some(0.4)),
+            0.5 / 1e-3 * 0.8
+        );
     }
 
     #[test]

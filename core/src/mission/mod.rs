@@ -485,7 +485,16 @@ goal_velocity = [0.75, 0.0]
     fn parses_with_defaults() {
         let m = parse("m.toml", PAPER, &[]).unwrap();
         assert_eq!(m.mission.control_period, 0.01);
-        assert_eq!(m.control, ControlConfig::default());
+        // D5's bounds and the paper's gains (Sec. IV), written out: not the `Default` impls
+        // compared with themselves.
+        let p = &m.planner;
+        assert_eq!(
+            (p.tf_min, p.tf_max, p.clearance, p.v_min, p.v_max, p.a_max, p.cost),
+            (30.0, 60.0, 1.0, 0.1, 1.0, 0.1, CostKind::Printed)
+        );
+        let c = &m.control;
+        assert_eq!((c.k1, c.k2, c.k3, c.d1, c.kc), (5.0, 1.0, 0.34, 1.0, 0.5));
+        assert!(c.coordination && c.delay_compensation);
         assert_eq!(m.comms.period, 0.1);
         assert_eq!(m.comm_every(), 10);
         assert_eq!(m.vehicles.len(), 2);
