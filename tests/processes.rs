@@ -364,6 +364,44 @@ fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     toml::from_str::<toml::Table>(&std::fs::read_to_string(dir.join("mission.toml")).unwrap()).unwrap();
 }
 
+/// The process group of `pid`, from /proc/PID/stat (the fifth field; the second, the command,
+/// is in parentheses).
+fn process_group(pid: u32) -> u32 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    let after = &stat[stat.rfind(')').unwrap() + 2..];
+    after.split(' ').nth(2).unwrap().parse().unwrap()
+}
+
+#[test]
+fn a_terminals_ctrl_c_to_the_whole_job_is_an_interrupted_run() {
+    // Half of such runs ended as completed, not arrived (exit 1) while the children were in the
+    // launcher's group: the world, stopped by the same signal, sent its end first.
+    for attempt in 0..4 {
+        let dir = scratch(&format!("job-sigint-{attempt}"));
+        let mut launch = Launch::start_as_a_job(&config("long3"), &dir, &[]);
+        launch.wait_for("logs/world.log", "starting");
+        std::thread::sleep(Duration::from_millis(200 + 150 * attempt));
+        let children = descendants(launch.child.id());
+        // The terminal's signal reaches the launcher alone, which tells every child.
+        let job = process_group(launch.child.id());
+        assert!(
+            children.iter().all(|&pid| process_group(pid) != job),
+            "a child is in the job's group"
+        );
+        let group = format!("-{}", launch.child.id());
+        Command::new("kill").args(["-INT", "--", &group]).status().unwrap();
+        let status = launch.wait(Duration::from_secs(10));
+        assert_eq!(status.code(), Some(130), "attempt {attempt}");
+        assert!(
+            children.iter().all(|&pid| !alive(pid)),
+            "attempt {attempt}: a child survived"
+        );
+        let s = launch.summary();
+        assert_eq!(s["interrupted"], true, "attempt {attempt}");
+        assert_eq!(s["completed"], false, "attempt {attempt}");
+    }
+}
+
 /// Children started by a test, killed when it ends whatever happens.
 struct Fleet(Vec<Child>);
 

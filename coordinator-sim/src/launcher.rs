@@ -125,6 +125,11 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
     if let Some(id) = id {
         command.args(["--id", &id.to_string()]);
     }
+    // A terminal's Ctrl-C goes to its foreground process group: with the children in it, a world
+    // stopped by the same keystroke could publish its end before the launcher heard the signal,
+    // and the run read as completed, not arrived: exit 1, "interrupted": false. In a group of
+    // their own they hear it from the launcher, which tells each to stop.
+    command.process_group(0);
     let launcher = std::process::id();
     // SAFETY: between fork and exec the closure makes only async-signal-safe calls (prctl,
     // getppid, _exit) and allocates nothing.
@@ -308,7 +313,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     progress.finish();
 
     // Let the children report and exit by themselves: at the end they do; after an interrupt
-    // they are told to, as a terminal's Ctrl-C would (a signal to the launcher alone does not).
+    // they are told to (the terminal's Ctrl-C does not reach their process groups).
     let grace = match outcome {
         Outcome::Completed => Some(GRACE),
         Outcome::Interrupted => {

@@ -108,7 +108,20 @@ pub struct Launch {
 
 impl Launch {
     pub fn start(mission: &str, out: &Path, extra: &[&str]) -> Launch {
-        let child = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        Launch::spawn(Command::new(env!("CARGO_BIN_EXE_tcpf")), mission, out, extra)
+    }
+
+    /// `tcpf run` in a process group of its own, as a shell starts a job: `kill(-pid)` is then
+    /// what the terminal's Ctrl-C sends, to the whole group.
+    pub fn start_as_a_job(mission: &str, out: &Path, extra: &[&str]) -> Launch {
+        use std::os::unix::process::CommandExt;
+        let mut command = Command::new(env!("CARGO_BIN_EXE_tcpf"));
+        command.process_group(0);
+        Launch::spawn(command, mission, out, extra)
+    }
+
+    fn spawn(mut command: Command, mission: &str, out: &Path, extra: &[&str]) -> Launch {
+        let child = command
             .args(["run", mission, "--out", out.to_str().unwrap()])
             .args(extra)
             .stdout(Stdio::null())
