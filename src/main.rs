@@ -299,9 +299,12 @@ fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
     }
 }
 
-/// A role's failure: a clock the fleet does not run is bad input, anything else a failed run.
+/// A role's failure: a clock the fleet does not run, or Zenoh options that cannot work, is bad
+/// input; anything else a failed run.
 fn role_failure(e: anyhow::Error) -> Failure {
-    if e.downcast_ref::<tcpf_bus::clock::WrongClock>().is_some() {
+    if e.downcast_ref::<tcpf_bus::clock::WrongClock>().is_some()
+        || e.downcast_ref::<tcpf_bus::session::BadZenohConfig>().is_some()
+    {
         Failure::Input(e)
     } else if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() {
         Failure::Interrupted(e)
@@ -418,14 +421,11 @@ fn main() -> ExitCode {
             out,
         } => sweep(&mission, &loss, param.as_deref(), seeds, processes, out.as_deref()),
         Command::Pong { zenoh, count, id } => runtime()
-            .and_then(|rt| rt.block_on(bench::pong(&zenoh, count, id)).map_err(Failure::Failed))
+            .and_then(|rt| rt.block_on(bench::pong(&zenoh, count, id)).map_err(role_failure))
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { mission, zenoh, clock } => planner(&clocked(&mission, &clock), &zenoh),
         Command::Router { zenoh } => runtime()
-            .and_then(|rt| {
-                rt.block_on(tcpf_coordinator::router::run(&zenoh))
-                    .map_err(Failure::Failed)
-            })
+            .and_then(|rt| rt.block_on(tcpf_coordinator::router::run(&zenoh)).map_err(role_failure))
             .map(|_| ExitCode::SUCCESS),
         Command::Record {
             mission,

@@ -179,6 +179,8 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
     let full = dir.join("full");
     std::fs::create_dir_all(&full).unwrap();
     std::fs::write(full.join("telemetry.csv"), "another run's").unwrap();
+    let bad_config = dir.join("zenoh.json5");
+    std::fs::write(&bad_config, "{ mode: \"client\", bogus: 1 }").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["agent", &mission, "--id", "1", "--stale-timeout", "-1"],
@@ -313,13 +315,38 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["sweep", &mission, "--loss", "0,,0.5", "--seeds", "1"],
             "comms.loss: an empty value in 0,,0.5",
         ),
+        // Zenoh options that cannot work are bad input too, said without Zenoh's source paths.
+        (
+            vec!["planner", &mission, "-e", "foo"],
+            "--connect foo: an endpoint is <protocol>/<address>",
+        ),
+        (
+            vec!["agent", &mission, "--id", "1", "-l", "tcp/127.0.0.1:99999"],
+            "--listen tcp/127.0.0.1:99999: the address needs a port",
+        ),
+        (vec!["router", "-e", "tcp/127.0.0.1"], "the address needs a port"),
+        (
+            vec!["world", &mission, "--mode", "bogus"],
+            "--mode bogus: expected peer",
+        ),
+        (
+            vec!["record", &mission, "-c", bad_config.to_str().unwrap()],
+            "bad Zenoh config: line 1, column 19: unknown field `bogus`",
+        ),
+        (
+            vec!["planner", &mission, "-c", "/nonexistent/zenoh.json5"],
+            "/nonexistent/zenoh.json5: bad Zenoh config",
+        ),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);
         let out = text(&o);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {out}");
         assert!(out.contains(says), "{args:?} should say {says:?}: {out}");
-        assert!(!out.contains("panicked"), "{args:?}: {out}");
+        assert!(
+            !out.contains("panicked") && !out.contains(".cargo/registry"),
+            "{args:?}: {out}"
+        );
     }
     assert_eq!(
         std::fs::read_to_string(full.join("telemetry.csv")).unwrap(),

@@ -19,7 +19,7 @@ pub async fn run(zenoh: &ZenohArgs) -> Result<()> {
         .map_err(|e| anyhow!("zenoh listen/endpoints: {e}"))?;
     let session = zenoh::open(config)
         .await
-        .map_err(|e| anyhow!("cannot open the Zenoh router: {e}"))?;
+        .map_err(|e| anyhow!("cannot open the Zenoh router: {}", tcpf_bus::session::zenoh_words(e)))?;
     tracing::info!("router {} listening on {listening}", session.zid());
     shutdown.recv().await;
     tracing::info!("router: stopping");
