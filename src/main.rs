@@ -130,13 +130,17 @@ enum Command {
         #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
         live: Option<SocketAddr>,
         /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
-        /// More than the agents' stale timeout (3 s).
-        #[arg(long, default_value = "10", value_parser = seconds, allow_hyphen_values = true)]
-        command_timeout: Duration,
-        /// Start the run only once N more recorders have joined (within a minute): `tcpf record` or
-        /// tools of your own, with the run directory's `zenoh.json5` (-c).
+        /// More than the agents' stale timeout (3 s). [default: 10]
+        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
+        command_timeout: Option<Duration>,
+        /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
+        /// own, with the run directory's `zenoh.json5` (-c).
         #[arg(long, value_name = "N", default_value_t = 0)]
         recorders: usize,
+        /// Seconds the world waits for every agent and recorder before it gives up and says who
+        /// is missing. [default: 60]
+        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Option<Duration>,
     },
     /// Solve the trajectory generation problem and print the plan.
     Plan {
@@ -392,14 +396,17 @@ fn main() -> ExitCode {
             live,
             command_timeout,
             recorders,
+            startup_timeout,
         } => run(
             &clocked(&mission, &clock),
             out.as_deref(),
             in_process,
             seed,
+            (command_timeout, startup_timeout),
             launcher::Options {
                 live,
-                command_timeout,
+                command_timeout: command_timeout.unwrap_or(launcher::COMMAND_TIMEOUT),
+                startup_timeout: startup_timeout.unwrap_or(launcher::STARTUP),
                 restart: restart == Restart::OnFailure,
                 recorders,
             },
@@ -506,6 +513,7 @@ fn run(
     out: Option<&Path>,
     in_process: bool,
     seed: Option<u64>,
+    (command_timeout, startup_timeout): (Option<Duration>, Option<Duration>),
     options: launcher::Options,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
@@ -524,6 +532,16 @@ fn run(
         return Err(Failure::Input(anyhow!(
             "--recorders: an in-process run has no bus for other recorders to join"
         )));
+    }
+    for (flag, given) in [
+        ("--command-timeout", command_timeout),
+        ("--startup-timeout", startup_timeout),
+    ] {
+        if in_process && given.is_some() {
+            return Err(Failure::Input(anyhow!(
+                "{flag}: an in-process run has no processes to wait for"
+            )));
+        }
     }
     // The agents' default stale timeout: a neighbour waiting for a silent agent gives up on it
     // first, so that only the silent one is lost.

@@ -315,6 +315,14 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["sweep", &mission, "--loss", "0,,0.5", "--seeds", "1"],
             "comms.loss: an empty value in 0,,0.5",
         ),
+        (
+            vec!["run", &mission, "--in-process", "--command-timeout", "5"],
+            "--command-timeout: an in-process run has no processes to wait for",
+        ),
+        (
+            vec!["run", &mission, "--in-process", "--startup-timeout", "5"],
+            "--startup-timeout: an in-process run has no processes to wait for",
+        ),
         // Zenoh options that cannot work are bad input too, said without Zenoh's source paths.
         (
             vec!["planner", &mission, "-e", "foo"],

@@ -364,6 +364,24 @@ fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     toml::from_str::<toml::Table>(&std::fs::read_to_string(dir.join("mission.toml")).unwrap()).unwrap();
 }
 
+#[test]
+fn a_run_whose_recorder_never_comes_says_who_is_missing() {
+    let dir = scratch("missing-recorder");
+    let mut launch = Launch::start(
+        &paper("b-current"),
+        &dir,
+        &["--recorders", "1", "--startup-timeout", "2"],
+    );
+    let status = launch.wait(Duration::from_secs(30));
+    assert_eq!(status.code(), Some(1));
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(launch.child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    assert!(
+        stderr.contains("the world exited (code 1) before the end: world: after 2s, 1 of 2 recorders still missing (logs/world.log)"),
+        "{stderr}"
+    );
+}
+
 /// The process group of `pid`, from /proc/PID/stat (the fifth field; the second, the command,
 /// is in parentheses).
 fn process_group(pid: u32) -> u32 {

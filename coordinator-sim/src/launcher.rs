@@ -62,6 +62,11 @@ const INTERRUPT_GRACE: Duration = Duration::from_secs(1);
 const REPORT_SETTLE: Duration = Duration::from_millis(200);
 /// A run in which no tick completes for this long has stalled.
 const STALL: Duration = Duration::from_secs(60);
+/// How long the world waits for every agent and recorder, unless told otherwise; then it gives up
+/// and says who is missing.
+pub const STARTUP: Duration = Duration::from_secs(60);
+/// The launcher waits this much longer for the first tick, so that the world says it first.
+const START_MARGIN: Duration = Duration::from_secs(10);
 /// With `--restart on-failure`, how long a lockstep tick waits for an agent started again.
 const REJOIN_TIMEOUT: Duration = Duration::from_secs(20);
 
@@ -102,6 +107,13 @@ fn report_of<'a>(recording: &'a Recording, c: &Process) -> Option<&'a Report> {
 fn free_port() -> Result<u16> {
     let listener = std::net::TcpListener::bind("127.0.0.1:0").context("no free port on 127.0.0.1")?;
     Ok(listener.local_addr()?.port())
+}
+
+/// The last error a role printed before it exited, from its log.
+fn last_error(log: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(log).ok()?;
+    let line = text.lines().rev().find(|l| l.starts_with("error: "))?;
+    Some(line["error: ".len()..].to_string())
 }
 
 fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String], lockstep: bool) -> Result<Process> {
@@ -173,7 +185,7 @@ enum Outcome {
 
 /// How long the world waits for an agent's command of a tick, unless told otherwise: well past
 /// the agents' stale timeout (3 s), so that a neighbour given up on is not also lost at once.
-const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
+pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// How `tcpf run` runs its children.
 #[derive(Debug, Clone)]
@@ -186,6 +198,8 @@ pub struct Options {
     pub restart: bool,
     /// Recorders from elsewhere the run waits for, besides its own.
     pub recorders: usize,
+    /// How long the world waits for every agent and recorder.
+    pub startup_timeout: Duration,
 }
 
 impl Default for Options {
@@ -195,6 +209,7 @@ impl Default for Options {
             command_timeout: COMMAND_TIMEOUT,
             restart: false,
             recorders: 0,
+            startup_timeout: STARTUP,
         }
     }
 }
@@ -206,6 +221,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         command_timeout,
         restart,
         recorders,
+        startup_timeout,
     } = options;
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
@@ -250,6 +266,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         (1 + recorders).to_string(),
         "--command-timeout".to_string(),
         command_timeout.as_secs_f64().to_string(),
+        "--startup-timeout".to_string(),
+        startup_timeout.as_secs_f64().to_string(),
     ]);
     if restart {
         world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
@@ -278,7 +296,14 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             _ = check.tick() => {
                 let dead = children.iter_mut().find_map(|c| {
                     let code = c.poll()?;
-                    matches!(c.role, Role::World | Role::Planner).then(|| format!("the {} exited ({}) before the end; see logs/{}.log", c.role, code.map_or("killed".into(), |c| format!("code {c}")), c.role))
+                    matches!(c.role, Role::World | Role::Planner).then(|| {
+                        let code = code.map_or("killed".into(), |c| format!("code {c}"));
+                        let log = dir.path.join("logs").join(format!("{}.log", c.role));
+                        match last_error(&log) {
+                            Some(why) => format!("the {} exited ({code}) before the end: {why} (logs/{}.log)", c.role, c.role),
+                            None => format!("the {} exited ({code}) before the end; see logs/{}.log", c.role, c.role),
+                        }
+                    })
                 });
                 if let Some(why) = dead {
                     if recording.end.is_none() {
@@ -300,11 +325,16 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         retired.push(std::mem::replace(c, again));
                     }
                 }
-                if recording.progress.elapsed() > STALL {
-                    break Outcome::Failed(match recording.ticks() {
-                        0 => format!("the run did not start within {} s (see logs/world.log: who is missing)", STALL.as_secs()),
-                        ticks => format!("no tick completed for {} s (stuck after tick {ticks})", STALL.as_secs()),
-                    });
+                let waited = recording.progress.elapsed();
+                match recording.ticks() {
+                    0 if waited > startup_timeout + START_MARGIN => {
+                        break Outcome::Failed(format!("the run did not start within {} s; see logs/world.log", waited.as_secs()));
+                    }
+                    0 => {}
+                    ticks if waited > STALL => {
+                        break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {ticks})", STALL.as_secs()));
+                    }
+                    _ => {}
                 }
             }
         }
