@@ -1,5 +1,5 @@
 //! The README and docs/ stand on their own: they link only to files of the repository, and every
-//! link resolves.
+//! link resolves; the mission file the README shows is one.
 
 use std::path::{Path, PathBuf};
 
@@ -53,4 +53,25 @@ fn the_license_file_matches_the_manifest() {
     assert!(manifest.contains("license = \"Apache-2.0\""));
     let license = std::fs::read_to_string(root.join("LICENSE")).unwrap();
     assert!(license.contains("Apache License") && license.contains("Version 2.0, January 2004"));
+}
+
+#[test]
+fn the_readmes_mission_file_is_a_mission() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let block = readme
+        .split("```toml\n")
+        .nth(1)
+        .and_then(|rest| rest.split("```").next())
+        .expect("the README shows a mission file");
+    let dir = std::env::temp_dir().join(format!("tcpf-readme-mission-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("mission.toml");
+    std::fs::write(&file, block).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["plan", file.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
