@@ -753,7 +753,7 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
 fn report(dir: &Path) -> Result<ExitCode, Failure> {
     if !dir.join("summary.json").is_file() {
         return Err(Failure::Input(anyhow!(
-            "{}: not a run directory (no summary.json)",
+            "{}: no summary.json: not a run directory, or a run stopped before it wrote one (killed outright, or failed before its first tick)",
             dir.display()
         )));
     }

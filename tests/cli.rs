@@ -614,3 +614,31 @@ fn a_report_of_a_cut_telemetry_says_so() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("the file was cut short"), "{}", text(&o));
 }
+
+/// `tcpf report` of a run directory missing its messages, with a summary cut short, or with none.
+#[test]
+fn a_report_of_a_damaged_run_directory_says_what_is_wrong() {
+    let out = a_run_to_report("report-damaged");
+    std::fs::remove_file(out.join("messages.csv")).unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("messages.csv: no such file: the report's message plots are empty"),
+        "{}",
+        text(&o)
+    );
+    let summary = out.join("summary.json");
+    let whole = std::fs::read_to_string(&summary).unwrap();
+    std::fs::write(&summary, &whole[..whole.len() / 2]).unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains(&format!("{}: not the JSON a run writes", summary.display())),
+        "{}",
+        text(&o)
+    );
+    std::fs::remove_file(&summary).unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("a run stopped before it wrote one"), "{}", text(&o));
+}

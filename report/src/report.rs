@@ -85,9 +85,10 @@ struct Message {
     delivered: bool,
 }
 
-/// `messages.csv`; a run directory from before it existed has none.
+/// `messages.csv`; a run directory from before it existed has none, which is said.
 fn read_messages(file: &Path) -> Result<Vec<Message>> {
     if !file.exists() {
+        tracing::warn!("{}: no such file: the report's message plots are empty", file.display());
         return Ok(Vec::new());
     }
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
@@ -138,7 +139,8 @@ pub fn write(dir: &Path) -> Result<()> {
     };
     let mission_file = dir.join("mission.toml").display().to_string();
     let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| anyhow!("{e}"))?;
-    let summary: Value = serde_json::from_str(&read("summary.json")?).context("summary.json")?;
+    let summary: Value = serde_json::from_str(&read("summary.json")?)
+        .with_context(|| format!("{}: not the JSON a run writes", dir.join("summary.json").display()))?;
     let tracks = read_telemetry(&dir.join("telemetry.csv"))?;
     // A lockstep recording has a row per vehicle and tick (a realtime one, a row per period the
     // recorder sampled): fewer, and the file was cut short.
