@@ -16,6 +16,9 @@ pub use diagnostics::MissionError;
 use diagnostics::{key_at, line_of, line_of_key, path_string};
 pub use graph::Graph;
 
+/// The tables a mission file must have, with their headers.
+const REQUIRED_TABLES: [(&str, &str); 2] = [("mission", "[mission]"), ("vehicle", "[[vehicle]]")];
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Mission {
@@ -421,6 +424,24 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
     })?;
     let table = spanned.get_ref();
     let mission: Mission = toml::from_str(text).map_err(|e| {
+        // A table the file must have and lacks: the parser points at the file's first table,
+        // which would name the wrong key.
+        let missing = e
+            .message()
+            .strip_prefix("missing field `")
+            .and_then(|m| m.split('`').next())
+            .and_then(|f| {
+                REQUIRED_TABLES
+                    .iter()
+                    .find(|(name, _)| *name == f && table.get(f).is_none())
+            });
+        if let Some((field, header)) = missing {
+            return err(
+                None,
+                Some(field.to_string()),
+                format!("missing field `{field}`: the file has no {header}"),
+            );
+        }
         let (line, key) = match e.span() {
             Some(s) => {
                 let path = key_at(table, s.start);
@@ -499,6 +520,24 @@ goal_velocity = [0.75, 0.0]
         assert_eq!(m.comm_every(), 10);
         assert_eq!(m.vehicles.len(), 2);
         assert_eq!(m.current.speed, 0.1);
+    }
+
+    #[test]
+    fn a_missing_table_is_named_not_the_first_one_there() {
+        let no_vehicle = PAPER.split("[[vehicle]]").next().unwrap();
+        let e = parse("m.toml", no_vehicle, &[]).unwrap_err();
+        assert_eq!(
+            (e.key.as_deref(), e.message.as_str()),
+            (Some("vehicle"), "missing field `vehicle`: the file has no [[vehicle]]")
+        );
+        let no_mission = &PAPER[PAPER.find("[planner]").unwrap()..];
+        let e = parse("m.toml", no_mission, &[]).unwrap_err();
+        assert_eq!(
+            (e.key.as_deref(), e.message.as_str()),
+            (Some("mission"), "missing field `mission`: the file has no [mission]")
+        );
+        let e = parse("m.toml", PAPER, &["mission.max_duration=inf".into()]).unwrap_err();
+        assert!(e.message.starts_with("must be a finite number > 0"), "{}", e.message);
     }
 
     #[test]

@@ -67,12 +67,12 @@ impl Mission {
         check(
             m.control_period > 0.0 && m.control_period.is_finite(),
             key("mission", "control_period"),
-            "must be > 0",
+            "must be a finite number > 0",
         )?;
         check(
             m.max_duration > 0.0 && m.max_duration.is_finite(),
             key("mission", "max_duration"),
-            "must be > 0",
+            "must be a finite number > 0",
         )?;
         check(
             m.time_scale > 0.0 && m.time_scale <= MAX_TIME_SCALE,
