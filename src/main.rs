@@ -824,6 +824,12 @@ fn sweep(
             flags: args.flags.clone(),
         };
         one.set.push(format!("{key}={value}"));
+        // An error in a swept value names the sweep's flag, not a --set the user never wrote.
+        let flag = match param {
+            Some(p) => format!("--param {} (the value {value})", p.trim()),
+            None => format!("--loss {value}"),
+        };
+        one.flags.push((format!("{key}={value}"), flag));
         let mission = load(&one, None)?;
         if !processes && mission.mission.clock == mission::ClockKind::Realtime {
             return Err(Failure::Input(anyhow!(

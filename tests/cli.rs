@@ -140,6 +140,11 @@ fn a_run_that_does_not_finish_exits_1() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["completed"], false);
     assert!(s["vehicles"][0]["arrival_time"].is_null());
+    assert!(
+        text(&o).contains("NOT completed: vehicles 1, 2 not arrived when the run stopped at 10.01 s"),
+        "{}",
+        text(&o)
+    );
 }
 
 #[test]

@@ -2,6 +2,7 @@
 
 use std::fmt::Write;
 
+use tcpf_core::metrics::VehicleSummary;
 use tcpf_core::planner::Plan;
 
 use crate::summary::Summary;
@@ -44,6 +45,39 @@ pub fn plan(plan: &Plan) -> String {
     s
 }
 
+/// What kept a run from completing, in the words of its summary.
+fn why_not_completed(summary: &Summary) -> String {
+    // "vehicle 2", "vehicles 1, 3"
+    let vehicles = |pick: &dyn Fn(&VehicleSummary) -> bool| -> Option<String> {
+        let ids: Vec<String> = summary
+            .results
+            .vehicles
+            .iter()
+            .filter(|v| pick(v))
+            .map(|v| v.id.to_string())
+            .collect();
+        let plural = if ids.len() > 1 { "s" } else { "" };
+        (!ids.is_empty()).then(|| format!("vehicle{plural} {}", ids.join(", ")))
+    };
+    let mut why = Vec::new();
+    if summary.interrupted {
+        why.push("interrupted".to_string());
+    }
+    if let Some(lost) = vehicles(&|v| v.lost) {
+        why.push(format!("{lost} lost"));
+    }
+    if let Some(away) = vehicles(&|v| !v.lost && v.arrival_time.is_none()) {
+        why.push(format!(
+            "{away} not arrived when the run stopped at {:.2} s",
+            summary.sim_time_s
+        ));
+    }
+    if why.is_empty() {
+        why.push("the world never said the run was over".into());
+    }
+    why.join("; ")
+}
+
 pub fn summary(summary: &Summary) -> String {
     let r = &summary.results;
     let mut s = String::new();
@@ -55,9 +89,9 @@ pub fn summary(summary: &Summary) -> String {
         summary.mode,
         summary.clock,
         if summary.completed {
-            "completed"
+            "completed".to_string()
         } else {
-            "NOT completed"
+            format!("NOT completed: {}", why_not_completed(summary))
         }
     );
     for reason in &summary.reproducible_reasons {
@@ -69,14 +103,18 @@ pub fn summary(summary: &Summary) -> String {
         let _ = writeln!(s, "{:>4} {:>12} {:>6}", v.id, arrival, v.lost);
     }
     let _ = writeln!(s, "t_f {:.3} s, {} ticks", r.t_f, r.ticks);
-    let _ = writeln!(
-        s,
-        "coordination error {:.3} s (to last arrival {:.3} s), clearance {:.3} m (to last arrival {:.3} m)",
-        r.max_coordination_error,
-        r.max_coordination_error_to_last_arrival,
-        r.min_clearance,
-        r.min_clearance_to_last_arrival
-    );
+    if r.ticks == 0 {
+        let _ = writeln!(s, "no tick ran: no coordination error or clearance to give");
+    } else {
+        let _ = writeln!(
+            s,
+            "coordination error {:.3} s (to last arrival {:.3} s), clearance {:.3} m (to last arrival {:.3} m)",
+            r.max_coordination_error,
+            r.max_coordination_error_to_last_arrival,
+            r.min_clearance,
+            r.min_clearance_to_last_arrival
+        );
+    }
     for l in &r.links {
         // What the network lost: published, less what arrived (sent on to the link model, or
         // overtaken before it could be). A sender started again reports once per life, and a
@@ -178,4 +216,65 @@ pub fn summary(summary: &Summary) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The summary.json of an in-process run of two vehicles, with `changes` applied.
+    fn summary(changes: serde_json::Value) -> Summary {
+        let mut s = serde_json::json!({
+            "mission": "m", "seed": 1, "mode": "in-process", "clock": "lockstep",
+            "completed": false, "interrupted": false, "reproducible": true,
+            "reproducible_reasons": [], "t_f": 45.0, "ticks": 0,
+            "vehicles": [
+                {"id": 1, "arrival_time": null, "lost": false, "gamma_sent": 0},
+                {"id": 2, "arrival_time": null, "lost": false, "gamma_sent": 0}
+            ],
+            "max_coordination_error": 0.0, "min_clearance": f64::MAX,
+            "max_coordination_error_to_last_arrival": 0.0, "min_clearance_to_last_arrival": f64::MAX,
+            "links": [], "sim_time_s": 0.0, "wall_time_s": 0.1, "tick_wall_time_us": 0.0,
+            "rejected_messages": 0, "children": [],
+            "rejections": {
+                "undecodable": 0, "wrong_version": 0, "non_finite": 0, "wrong_sender": 0,
+                "not_a_neighbour": 0, "past": 0, "future": 0, "duplicate": 0, "conflict": 0,
+                "lost_vehicle": 0, "overflow": 0
+            }
+        });
+        for (k, v) in changes.as_object().unwrap() {
+            s[k] = v.clone();
+        }
+        serde_json::from_value(s).unwrap()
+    }
+
+    #[test]
+    fn a_run_not_completed_says_why() {
+        let first = |s: &Summary| super::summary(s).lines().next().unwrap().to_string();
+        let interrupted = summary(serde_json::json!({"interrupted": true}));
+        assert!(first(&interrupted)
+            .ends_with("NOT completed: interrupted; vehicles 1, 2 not arrived when the run stopped at 0.00 s"));
+        let lost = summary(serde_json::json!({
+            "ticks": 900, "sim_time_s": 9.0,
+            "vehicles": [
+                {"id": 1, "arrival_time": null, "lost": true, "gamma_sent": 0},
+                {"id": 2, "arrival_time": 8.5, "lost": false, "gamma_sent": 0}
+            ]
+        }));
+        assert!(
+            first(&lost).ends_with("NOT completed: vehicle 1 lost"),
+            "{}",
+            first(&lost)
+        );
+    }
+
+    #[test]
+    fn a_run_stopped_before_its_first_tick_gives_no_figures() {
+        let text = super::summary(&summary(serde_json::json!({"interrupted": true})));
+        assert!(
+            text.contains("no tick ran: no coordination error or clearance to give"),
+            "{text}"
+        );
+        assert!(!text.contains("clearance inf") && !text.contains("1.797"), "{text}");
+    }
 }
