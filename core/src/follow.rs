@@ -161,6 +161,54 @@ mod tests {
     };
 
     #[test]
+    fn eq_21_is_how_the_errors_move_along_a_planned_path() {
+        // A vehicle near case (b)'s first path, moved by the kinematics the world integrates
+        // (ṗ = v (cos ψ_F, sin ψ_F) + v_c, ψ̇_F = r + β̇) while γ moves at γ̇: the errors'
+        // central differences against eq. 21.
+        let (_, paths, t_f) = crate::fixtures::case_b();
+        let path = &paths[0].1;
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        for _ in 0..2_000 {
+            let gamma = uniform(&mut rng, 0.0, t_f);
+            let point = path.at(gamma);
+            let frame = Frame::new(point.heading);
+            let offset = Vec2::new(uniform(&mut rng, -2.0, 2.0), uniform(&mut rng, -2.0, 2.0));
+            let position = point.position + offset;
+            let psi_f = point.heading + uniform(&mut rng, -1.2, 1.2);
+            let (v, r, gamma_dot) = (
+                uniform(&mut rng, 0.1, 1.0),
+                uniform(&mut rng, -0.5, 0.5),
+                uniform(&mut rng, 0.5, 1.5),
+            );
+            let (current, beta_dot) = (
+                Vec2::new(uniform(&mut rng, -0.2, 0.2), uniform(&mut rng, -0.2, 0.2)),
+                uniform(&mut rng, -0.3, 0.3),
+            );
+            let at = |h: f64| {
+                let p = path.at(gamma + h * gamma_dot);
+                let course = psi_f + h * (r + beta_dot);
+                let moved = position + h * (v * Vec2::new(course.cos(), course.sin()) + current);
+                errors(moved, course, &p, &Frame::new(p.heading))
+            };
+            let h = 1e-5;
+            let (ahead, behind) = (at(h), at(-h));
+            let numeric = [
+                (ahead.x_e - behind.x_e) / (2.0 * h),
+                (ahead.y_e - behind.y_e) / (2.0 * h),
+                wrap(ahead.psi_e - behind.psi_e) / (2.0 * h),
+            ];
+            let e = errors(position, psi_f, &point, &frame);
+            let rates = error_rates(&point, &e, v, r, gamma_dot, frame.of(current), beta_dot);
+            for (n, a) in numeric.iter().zip(rates) {
+                assert!(
+                    (n - a).abs() < 1e-5 * (1.0 + a.abs()),
+                    "γ {gamma}: {numeric:?} against eq. 21 {rates:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn lyapunov_derivative_matches_lemma_2_at_random_states() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         for _ in 0..20_000 {
