@@ -236,7 +236,7 @@ enum Command {
         /// Recorders to wait for before the first tick.
         #[arg(long, default_value_t = 0)]
         recorders: usize,
-        /// Seconds to wait for the planner and the agents.
+        /// Seconds to wait, from the start, for the plan, the agents and the recorders.
         #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
         startup_timeout: Duration,
         /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).

@@ -141,7 +141,7 @@ fn a_run_that_does_not_finish_exits_1() {
     assert_eq!(s["completed"], false);
     assert!(s["vehicles"][0]["arrival_time"].is_null());
     assert!(
-        text(&o).contains("NOT completed: vehicles 1, 2 not arrived when the run stopped at 10.01 s"),
+        text(&o).contains("NOT completed: vehicles 1, 2 not arrived by the run's last tick"),
         "{}",
         text(&o)
     );
@@ -186,6 +186,8 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
     std::fs::write(full.join("telemetry.csv"), "another run's").unwrap();
     let bad_config = dir.join("zenoh.json5");
     std::fs::write(&bad_config, "{ mode: \"client\", bogus: 1 }").unwrap();
+    let portless = dir.join("portless.json5");
+    std::fs::write(&portless, "{ listen: { endpoints: { router: [\"tcp/127.0.0.1\"] } } }").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["agent", &mission, "--id", "1", "--stale-timeout", "-1"],
@@ -350,6 +352,11 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["planner", &mission, "-c", "/nonexistent/zenoh.json5"],
             "/nonexistent/zenoh.json5: bad Zenoh config",
         ),
+        (
+            vec!["router", "-c", portless.to_str().unwrap()],
+            "portless.json5: listen/endpoints tcp/127.0.0.1: the address needs a port",
+        ),
+        (vec!["planner", &mission, "-e", "tcp/::1"], "an IPv6 host in brackets"),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);

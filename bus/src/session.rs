@@ -43,18 +43,11 @@ fn bad(message: String) -> anyhow::Error {
     BadZenohConfig(message).into()
 }
 
-/// A Zenoh error in a user's words: without the source file and line each of Zenoh's errors
-/// ends with (` at /…/src/lib.rs:62.`), and with a JSON5 parser's message and location taken
-/// out of their Debug form.
+/// A Zenoh error in a user's words: a JSON5 parser's message and location taken out of their
+/// Debug form, and without the source file and line Zenoh appends to an error and to each of
+/// its causes (` at /…/src/lib.rs:62.`).
 pub fn zenoh_words(e: impl std::fmt::Display) -> String {
     let mut text = e.to_string();
-    while let Some(at) = text.rfind(" at /") {
-        let tail = &text[at..];
-        if !tail.contains(".rs:") || tail.contains(' ') && tail[5..].contains(' ') {
-            break;
-        }
-        text.truncate(at);
-    }
     if let (Some(m), Some(end)) = (text.find("msg: \""), text.find("\", location")) {
         if m < end {
             let msg = text[m + 6..end].to_string();
@@ -66,23 +59,76 @@ pub fn zenoh_words(e: impl std::fmt::Display) -> String {
             };
         }
     }
-    text.trim_end_matches('.').to_string()
+    let mut words = String::with_capacity(text.len());
+    let mut rest = text.as_str();
+    while let Some(at) = rest.find(" at /") {
+        let path = &rest[at + 4..];
+        let path = &path[..path.find(char::is_whitespace).unwrap_or(path.len())];
+        let source = path
+            .trim_end_matches('.')
+            .rsplit_once(".rs:")
+            .is_some_and(|(_, line)| !line.is_empty() && line.bytes().all(|b| b.is_ascii_digit()));
+        let kept = if source { at } else { at + 4 + path.len() };
+        words.push_str(&rest[..kept]);
+        rest = &rest[at + 4 + path.len()..];
+    }
+    words.push_str(rest);
+    words.trim_end_matches('.').to_string()
 }
 
-/// An endpoint Zenoh can parse, and, over IP, with a port that is one.
+/// The transports this build of Zenoh has.
+const TRANSPORTS: [&str; 4] = ["tcp", "udp", "tls", "quic"];
+
+/// An endpoint Zenoh can parse, over a transport this build has, to an address with a port
+/// (an IPv6 address in brackets).
 fn endpoint(flag: &str, text: &str) -> Result<()> {
     let parsed: zenoh::config::EndPoint = text.parse().map_err(|_| {
         bad(format!(
             "{flag} {text}: an endpoint is <protocol>/<address>, e.g. tcp/192.168.1.10:7447"
         ))
     })?;
-    let ip = ["tcp", "udp", "tls", "quic"].contains(&parsed.protocol().as_str());
+    if !TRANSPORTS.contains(&parsed.protocol().as_str()) {
+        return Err(bad(format!(
+            "{flag} {text}: this build speaks {} only",
+            TRANSPORTS.join(", ")
+        )));
+    }
     let address = parsed.address();
-    let port = address.as_str().rsplit_once(':').map(|(_, p)| p);
-    if ip && port.is_none_or(|p| p.parse::<u16>().is_err()) {
+    let address = address.as_str();
+    let (host, port) = match address.strip_prefix('[') {
+        Some(v6) => v6.split_once("]:").unwrap_or((v6, "")),
+        None => address.rsplit_once(':').unwrap_or((address, "")),
+    };
+    if host.is_empty() || host.contains(':') && !address.starts_with('[') {
+        return Err(bad(format!(
+            "{flag} {text}: the address is host:port, an IPv6 host in brackets ([::1]:7447)"
+        )));
+    }
+    if port.parse::<u16>().is_err() {
         return Err(bad(format!("{flag} {text}: the address needs a port, 0 to 65535")));
     }
     Ok(())
+}
+
+/// The endpoints under `key` of a config: a list, lists by mode, and groups of locators
+/// (`{ strategy: "allOf", locators: [..] }`).
+fn endpoints_of(config: &Config, key: &str) -> Vec<String> {
+    fn strings(v: &serde_json::Value, out: &mut Vec<String>) {
+        match v {
+            serde_json::Value::String(s) => out.push(s.clone()),
+            serde_json::Value::Array(a) => a.iter().for_each(|v| strings(v, out)),
+            serde_json::Value::Object(o) => match o.get("locators") {
+                Some(group) => strings(group, out),
+                None => o.values().for_each(|v| strings(v, out)),
+            },
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    if let Some(v) = config.get_json(key).ok().and_then(|j| serde_json::from_str(&j).ok()) {
+        strings(&v, &mut out);
+    }
+    out
 }
 
 impl ZenohArgs {
@@ -125,6 +171,15 @@ impl ZenohArgs {
                     .map_err(|e| bad(format!("{flag}: {}", zenoh_words(e))))?;
             }
         }
+        // A config file's endpoints, too: Zenoh would find out only when it opens, and say it
+        // as if the network had failed.
+        if let Some(path) = &self.config {
+            for key in ["connect/endpoints", "listen/endpoints"] {
+                for e in endpoints_of(&config, key) {
+                    endpoint(&format!("{}: {key}", path.display()), &e)?;
+                }
+            }
+        }
         Ok(config)
     }
 
@@ -163,6 +218,19 @@ mod tests {
     fn zenoh_errors_lose_their_source_paths_and_debug_forms() {
         let raw = "invalid port value at /root/.cargo/registry/src/index/zenoh-link-commons-1.10.2/src/lib.rs:62.";
         assert_eq!(zenoh_words(raw), "invalid port value");
+        let chained = "Unable to bind UDP port 192.0.2.1:7446 at /r/zenoh-1.10.2/src/orchestrator.rs:689. - Caused by Cannot assign requested address";
+        assert_eq!(
+            zenoh_words(chained),
+            "Unable to bind UDP port 192.0.2.1:7446 - Caused by Cannot assign requested address"
+        );
+        let inside = "JSON error: Message { msg: \"Endpoints must be of the form <protocol>/<address>: foo at /r/endpoint.rs:615.\", \
+                      location: Some(Location { line: 1, column: 26 }) } at /r/zenoh-1.10.2/src/api/config.rs:86.";
+        assert_eq!(
+            zenoh_words(inside),
+            "line 1, column 26: Endpoints must be of the form <protocol>/<address>: foo"
+        );
+        assert_eq!(zenoh_words("see /etc at /home/my files"), "see /etc at /home/my files");
+
         let json = "JSON error: Message { msg: \"unknown field `bogus`, expected one of `id`\", location: \
                     Some(Location { line: 1, column: 19 }) } at /r/zenoh-config-1.10.2/src/lib.rs:1484.";
         assert_eq!(
@@ -181,11 +249,19 @@ mod tests {
             "tcp/127.0.0.1:7447",
             "tcp/[::1]:0",
             "quic/shore.local:7447?iface=eth0",
-            "unixsock-stream//tmp/s",
+            "udp/224.0.0.224:7447#iface=lo",
         ] {
             assert!(endpoint("-e", good).is_ok(), "{good}");
         }
-        for bad in ["foo", "tcp/127.0.0.1", "udp/127.0.0.1:70000", "tls/host:port"] {
+        for bad in [
+            "foo",
+            "tcp/127.0.0.1",
+            "udp/127.0.0.1:70000",
+            "tls/host:port",
+            "tcp/::1",
+            "unixsock-stream//tmp/s",
+            "ws/127.0.0.1:80",
+        ] {
             let e = endpoint("-e", bad).unwrap_err();
             assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{bad}");
         }

@@ -243,11 +243,12 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         .map_err(|e| anyhow!("zenoh connect/endpoints: {e}"))?;
     let session = zenoh::open(config)
         .await
-        .map_err(|e| anyhow!("cannot open the Zenoh session: {e}"))?;
+        .map_err(|e| anyhow!("cannot open the Zenoh session: {}", tcpf_bus::session::zenoh_words(e)))?;
     crate::access::announce(&dir.path, &endpoint)?;
     if recorders > 0 {
         eprintln!(
-            "waiting up to a minute for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
+            "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
+            startup_timeout.as_secs_f64(),
             dir.path.join("mission.toml").display(),
             zenoh_file.display()
         );

@@ -94,11 +94,16 @@ impl From<ProfileOnTheWire> for SpeedProfile {
 /// Below this |ln(ηf/η0)| the profile is treated as constant (eqs. 17–18, first branch).
 const EQUAL_ETA: f64 = 1e-12;
 
-/// ln(ηf/η0) as ln_1p((ηf − η0)/η0): the quotient ηf/η0 rounds to within 1e-16 of 1, which is
-/// all of ln's answer when the two are close (at a difference of 1e-9, τ_f off by 6e-7); the
-/// difference is exact.
+/// ln(ηf/η0). When the two are close, as ln_1p((ηf − η0)/η0): the quotient ηf/η0 rounds to
+/// within 1e-16 of 1, which is all of ln's answer then (at a difference of 1e-9, τ_f off by
+/// 6e-7), while the difference is exact. Far from 1 the quotient is the accurate one (ln_1p of a
+/// ratio of 1e-17 less one is −∞).
 fn log_ratio(eta0: f64, etaf: f64) -> f64 {
-    ((etaf - eta0) / eta0).ln_1p()
+    if (etaf - eta0).abs() < 0.5 * eta0 {
+        ((etaf - eta0) / eta0).ln_1p()
+    } else {
+        (etaf / eta0).ln()
+    }
 }
 
 impl SpeedProfile {
@@ -283,6 +288,13 @@ mod tests {
                 assert!((got - want).norm() < 1e-9, "τ=τf={tau_f}: {got} vs {want}");
             }
         }
+    }
+
+    #[test]
+    fn a_profile_from_a_far_higher_speed_stays_finite() {
+        let profile = SpeedProfile::new(0.75, 1e-17, 45.0);
+        let expected = -0.75 * 45.0 / (1e-17f64 / 0.75).ln();
+        assert!((profile.tau_f - expected).abs() < 1e-12 * expected, "{}", profile.tau_f);
     }
 
     #[test]

@@ -67,10 +67,7 @@ fn why_not_completed(summary: &Summary) -> String {
         why.push(format!("{lost} lost"));
     }
     if let Some(away) = vehicles(&|v| !v.lost && v.arrival_time.is_none()) {
-        why.push(format!(
-            "{away} not arrived when the run stopped at {:.2} s",
-            summary.sim_time_s
-        ));
+        why.push(format!("{away} not arrived by the run's last tick"));
     }
     if why.is_empty() {
         why.push("the world never said the run was over".into());
@@ -253,7 +250,7 @@ mod tests {
         let first = |s: &Summary| super::summary(s).lines().next().unwrap().to_string();
         let interrupted = summary(serde_json::json!({"interrupted": true}));
         assert!(first(&interrupted)
-            .ends_with("NOT completed: interrupted; vehicles 1, 2 not arrived when the run stopped at 0.00 s"));
+            .ends_with("NOT completed: interrupted; vehicles 1, 2 not arrived by the run's last tick"));
         let lost = summary(serde_json::json!({
             "ticks": 900, "sim_time_s": 9.0,
             "vehicles": [

@@ -204,7 +204,11 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let session = zenoh.open_unless(&mut shutdown).await?;
     let rejected = Rejected::default();
     let (_presence, mut presence) = presence(&session, &keys).await?;
-    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
+    // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
+    // launcher) knows when it will have said who is missing.
+    let deadline = tokio::time::Instant::now() + options.startup_timeout;
+    let remaining = deadline.saturating_duration_since(tokio::time::Instant::now());
+    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, remaining, &rejected));
     let Some(paths) = fetched.await else {
         return Ok(Exit::Interrupted);
     };
@@ -272,7 +276,6 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let agent = |id: &u32, present: &BTreeSet<(&'static str, u32)>| present.contains(&(Role::Agent.as_str(), *id));
     let recorders =
         |present: &BTreeSet<(&'static str, u32)>| present.iter().filter(|p| p.0 == Role::Record.as_str()).count();
-    let deadline = tokio::time::Instant::now() + options.startup_timeout;
     loop {
         if ids.iter().all(|i| agent(i, &present)) && recorders(&present) >= options.recorders {
             break;
