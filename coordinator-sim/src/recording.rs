@@ -297,6 +297,15 @@ impl Recording {
         }
     }
 
+    /// The last tick the world was heard of: in realtime, its newest state (the recorder's
+    /// periods go on without it); in lockstep, the ticks recorded.
+    pub fn world_ticks(&self) -> u64 {
+        match &self.machine {
+            Machine::Lockstep(recorder) => recorder.ticks_recorded(),
+            Machine::Realtime { sampler, .. } => sampler.newest_state().unwrap_or(0),
+        }
+    }
+
     /// Mean wall time of a tick in steady state, from the first tick written to the last.
     pub fn tick_wall_time(&self) -> Option<f64> {
         let first = self.first?;
@@ -346,6 +355,11 @@ impl Recording {
         }
         let realtime = mission.mission.clock == ClockKind::Realtime;
         if realtime {
+            // The metrics count the periods this recorder sampled; the run lasted the world's
+            // ticks, when it said how many.
+            if let Some(end) = &self.end {
+                results.ticks = end.ticks;
+            }
             // What each sender published, against what reached its receivers (judged at an
             // instant, or overtaken before one): the network's own loss. An agent started again
             // reports once per life.
@@ -507,7 +521,7 @@ pub async fn record(
                     ),
                     None => tracing::error!(
                         "recorder: the world left without announcing the end, after tick {}; writing what was recorded",
-                        recording.ticks()
+                        recording.world_ticks()
                     ),
                 }
                 break false;

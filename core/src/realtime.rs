@@ -425,6 +425,9 @@ pub struct Sampler {
     last: Option<u64>,
     /// A command came since the last period sampled.
     fresh: bool,
+    /// A state came since the last period sampled: a period without one (the world late, or
+    /// gone) repeats the last row, and is not one.
+    moved: bool,
     end: Option<End>,
     row: Vec<State>,
 }
@@ -438,6 +441,7 @@ impl Sampler {
             metrics: Metrics::new(ids, t_f, dt),
             last: None,
             fresh: false,
+            moved: false,
             end: None,
             row: Vec::with_capacity(ids.len()),
         }
@@ -458,7 +462,13 @@ impl Sampler {
             older(held.tick, state.tick, held, &state)?;
         }
         self.states[n] = Some(state);
+        self.moved = true;
         Ok(())
+    }
+
+    /// The newest tick of any state received: how far the world got.
+    pub fn newest_state(&self) -> Option<u64> {
+        self.states.iter().flatten().map(|s| s.tick).max()
     }
 
     /// A vehicle's command, `horizon` the latest tick the recorder's clock allows.
@@ -505,7 +515,7 @@ impl Sampler {
     /// The period of `tick`: hands on each vehicle's freshest state and command (once every
     /// vehicle has a state). A command's receptions count once, the first time it is sampled.
     pub fn sample(&mut self, tick: u64, emit: impl FnOnce(&[State], &[Option<Command>])) {
-        if self.last.is_some_and(|l| l >= tick) || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+        if self.last.is_some_and(|l| l >= tick) || self.end.as_ref().is_some_and(|e| tick >= e.ticks) || !self.moved {
             return;
         }
         self.record(tick, emit);
@@ -540,6 +550,7 @@ impl Sampler {
         }
         self.last = Some(tick);
         self.fresh = false;
+        self.moved = false;
     }
 
     /// The world said the run is over.
@@ -730,6 +741,23 @@ mod tests {
         assert_eq!(rows, 2);
         let arrival = sampler.results().vehicles[0].arrival_time.expect("arrived");
         assert!((arrival - 99.1 * dt).abs() < 1e-9, "{arrival}");
+    }
+
+    /// A world that went quiet (late, or gone) leaves no rows that repeat its last state.
+    #[test]
+    fn a_period_without_a_new_state_is_not_sampled() {
+        let (m, _, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let mut sampler = Sampler::new(&[1], t_f, dt);
+        let mut rows = Vec::new();
+        sampler.on_state(still(1, 10, dt, [0.0, 0.0]), HORIZON).unwrap();
+        for tick in 10..15 {
+            sampler.sample(tick, |s, _| rows.push(s[0].tick));
+        }
+        sampler.on_state(still(1, 15, dt, [0.0, 0.0]), HORIZON).unwrap();
+        sampler.sample(15, |s, _| rows.push(s[0].tick));
+        assert_eq!(rows, [10, 15]);
+        assert_eq!(sampler.newest_state(), Some(15));
     }
 
     #[test]
