@@ -24,6 +24,9 @@ import tomllib
 VERSION = 6
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
+# The longest a vehicle holds its agent's last command, in simulated seconds (the world's
+# HOLD_LIMIT_S, core/src/realtime.rs): then its watchdog stops the thrusters.
+HOLD_LIMIT_S = 1.0
 F64 = struct.Struct("<d")
 
 # Message layouts: the fields in order, as postcard writes them (PROTOCOL.md, "Encoding"). A type is
@@ -227,11 +230,15 @@ class Vehicle:
             return self.refuse(e.kind)
         self.stop(0, f"End after {end['ticks']} ticks")
 
-    def advance(self, t):
+    def advance(self, t, dt):
         """Integrates from self.t to t, exactly: v and r are held, so ψ is linear in time and
-        ∫cos ψ, ∫sin ψ have a closed form, whatever the interval (skipped periods included)."""
+        ∫cos ψ, ∫sin ψ have a closed form, whatever the interval (skipped periods included).
+        A command older than HOLD_LIMIT_S is not held: the vehicle's watchdog stops its
+        thrusters, as the world does for the vehicles it simulates."""
         with self.lock:
             c = self.command
+        if c is not None and c["tick"] + math.ceil(HOLD_LIMIT_S / dt) < round(self.t / dt):
+            c = None
         if c is not None and c["tick"] != self.used_tick:
             self.used, self.used_tick = self.used + 1, c["tick"]
         h, self.t = t - self.t, t
@@ -327,7 +334,7 @@ def get_clock(session, key, timeout, ship):
                     fail(1, f"the world's clock on {key} is unusable: {e}; this script speaks {VERSION}")
                 if not clock["realtime"]:
                     fail(2, "the world runs the lockstep clock; this script plays vehicles only in "
-                            "realtime (tcpf run --clock realtime)")
+                            "realtime (tcpf world --clock realtime --vehicles <the ids it simulates>)")
                 if not clock["time_scale"] > 0:
                     fail(1, f"the world's clock has time_scale {clock['time_scale']}")
                 return clock
@@ -364,7 +371,7 @@ def drive(ship, publisher, clock, dt, log):
             ship.skipped, k = ship.skipped + now - k, now
             if k > ship.max_ticks:
                 break
-        ship.advance(k * dt)
+        ship.advance(k * dt, dt)
         publisher.put(encode(STATE, {
             "version": VERSION, "tick": k, "id": ship.id, "t": k * dt, "position": ship.position,
             "heading": ship.heading, "sideslip": 0.0, "sideslip_rate": 0.0, "current": ship.current}))
@@ -388,8 +395,11 @@ def run(args):
         session = open_session(zenoh, args)
         session.declare_subscriber(f"{root}/cmd/{args.id}", ship.on_command)
         session.declare_subscriber(f"{root}/end", ship.on_end)
+        # As the world publishes a realtime state: the freshest wins, one that cannot leave in
+        # time is dropped rather than queued (PROTOCOL.md).
         publisher = session.declare_publisher(f"{root}/state/{args.id}",
-                                              congestion_control=zenoh.CongestionControl.BLOCK)
+                                              congestion_control=zenoh.CongestionControl.DROP,
+                                              express=True)
         clock = get_clock(session, f"{root}/clock", args.startup_timeout, ship)
         if clock is not None:
             drive(ship, publisher, clock, dt, log)
@@ -441,6 +451,13 @@ def self_test():
     checks["no clock yet: commands up to max_ticks"] = ship.horizon() == 12000
     ship.clock = (time.time(), 10.0, 0.01)
     checks["at t = 0, x10: commands up to a wall second ahead"] = 1000 <= ship.horizon() <= 1002
+    ship.command = dict(command, tick=0, v=1.0, r=0.0)
+    ship.advance(1.0, 0.01)
+    ship.advance(1.02, 0.01)
+    held = ship.position[0]
+    checks["a command held for a simulated second"] = abs(held - 1.02) < 1e-12
+    ship.advance(1.03, 0.01)
+    checks["then the watchdog stops the thrusters"] = ship.position[0] == held
     for n, hex_ in [(0, "00"), (127, "7f"), (128, "8001"), (300, "ac02"), (2**32, "8080808010")]:
         checks[f"varint {n}"] = encode(U64, n) == bytes.fromhex(hex_) and Reader(varint(n)).uint(64) == n
     for t, m in [(STATE, state), (COMMAND, command), (END, end), (CLOCK, clock)]:
