@@ -72,7 +72,10 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
     // The run lasted the world's ticks, not the periods the recorder sampled.
     let world = std::fs::read_to_string(out.join("logs/world.log")).unwrap();
     let ticks = realtime["ticks"].as_u64().unwrap();
-    assert!(world.contains(&format!("ended after {ticks} ticks")), "{ticks} ticks: {world}");
+    assert!(
+        world.contains(&format!("ended after {ticks} ticks")),
+        "{ticks} ticks: {world}"
+    );
     let error = |s: &Value| s["max_coordination_error"].as_f64().unwrap();
     assert!(
         (error(&lockstep) - error(&realtime)).abs() < 0.15,
