@@ -398,9 +398,34 @@ impl Mission {
                 item("outage", i, "end"),
                 format!("must be after start ({})", o.start),
             )?;
+            // An outage that can never cut a message is a mistake, not an experiment.
+            check(
+                o.end > 0.0 && o.start < self.mission.max_duration,
+                item("outage", i, "start"),
+                format!(
+                    "[{}, {}) is outside the run's [0, {}) (max_duration)",
+                    o.start, o.end, self.mission.max_duration
+                ),
+            )?;
         }
         let graph = self.graph();
+        for (i, o) in k.outages.iter().enumerate() {
+            if let (Endpoint::Id(from), Endpoint::Id(to)) = (&o.from, &o.to) {
+                check(
+                    graph.get(to).is_some_and(|n| n.contains(from)),
+                    item("outage", i, "to"),
+                    format!("{from} → {to} is not a link of the communication graph: the outage would cut nothing"),
+                )?;
+            }
+        }
         for (i, l) in k.links.iter().enumerate() {
+            for (name, id) in [("from", l.from), ("to", l.to)] {
+                check(
+                    ids.contains(&id),
+                    item("link", i, name),
+                    format!("{id} is not the id of a vehicle of the mission"),
+                )?;
+            }
             let linked = graph.get(&l.to).is_some_and(|n| n.contains(&l.from));
             check(
                 linked,
