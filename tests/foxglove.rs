@@ -176,7 +176,25 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
     }
     let pose = channels.iter().find(|c| c["topic"] == "/vehicle/2/pose").unwrap();
     assert_eq!(pose["schemaName"], "foxglove.PoseInFrame");
-    drop(socket);
+    // To the end: the last tick's pose, then a Close frame.
+    let (mut last, mut closed) = (0u64, false);
+    while let Ok(Some(Ok(message))) = tokio::time::timeout(Duration::from_secs(30), socket.next()).await {
+        match message {
+            Message::Binary(data) if data[1..5] == 7u32.to_le_bytes() => {
+                last = u64::from_le_bytes(data[5..13].try_into().unwrap());
+            }
+            Message::Close(_) => closed = true,
+            _ => {}
+        }
+    }
     let status = run.0.wait().unwrap();
     assert!(status.success(), "the run completes with a client attached");
+    assert!(closed, "the server closes the connection with a Close frame");
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let end = (summary["ticks"].as_u64().unwrap() - 1) as f64 * 0.005;
+    assert!(
+        (last as f64 * 1e-9 - end).abs() < 1e-6,
+        "the last pose sent is of t = {} s, the run's last tick of t = {end} s",
+        last as f64 * 1e-9
+    );
 }

@@ -5,7 +5,8 @@
 //!
 //! The run never waits for a viewer: messages go through a bounded broadcast queue, and a client
 //! that falls behind loses the oldest (counted in the log). What is sent once (a planned path) is
-//! latched: a client that subscribes later gets its last message then.
+//! latched: a client that subscribes later gets its last message then. At the end each client is
+//! sent what is queued for it and a Close frame, for a second at most.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -25,6 +26,10 @@ use tokio_tungstenite::tungstenite::Message;
 const SUBPROTOCOLS: [&str; 2] = ["foxglove.websocket.v1", "foxglove.sdk.v1"];
 /// Messages a slow client may fall behind by before it loses the oldest.
 const BACKLOG: usize = 16_384;
+/// How long the end of a run waits for its clients to be sent what is queued for them.
+const FAREWELL: std::time::Duration = std::time::Duration::from_secs(1);
+/// The channel of the message that ends the stream: channel ids start at 1.
+const END: u32 = 0;
 
 /// A channel as the protocol advertises it.
 #[derive(Debug, Clone)]
@@ -51,6 +56,17 @@ struct Shared {
     data: broadcast::Sender<Data>,
     /// The last message of each latched channel.
     latched: Mutex<HashMap<u32, Data>>,
+    /// Clients connected.
+    clients: std::sync::atomic::AtomicUsize,
+}
+
+/// Counts a client for as long as it is served.
+struct Connected<'a>(&'a Shared);
+
+impl Drop for Connected<'_> {
+    fn drop(&mut self) {
+        self.0.clients.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
 }
 
 /// The server, running on a thread of its own until dropped.
@@ -68,6 +84,7 @@ impl Live {
             channels: Mutex::new(Vec::new()),
             data: broadcast::channel(BACKLOG).0,
             latched: Mutex::new(HashMap::new()),
+            clients: std::sync::atomic::AtomicUsize::new(0),
         });
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let (stop, stopped) = oneshot::channel();
@@ -132,6 +149,14 @@ impl Live {
 
 impl Drop for Live {
     fn drop(&mut self) {
+        // Every client gets what is queued for it, then the end, then a Close frame; one that
+        // does not read is not waited for long.
+        self.publish(END, 0, &[]);
+        let deadline = std::time::Instant::now() + FAREWELL;
+        while self.shared.clients.load(std::sync::atomic::Ordering::SeqCst) > 0 && std::time::Instant::now() < deadline
+        {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
         if let Some(stop) = self.stop.take() {
             let _ = stop.send(());
         }
@@ -144,7 +169,9 @@ impl Drop for Live {
 async fn accept(listener: TcpListener, shared: Arc<Shared>) {
     while let Ok((stream, peer)) = listener.accept().await {
         let shared = shared.clone();
+        shared.clients.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         tokio::spawn(async move {
+            let _counted = Connected(&shared);
             if let Err(e) = client(stream, &shared).await {
                 tracing::info!("live view: client {peer}: {e}");
             }
@@ -248,12 +275,21 @@ async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
                 }
             }
             message = data.recv() => match message {
+                Ok(m) if m.channel == END => {
+                    let _ = socket.close(None).await;
+                    break;
+                }
                 Ok(m) => {
                     if let Some(&subscription) = subscriptions.get(&m.channel) {
                         socket.send(Message::binary(frame(subscription, &m))).await?;
                     }
                 }
-                Err(broadcast::error::RecvError::Lagged(n)) => lost += n,
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    if lost == 0 {
+                        tracing::warn!("live view: a client fell behind and lost {n} messages (more are counted at its end)");
+                    }
+                    lost += n;
+                }
                 Err(broadcast::error::RecvError::Closed) => break,
             },
         }
