@@ -347,6 +347,18 @@ fn seconds(text: &str) -> Result<Duration, String> {
 
 /// A run directory to create: a new or empty directory, so that a run never mixes its files
 /// with another's.
+/// The live view's address can be listened on: said before a run directory is made, which a
+/// run that cannot serve would leave half-written.
+fn live_free(live: Option<SocketAddr>) -> Result<(), Failure> {
+    match live.map(std::net::TcpListener::bind) {
+        Some(Err(e)) => Err(Failure::Input(anyhow!(
+            "--live {}: cannot serve the live view there: {e}",
+            live.expect("given")
+        ))),
+        _ => Ok(()),
+    }
+}
+
 fn fresh_out(out: Option<&Path>) -> Result<(), Failure> {
     let Some(out) = out.filter(|o| o.exists()) else {
         return Ok(());
@@ -556,6 +568,7 @@ fn run(
     }
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
+    live_free(options.live)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = if in_process {
         inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::Failed)?
@@ -872,6 +885,7 @@ fn record(
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
+    live_free(live)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = role(tcpf_coordinator::recording::record(
         &mission,

@@ -186,6 +186,9 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
     std::fs::write(full.join("telemetry.csv"), "another run's").unwrap();
     let bad_config = dir.join("zenoh.json5");
     std::fs::write(&bad_config, "{ mode: \"client\", bogus: 1 }").unwrap();
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let taken = taken.local_addr().unwrap().to_string();
+    let busy_out = dir.join("busy");
     let portless = dir.join("portless.json5");
     std::fs::write(&portless, "{ listen: { endpoints: { router: [\"tcp/127.0.0.1\"] } } }").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
@@ -357,6 +360,18 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "portless.json5: listen/endpoints tcp/127.0.0.1: the address needs a port",
         ),
         (vec!["planner", &mission, "-e", "tcp/::1"], "an IPv6 host in brackets"),
+        (
+            vec![
+                "run",
+                &mission,
+                "--in-process",
+                "--live",
+                &taken,
+                "--out",
+                busy_out.to_str().unwrap(),
+            ],
+            "cannot serve the live view there",
+        ),
     ];
     for (args, says) in cases {
         let o = tcpf(&args);
@@ -372,6 +387,10 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         std::fs::read_to_string(full.join("telemetry.csv")).unwrap(),
         "another run's",
         "nothing was overwritten"
+    );
+    assert!(
+        !busy_out.exists(),
+        "a run that cannot serve its live view leaves no directory"
     );
 }
 

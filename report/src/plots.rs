@@ -178,9 +178,10 @@ impl<'a> Chart<'a> {
     }
 }
 
-/// Grouped bars: per category, one bar per named value.
+/// Grouped bars: per category, one bar per named value, each category named under its bars.
 pub fn bars(
     title: &str,
+    x_label: &str,
     y_label: &str,
     categories: &[String],
     groups: &[(&str, Vec<f64>)],
@@ -199,18 +200,21 @@ pub fn bars(
                 .margin(12)
                 .x_label_area_size(40)
                 .y_label_area_size(60)
-                .build_cartesian_2d(0.0..n as f64, 0.0..top)?;
+                .build_cartesian_2d(-0.5..n as f64 - 0.5, 0.0..top)?;
+            // Category c is centred on x = c, where the axis puts a label.
             chart
                 .configure_mesh()
                 .disable_x_mesh()
                 .x_labels(n)
                 .x_label_formatter(&|x| {
+                    let c = x.round();
                     categories
-                        .get(x.floor() as usize)
-                        .filter(|_| x.fract() > 0.3)
+                        .get(c as usize)
+                        .filter(|_| c >= 0.0 && (x - c).abs() < 1e-6)
                         .cloned()
                         .unwrap_or_default()
                 })
+                .x_desc(x_label)
                 .y_desc(y_label)
                 .draw()?;
             let w = 0.8 / groups.len().max(1) as f64;
@@ -218,7 +222,7 @@ pub fn bars(
                 let color = Palette99::pick(g).to_rgba();
                 chart
                     .draw_series(values.iter().enumerate().map(|(c, v)| {
-                        let left = c as f64 + 0.1 + g as f64 * w;
+                        let left = c as f64 - 0.4 + g as f64 * w;
                         Rectangle::new([(left, 0.0), (left + w, *v)], color.filled())
                     }))?
                     .label(*name)
@@ -258,15 +262,26 @@ mod tests {
 
     #[test]
     fn bars_have_one_rectangle_per_value() {
-        let svg = bars(
-            "links",
-            "messages",
-            &["1→2".into(), "2→1".into()],
-            &[("delivered", vec![5.0, 6.0]), ("dropped", vec![1.0, 0.0])],
-            400,
-            300,
-        );
-        assert!(svg.matches("<rect").count() >= 4, "{svg}");
-        assert!(svg.contains("\ndelivered\n"));
+        for n in [2, 10] {
+            let names: Vec<String> = (1..=n).map(|i| format!("{i}→{}", i % n + 1)).collect();
+            let values = vec![5.0; n];
+            let svg = bars(
+                "links",
+                "directed link",
+                "messages",
+                &names,
+                &[("delivered", values.clone()), ("dropped", values)],
+                400,
+                300,
+            );
+            assert!(svg.matches("<rect").count() >= 2 * n, "{svg}");
+            assert!(svg.contains("\ndelivered\n") && svg.contains("directed link"));
+            for name in &names {
+                assert!(
+                    svg.contains(&format!(">\n{name}\n<")),
+                    "{name} is under its bars: {svg}"
+                );
+            }
+        }
     }
 }

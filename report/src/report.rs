@@ -62,10 +62,10 @@ fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
         tr.t.push(num(ct).ok_or_else(bad)?);
         tr.x.push(num(cx).ok_or_else(bad)?);
         tr.y.push(num(cy).ok_or_else(bad)?);
-        // A lost vehicle has no command columns: its γ stays where it was.
-        let last = |v: &Vec<f64>| v.last().copied().unwrap_or(0.0);
+        // A lost vehicle has no command columns: its γ is frozen and it coordinates with nobody,
+        // so its pairs leave the coordination error (as the summary's does).
         let (g, v, ye) = (
-            num(cg).unwrap_or(last(&tr.gamma)),
+            num(cg).unwrap_or(f64::NAN),
             num(cv).unwrap_or(0.0),
             num(cye).unwrap_or(f64::NAN),
         );
@@ -232,9 +232,15 @@ fn message_figures(messages: &[Message], figures: &mut Vec<(&str, String, String
         if (points.len() - 1) % stride != 0 {
             shown.extend(points.last());
         }
+        // A count holds until the next broadcast: drawn as steps, a silence is flat.
+        let steps = shown
+            .iter()
+            .zip(shown.iter().skip(1))
+            .flat_map(|(&(_, n), &(t, m))| [(t, n), (t, m)]);
+        let steps: Vec<(f64, f64)> = shown.first().copied().into_iter().chain(steps).collect();
         sent.series.push(Series {
             name: format!("vehicle {id}"),
-            points: shown,
+            points: steps,
         });
     }
     figures.push((
@@ -329,7 +335,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     };
     figures.push((
         "coordination",
-        format!("Coordination error for {what} (Fig. 5)."),
+        format!("Coordination error for {what} (Fig. 5); a lost vehicle's pairs end where it was lost."),
         gaps.svg(900, 400),
     ));
 
@@ -400,6 +406,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     let count = |k: &str| links.iter().map(|l| l[k].as_f64().unwrap_or(0.0)).collect::<Vec<f64>>();
     let link_chart = bars(
         "Messages per directed link",
+        "directed link",
         "messages",
         &names,
         &[("delivered", count("delivered")), ("dropped", count("dropped"))],
@@ -502,6 +509,27 @@ fn timing_table(html: &mut String, summary: &Value) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lost_vehicles_gamma_leaves_the_tracks() {
+        // Vehicle 2 is lost after tick 1: its rows have no command columns.
+        let dir = std::env::temp_dir().join(format!("tcpf-report-lost-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("telemetry.csv");
+        std::fs::write(
+            &file,
+            "tick,t,id,x,y,heading,gamma,v,r,v_d,x_e,y_e,psi_e\n\
+             0,0,1,0,0,0,0,0.5,0,0.5,0,0,0\n0,0,2,0,5,0,0,0.5,0,0.5,0,0,0\n\
+             1,0.01,1,0,0,0,0.01,0.5,0,0.5,0,0,0\n1,0.01,2,0,5,0,0.01,0.5,0,0.5,0,0,0\n\
+             2,0.02,1,0,0,0,0.02,0.5,0,0.5,0,0,0\n2,0.02,2,0,5,0,,,,,,,\n",
+        )
+        .unwrap();
+        let tracks = read_telemetry(&file).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(tracks[&2].gamma[..2], [0.0, 0.01]);
+        assert!(tracks[&2].gamma[2].is_nan(), "no γ once lost: {:?}", tracks[&2].gamma);
+        assert_eq!(tracks[&1].gamma[2], 0.02);
+    }
 
     #[test]
     fn a_large_fleet_charts_only_the_pairs_that_matter_most() {
