@@ -295,10 +295,14 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
             name: format!("vehicle {id}"),
             points: thin(&tr.x, &tr.y),
         });
-        let dt = tr.t.get(1).map_or(1.0, |t1| t1 - tr.t[0]).max(1e-9);
-        let stride = (10.0 / dt).round().max(1.0) as usize;
-        for k in (stride..tr.t.len()).step_by(stride) {
-            paths.labels.push((tr.x[k], tr.y[k], format!("{:.0}", tr.t[k])));
+        // Every 10 s, at the first row at or past it: a realtime file's rows are the periods
+        // its recorder sampled, not every tick.
+        let mut next = 10.0;
+        for k in 0..tr.t.len() {
+            if tr.t[k] >= next - 1e-9 {
+                paths.labels.push((tr.x[k], tr.y[k], format!("{next:.0}")));
+                next = (tr.t[k] / 10.0).floor() * 10.0 + 10.0;
+            }
         }
     }
     for v in &mission.vehicles {
