@@ -233,6 +233,8 @@ fn a_threshold_sweep_shows_messages_traded_for_coordination() {
             last(row)
         );
     }
+    let arrival = std::fs::read_to_string(dir.join("sweep-arrival.svg")).unwrap();
+    assert!(arrival.contains("last arrival (s)"), "the arrival is plotted too");
     let plot = std::fs::read_to_string(dir.join("sweep-messages.svg")).unwrap();
     assert!(plot.contains("broadcasts per vehicle per second"));
 }

@@ -264,6 +264,14 @@ pub fn write(out: &Path, summary: &SweepSummary) -> Result<String> {
                 "broadcasts per vehicle per second",
                 |v: &ValueSummary| v.messages_per_vehicle_s,
             ),
+            // Where a delay or a coarse trigger shows when the error does not: when the fleet
+            // got there (of the runs in which every vehicle arrived).
+            (
+                "sweep-arrival.svg",
+                "Last arrival",
+                "last arrival (s)",
+                |v: &ValueSummary| v.last_arrival,
+            ),
         ] {
             let points: Vec<(f64, Stats)> = xs
                 .iter()
