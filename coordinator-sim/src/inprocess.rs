@@ -68,6 +68,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         timing: Vec::new(),
         restarts: Vec::new(),
         unreported: Vec::new(),
+        coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
     };
     dir.write_summary(&summary)?;
     tcpf_report::report::write(&dir.path)?;

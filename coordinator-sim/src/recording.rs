@@ -424,6 +424,7 @@ impl Recording {
             timing: Summary::timing_of(&self.exit_reports),
             restarts,
             unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
+            coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         };
         self.telemetry.finish()?;
         dir.write_summary(&summary)?;

@@ -95,6 +95,42 @@ fn estimate(sample: &Sample, t: f64, compensate: bool) -> f64 {
     }
 }
 
+/// The coordination gain every agent of a mission uses (D19): k_c, capped by the largest delay
+/// any link can impose (as the receivers count it, in whole periods) when delay is compensated.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CoordinationGain {
+    /// `control.kc` as the mission sets it.
+    pub kc: f64,
+    /// k_c,eff: what the agents use.
+    pub effective: f64,
+    /// s: the largest delay the cap was computed from.
+    pub max_delay_s: f64,
+}
+
+impl CoordinationGain {
+    pub fn of(mission: &Mission) -> CoordinationGain {
+        let (c, k) = (&mission.control, &mission.comms);
+        let graph = mission.graph();
+        let comm_every = mission.comm_every();
+        let dt = mission.mission.control_period;
+        let max_delay_s = graph
+            .iter()
+            .flat_map(|(&to, from)| from.iter().map(move |&j| LinkSpec::of(mission, j, to).max_delay()))
+            .map(|d| in_ticks(d, k.period, comm_every) as f64 * dt)
+            .fold(0.0, f64::max);
+        let effective = if c.delay_compensation {
+            coord::capped_gain(c.kc, coord::laplacian_max_eigenvalue(&graph), max_delay_s)
+        } else {
+            c.kc
+        };
+        CoordinationGain {
+            kc: c.kc,
+            effective,
+            max_delay_s,
+        }
+    }
+}
+
 impl Agent {
     /// The agent of vehicle `id`, at the start of its path (D15).
     pub fn new(mission: &Mission, id: u32, path: GeneralizedPath) -> Agent {
@@ -103,18 +139,8 @@ impl Agent {
         let graph = mission.graph();
         let comm_every = mission.comm_every();
         let whole_periods = |seconds: f64| in_ticks(seconds, k.period, comm_every);
+        let kc = CoordinationGain::of(mission).effective;
         let dt = mission.mission.control_period;
-        // The largest delay any link can impose, as the receivers will count it.
-        let max_delay = graph
-            .iter()
-            .flat_map(|(&to, from)| from.iter().map(move |&j| LinkSpec::of(mission, j, to).max_delay()))
-            .map(|d| whole_periods(d) as f64 * dt)
-            .fold(0.0, f64::max);
-        let kc = if c.delay_compensation {
-            coord::capped_gain(c.kc, coord::laplacian_max_eigenvalue(&graph), max_delay)
-        } else {
-            c.kc
-        };
         let tdma = k.tdma_slot.map(|slot| Tdma {
             slot_ticks: (slot / k.period).round() as u64 * comm_every,
             vehicles: graph.len() as u64,

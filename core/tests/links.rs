@@ -166,6 +166,33 @@ fn without_delay_the_prediction_is_the_papers_law_to_the_bit() {
 }
 
 #[test]
+fn the_capped_gain_is_one_over_lambda_max_times_the_largest_delay() {
+    use tcpf_core::agent::CoordinationGain;
+    for (name, delay, effective) in [
+        ("paper/b-current", "0", 0.5),
+        ("paper/b-current", "2", 0.25),
+        (
+            "ring5",
+            "1",
+            1.0 / (2.0 - 2.0 * (4.0 * std::f64::consts::PI / 5.0).cos()),
+        ),
+    ] {
+        let g = CoordinationGain::of(&load(name, &[&format!("comms.delay={delay}")]));
+        assert!((g.effective - effective).abs() < 1e-12, "{name} at {delay} s: {g:?}");
+        assert_eq!(g.kc, 0.5);
+    }
+    let paper = load(
+        "paper/b-current",
+        &["comms.delay=2", "control.delay_compensation=false"],
+    );
+    assert_eq!(
+        CoordinationGain::of(&paper).effective,
+        0.5,
+        "the paper's law is not capped"
+    );
+}
+
+#[test]
 fn compensated_delay_matches_the_independent_figures() {
     // docs/LINKS.md, D19 with k_c,eff: (delay, arrivals, error).
     for (delay, expected, error) in [

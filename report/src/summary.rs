@@ -105,6 +105,9 @@ pub struct Summary {
     /// and γ counts are missing from this summary.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unreported: Vec<String>,
+    /// The coordination gain the agents used: k_c, capped by the largest delay (D19).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coordination_gain: Option<tcpf_core::agent::CoordinationGain>,
 }
 
 impl Summary {

@@ -100,6 +100,13 @@ pub fn summary(summary: &Summary) -> String {
         let _ = writeln!(s, "{:>4} {:>12} {:>6}", v.id, arrival, v.lost);
     }
     let _ = writeln!(s, "t_f {:.3} s, {} ticks", r.t_f, r.ticks);
+    if let Some(g) = summary.coordination_gain.filter(|g| g.effective != g.kc) {
+        let _ = writeln!(
+            s,
+            "coordination gain {:.3}: k_c {} capped by the largest delay, {:.2} s",
+            g.effective, g.kc, g.max_delay_s
+        );
+    }
     if r.ticks == 0 {
         let _ = writeln!(s, "no tick ran: no coordination error or clearance to give");
     } else {
