@@ -345,8 +345,6 @@ fn seconds(text: &str) -> Result<Duration, String> {
     }
 }
 
-/// A run directory to create: a new or empty directory, so that a run never mixes its files
-/// with another's.
 /// The live view's address can be listened on: said before a run directory is made, which a
 /// run that cannot serve would leave half-written.
 fn live_free(live: Option<SocketAddr>) -> Result<(), Failure> {
@@ -359,6 +357,8 @@ fn live_free(live: Option<SocketAddr>) -> Result<(), Failure> {
     }
 }
 
+/// A run directory to create: a new or empty directory, so that a run never mixes its files
+/// with another's.
 fn fresh_out(out: Option<&Path>) -> Result<(), Failure> {
     let Some(out) = out.filter(|o| o.exists()) else {
         return Ok(());

@@ -45,6 +45,8 @@ pub struct Metrics {
     ticks: u64,
     /// Previous tick's γ and positions, for interpolating at the first arrival.
     previous: Option<(Vec<f64>, Vec<[f64; 2]>)>,
+    /// The tick of `previous`.
+    previous_tick: Option<u64>,
     spare: Option<(Vec<f64>, Vec<[f64; 2]>)>,
     ids: Roster,
     arrivals: Vec<Option<f64>>,
@@ -108,6 +110,7 @@ impl Metrics {
             dt,
             ticks: 0,
             previous: None,
+            previous_tick: None,
             spare: None,
             ids: Roster::new(ids),
             arrivals: vec![None; ids.len()],
@@ -150,8 +153,11 @@ impl Metrics {
         for (n, &g) in gammas.iter().enumerate() {
             if self.arrivals[n].is_none() && g >= self.t_f {
                 let prev = self.previous.as_ref().map(|p| p.0[n]);
+                // Over the interval since the row before, which a realtime recorder may have
+                // sampled periods ago.
+                let span = self.dt * tick.saturating_sub(self.previous_tick.unwrap_or(tick)).max(1) as f64;
                 self.arrivals[n] = Some(match prev {
-                    Some(p) if g > p => t - self.dt + self.dt * (self.t_f - p) / (g - p),
+                    Some(p) if g > p => t - span + span * (self.t_f - p) / (g - p),
                     _ => t,
                 });
             }
@@ -203,6 +209,7 @@ impl Metrics {
             }
         }
         self.spare = self.previous.replace((gammas, positions));
+        self.previous_tick = Some(tick);
         self.ticks += 1;
     }
 

@@ -743,6 +743,36 @@ mod tests {
         assert!((arrival - 99.1 * dt).abs() < 1e-9, "{arrival}");
     }
 
+    /// An arrival between two rows periods apart is interpolated over the periods between them.
+    #[test]
+    fn an_arrival_across_unsampled_periods_is_placed_between_the_rows() {
+        let (m, paths, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let mut agent = Agent::new(&m, 1, paths[0].1);
+        let state = |tick| still(1, tick, dt, [0.0, 0.0]);
+        let mut command = |tick, gamma| Command {
+            tick,
+            gamma,
+            ..agent.step(tick, &state(tick), &[])
+        };
+        let (before, after) = (command(10, t_f - 0.05), command(15, t_f + 0.05));
+        let mut sampler = Sampler::new(&[1], t_f, dt);
+        sampler.on_state(state(10), HORIZON).unwrap();
+        sampler.on_command(before, HORIZON).unwrap();
+        sampler.sample(10, |_, _| {});
+        for tick in 11..15 {
+            sampler.sample(tick, |_, _| panic!("no state since tick 10: no row"));
+        }
+        sampler.on_state(state(15), HORIZON).unwrap();
+        sampler.on_command(after, HORIZON).unwrap();
+        sampler.sample(15, |_, _| {});
+        let arrival = sampler.results().vehicles[0].arrival_time.expect("arrived");
+        assert!(
+            (arrival - 12.5 * dt).abs() < 1e-9,
+            "halfway between ticks 10 and 15: {arrival}"
+        );
+    }
+
     /// A world that went quiet (late, or gone) leaves no rows that repeat its last state.
     #[test]
     fn a_period_without_a_new_state_is_not_sampled() {

@@ -237,8 +237,14 @@ class Vehicle:
         thrusters, as the world does for the vehicles it simulates."""
         with self.lock:
             c = self.command
-        if c is not None and c["tick"] + math.ceil(HOLD_LIMIT_S / dt) < round(self.t / dt):
-            c = None
+        if c is not None:
+            # Held for the steps from ticks up to c.tick + hold, as the world holds it: a span of
+            # skipped periods that runs past that is cut there.
+            expires = (c["tick"] + math.ceil(HOLD_LIMIT_S / dt) + 1) * dt
+            if self.t < expires - 0.5 * dt < t - 0.5 * dt:
+                self.advance(expires, dt)
+            if round(self.t / dt) * dt >= expires - 0.5 * dt:
+                c = None
         if c is not None and c["tick"] != self.used_tick:
             self.used, self.used_tick = self.used + 1, c["tick"]
         h, self.t = t - self.t, t
@@ -453,11 +459,16 @@ def self_test():
     checks["at t = 0, x10: commands up to a wall second ahead"] = 1000 <= ship.horizon() <= 1002
     ship.command = dict(command, tick=0, v=1.0, r=0.0)
     ship.advance(1.0, 0.01)
-    ship.advance(1.02, 0.01)
+    ship.advance(1.01, 0.01)
     held = ship.position[0]
-    checks["a command held for a simulated second"] = abs(held - 1.02) < 1e-12
-    ship.advance(1.03, 0.01)
+    # The world holds command k for the steps from ticks k … k + 100 (a second at 0.01 s).
+    checks["a command held for a simulated second"] = abs(held - 1.01) < 1e-12
+    ship.advance(1.02, 0.01)
     checks["then the watchdog stops the thrusters"] = ship.position[0] == held
+    ship = Vehicle(2, [0.0, 0.0], 0.0, [0.0, 0.0], 12000)
+    ship.command = dict(command, tick=0, v=1.0, r=0.0)
+    ship.advance(1.5, 0.01)
+    checks["skipped periods stop where the world's hold does"] = abs(ship.position[0] - 1.01) < 1e-12
     for n, hex_ in [(0, "00"), (127, "7f"), (128, "8001"), (300, "ac02"), (2**32, "8080808010")]:
         checks[f"varint {n}"] = encode(U64, n) == bytes.fromhex(hex_) and Reader(varint(n)).uint(64) == n
     for t, m in [(STATE, state), (COMMAND, command), (END, end), (CLOCK, clock)]:

@@ -143,13 +143,23 @@ impl<'a> Chart<'a> {
         }
         for (k, s) in self.series.iter().enumerate() {
             let color = Palette99::pick(k).to_rgba();
-            chart
-                .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(2)))?
-                .label(s.name.clone())
-                .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], color.stroke_width(2)));
-            // A line through one point is drawn as nothing.
-            if let [point] = s.points.as_slice() {
-                chart.draw_series(std::iter::once(Circle::new(*point, 4, color.filled())))?;
+            // A point without a value (a vehicle lost, then back) breaks the line there.
+            let runs: Vec<&[(f64, f64)]> = s
+                .points
+                .split(|p| !p.1.is_finite())
+                .filter(|run| !run.is_empty())
+                .collect();
+            for (r, run) in runs.iter().enumerate() {
+                let drawn = chart.draw_series(LineSeries::new(run.iter().copied(), color.stroke_width(2)))?;
+                if r == 0 {
+                    drawn
+                        .label(s.name.clone())
+                        .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], color.stroke_width(2)));
+                }
+                // A line through one point is drawn as nothing.
+                if let [point] = run {
+                    chart.draw_series(std::iter::once(Circle::new(*point, 4, color.filled())))?;
+                }
             }
         }
         for (k, s) in self.dots.iter().enumerate() {
@@ -257,6 +267,17 @@ mod tests {
         let svg = c.svg(400, 300);
         assert!(svg.starts_with("<svg") && svg.contains("</svg>"));
         assert!(svg.contains("<polyline"), "the line");
+        // A gap breaks it in two, named once.
+        c.series[0].points = vec![(0.0, 0.0), (1.0, 2.0), (2.0, f64::NAN), (3.0, 1.0), (4.0, 0.5)];
+        let gapped = c.svg(400, 300);
+        let lines = |svg: &str| {
+            svg.lines()
+                .filter(|l| l.starts_with("<polyline") && l.contains("stroke-width=\"2\""))
+                .count()
+        };
+        // The line and its legend; then two runs and the one legend.
+        assert_eq!((lines(&svg), lines(&gapped)), (2, 3), "{gapped}");
+        assert_eq!(gapped.matches("\none\n").count(), 1);
         assert!(svg.contains("\none\n") && svg.contains("\nlimit\n") && svg.contains("\nstart\n"));
     }
 

@@ -116,12 +116,7 @@ fn every(n: usize) -> usize {
 
 fn thin(xs: &[f64], ys: &[f64]) -> Vec<(f64, f64)> {
     let step = every(xs.len());
-    xs.iter()
-        .zip(ys)
-        .step_by(step)
-        .map(|(a, b)| (*a, *b))
-        .filter(|p| p.1.is_finite())
-        .collect()
+    xs.iter().zip(ys).step_by(step).map(|(a, b)| (*a, *b)).collect()
 }
 
 fn escape(s: &str) -> String {
@@ -300,8 +295,10 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         let mut next = 10.0;
         for k in 0..tr.t.len() {
             if tr.t[k] >= next - 1e-9 {
-                paths.labels.push((tr.x[k], tr.y[k], format!("{next:.0}")));
-                next = (tr.t[k] / 10.0).floor() * 10.0 + 10.0;
+                // After a gap, the multiple of 10 s this row reached, not the first one missed.
+                let reached = ((tr.t[k] + 1e-9) / 10.0).floor() * 10.0;
+                paths.labels.push((tr.x[k], tr.y[k], format!("{reached:.0}")));
+                next = reached + 10.0;
             }
         }
     }

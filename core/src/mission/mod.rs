@@ -523,6 +523,16 @@ goal_velocity = [0.75, 0.0]
     }
 
     #[test]
+    fn an_outage_stays_valid_with_coordination_off() {
+        // No coordination, no links: the outage is kept for a sweep that turns it back on.
+        let text = format!("{PAPER}\n[[comms.outage]]\nfrom = 1\nto = 2\nstart = 10.0\nend = 20.0\n");
+        assert!(parse("m.toml", &text, &["control.coordination=false".into()]).is_ok());
+        let far = text.replace("start = 10.0\nend = 20.0", "start = 130.0\nend = 140.0");
+        let e = parse("m.toml", &far, &[]).unwrap_err();
+        assert!(e.message.contains("outside the run's [0, 120)"), "{}", e.message);
+    }
+
+    #[test]
     fn a_missing_table_is_named_not_the_first_one_there() {
         let no_vehicle = PAPER.split("[[vehicle]]").next().unwrap();
         let e = parse("m.toml", no_vehicle, &[]).unwrap_err();

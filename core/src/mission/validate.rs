@@ -409,7 +409,9 @@ impl Mission {
             )?;
         }
         let graph = self.graph();
-        for (i, o) in k.outages.iter().enumerate() {
+        // Without coordination there are no links, and an outage is kept for a sweep that
+        // turns coordination back on.
+        for (i, o) in k.outages.iter().enumerate().filter(|_| self.control.coordination) {
             if let (Endpoint::Id(from), Endpoint::Id(to)) = (&o.from, &o.to) {
                 check(
                     graph.get(to).is_some_and(|n| n.contains(from)),
