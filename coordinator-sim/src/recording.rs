@@ -357,11 +357,12 @@ impl Recording {
         if realtime {
             // The metrics count the periods this recorder sampled; the run lasted the world's
             // ticks: as many as its end says, or, without one, to its newest state.
-            results.ticks = match (&self.end, &self.machine) {
-                (Some(end), _) => end.ticks,
-                (None, Machine::Realtime { sampler, .. }) => sampler.newest_state().map_or(0, |k| k + 1),
-                (None, Machine::Lockstep(_)) => results.ticks,
-            };
+            if let Machine::Realtime { sampler, .. } = &self.machine {
+                results.ticks = self
+                    .end
+                    .as_ref()
+                    .map_or_else(|| sampler.newest_state().map_or(0, |k| k + 1), |end| end.ticks);
+            }
             // What each sender published, against what reached its receivers (judged at an
             // instant, or overtaken before one): the network's own loss. An agent started again
             // reports once per life.

@@ -207,8 +207,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
     let deadline = tokio::time::Instant::now() + options.startup_timeout;
-    let remaining = deadline.saturating_duration_since(tokio::time::Instant::now());
-    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, remaining, &rejected));
+    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
     let Some(paths) = fetched.await else {
         return Ok(Exit::Interrupted);
     };
