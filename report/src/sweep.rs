@@ -358,12 +358,14 @@ pub fn table(summary: &SweepSummary) -> String {
             a.max_coordination_error,
             a.min_clearance,
             a.arrival_spread,
+            a.last_arrival,
             a.delivered_fraction,
             a.messages_per_vehicle_s,
         ) == (
             b.max_coordination_error,
             b.min_clearance,
             b.arrival_spread,
+            b.last_arrival,
             b.delivered_fraction,
             b.messages_per_vehicle_s,
         )
@@ -388,4 +390,45 @@ pub fn table(summary: &SweepSummary) -> String {
 /// Where a sweep writes by default.
 pub fn default_out(mission: &Mission) -> PathBuf {
     crate::rundir::unused(&format!("{}-sweep-{}", mission.mission.name, crate::rundir::stamp()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_that_differ_only_in_their_arrival_are_not_the_same_results() {
+        let stats = |x: f64| {
+            Some(Stats {
+                mean: x,
+                std: 0.0,
+                min: x,
+                max: x,
+            })
+        };
+        let value = |v: &str, last: f64| ValueSummary {
+            value: v.into(),
+            runs: 1,
+            arrived: 1,
+            last_arrival: stats(last),
+            max_coordination_error: stats(0.36),
+            min_clearance: stats(3.5),
+            arrival_spread: stats(0.0),
+            delivered_fraction: stats(1.0),
+            messages_per_vehicle_s: stats(10.0),
+        };
+        let sweep = |values| SweepSummary {
+            mission: "m".into(),
+            parameter: "comms.delay".into(),
+            seeds: 1,
+            mode: "in-process".into(),
+            planned_runs: 2,
+            done_runs: 2,
+            interrupted: false,
+            values,
+        };
+        let same = "gave the same results";
+        assert!(table(&sweep(vec![value("0", 55.5), value("1", 55.5)])).contains(same));
+        assert!(!table(&sweep(vec![value("0", 55.5), value("1", 82.9)])).contains(same));
+    }
 }
