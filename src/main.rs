@@ -564,7 +564,7 @@ fn run(
         )));
     }
     if !in_process && !realtime {
-        launcher::router_runtime();
+        launcher::launcher_runtime();
     }
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
@@ -672,7 +672,7 @@ fn agent(
 fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     if mission.mission.clock == mission::ClockKind::Lockstep {
-        launcher::router_runtime();
+        launcher::launcher_runtime();
     }
     let seconds = |d: Duration| d.as_secs_f64();
     let started = Instant::now();

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 mod common;
 use common::{
     alive, assert_none_left, assert_same_run, config, descendants, exited, free_endpoint, kill, paper, run_in_process,
-    scratch, Launch,
+    scratch, tcpf, text, Launch,
 };
 
 #[test]
@@ -111,6 +111,38 @@ fn a_ring_of_five_completes() {
     );
     run_in_process(&mission, &dir.join("i"), &[]);
     assert_same_run(&dir.join("p"), &dir.join("i"));
+    assert_none_left(&s);
+}
+
+#[test]
+fn a_fleet_of_ten_is_routed_by_its_world_and_every_process_reports() {
+    let dir = scratch("routed-by-the-world");
+    let o = tcpf(&["gen", "lanes", "--vehicles", "10"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mission = dir.join("lanes10.toml");
+    std::fs::write(&mission, &o.stdout).unwrap();
+    let out = dir.join("p");
+    let mut launch = Launch::start(mission.to_str().unwrap(), &out, &[]);
+    assert!(launch.wait(Duration::from_secs(300)).success());
+    // The world listens; every other process, the launcher too, connects to it.
+    let json = |f: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(out.join(f)).unwrap()).unwrap()
+    };
+    let endpoint = std::fs::read_to_string(out.join("endpoint")).unwrap();
+    assert_eq!(json("world.json5")["mode"], "router");
+    assert_eq!(json("world.json5")["listen"]["endpoints"][0], endpoint.trim());
+    assert_eq!(json("zenoh.json5")["mode"], "client");
+    assert_eq!(json("zenoh.json5")["connect"]["endpoints"][0], endpoint.trim());
+    // A world that forwarded on one thread with congestion control block waited, now and then,
+    // on a queue only that thread could drain: the run stalled at its end, the world and the
+    // planner were killed and no report reached the recorder (4 runs in 10).
+    let s = launch.summary();
+    let children = s["children"].as_array().unwrap();
+    assert_eq!(children.len(), 12);
+    for c in children {
+        assert_eq!(c["exit_code"], 0, "{c}");
+        assert_eq!(c["pid"], c["reported_pid"], "{c}");
+    }
     assert_none_left(&s);
 }
 

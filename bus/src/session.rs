@@ -183,6 +183,15 @@ impl ZenohArgs {
         Ok(config)
     }
 
+    /// Whether the session these options open is a router, through which others' messages pass.
+    pub fn routes(&self) -> Result<bool> {
+        let mode = self
+            .config()?
+            .get_json("mode")
+            .map_err(|e| anyhow!("zenoh mode: {e}"))?;
+        Ok(mode.trim_matches('"') == "router")
+    }
+
     /// `open`, unless a signal comes first: a client waits up to its connect timeout (a minute in
     /// configs/zenoh/) for a router that is not up, and Ctrl-C must not wait with it.
     /// Zenoh's open blocks the thread that polls it while it waits, so it opens on a task of

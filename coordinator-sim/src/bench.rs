@@ -96,7 +96,7 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
             "--mode",
             mode,
         ])
-        .envs(crate::launcher::child_runtime())
+        .envs(crate::launcher::child_runtime(Role::Agent))
         .stdout(Stdio::null())
         .kill_on_drop(true)
         .spawn()
@@ -258,7 +258,7 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
                     "--mode",
                     "client",
                 ])
-                .envs(crate::launcher::child_runtime())
+                .envs(crate::launcher::child_runtime(Role::Agent))
                 .stdout(Stdio::null())
                 .kill_on_drop(true)
                 .spawn()

@@ -22,36 +22,47 @@ use crate::recording::{Closing, Recording};
 use tcpf_report::rundir::RunDir;
 use tcpf_report::summary::{ChildSummary, Restarts, Summary};
 
-/// Zenoh's threads in a lockstep child (unless the user set ZENOH_RUNTIME): one, instead of six
-/// that hand every message to each other. A child is a client and routes nothing, so nothing it
-/// runs waits on a queue only that thread would drain; the launcher, the router, keeps Zenoh's
-/// defaults, and so does a realtime child, whose timing was measured with them. Measured on 10
-/// agents: a tick 12 % cheaper, and fewer threads' stacks per agent.
+/// Zenoh's threads in a lockstep agent or planner (unless the user set ZENOH_RUNTIME): one,
+/// instead of six that hand every message to each other. Such a child is a client and routes
+/// nothing, so nothing it runs waits on a queue only that thread would drain. Measured on 10
+/// agents: a tick 12 % cheaper, and fewer threads' stacks per agent. A realtime child keeps
+/// Zenoh's defaults, with which its timing was measured.
 pub const CHILD_RUNTIME: &str =
     "(rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app), app: (worker_threads: 1))";
-/// Zenoh's threads in the launcher of a lockstep run, which routes every message of the fleet:
-/// two that each take a message from one socket to the next, instead of a receiving thread
-/// that hands it to a sending one (the router's threads were a third of the CPU of 10 agents).
-/// Measured, interleaved runs of 10 agents: a tick 780 -> 660 us; of 50 agents, unchanged.
-pub const ROUTER_RUNTIME: &str =
+/// Zenoh's threads in a lockstep world, the run's router: one, as a child's, but for the thread
+/// that writes to the sockets. A router that forwards with congestion control *block* waits for
+/// a full queue to drain, and on one thread it would wait for itself: the recorder falling
+/// behind by a few batches stopped a run of 10 agents for seconds, or for good.
+pub const WORLD_RUNTIME: &str =
+    "(rx: (handover: app), acc: (handover: app), net: (handover: app), app: (worker_threads: 1))";
+/// Zenoh's threads in the launcher of a lockstep run, and in `tcpf bench`, whose routed round trip
+/// passes through a router of its own: two that each take a message from one socket to the next,
+/// instead of a receiving thread that hands it to a sending one (when the launcher was the
+/// fleet's router: 10 agents, a tick 780 -> 660 us).
+pub const LAUNCHER_RUNTIME: &str =
     "(rx: (handover: app), tx: (handover: app), acc: (handover: app), net: (handover: app), app: (worker_threads: 2))";
-/// Whether this process set ZENOH_RUNTIME itself (`router_runtime`), not the user.
+/// Whether this process set ZENOH_RUNTIME itself (`launcher_runtime`), not the user.
 static OWN_RUNTIME: AtomicBool = AtomicBool::new(false);
 
-/// Gives this process, about to launch a lockstep fleet, `ROUTER_RUNTIME` unless the user chose
-/// Zenoh's threads. Call while the process has one thread, before any Zenoh session: Zenoh
+/// Gives this process, about to launch a lockstep fleet, `LAUNCHER_RUNTIME` unless the user
+/// chose Zenoh's threads. Call while the process has one thread, before any Zenoh session: Zenoh
 /// reads the variable once, and nothing else reads the environment meanwhile.
-pub fn router_runtime() {
+pub fn launcher_runtime() {
     if std::env::var_os("ZENOH_RUNTIME").is_none() {
-        std::env::set_var("ZENOH_RUNTIME", ROUTER_RUNTIME);
+        std::env::set_var("ZENOH_RUNTIME", LAUNCHER_RUNTIME);
         OWN_RUNTIME.store(true, Ordering::Relaxed);
     }
 }
 
-/// The ZENOH_RUNTIME a lockstep child is given: `CHILD_RUNTIME`, unless the user chose one.
-pub fn child_runtime() -> Option<(&'static str, &'static str)> {
+/// The ZENOH_RUNTIME a lockstep child of `role` is given, unless the user chose one.
+pub fn child_runtime(role: Role) -> Option<(&'static str, &'static str)> {
     let chosen = std::env::var_os("ZENOH_RUNTIME").is_some() && !OWN_RUNTIME.load(Ordering::Relaxed);
-    (!chosen).then_some(("ZENOH_RUNTIME", CHILD_RUNTIME))
+    let runtime = if role == Role::World {
+        WORLD_RUNTIME
+    } else {
+        CHILD_RUNTIME
+    };
+    (!chosen).then_some(("ZENOH_RUNTIME", runtime))
 }
 /// How long children get to exit by themselves after the end before they are killed.
 const GRACE: Duration = Duration::from_secs(3);
@@ -132,7 +143,7 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
     let mut command = Command::new(exe);
     command.arg(role.as_str()).args(args);
     if lockstep {
-        command.envs(child_runtime());
+        command.envs(child_runtime(role));
     }
     if let Some(id) = id {
         command.args(["--id", &id.to_string()]);
@@ -175,6 +186,31 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
         exit_code: None,
         args: args.to_vec(),
     })
+}
+
+/// This process's session, a client of the world once it listens. The world may fail first (a
+/// port taken since it was found free, a mission it refuses): then its own words say why.
+/// A signal meanwhile waits for the run's loop, which stops the run as interrupted.
+async fn connect(config: &Path, world: &mut Process, log: &Path) -> Result<zenoh::Session> {
+    let args = ZenohArgs {
+        config: Some(config.to_path_buf()),
+        ..ZenohArgs::default()
+    };
+    let mut opening = tokio::spawn(async move { args.open().await });
+    let mut check = tokio::time::interval(Duration::from_millis(50));
+    loop {
+        tokio::select! {
+            opened = &mut opening => return opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
+            _ = check.tick() => if let Some(code) = world.poll() {
+                opening.abort();
+                let code = code.map_or("killed".into(), |c| format!("code {c}"));
+                return Err(match last_error(log) {
+                    Some(why) => anyhow!("the world exited ({code}) as it started: {why} (logs/world.log)"),
+                    None => anyhow!("the world exited ({code}) as it started; see logs/world.log"),
+                });
+            },
+        }
+    }
 }
 
 enum Outcome {
@@ -230,38 +266,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
     // How another tool (a recorder, a testbed bridge, a probe) joins the running fleet: with the
     // run's credential, which only the run directory's owner can read.
-    let zenoh_file = crate::access::create(&dir.path, &endpoint)?;
-    let mut config = ZenohArgs {
-        config: Some(zenoh_file.clone()),
-        listen: vec![endpoint.clone()],
-        mode: Some("router".into()),
-        ..ZenohArgs::default()
-    }
-    .config()?;
-    config
-        .insert_json5("connect/endpoints", "[]")
-        .map_err(|e| anyhow!("zenoh connect/endpoints: {e}"))?;
-    let session = zenoh::open(config)
-        .await
-        .map_err(|e| anyhow!("cannot open the Zenoh session: {}", tcpf_bus::session::zenoh_words(e)))?;
-    crate::access::announce(&dir.path, &endpoint)?;
-    if recorders > 0 {
-        eprintln!(
-            "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
-            startup_timeout.as_secs_f64(),
-            dir.path.join("mission.toml").display(),
-            zenoh_file.display()
-        );
-    }
-    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
-    // Every role is a client of this session, the router: the recorder's subscriptions are in
-    // its routes before the world can see its token.
-    recording.declare().await?;
-
-    let common = vec![mission_file, "-c".to_string(), zenoh_file.display().to_string()];
+    let configs = crate::access::create(&dir.path, &endpoint)?;
     let lockstep = mission.mission.clock == ClockKind::Lockstep;
-    let mut children = vec![spawn(exe, dir, Role::Planner, None, &common, lockstep)?];
-    let mut world_args = common.clone();
+    let common = vec![mission_file, "-c".to_string(), configs.client.display().to_string()];
+    let mut world_args = vec![common[0].clone(), "-c".to_string(), configs.world.display().to_string()];
     world_args.extend([
         "--recorders".to_string(),
         (1 + recorders).to_string(),
@@ -273,7 +281,34 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     if restart {
         world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
     }
-    children.push(spawn(exe, dir, Role::World, None, &world_args, lockstep)?);
+    // The world is the run's router: every other process, this one too, is its client.
+    let mut children = vec![spawn(exe, dir, Role::World, None, &world_args, lockstep)?];
+    let session = match connect(&configs.client, &mut children[0], &dir.path.join("logs/world.log")).await {
+        Ok(session) => session,
+        Err(e) => {
+            for c in children.iter_mut() {
+                let _ = c.child.start_kill();
+                let _ = c.child.wait().await;
+            }
+            return Err(e.context(format!("run directory {}", dir.path.display())));
+        }
+    };
+    crate::access::announce(&dir.path, &endpoint)?;
+    if recorders > 0 {
+        eprintln!(
+            "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
+            startup_timeout.as_secs_f64(),
+            dir.path.join("mission.toml").display(),
+            configs.client.display()
+        );
+    }
+    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
+    // The recorder's subscriptions reach the world before its token, on the same link: the world
+    // cannot start a tick the recorder would miss.
+    recording.declare().await?;
+
+    // Listed as before the world routed: the planner, the world, the agents.
+    children.insert(0, spawn(exe, dir, Role::Planner, None, &common, lockstep)?);
     for v in &mission.vehicles {
         children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common, lockstep)?);
     }

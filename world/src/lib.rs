@@ -336,10 +336,19 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         Inbound::Fed { stepper, mut ends } => shell.lockstep(&paths, &stepper, &mut ends, options).await?,
     };
     tracing::info!("world: {exit}");
+    // The end reaches the agents, and their reports the recorders, before the world leaves; a
+    // world that routes the fleet (that of `tcpf run`) stays for the reports after an interrupt
+    // too, and for the planner's, which it sends when the world's token goes.
+    let routes = zenoh.routes()?;
     if matches!(exit, Exit::Ended { .. }) {
         linger(&shell.session, &shell.keys, &[Role::Agent, Role::Record]).await;
+    } else if routes {
+        linger(&shell.session, &shell.keys, &[Role::Agent]).await;
     }
     let _ = token.undeclare().await;
+    if routes {
+        linger(&shell.session, &shell.keys, &[Role::Planner]).await;
+    }
     let _ = shell.session.close().await;
     Ok(exit)
 }
