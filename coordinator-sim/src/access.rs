@@ -53,8 +53,8 @@ pub struct Configs {
 /// which under load can leave a process without a link. A router also keeps the sockets of a
 /// fleet linear in its size. The world is that router because most of a tick's messages are its
 /// own: each state and command is then one hop, not two through the launcher (measured, runs
-/// interleaved with the launcher as router: case (b) 0.20-0.22 -> 0.15 ms a tick, 10 agents
-/// 0.49-0.54 -> 0.47 ms).
+/// interleaved with the launcher as router: case (b) 0.20-0.26 -> 0.15-0.20 ms a tick, 10 agents
+/// 0.49-0.54 -> 0.47-0.49 ms, 50 agents 2.46-2.77 -> 2.13-2.57 ms).
 pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
     let password = secret()?;
     let dictionary = dir.join("credentials");
