@@ -303,8 +303,9 @@ fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
     }
 }
 
-/// A role's failure: a clock the fleet does not run, or Zenoh options that cannot work, is bad
-/// input; anything else a failed run.
+/// A role's (or a launcher's) failure: a clock the fleet does not run, or Zenoh options that
+/// cannot work, is bad input; a signal before the work began an interrupt; anything else a
+/// failed run.
 fn role_failure(e: anyhow::Error) -> Failure {
     if e.downcast_ref::<tcpf_bus::clock::WrongClock>().is_some()
         || e.downcast_ref::<tcpf_bus::session::BadZenohConfig>().is_some()
@@ -576,7 +577,7 @@ fn run(
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
             .block_on(launcher::run(&mission, &plan, &dir, &exe, options))
-            .map_err(Failure::Failed)?
+            .map_err(role_failure)?
     };
     print!("{}", table::summary(&summary));
     println!("run directory: {}", dir.path.display());

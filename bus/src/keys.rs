@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Role {
     Planner,
     World,
@@ -88,6 +88,11 @@ impl Keys {
     }
     pub fn report(&self, role: Role, id: impl fmt::Display) -> String {
         format!("{}/report/{role}/{id}", self.root)
+    }
+
+    /// Every role's exit report.
+    pub fn reports(&self) -> String {
+        format!("{}/report/**", self.root)
     }
 
     /// (role, id) of a liveliness key of this mission.

@@ -64,12 +64,17 @@ pub fn zenoh_words(e: impl std::fmt::Display) -> String {
     while let Some(at) = rest.find(" at /") {
         let path = &rest[at + 4..];
         let path = &path[..path.find(char::is_whitespace).unwrap_or(path.len())];
-        let source = path
-            .trim_end_matches('.')
+        // A source location may close a bracket: "(os error 98) at /…/tcp.rs:61.]".
+        let location = path.trim_end_matches(['.', ']', ')']);
+        let source = location
             .rsplit_once(".rs:")
             .is_some_and(|(_, line)| !line.is_empty() && line.bytes().all(|b| b.is_ascii_digit()));
-        let kept = if source { at } else { at + 4 + path.len() };
-        words.push_str(&rest[..kept]);
+        if source {
+            words.push_str(&rest[..at]);
+            words.push_str(path[location.len()..].trim_start_matches('.'));
+        } else {
+            words.push_str(&rest[..at + 4 + path.len()]);
+        }
         rest = &rest[at + 4 + path.len()..];
     }
     words.push_str(rest);
@@ -207,15 +212,20 @@ impl ZenohArgs {
 
     pub async fn open(&self) -> Result<Session> {
         let config = self.config()?;
-        zenoh::open(config)
-            .await
-            .map_err(|e| anyhow!("{}", zenoh_words(e)))
-            .context(
-                "cannot open the Zenoh session: nothing answered at the endpoints to connect to, or \
+        let opened = zenoh::open(config).await.map_err(|e| anyhow!("{}", zenoh_words(e)));
+        if let Err(e) = &opened {
+            if e.to_string().contains("listener") {
+                return Err(anyhow!(
+                    "cannot open the Zenoh session: {e} (is another process listening there?)"
+                ));
+            }
+        }
+        opened.context(
+            "cannot open the Zenoh session: nothing answered at the endpoints to connect to, or \
                  a TLS handshake failed (is the router up and reachable? does it accept this host's \
                  certificate? is the router's certificate valid for the address connected to, and \
                  signed by the CA this host trusts? RUST_LOG=zenoh=debug says which)",
-            )
+        )
     }
 }
 
@@ -227,6 +237,11 @@ mod tests {
     fn zenoh_errors_lose_their_source_paths_and_debug_forms() {
         let raw = "invalid port value at /root/.cargo/registry/src/index/zenoh-link-commons-1.10.2/src/lib.rs:62.";
         assert_eq!(zenoh_words(raw), "invalid port value");
+        let bracketed = "Can not create a new TCP listener bound to tcp/127.0.0.1:42975: [127.0.0.1:42975: Address already in use (os error 98) at /root/.cargo/registry/src/i/zenoh-link-commons-1.10.2/src/tcp.rs:61.] at /root/.cargo/registry/src/i/zenoh-link-tcp-1.10.2/src/unicast.rs:338.";
+        assert_eq!(
+            zenoh_words(bracketed),
+            "Can not create a new TCP listener bound to tcp/127.0.0.1:42975: [127.0.0.1:42975: Address already in use (os error 98)]"
+        );
         let chained = "Unable to bind UDP port 192.0.2.1:7446 at /r/zenoh-1.10.2/src/orchestrator.rs:689. - Caused by Cannot assign requested address";
         assert_eq!(
             zenoh_words(chained),

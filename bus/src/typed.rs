@@ -2,7 +2,7 @@
 //! or straight to a core machine: what to do with a message is the machines' business. Refused
 //! payloads are counted, never fatal.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -341,6 +341,68 @@ pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
                 tracing::warn!("{e}");
                 return;
             }
+        }
+        tokio::time::sleep(LINGER_POLL).await;
+    }
+}
+
+/// How long a router waits for the report of a process gone: a report may come just after the
+/// token's withdrawal, which travels at a higher priority.
+const SETTLE: Duration = Duration::from_millis(200);
+
+/// The exit reports that have passed through this session, by role and id: a router that
+/// carries them to the recorders leaves only once they have.
+#[derive(Clone, Default)]
+pub struct Carried(Arc<Mutex<BTreeSet<(String, u32)>>>);
+
+impl Carried {
+    pub async fn follow(session: &Session, keys: &Keys, rejected: &Rejected) -> Result<(Subscriber<()>, Carried)> {
+        let carried = Carried::default();
+        let seen = carried.clone();
+        let subscriber = subscribe_with::<Report>(session, &keys.reports(), rejected, move |_, r| {
+            seen.0.lock().expect("carried reports").insert((r.role, r.id));
+        })
+        .await?;
+        Ok((subscriber, carried))
+    }
+
+    fn has(&self, (role, id): (Role, u32)) -> bool {
+        self.0
+            .lock()
+            .expect("carried reports")
+            .contains(&(role.as_str().to_string(), id))
+    }
+}
+
+/// Stays until each of `expected` has reported through this session, or has been gone `SETTLE`
+/// (killed, it reports nothing), or `LINGER` has passed.
+pub async fn linger_for_reports(session: &Session, keys: &Keys, expected: &[(Role, u32)], carried: &Carried) {
+    let until = tokio::time::Instant::now() + LINGER;
+    let mut gone: BTreeMap<(Role, u32), tokio::time::Instant> = BTreeMap::new();
+    while tokio::time::Instant::now() < until {
+        let waiting: Vec<(Role, u32)> = expected.iter().copied().filter(|&p| !carried.has(p)).collect();
+        if waiting.is_empty() {
+            return;
+        }
+        let present = match present(session, keys).await {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::warn!("{e}");
+                return;
+            }
+        };
+        let now = tokio::time::Instant::now();
+        let mut settled = true;
+        for p in &waiting {
+            settled &= if present.contains(p) {
+                gone.remove(p);
+                false
+            } else {
+                now - *gone.entry(*p).or_insert(now) >= SETTLE
+            };
+        }
+        if settled {
+            return;
         }
         tokio::time::sleep(LINGER_POLL).await;
     }

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
-use tcpf_bus::signals::Shutdown;
+use tcpf_bus::signals::{Interrupted, Shutdown};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::Report;
 use tcpf_core::planner::Plan;
@@ -188,27 +188,56 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
     })
 }
 
-/// This process's session, a client of the world once it listens. The world may fail first (a
-/// port taken since it was found free, a mission it refuses): then its own words say why.
-/// A signal meanwhile waits for the run's loop, which stops the run as interrupted.
-async fn connect(config: &Path, world: &mut Process, log: &Path) -> Result<zenoh::Session> {
-    let args = ZenohArgs {
+/// How long one attempt to reach the world waits: between attempts the launcher looks whether
+/// the world died and whether it was told to stop.
+const ATTEMPT_MS: u64 = 200;
+
+/// This process's session, a client of the world once it listens, which it must within
+/// `startup`. The world may fail first (a port taken since it was found free): then its own
+/// words say why.
+async fn connect(
+    config: &Path,
+    world: &mut Process,
+    log: &Path,
+    startup: Duration,
+    shutdown: &mut Shutdown,
+) -> Result<zenoh::Session> {
+    let mut config = ZenohArgs {
         config: Some(config.to_path_buf()),
         ..ZenohArgs::default()
-    };
-    let mut opening = tokio::spawn(async move { args.open().await });
-    let mut check = tokio::time::interval(Duration::from_millis(50));
+    }
+    .config()?;
+    // Zenoh's open blocks its thread until it connects or times out: short attempts, so that
+    // neither a dead world nor Ctrl-C waits out zenoh.json5's minute.
+    config
+        .insert_json5("connect/timeout_ms", &ATTEMPT_MS.to_string())
+        .map_err(|e| anyhow!("zenoh connect/timeout_ms: {e}"))?;
+    let started = Instant::now();
     loop {
-        tokio::select! {
-            opened = &mut opening => return opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
-            _ = check.tick() => if let Some(code) = world.poll() {
-                opening.abort();
-                let code = code.map_or("killed".into(), |c| format!("code {c}"));
-                return Err(match last_error(log) {
-                    Some(why) => anyhow!("the world exited ({code}) as it started: {why} (logs/world.log)"),
-                    None => anyhow!("the world exited ({code}) as it started; see logs/world.log"),
-                });
-            },
+        let attempt = config.clone();
+        let mut opening = tokio::spawn(async move { zenoh::open(attempt).await });
+        let mut check = tokio::time::interval(Duration::from_millis(50));
+        loop {
+            tokio::select! {
+                opened = &mut opening => match opened {
+                    Ok(Ok(session)) => return Ok(session),
+                    _ => break,
+                },
+                _ = shutdown.recv() => return Err(Interrupted("while the world was starting").into()),
+                _ = check.tick() => if let Some(code) = world.poll() {
+                    let code = code.map_or("killed".into(), |c| format!("code {c}"));
+                    return Err(match last_error(log) {
+                        Some(why) => anyhow!("the world exited ({code}) as it started: {why} (logs/world.log)"),
+                        None => anyhow!("the world exited ({code}) as it started; see logs/world.log"),
+                    });
+                },
+            }
+        }
+        if started.elapsed() > startup {
+            return Err(anyhow!(
+                "the world did not listen within {} s; see logs/world.log",
+                startup.as_secs_f64()
+            ));
         }
     }
 }
@@ -283,14 +312,18 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     }
     // The world is the run's router: every other process, this one too, is its client.
     let mut children = vec![spawn(exe, dir, Role::World, None, &world_args, lockstep)?];
-    let session = match connect(&configs.client, &mut children[0], &dir.path.join("logs/world.log")).await {
+    let log = dir.path.join("logs/world.log");
+    let session = match connect(&configs.client, &mut children[0], &log, startup_timeout, &mut shutdown).await {
         Ok(session) => session,
         Err(e) => {
             for c in children.iter_mut() {
                 let _ = c.child.start_kill();
                 let _ = c.child.wait().await;
             }
-            return Err(e.context(format!("run directory {}", dir.path.display())));
+            if e.downcast_ref::<Interrupted>().is_some() {
+                return Err(e);
+            }
+            return Err(anyhow!("{e:#} (run directory {})", dir.path.display()));
         }
     };
     crate::access::announce(&dir.path, &endpoint)?;

@@ -13,8 +13,8 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    fetch_paths, linger, presence, report, say_now, subscribe, subscribe_with, ClockServer, Outlet, Presence, Received,
-    Rejected,
+    fetch_paths, linger, linger_for_reports, presence, report, say_now, subscribe, subscribe_with, Carried,
+    ClockServer, Outlet, Presence, Received, Rejected,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::{ClockKind, Mission};
@@ -22,6 +22,7 @@ use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
+use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
 
 /// How far ahead of now a realtime world sets t = 0: every process waiting for the clock (each
@@ -194,33 +195,70 @@ impl Stepper {
 
 pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
-    let realtime = mission.mission.clock == ClockKind::Realtime;
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
-    let simulated: Vec<u32> = match &options.vehicles {
-        Some(v) => ids.iter().copied().filter(|i| v.contains(i)).collect(),
-        None => ids.clone(),
-    };
     let mut shutdown = Shutdown::new()?;
     let session = zenoh.open_unless(&mut shutdown).await?;
     let rejected = Rejected::default();
-    let (_presence, mut presence) = presence(&session, &keys).await?;
+    // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
+    // recorders: it leaves only once they have passed through it.
+    let carried = match zenoh.routes()? {
+        true => Some(Carried::follow(&session, &keys, &rejected).await?),
+        false => None,
+    };
+    let (exit, token) = serve(mission, options, &keys, &session, shutdown, rejected, &ids).await?;
+    tracing::info!("world: {exit}");
+    // The end reaches the agents, and their reports the recorders, before the world leaves.
+    if matches!(exit, Exit::Ended { .. }) {
+        linger(&session, &keys, &[Role::Agent, Role::Record]).await;
+    }
+    if let Some((_, carried)) = &carried {
+        let agents: Vec<(Role, u32)> = ids.iter().map(|&id| (Role::Agent, id)).collect();
+        linger_for_reports(&session, &keys, &agents, carried).await;
+    }
+    if let Some(token) = token {
+        let _ = token.undeclare().await;
+    }
+    // The planner reports once the world's token has gone.
+    if let Some((_, carried)) = &carried {
+        linger_for_reports(&session, &keys, &[(Role::Planner, 0)], carried).await;
+    }
+    let _ = session.close().await;
+    Ok(exit)
+}
+
+/// The world's work, from an open session to its exit, with the token it declared once ready.
+async fn serve(
+    mission: &Mission,
+    options: &Options,
+    keys: &Keys,
+    session: &Session,
+    mut shutdown: Shutdown,
+    rejected: Rejected,
+    ids: &[u32],
+) -> Result<(Exit, Option<LivelinessToken>)> {
+    let simulated: Vec<u32> = match &options.vehicles {
+        Some(v) => ids.iter().copied().filter(|i| v.contains(i)).collect(),
+        None => ids.to_vec(),
+    };
+    let realtime = mission.mission.clock == ClockKind::Realtime;
+    let (_presence, mut presence) = presence(session, keys).await?;
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
     let deadline = tokio::time::Instant::now() + options.startup_timeout;
-    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
+    let fetched = shutdown.unless(fetch_paths(session, keys, ids, options.startup_timeout, &rejected));
     let Some(paths) = fetched.await else {
-        return Ok(Exit::Interrupted);
+        return Ok((Exit::Interrupted, None));
     };
     let paths = paths?;
     let mut outlets = Vec::with_capacity(simulated.len());
     for id in &simulated {
-        outlets.push(Outlet::for_clock(&session, keys.state(id), realtime).await?);
+        outlets.push(Outlet::for_clock(session, keys.state(id), realtime).await?);
     }
     let outlets = Arc::new(outlets);
-    let end_out = Arc::new(Outlet::last_words(&session, keys.end()).await?);
-    let clock = Arc::new(ClockServer::declare(&session, &keys).await?);
+    let end_out = Arc::new(Outlet::last_words(session, keys.end()).await?);
+    let clock = Arc::new(ClockServer::declare(session, keys).await?);
     let (_commands, inbound) = if realtime {
-        let (subscriber, commands) = subscribe::<Command>(&session, &keys.cmd("*"), &rejected).await?;
+        let (subscriber, commands) = subscribe::<Command>(session, &keys.cmd("*"), &rejected).await?;
         (vec![subscriber], Inbound::Queued(commands))
     } else {
         let (ends_tx, ends) = mpsc::unbounded_channel();
@@ -241,7 +279,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             session: session.clone(),
             keys: keys.clone(),
             outlets: outlets.clone(),
-            tick_out: Outlet::new(&session, keys.tick()).await?,
+            tick_out: Outlet::new(session, keys.tick()).await?,
             end_out: end_out.clone(),
             clock: clock.clone(),
             rejected: rejected.clone(),
@@ -251,10 +289,10 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         // has a resource for, and on cmd/* it matched every arriving command against every key
         // the session knew (50 agents: the world's CPU 2.33 -> 1.80 s a run).
         let mut subscribers = Vec::with_capacity(ids.len());
-        for id in &ids {
+        for id in ids {
             let to = stepper.clone();
             let take = move |key: &str, c| to.take(key, c);
-            subscribers.push(subscribe_with::<Command>(&session, &keys.cmd(id), &rejected, take).await?);
+            subscribers.push(subscribe_with::<Command>(session, &keys.cmd(id), &rejected, take).await?);
         }
         (subscribers, Inbound::Fed { stepper, ends })
     };
@@ -283,7 +321,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
             .unless(tokio::time::timeout_at(deadline, presence.recv()))
             .await
         else {
-            return Ok(Exit::Interrupted);
+            return Ok((Exit::Interrupted, None));
         };
         match arrived {
             Ok(Some(p)) => {
@@ -322,8 +360,8 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         mission.mission.clock
     );
     let mut shell = Shell {
-        keys,
-        session,
+        keys: keys.clone(),
+        session: session.clone(),
         shutdown,
         rejected,
         presence,
@@ -335,22 +373,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
         Inbound::Queued(commands) => shell.realtime(mission, &paths, &simulated, commands).await?,
         Inbound::Fed { stepper, mut ends } => shell.lockstep(&paths, &stepper, &mut ends, options).await?,
     };
-    tracing::info!("world: {exit}");
-    // The end reaches the agents, and their reports the recorders, before the world leaves; a
-    // world that routes the fleet (that of `tcpf run`) stays for the reports after an interrupt
-    // too, and for the planner's, which it sends when the world's token goes.
-    let routes = zenoh.routes()?;
-    if matches!(exit, Exit::Ended { .. }) {
-        linger(&shell.session, &shell.keys, &[Role::Agent, Role::Record]).await;
-    } else if routes {
-        linger(&shell.session, &shell.keys, &[Role::Agent]).await;
-    }
-    let _ = token.undeclare().await;
-    if routes {
-        linger(&shell.session, &shell.keys, &[Role::Planner]).await;
-    }
-    let _ = shell.session.close().await;
-    Ok(exit)
+    Ok((exit, Some(token)))
 }
 
 impl Shell {
