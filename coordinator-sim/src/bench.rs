@@ -62,7 +62,8 @@ pub async fn pong(zenoh: &ZenohArgs, count: u64, id: u32) -> Result<()> {
 }
 
 /// Round-trip times to a `tcpf pong` child on a loopback port, sorted: peer to peer, or with
-/// `routed` both sides clients of a router, as a fleet's processes are of the launcher.
+/// `routed` both sides clients of a router in this process: the path of a γ, which the world
+/// passes from one agent to another.
 pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
