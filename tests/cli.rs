@@ -532,6 +532,16 @@ fn bench_prints_every_figure_beside_its_baseline() {
     assert!(tick[2] > 10.0 && tick[2] < 1e5, "tick in µs: {tick:?}");
     assert!((tick[3] - tick[2] / rtt[0]).abs() < 0.01 * tick[3], "{tick:?} {rtt:?}");
     assert!((tick[4] - tick[2] / rtt[1]).abs() < 0.01 * tick[4], "{tick:?} {rtt:?}");
+    // b-current's control period is 0.01 s: a tick's wall time says how fast it runs.
+    let speed = numbers(&line("simulated / wall time:"));
+    assert!(
+        (speed[0] - 0.01 / (tick[2] * 1e-6)).abs() < 0.01 * speed[0],
+        "{speed:?} {tick:?}"
+    );
+    assert!(
+        speed[1] > 0.0 && speed[1] < speed[0],
+        "the start and the end slow the whole run: {speed:?}"
+    );
     let memory = numbers(&line("per agent:"));
     assert!(memory.iter().all(|&m| m > 0.5 && m < 200.0), "{memory:?}");
     // Sockets grow with the fleet, not its square: a handful per process.

@@ -147,6 +147,42 @@ fn a_fleet_of_ten_is_routed_by_its_world_and_every_process_reports() {
 }
 
 #[test]
+fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
+    // The launcher finds a free port, which the world binds: another process can take it in
+    // between. Widen that moment (strace delays the world's exec by 2 s) and take the port.
+    let dir = scratch("port-taken");
+    let mut strace = Command::new("strace");
+    strace.args([
+        "-f",
+        "-qq",
+        "-o",
+        "/dev/null",
+        "-e",
+        "trace=execve",
+        "-e",
+        "inject=execve:delay_exit=2000000:when=1",
+        env!("CARGO_BIN_EXE_tcpf"),
+    ]);
+    let mut launch = Launch::spawn(strace, &paper("b-current"), &dir, &[]);
+    launch.wait_for("world.json5", "router");
+    let world: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("world.json5")).unwrap()).unwrap();
+    let endpoint = world["listen"]["endpoints"][0].as_str().unwrap();
+    let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
+    let _taken = std::net::TcpListener::bind(("127.0.0.1", port)).unwrap();
+    // Well before the minute a client of the run waits for its router.
+    let status = launch.wait(Duration::from_secs(30));
+    assert_eq!(status.code(), Some(1));
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut launch.child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert!(stderr.contains("the world exited (code 1) as it started"), "{stderr}");
+    assert!(stderr.contains("Address already in use"), "{stderr}");
+    assert!(!stderr.contains(".rs:"), "no source paths: {stderr}");
+    assert!(dir.join("logs/world.log").is_file());
+    assert!(!dir.join("endpoint").exists(), "nobody was told to join");
+}
+
+#[test]
 fn a_killed_agent_is_lost_and_the_others_arrive() {
     let dir = scratch("kill");
     let mut launch = Launch::start(&paper("b-current"), &dir, &[]);

@@ -120,7 +120,8 @@ impl Launch {
         Launch::spawn(command, mission, out, extra)
     }
 
-    fn spawn(mut command: Command, mission: &str, out: &Path, extra: &[&str]) -> Launch {
+    /// `tcpf run` started by `command` (the binary itself, or a tool that runs it).
+    pub fn spawn(mut command: Command, mission: &str, out: &Path, extra: &[&str]) -> Launch {
         let child = command
             .args(["run", mission, "--out", out.to_str().unwrap()])
             .args(extra)
