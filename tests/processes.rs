@@ -147,6 +147,30 @@ fn a_fleet_of_ten_is_routed_by_its_world_and_every_process_reports() {
 }
 
 #[test]
+fn an_interrupted_fleet_of_ten_hears_from_every_process() {
+    let dir = scratch("interrupted-ten");
+    let o = tcpf(&["gen", "lanes", "--vehicles", "10"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mission = dir.join("lanes10.toml");
+    std::fs::write(&mission, &o.stdout).unwrap();
+    // An agent that closed its session as soon as it had reported lost the report now and then
+    // (1 run in 6): three runs.
+    for run in 0..3 {
+        let out = dir.join(format!("p{run}"));
+        let mut launch = Launch::start(mission.to_str().unwrap(), &out, &[]);
+        launch.wait_for("logs/world.log", "starting");
+        std::thread::sleep(Duration::from_millis(500));
+        kill("-INT", launch.child.id());
+        assert_eq!(launch.wait(Duration::from_secs(10)).code(), Some(130));
+        let s = launch.summary();
+        for c in s["children"].as_array().unwrap() {
+            assert!(c["exit_code"].is_i64(), "run {run}: {c}");
+            assert_eq!(c["pid"], c["reported_pid"], "run {run}: {c}");
+        }
+    }
+}
+
+#[test]
 fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
     // The launcher finds a free port, which the world binds: another process can take it in
     // between. Widen that moment (strace delays the world's exec by 2 s) and take the port.

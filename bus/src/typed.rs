@@ -332,7 +332,12 @@ const LINGER_POLL: Duration = Duration::from_millis(20);
 /// delivered), and those who wait for them (recorders for reports, agents for the end) leave once
 /// they have them.
 pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
-    let until = tokio::time::Instant::now() + LINGER;
+    linger_within(session, keys, roles, LINGER).await;
+}
+
+/// `linger`, for at most `within`.
+pub async fn linger_within(session: &Session, keys: &Keys, roles: &[Role], within: Duration) {
+    let until = tokio::time::Instant::now() + within;
     while tokio::time::Instant::now() < until {
         match present(session, keys).await {
             Ok(p) if p.iter().all(|(role, _)| !roles.contains(role)) => return,
