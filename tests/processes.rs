@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, assert_none_left, assert_same_run, config, descendants, exited, free_endpoint, kill, paper, run_in_process,
-    scratch, tcpf, text, Launch,
+    alive, assert_none_left, assert_same_run, config, descendants, exited, free_endpoint, kill, lanes, paper,
+    run_in_process, scratch, Launch,
 };
 
 #[test]
@@ -117,10 +117,7 @@ fn a_ring_of_five_completes() {
 #[test]
 fn a_fleet_of_ten_is_routed_by_its_world_and_every_process_reports() {
     let dir = scratch("routed-by-the-world");
-    let o = tcpf(&["gen", "lanes", "--vehicles", "10"]);
-    assert!(o.status.success(), "{}", text(&o));
-    let mission = dir.join("lanes10.toml");
-    std::fs::write(&mission, &o.stdout).unwrap();
+    let mission = lanes(&dir, 10);
     let out = dir.join("p");
     let mut launch = Launch::start(mission.to_str().unwrap(), &out, &[]);
     assert!(launch.wait(Duration::from_secs(300)).success());
@@ -149,10 +146,7 @@ fn a_fleet_of_ten_is_routed_by_its_world_and_every_process_reports() {
 #[test]
 fn an_interrupted_fleet_of_ten_hears_from_every_process() {
     let dir = scratch("interrupted-ten");
-    let o = tcpf(&["gen", "lanes", "--vehicles", "10"]);
-    assert!(o.status.success(), "{}", text(&o));
-    let mission = dir.join("lanes10.toml");
-    std::fs::write(&mission, &o.stdout).unwrap();
+    let mission = lanes(&dir, 10);
     // An agent that closed its session as soon as it had reported lost the report now and then
     // (1 run in 6): three runs.
     for run in 0..3 {

@@ -19,6 +19,15 @@ pub fn tcpf(args: &[&str]) -> Output {
 }
 
 /// `configs/<name>.toml`.
+/// `tcpf gen lanes --vehicles n`, written into `dir`: a fleet of any size.
+pub fn lanes(dir: &Path, n: u32) -> PathBuf {
+    let o = tcpf(&["gen", "lanes", "--vehicles", &n.to_string()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let file = dir.join(format!("lanes{n}.toml"));
+    std::fs::write(&file, &o.stdout).unwrap();
+    file
+}
+
 pub fn config(name: &str) -> String {
     format!("{}/configs/{name}.toml", env!("CARGO_MANIFEST_DIR"))
 }
