@@ -337,10 +337,19 @@ pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
 
 /// `linger`, for at most `within`.
 pub async fn linger_within(session: &Session, keys: &Keys, roles: &[Role], within: Duration) {
+    linger_until(session, keys, within, |present| {
+        present.iter().all(|(role, _)| !roles.contains(role))
+    })
+    .await;
+}
+
+/// Asks who is present every `LINGER_POLL` until `done` says so of the answer, or `within` has
+/// passed, or nobody can be asked.
+async fn linger_until(session: &Session, keys: &Keys, within: Duration, mut done: impl FnMut(&[(Role, u32)]) -> bool) {
     let until = tokio::time::Instant::now() + within;
     while tokio::time::Instant::now() < until {
         match present(session, keys).await {
-            Ok(p) if p.iter().all(|(role, _)| !roles.contains(role)) => return,
+            Ok(p) if done(&p) => return,
             Ok(_) => {}
             Err(e) => {
                 tracing::warn!("{e}");
@@ -358,47 +367,34 @@ const SETTLE: Duration = Duration::from_millis(200);
 /// The exit reports that have passed through this session, by role and id: a router that
 /// carries them to the recorders leaves only once they have.
 #[derive(Clone, Default)]
-pub struct Carried(Arc<Mutex<BTreeSet<(String, u32)>>>);
+pub struct Carried(Arc<Mutex<BTreeSet<(Role, u32)>>>);
 
 impl Carried {
     pub async fn follow(session: &Session, keys: &Keys, rejected: &Rejected) -> Result<(Subscriber<()>, Carried)> {
         let carried = Carried::default();
         let seen = carried.clone();
         let subscriber = subscribe_with::<Report>(session, &keys.reports(), rejected, move |_, r| {
-            seen.0.lock().expect("carried reports").insert((r.role, r.id));
+            if let Some(role) = Role::parse(&r.role) {
+                seen.0.lock().expect("carried reports").insert((role, r.id));
+            }
         })
         .await?;
         Ok((subscriber, carried))
     }
 
-    fn has(&self, (role, id): (Role, u32)) -> bool {
-        self.0
-            .lock()
-            .expect("carried reports")
-            .contains(&(role.as_str().to_string(), id))
+    fn has(&self, process: &(Role, u32)) -> bool {
+        self.0.lock().expect("carried reports").contains(process)
     }
 }
 
 /// Stays until each of `expected` has reported through this session, or has been gone `SETTLE`
 /// (killed, it reports nothing), or `LINGER` has passed.
 pub async fn linger_for_reports(session: &Session, keys: &Keys, expected: &[(Role, u32)], carried: &Carried) {
-    let until = tokio::time::Instant::now() + LINGER;
     let mut gone: BTreeMap<(Role, u32), tokio::time::Instant> = BTreeMap::new();
-    while tokio::time::Instant::now() < until {
-        let waiting: Vec<(Role, u32)> = expected.iter().copied().filter(|&p| !carried.has(p)).collect();
-        if waiting.is_empty() {
-            return;
-        }
-        let present = match present(session, keys).await {
-            Ok(p) => p,
-            Err(e) => {
-                tracing::warn!("{e}");
-                return;
-            }
-        };
+    linger_until(session, keys, LINGER, |present| {
         let now = tokio::time::Instant::now();
         let mut settled = true;
-        for p in &waiting {
+        for p in expected.iter().filter(|p| !carried.has(p)) {
             settled &= if present.contains(p) {
                 gone.remove(p);
                 false
@@ -406,11 +402,9 @@ pub async fn linger_for_reports(session: &Session, keys: &Keys, expected: &[(Rol
                 now - *gone.entry(*p).or_insert(now) >= SETTLE
             };
         }
-        if settled {
-            return;
-        }
-        tokio::time::sleep(LINGER_POLL).await;
-    }
+        settled
+    })
+    .await;
 }
 
 /// Follows every liveliness token of the mission, those already there included.

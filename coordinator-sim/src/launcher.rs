@@ -127,6 +127,16 @@ fn last_error(log: &Path) -> Option<String> {
     Some(line["error: ".len()..].to_string())
 }
 
+/// Why the run fails: `role` (the world or the planner) exited with `code` (none: a signal)
+/// `when`, in its own last words where its log has them.
+fn died(dir: &RunDir, role: Role, code: Option<i32>, when: &str) -> String {
+    let code = code.map_or("killed".into(), |c| format!("code {c}"));
+    match last_error(&dir.path.join("logs").join(format!("{role}.log"))) {
+        Some(why) => format!("the {role} exited ({code}) {when}: {why} (logs/{role}.log)"),
+        None => format!("the {role} exited ({code}) {when}; see logs/{role}.log"),
+    }
+}
+
 fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String], lockstep: bool) -> Result<Process> {
     let logs = dir.path.join("logs");
     std::fs::create_dir_all(&logs)?;
@@ -198,7 +208,7 @@ const ATTEMPT_MS: u64 = 200;
 async fn connect(
     config: &Path,
     world: &mut Process,
-    log: &Path,
+    dir: &RunDir,
     startup: Duration,
     shutdown: &mut Shutdown,
 ) -> Result<zenoh::Session> {
@@ -225,11 +235,7 @@ async fn connect(
                 },
                 _ = shutdown.recv() => return Err(Interrupted("while the world was starting").into()),
                 _ = check.tick() => if let Some(code) = world.poll() {
-                    let code = code.map_or("killed".into(), |c| format!("code {c}"));
-                    return Err(match last_error(log) {
-                        Some(why) => anyhow!("the world exited ({code}) as it started: {why} (logs/world.log)"),
-                        None => anyhow!("the world exited ({code}) as it started; see logs/world.log"),
-                    });
+                    return Err(anyhow!(died(dir, Role::World, code, "as it started")));
                 },
             }
         }
@@ -312,14 +318,12 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     }
     // The world is the run's router: every other process, this one too, is its client.
     let mut children = vec![spawn(exe, dir, Role::World, None, &world_args, lockstep)?];
-    let log = dir.path.join("logs/world.log");
-    let session = match connect(&configs.client, &mut children[0], &log, startup_timeout, &mut shutdown).await {
+    let session = match connect(&configs.client, &mut children[0], dir, startup_timeout, &mut shutdown).await {
         Ok(session) => session,
         Err(e) => {
-            for c in children.iter_mut() {
-                let _ = c.child.start_kill();
-                let _ = c.child.wait().await;
-            }
+            let world = &mut children[0].child;
+            let _ = world.start_kill();
+            let _ = world.wait().await;
             if e.downcast_ref::<Interrupted>().is_some() {
                 return Err(e);
             }
@@ -365,14 +369,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             _ = check.tick() => {
                 let dead = children.iter_mut().find_map(|c| {
                     let code = c.poll()?;
-                    matches!(c.role, Role::World | Role::Planner).then(|| {
-                        let code = code.map_or("killed".into(), |c| format!("code {c}"));
-                        let log = dir.path.join("logs").join(format!("{}.log", c.role));
-                        match last_error(&log) {
-                            Some(why) => format!("the {} exited ({code}) before the end: {why} (logs/{}.log)", c.role, c.role),
-                            None => format!("the {} exited ({code}) before the end; see logs/{}.log", c.role, c.role),
-                        }
-                    })
+                    matches!(c.role, Role::World | Role::Planner).then(|| died(dir, c.role, code, "before the end"))
                 });
                 if let Some(why) = dead {
                     if recording.end.is_none() {
