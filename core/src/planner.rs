@@ -79,6 +79,8 @@ enum Constraint {
     VMax(u32),
     AMax(u32),
     Clearance(u32, u32),
+    /// The path's samples are not finite numbers: its ends are beyond double precision.
+    Finite(u32),
 }
 
 impl Constraint {
@@ -88,12 +90,13 @@ impl Constraint {
             Constraint::VMax(_) => "v_max",
             Constraint::AMax(_) => "a_max",
             Constraint::Clearance(..) => "clearance",
+            Constraint::Finite(_) => "finite",
         }
     }
 
     fn vehicles(&self) -> Vec<u32> {
         match *self {
-            Constraint::VMin(i) | Constraint::VMax(i) | Constraint::AMax(i) => vec![i],
+            Constraint::VMin(i) | Constraint::VMax(i) | Constraint::AMax(i) | Constraint::Finite(i) => vec![i],
             Constraint::Clearance(i, j) => vec![i, j],
         }
     }
@@ -110,6 +113,9 @@ impl Constraint {
             Constraint::AMax(i) => format!("vehicle {i} needs {value:.4} m/s² (a_max {bound}) at t = {t:.2} s"),
             Constraint::Clearance(i, j) => format!(
                 "vehicles {i} and {j} come within {value:.3} m of each other (clearance {bound} m) at t = {t:.2} s"
+            ),
+            Constraint::Finite(i) => format!(
+                "vehicle {i}'s path is not a finite number at t = {t:.2} s: its start or goal (position, velocity, acceleration) is too large for double precision"
             ),
         }
     }
@@ -251,6 +257,16 @@ fn check_vehicle(config: &PlannerConfig, v: &VehicleConfig, t_f: f64, exact: boo
     let hard = extreme(&accels, t_f, false, |t| -accel(t));
     let (t_max_accel, neg_max_accel) = extreme(&accels, t_f, exact || near(-hard.1, config.a_max), |t| -accel(t));
     let (max_speed, max_accel) = (-neg_max_speed, -neg_max_accel);
+    // A NaN passes every comparison below as if within its bound.
+    let finite = |d: &[Vec2; 3]| d.iter().all(|v| v.x.is_finite() && v.y.is_finite());
+    if let Some(k) = points.iter().position(|d| !finite(d)) {
+        violations.push(Violation {
+            constraint: Constraint::Finite(v.id),
+            value: f64::NAN,
+            bound: f64::NAN,
+            t: k as f64 * h,
+        });
+    }
     // eq. 20 and eq. 4
     if min_speed < config.v_min {
         violations.push(Violation {

@@ -104,6 +104,16 @@ fn infeasible_speed_names_the_bound() {
     assert!(e.contains("v_max 0.6"), "{e}");
 }
 
+/// A NaN passes every bound's comparison: a path that overflows must fail by name, not pass as a
+/// plan of cost NaN that no process can use.
+#[test]
+fn a_path_beyond_double_precision_is_infeasible_by_name() {
+    let m = load("a-nominal", &["vehicle.1.start_velocity=[1e80, 0.0]"]);
+    let e = planner::plan(&m).unwrap_err().to_string();
+    assert!(e.contains("vehicle 1's path is not a finite number"), "{e}");
+    assert!(e.contains("every t_f in [30, 60]"), "{e}");
+}
+
 #[test]
 fn case_a_nominal_arrives_at_t_f() {
     let m = load("a-nominal", &[]);
