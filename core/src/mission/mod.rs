@@ -533,6 +533,16 @@ goal_velocity = [0.75, 0.0]
     }
 
     #[test]
+    fn a_link_override_stays_valid_with_coordination_off() {
+        // `tcpf sweep --param control.coordination=true,false` of a mission with its own links.
+        let text = format!("{PAPER}\n[[comms.link]]\nfrom = 1\nto = 2\nloss = 0.5\n");
+        assert!(parse("m.toml", &text, &["control.coordination=false".into()]).is_ok());
+        let stranger = text.replace("to = 2", "to = 3");
+        let e = parse("m.toml", &stranger, &["control.coordination=false".into()]).unwrap_err();
+        assert!(e.message.contains("3 is not the id of a vehicle"), "{}", e.message);
+    }
+
+    #[test]
     fn a_missing_table_is_named_not_the_first_one_there() {
         let no_vehicle = PAPER.split("[[vehicle]]").next().unwrap();
         let e = parse("m.toml", no_vehicle, &[]).unwrap_err();

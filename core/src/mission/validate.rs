@@ -409,8 +409,8 @@ impl Mission {
             )?;
         }
         let graph = self.graph();
-        // Without coordination there are no links, and an outage is kept for a sweep that
-        // turns coordination back on.
+        // Without coordination there are no links, and an outage or a link's override is kept
+        // for a sweep that turns coordination back on.
         for (i, o) in k.outages.iter().enumerate().filter(|_| self.control.coordination) {
             if let (Endpoint::Id(from), Endpoint::Id(to)) = (&o.from, &o.to) {
                 check(
@@ -430,7 +430,7 @@ impl Mission {
             }
             let linked = graph.get(&l.to).is_some_and(|n| n.contains(&l.from));
             check(
-                linked,
+                linked || !self.control.coordination,
                 item("link", i, "from"),
                 format!("{} → {} is not a link of the communication graph", l.from, l.to),
             )?;
