@@ -43,8 +43,18 @@ pub fn check_clock(role: &str, realtime: bool, time_scale: f64, clock: &Clock) -
             clock.time_scale
         )));
     }
+    let apart = unix_now() - clock.epoch;
+    if realtime && (apart.is_nan() || apart.abs() > MAX_SKEW_S) {
+        return Err(WrongClock(format!(
+            "the world's clock started {apart:.0} s from this host's: the hosts' clocks disagree (set them with NTP or PTP, docs/TESTBED.md)"
+        )));
+    }
     Ok(())
 }
+
+/// How far from this host's clock a world's epoch may be: a run is not a year long, and a
+/// farther epoch is a host's clock that was never set (or a message that lies).
+const MAX_SKEW_S: f64 = 365.0 * 86_400.0;
 
 /// Unix time now, in seconds.
 pub fn unix_now() -> f64 {
@@ -187,6 +197,22 @@ mod tests {
         );
         assert_eq!(future.periods_now(), 0.0);
         assert!(future.at(0.0) > Instant::now() + Duration::from_secs(4));
+    }
+
+    #[test]
+    fn an_epoch_a_year_away_is_a_host_clock_never_set() {
+        let clock = |epoch: f64| Clock {
+            version: PROTOCOL_VERSION,
+            realtime: true,
+            time_scale: 1.0,
+            epoch,
+            tick: 0,
+        };
+        assert!(check_clock("agent", true, 1.0, &clock(unix_now() - 3600.0)).is_ok());
+        for epoch in [1e20, -1e20, 0.0] {
+            let e = check_clock("agent", true, 1.0, &clock(epoch)).unwrap_err().0;
+            assert!(e.contains("the hosts' clocks disagree"), "{e}");
+        }
     }
 
     #[tokio::test]
