@@ -71,7 +71,8 @@ const GRACE: Duration = Duration::from_secs(3);
 const INTERRUPT_GRACE: Duration = Duration::from_secs(1);
 /// How long a report may lag behind its sender's exit.
 const REPORT_SETTLE: Duration = Duration::from_millis(200);
-/// A run in which no tick completes for this long has stalled.
+/// A run in which no tick completes for this long has stalled, unless the world waits longer
+/// on purpose (`stall_limit`).
 const STALL: Duration = Duration::from_secs(60);
 /// How long the world waits for every agent and recorder, unless told otherwise; then it gives up
 /// and says who is missing.
@@ -285,6 +286,17 @@ impl Default for Options {
     }
 }
 
+/// How long a run may go without completing a tick before it has stalled: longer than what
+/// the world waits for on purpose (a silent agent's command, an agent started again) and than
+/// two of its wall periods, so that `--command-timeout` and a slow time scale mean what they say.
+fn stall_limit(mission: &Mission, command_timeout: Duration, restart: bool) -> Duration {
+    let period = mission.mission.control_period / mission.mission.time_scale;
+    let period = Duration::try_from_secs_f64(period).unwrap_or(Duration::MAX);
+    let rejoin = if restart { REJOIN_TIMEOUT } else { Duration::ZERO };
+    let waits = command_timeout.max(rejoin).max(period.saturating_mul(2));
+    STALL.max(waits.saturating_add(START_MARGIN))
+}
+
 /// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
 pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, options: Options) -> Result<Summary> {
     let Options {
@@ -295,6 +307,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         startup_timeout,
     } = options;
     let mut shutdown = Shutdown::new()?;
+    let stall = stall_limit(mission, command_timeout, restart);
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
     let mission_file = dir.path.join("mission.toml").display().to_string();
@@ -397,8 +410,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         break Outcome::Failed(format!("the run did not start within {} s; see logs/world.log", waited.as_secs()));
                     }
                     0 => {}
-                    ticks if waited > STALL => {
-                        break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {ticks})", STALL.as_secs()));
+                    ticks if waited > stall => {
+                        break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {ticks})", stall.as_secs()));
                     }
                     _ => {}
                 }
@@ -480,5 +493,27 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     match outcome {
         Outcome::Failed(why) => Err(anyhow!("{why} (run directory {})", dir.path.display())),
         _ => Ok(summary),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mission(overrides: &[&str]) -> Mission {
+        let text = include_str!("../../configs/paper/b-current.toml");
+        let overrides: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
+        tcpf_core::mission::parse("b-current.toml", text, &overrides).unwrap()
+    }
+
+    #[test]
+    fn a_run_stalls_only_after_what_the_world_waits_for_on_purpose() {
+        let secs = |d: Duration| d.as_secs_f64();
+        let b = mission(&[]);
+        assert_eq!(secs(stall_limit(&b, COMMAND_TIMEOUT, false)), 60.0);
+        assert_eq!(secs(stall_limit(&b, Duration::from_secs(120), false)), 130.0);
+        // A wall period of 100 s: a tick every 100 s is no stall.
+        let slow = mission(&["mission.clock=\"realtime\"", "mission.time_scale=0.0001"]);
+        assert_eq!(secs(stall_limit(&slow, COMMAND_TIMEOUT, false)), 210.0);
     }
 }
