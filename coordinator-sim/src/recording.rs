@@ -178,6 +178,12 @@ impl Recording {
         Ok(())
     }
 
+    fn take_report(&mut self, key: &str, report: Report) {
+        if !keep_report(&mut self.exit_reports, key, report) {
+            self.rejected.wrong_sender(key);
+        }
+    }
+
     /// Takes one message (or, in realtime, one beat of the clock), and writes every tick it
     /// completes.
     pub async fn step(&mut self) -> Result<()> {
@@ -201,7 +207,7 @@ impl Recording {
                             Ok(()) => self.end = Some(e),
                             Err(why) => self.rejected.reject(why, &m.key),
                         },
-                        Message::Report(r) => self.exit_reports.push(r),
+                        Message::Report(r) => self.take_report(&m.key, r),
                         Message::Loss(l) => {
                             let lost = Lost {
                                 id: l.id,
@@ -251,7 +257,7 @@ impl Recording {
                             Ok(()) => self.end = Some(e),
                             Err(why) => self.rejected.reject(why, &m.key),
                         },
-                        Message::Report(r) => self.exit_reports.push(r),
+                        Message::Report(r) => self.take_report(&m.key, r),
                     }
                 }
             },
@@ -564,6 +570,20 @@ pub async fn record(
 /// Of a mission of vehicles `ids`, the roles whose exit report `end` calls for and that are not
 /// among `reports`: the world, and the agent of every vehicle the world did not give up on (an
 /// agent started again reports once per life; any one will do). None before the end.
+/// Keeps a process's exit report if its key names the role and id its body does (false if
+/// not); the same process's report again replaces the first, so its counts are not summed twice.
+fn keep_report(reports: &mut Vec<Report>, key: &str, report: Report) -> bool {
+    if !key.ends_with(&format!("/report/{}/{}", report.role, report.id)) {
+        return false;
+    }
+    let same = |r: &&mut Report| (&r.role, r.id, r.pid) == (&report.role, report.id, report.pid);
+    match reports.iter_mut().find(same) {
+        Some(r) => *r = report,
+        None => reports.push(report),
+    }
+    true
+}
+
 fn unreported(ids: &[u32], end: Option<&End>, reports: &[Report]) -> Vec<(Role, u32)> {
     let Some(end) = end else {
         return Vec::new();
@@ -617,5 +637,21 @@ mod tests {
         );
         let all = [report(Role::Agent, 1), report(Role::World, 0), report(Role::Agent, 2)];
         assert_eq!(unreported(&[1, 2, 3], Some(&end), &all), vec![]);
+    }
+
+    #[test]
+    fn a_report_is_kept_once_and_only_under_its_own_key() {
+        let mut kept = Vec::new();
+        let mut twice = report(Role::Agent, 2);
+        assert!(keep_report(&mut kept, "tcpf/m/report/agent/2", twice.clone()));
+        twice.stale_timeouts = 3;
+        assert!(keep_report(&mut kept, "tcpf/m/report/agent/2", twice.clone()));
+        assert_eq!(kept.len(), 1, "the same process again replaces its report");
+        assert_eq!(kept[0].stale_timeouts, 3);
+        assert!(!keep_report(&mut kept, "tcpf/m/report/agent/3", twice.clone()));
+        assert!(!keep_report(&mut kept, "tcpf/m/report/world/2", twice.clone()));
+        twice.pid = 2;
+        assert!(keep_report(&mut kept, "tcpf/m/report/agent/2", twice));
+        assert_eq!(kept.len(), 2, "an agent started again reports as another process");
     }
 }
