@@ -292,6 +292,15 @@ impl Recording {
     }
 
     /// The roles whose exit report the end calls for and has not come.
+    /// The vehicles lost so far: the world's end says, or before it, its losses.
+    fn lost(&self) -> Vec<u32> {
+        match (&self.end, &self.machine) {
+            (Some(end), _) => end.lost.iter().map(|l| l.id).collect(),
+            (None, Machine::Lockstep(recorder)) => recorder.losses().iter().map(|l| l.id).collect(),
+            (None, Machine::Realtime { .. }) => Vec::new(),
+        }
+    }
+
     pub fn unreported(&self) -> Vec<(Role, u32)> {
         unreported(&self.ids, self.end.as_ref(), &self.exit_reports)
     }
@@ -392,7 +401,13 @@ impl Recording {
             }
         }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
-        let unreported = if interrupted { Vec::new() } else { self.unreported() };
+        let unreported = match (interrupted, children.is_empty()) {
+            (false, _) => self.unreported(),
+            // `tcpf record` interrupted: the fleet goes on, and its reports are yet to come.
+            (true, true) => Vec::new(),
+            // `tcpf run` interrupted stopped its children: one that did not report was killed.
+            (true, false) => silent_children(&children, &self.lost()),
+        };
         for &(role, id) in &unreported {
             tracing::warn!(
                 "recorder: no exit report from {role} {id}: its refusals, timing and γ counts are not in the summary"
@@ -584,6 +599,22 @@ fn keep_report(reports: &mut Vec<Report>, key: &str, report: Report) -> bool {
     true
 }
 
+/// After `tcpf run` was interrupted: the world and every agent not lost whose last life sent no
+/// exit report (an earlier life of an agent started again died, and sends none).
+fn silent_children(children: &[ChildSummary], lost: &[u32]) -> Vec<(Role, u32)> {
+    children
+        .iter()
+        .enumerate()
+        .filter(|(k, c)| children[k + 1..].iter().all(|o| (&o.role, o.id) != (&c.role, c.id)))
+        .filter(|(_, c)| c.reported_pid.is_none())
+        .filter_map(|(_, c)| match Role::parse(&c.role)? {
+            Role::World => Some((Role::World, c.id)),
+            Role::Agent if !lost.contains(&c.id) => Some((Role::Agent, c.id)),
+            _ => None,
+        })
+        .collect()
+}
+
 fn unreported(ids: &[u32], end: Option<&End>, reports: &[Report]) -> Vec<(Role, u32)> {
     let Some(end) = end else {
         return Vec::new();
@@ -637,6 +668,32 @@ mod tests {
         );
         let all = [report(Role::Agent, 1), report(Role::World, 0), report(Role::Agent, 2)];
         assert_eq!(unreported(&[1, 2, 3], Some(&end), &all), vec![]);
+    }
+
+    #[test]
+    fn an_interrupted_run_names_the_children_killed_before_they_reported() {
+        let child = |role: Role, id: u32, reported: bool| ChildSummary {
+            role: role.as_str().into(),
+            id,
+            pid: 10 + id,
+            exit_code: None,
+            rejected: reported.then_some(0),
+            reported_pid: reported.then_some(10 + id),
+        };
+        let children = [
+            child(Role::Planner, 0, false),
+            child(Role::World, 0, true),
+            child(Role::Agent, 1, false),
+            child(Role::Agent, 2, false),
+            child(Role::Agent, 3, false),
+            child(Role::Agent, 3, true),
+            child(Role::Agent, 4, false),
+        ];
+        assert_eq!(
+            silent_children(&children, &[4]),
+            vec![(Role::Agent, 1), (Role::Agent, 2)],
+            "not the planner, not a life before the last, not a lost vehicle's agent"
+        );
     }
 
     #[test]

@@ -184,6 +184,11 @@ impl Recorder {
         }
     }
 
+    /// The vehicles the world gave up on so far.
+    pub fn losses(&self) -> &[Lost] {
+        &self.losses
+    }
+
     /// Every tick of the run has been handed on.
     pub fn complete(&self) -> bool {
         self.end.as_ref().is_some_and(|e| self.next >= e.ticks)
