@@ -150,12 +150,12 @@ impl Metrics {
                 .unwrap_or(0.0)
         }));
         let before_first = self.first_arrival().is_none();
+        // The interval since the row before, which a realtime recorder may have sampled
+        // periods ago.
+        let span = self.dt * tick.saturating_sub(self.previous_tick.unwrap_or(tick)).max(1) as f64;
         for (n, &g) in gammas.iter().enumerate() {
             if self.arrivals[n].is_none() && g >= self.t_f {
                 let prev = self.previous.as_ref().map(|p| p.0[n]);
-                // Over the interval since the row before, which a realtime recorder may have
-                // sampled periods ago.
-                let span = self.dt * tick.saturating_sub(self.previous_tick.unwrap_or(tick)).max(1) as f64;
                 self.arrivals[n] = Some(match prev {
                     Some(p) if g > p => t - span + span * (self.t_f - p) / (g - p),
                     _ => t,
@@ -169,7 +169,7 @@ impl Metrics {
             (true, None, _) => self.en_route = (self.en_route.0.max(now.0), self.en_route.1.min(now.1)),
             // The first arrival fell inside this step: close the en-route window exactly there.
             (true, Some(first), Some((pg, pp))) => {
-                let s = ((first - (t - self.dt)) / self.dt).clamp(0.0, 1.0);
+                let s = ((first - (t - span)) / span).clamp(0.0, 1.0);
                 let g: Vec<f64> = pg.iter().zip(&gammas).map(|(a, b)| lerp(*a, *b, s)).collect();
                 let p: Vec<[f64; 2]> = pp
                     .iter()
@@ -266,6 +266,61 @@ mod tests {
             }
         }
         (err, clr)
+    }
+
+    /// A realtime recorder may sample rows periods apart: the headline window closes at the
+    /// first arrival between them, not a period before the later row.
+    #[test]
+    fn the_en_route_window_closes_at_an_arrival_between_rows_periods_apart() {
+        use crate::msg::{Command, State, PROTOCOL_VERSION};
+        let dt = 0.01;
+        let state = |id: u32, tick: u64| State {
+            version: PROTOCOL_VERSION,
+            tick,
+            id,
+            t: tick as f64 * dt,
+            position: [0.0, 10.0 * id as f64],
+            heading: 0.0,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [0.0, 0.0],
+        };
+        let command = |id: u32, tick: u64, gamma: f64| {
+            Some(Command {
+                version: PROTOCOL_VERSION,
+                tick,
+                id,
+                v: 1.0,
+                r: 0.0,
+                hold: false,
+                gamma,
+                gamma_dot: 1.0,
+                v_d: 1.0,
+                x_e: 0.0,
+                y_e: 0.0,
+                psi_e: 0.0,
+                receptions: vec![],
+            })
+        };
+        let mut m = Metrics::new(&[1, 2], 1.0, dt);
+        m.record(
+            10,
+            &[state(1, 10), state(2, 10)],
+            &[command(1, 10, 0.95), command(2, 10, 0.95)],
+        );
+        m.record(
+            20,
+            &[state(1, 20), state(2, 20)],
+            &[command(1, 20, 1.05), command(2, 20, 0.85)],
+        );
+        let r = m.results();
+        let arrival = r.vehicles[0].arrival_time.unwrap();
+        assert!((arrival - 0.15).abs() < 1e-12, "halfway between the rows: {arrival}");
+        assert!(
+            (r.max_coordination_error - 0.1).abs() < 1e-12,
+            "the spread there: {}",
+            r.max_coordination_error
+        );
     }
 
     #[test]
