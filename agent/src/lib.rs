@@ -545,8 +545,8 @@ impl Shell {
         let mut published = 0;
         let fleet = FleetClock::new(clock, mission.mission.control_period);
         let period = fleet.period().as_secs_f64();
-        // γ_i starts from the vehicle's position: at its start for an agent there from the
-        // beginning, wherever it is for one started again.
+        // γ_i starts at 0 for an agent there from the beginning, from wherever the vehicle is
+        // for one that finds the run under way (started again, or late).
         let mut node = RealtimeAgent::new(queued.agent, true);
         let mut beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
         let exit = loop {

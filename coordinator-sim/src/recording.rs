@@ -389,6 +389,14 @@ impl Recording {
                     .peekable();
                 reports.peek().is_some().then_some(reports)
             };
+            // A sampled period merges the broadcasts since the last one: a vehicle's broadcasts
+            // are what its agent says it published (without its report, what its neighbours'
+            // sampled commands show, fewer).
+            for v in results.vehicles.iter_mut() {
+                if let Some(reports) = agent(v.id) {
+                    v.gamma_sent = reports.map(|r| r.published).sum();
+                }
+            }
             for link in results.links.iter_mut() {
                 link.published = agent(link.from).map(|r| r.map(|r| r.published).sum());
                 link.overtaken = agent(link.to).map(|r| {

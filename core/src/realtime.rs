@@ -117,7 +117,8 @@ pub struct RealtimeAgent {
     state: Option<State>,
     inbox: Vec<Gamma>,
     acted: Option<u64>,
-    /// Take up the path where the vehicle is, at the first state (an agent started again).
+    /// Take up the path where the vehicle is if the first state finds the run under way (an
+    /// agent started again, or late).
     rejoin: bool,
     lateness: Lateness,
     stale_states: u64,
@@ -136,8 +137,9 @@ pub struct Action {
 }
 
 impl RealtimeAgent {
-    /// `rejoin`: the run was under way when this agent started, so γ_i starts from the vehicle's
-    /// position rather than from 0.
+    /// `rejoin`: if the first state is past the run's first tick, the run was under way when
+    /// this agent started, so γ_i starts from the vehicle's position; at tick 0 it starts at 0
+    /// (MODEL D15), wherever `initial_offset` puts the vehicle.
     pub fn new(agent: Agent, rejoin: bool) -> RealtimeAgent {
         RealtimeAgent {
             agent,
@@ -168,7 +170,7 @@ impl RealtimeAgent {
         not_ahead(state.tick, horizon)?;
         match &self.state {
             Some(held) => older(held.tick, state.tick, held, &state)?,
-            None if self.rejoin => self.agent.rejoin(state.position),
+            None if self.rejoin && state.tick > 0 => self.agent.rejoin(state.position),
             None => {}
         }
         self.state = Some(state);
@@ -430,6 +432,11 @@ pub struct Sampler {
     moved: bool,
     end: Option<End>,
     row: Vec<State>,
+    /// `HOLD_LIMIT_S` in ticks: a command older than this at a period is not held by the world
+    /// either, and its vehicle is uncommanded (its agent silent, hung or gone).
+    hold_ticks: u64,
+    /// The newest tick of each vehicle's commands, held or let go.
+    newest: Vec<Option<u64>>,
 }
 
 impl Sampler {
@@ -438,6 +445,8 @@ impl Sampler {
             ids: Roster::new(ids),
             states: vec![None; ids.len()],
             commands: vec![None; ids.len()],
+            hold_ticks: (HOLD_LIMIT_S / dt).ceil() as u64,
+            newest: vec![None; ids.len()],
             metrics: Metrics::new(ids, t_f, dt),
             last: None,
             fresh: false,
@@ -478,16 +487,16 @@ impl Sampler {
             return Err(Reject::NonFinite);
         }
         not_ahead(command.tick, horizon)?;
+        if let Some(newest) = self.newest[n].filter(|&t| t >= command.tick) {
+            return Err(if newest > command.tick {
+                Reject::Past
+            } else {
+                Reject::Duplicate
+            });
+        }
+        self.newest[n] = Some(command.tick);
         let mut command = command;
         if let Some(held) = &mut self.commands[n] {
-            // Receptions are cleared once sampled, so compare ticks only for what is held.
-            if held.tick >= command.tick {
-                return Err(if held.tick > command.tick {
-                    Reject::Past
-                } else {
-                    Reject::Duplicate
-                });
-            }
             // A command replaced before a period sampled it: its receptions go on with the
             // newer one, or a recorder behind its beat would count them as lost by the network.
             let mut receptions = std::mem::take(&mut held.receptions);
@@ -543,6 +552,13 @@ impl Sampler {
         }
         self.row.clear();
         self.row.extend(self.states.iter().flatten());
+        // A vehicle the world no longer commands has no command in the row, and its frozen γ
+        // leaves the coordination error until its agent speaks again, as a lost vehicle's does.
+        for command in &mut self.commands {
+            if command.as_ref().is_some_and(|c| c.tick + self.hold_ticks < tick) {
+                *command = None;
+            }
+        }
         self.metrics.record(tick, &self.row, &self.commands);
         emit(&self.row, &self.commands);
         for c in self.commands.iter_mut().flatten() {
@@ -835,6 +851,67 @@ mod tests {
         let timing = world.timing();
         assert_eq!(timing.late_commands, 100, "ticks 11 to 110 held the command of tick 10");
         assert_eq!(timing.without_command, vec![(1, 11)], "tick 111 had none");
+    }
+
+    /// D15: an agent there from the start begins at γ = 0 even where its vehicle is ahead of
+    /// p(0) along its path (an initial offset); one whose first state finds the run under way
+    /// takes up the path where the vehicle is.
+    #[test]
+    fn gamma_starts_at_zero_unless_the_run_is_under_way() {
+        let (m, paths, _) = case_b();
+        let ahead = paths[0].1.derivatives(5.0)[0];
+        let state = |tick| still(1, tick, m.mission.control_period, [ahead.x, ahead.y]);
+        let mut on_time = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), true);
+        on_time.on_state(state(0), HORIZON).unwrap();
+        assert_eq!(on_time.agent().gamma(), 0.0);
+        let mut late = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), true);
+        late.on_state(state(1), HORIZON).unwrap();
+        assert!((late.agent().gamma() - 5.0).abs() < 1e-6, "{}", late.agent().gamma());
+    }
+
+    /// An agent that stops (killed, hung) leaves its vehicle uncommanded once the world lets
+    /// its last command go: from then on the recorder's rows hold no command for it and its
+    /// frozen γ is not a coordination error, as a lost vehicle's in lockstep.
+    #[test]
+    fn a_silent_agents_frozen_gamma_leaves_the_coordination_error() {
+        let dt = 0.01;
+        let mut sampler = Sampler::new(&[1, 2], 100.0, dt);
+        let command = |id: u32, tick: u64, gamma: f64| Command {
+            version: PROTOCOL_VERSION,
+            tick,
+            id,
+            v: 1.0,
+            r: 0.0,
+            hold: false,
+            gamma,
+            gamma_dot: 1.0,
+            v_d: 1.0,
+            x_e: 0.0,
+            y_e: 0.0,
+            psi_e: 0.0,
+            receptions: vec![],
+        };
+        let mut uncommanded = Vec::new();
+        for k in 0..300 {
+            for id in [1, 2] {
+                sampler
+                    .on_state(still(id, k, dt, [0.0, 10.0 * id as f64]), HORIZON)
+                    .unwrap();
+            }
+            sampler.on_command(command(1, k, k as f64 * dt), HORIZON).unwrap();
+            // Vehicle 2's agent dies at tick 50, its γ frozen at 0.5.
+            if k <= 50 {
+                sampler.on_command(command(2, k, k as f64 * dt), HORIZON).unwrap();
+            }
+            sampler.sample(k, |_, commands| uncommanded.push(commands[1].is_none()));
+        }
+        let hold = (HOLD_LIMIT_S / dt).ceil() as usize;
+        assert!(uncommanded[..=50 + hold].iter().all(|u| !u), "held for {hold} ticks");
+        assert!(uncommanded[51 + hold..].iter().all(|&u| u), "then let go");
+        // Vehicle 1 reached γ = 2.99 while 2 stood at 0.5: counted only while 2 was held.
+        let error = sampler.results().max_coordination_error;
+        assert!((error - 1.0).abs() < 0.011, "{error}");
+        assert_eq!(sampler.on_command(command(2, 40, 0.4), HORIZON), Err(Reject::Past));
     }
 
     /// Two γ of a neighbour between two of the receiver's instants: the newer is judged, the
