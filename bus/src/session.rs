@@ -136,6 +136,39 @@ fn endpoints_of(config: &Config, key: &str) -> Vec<String> {
     out
 }
 
+/// The files a Zenoh config names: TLS certificates and keys, and the user-password dictionary.
+const FILE_KEYS: [&str; 6] = [
+    "transport/link/tls/root_ca_certificate",
+    "transport/link/tls/listen_private_key",
+    "transport/link/tls/listen_certificate",
+    "transport/link/tls/connect_private_key",
+    "transport/link/tls/connect_certificate",
+    "transport/auth/usrpwd/dictionary_file",
+];
+
+/// Every file `config` (read from `path`) names can be read: a missing certificate made a client
+/// wait out its connect timeout and then blame the network.
+fn files_of(config: &Config, path: &std::path::Path) -> Result<()> {
+    for key in FILE_KEYS {
+        let Some(file) = config
+            .get_json(key)
+            .ok()
+            .and_then(|j| serde_json::from_str::<Option<String>>(&j).ok())
+            .flatten()
+        else {
+            continue;
+        };
+        if let Err(e) = std::fs::File::open(&file) {
+            let here = std::env::current_dir().map_or_else(|_| "?".into(), |d| d.display().to_string());
+            return Err(bad(format!(
+                "{}: {key}: {file}: {e} (a relative path is from the working directory, {here})",
+                path.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 impl ZenohArgs {
     /// Without a config file: peer mode on 127.0.0.1, no multicast scouting, an ephemeral port,
     /// so that nothing needs installing and runs never meet by accident.
@@ -176,14 +209,15 @@ impl ZenohArgs {
                     .map_err(|e| bad(format!("{flag}: {}", zenoh_words(e))))?;
             }
         }
-        // A config file's endpoints, too: Zenoh would find out only when it opens, and say it
-        // as if the network had failed.
+        // A config file's endpoints and files, too: Zenoh would find out only when it opens,
+        // and say it as if the network had failed (or, for a certificate, not at all).
         if let Some(path) = &self.config {
             for key in ["connect/endpoints", "listen/endpoints"] {
                 for e in endpoints_of(&config, key) {
                     endpoint(&format!("{}: {key}", path.display()), &e)?;
                 }
             }
+            files_of(&config, path)?;
         }
         Ok(config)
     }
@@ -265,6 +299,45 @@ mod tests {
             zenoh_words("no route to host at the shore"),
             "no route to host at the shore"
         );
+    }
+
+    #[test]
+    fn a_config_naming_a_file_that_is_not_there_is_bad_input() {
+        let dir = std::env::temp_dir().join(format!("tcpf-files-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let ca = dir.join("ca.pem");
+        std::fs::write(&ca, "not checked here").unwrap();
+        let config = dir.join("vehicle.json5");
+        let write = |key: &str| {
+            let text = format!(
+                "{{ mode: \"client\", scouting: {{ multicast: {{ enabled: false }} }}, transport: {{ link: {{ tls: {{ root_ca_certificate: \"{}\", {key}: \"{}/missing.pem\" }} }} }} }}",
+                ca.display(),
+                dir.display()
+            );
+            std::fs::write(&config, text).unwrap();
+        };
+        let args = ZenohArgs {
+            config: Some(config.clone()),
+            ..Default::default()
+        };
+        for key in ["connect_certificate", "listen_private_key"] {
+            write(key);
+            let e = args.config().unwrap_err();
+            assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+            let words = e.to_string();
+            assert!(words.contains(&format!("transport/link/tls/{key}")), "{words}");
+            assert!(words.contains("missing.pem: No such file"), "{words}");
+        }
+        std::fs::write(
+            &config,
+            format!(
+                "{{ transport: {{ link: {{ tls: {{ root_ca_certificate: \"{}\" }} }} }} }}",
+                ca.display()
+            ),
+        )
+        .unwrap();
+        assert!(args.config().is_ok(), "a file that is there");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
