@@ -892,6 +892,9 @@ fn record(
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     live_free(live)?;
+    // Bad Zenoh options are bad input before the run directory is made, which they would
+    // leave behind half written.
+    zenoh.config().map_err(role_failure)?;
     let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
     let summary = role(tcpf_coordinator::recording::record(
         &mission,

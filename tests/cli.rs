@@ -189,6 +189,7 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
     let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let taken = taken.local_addr().unwrap().to_string();
     let busy_out = dir.join("busy");
+    let unrecorded = dir.join("unrecorded");
     let portless = dir.join("portless.json5");
     std::fs::write(&portless, "{ listen: { endpoints: { router: [\"tcp/127.0.0.1\"] } } }").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
@@ -348,7 +349,14 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "--mode bogus: expected peer",
         ),
         (
-            vec!["record", &mission, "-c", bad_config.to_str().unwrap()],
+            vec![
+                "record",
+                &mission,
+                "-c",
+                bad_config.to_str().unwrap(),
+                "--out",
+                unrecorded.to_str().unwrap(),
+            ],
             "bad Zenoh config: line 1, column 19: unknown field `bogus`",
         ),
         (
@@ -391,6 +399,10 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
     assert!(
         !busy_out.exists(),
         "a run that cannot serve its live view leaves no directory"
+    );
+    assert!(
+        !unrecorded.exists(),
+        "a recorder with bad Zenoh options leaves no directory to be in the way of the next"
     );
 }
 
