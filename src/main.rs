@@ -282,6 +282,29 @@ enum Command {
 }
 
 /// How a command failed: exit code 2 for bad input, 1 for a mission or run that failed.
+/// Writes to stdout. A reader that went away (`tcpf gen lanes … | head`) ends the output, as it
+/// wanted, rather than the process with a panic; any other failure to write (a full disk under
+/// `> lanes.toml`) fails the command.
+fn out(text: std::fmt::Arguments) -> Result<(), Failure> {
+    use std::io::Write;
+    match std::io::stdout().lock().write_fmt(text) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(Failure::Failed(anyhow::anyhow!("writing to stdout: {e}")))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// `print!` through `out`, in a function that returns a `Failure`.
+macro_rules! say {
+    ($($arg:tt)*) => { out(format_args!($($arg)*))? };
+}
+
+/// `println!` through `out`.
+macro_rules! sayln {
+    ($($arg:tt)*) => { out(format_args!("{}\n", format_args!($($arg)*)))? };
+}
+
 enum Failure {
     Input(anyhow::Error),
     Failed(anyhow::Error),
@@ -428,10 +451,7 @@ fn main() -> ExitCode {
         Command::Report { dir } => report(&dir),
         Command::Gen {
             mission: Generated::Lanes { vehicles, loss },
-        } => {
-            print!("{}", mission::generate::lanes(vehicles, loss));
-            Ok(ExitCode::SUCCESS)
-        }
+        } => out(format_args!("{}", mission::generate::lanes(vehicles, loss))).map(|()| ExitCode::SUCCESS),
         Command::Sweep {
             mission,
             loss,
@@ -511,12 +531,12 @@ fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
     if json {
-        println!(
+        sayln!(
             "{}",
             serde_json::to_string_pretty(&plan).map_err(|e| Failure::Failed(e.into()))?
         );
     } else {
-        print!("{}", table::plan(&plan));
+        say!("{}", table::plan(&plan));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -579,8 +599,8 @@ fn run(
             .block_on(launcher::run(&mission, &plan, &dir, &exe, options))
             .map_err(role_failure)?
     };
-    print!("{}", table::summary(&summary));
-    println!("run directory: {}", dir.path.display());
+    say!("{}", table::summary(&summary));
+    sayln!("run directory: {}", dir.path.display());
     // A realtime run is not meant to be reproducible: it succeeds by arriving.
     Ok(code(
         summary.completed && (summary.reproducible || realtime),
@@ -682,7 +702,7 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let started = Instant::now();
     let _ = tcpf_core::planner::plan(&mission);
     let on_one = started.elapsed();
-    println!(
+    sayln!(
         "plan ({} vehicles): {:.3} s on {} cores, {:.3} s on one (baseline): {:.2}x",
         plan.vehicles.len(),
         seconds(on_every_core),
@@ -693,7 +713,7 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
 
     let (steps, fleet, world) = bench::in_process(&mission, &plan, 3);
     let rate = |d: Duration| steps as f64 / seconds(d) / 1e6;
-    println!(
+    sayln!(
         "in-process: {:.2} M vehicle-steps/s; the world alone (baseline) {:.2} M/s: {:.2}x",
         rate(fleet),
         rate(world),
@@ -738,12 +758,12 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
         .map_err(Failure::Failed)?;
     let _ = std::fs::remove_dir_all(&dir.path);
     let tick = summary.tick_wall_time_us;
-    println!(
+    sayln!(
         "zenoh round trip between two processes: median {:.1} µs direct, {:.1} µs through a router",
         median(&direct),
         median(&routed)
     );
-    println!(
+    sayln!(
         "lockstep tick ({} vehicles, {} ticks): {:.1} µs; tick / round trip: {:.2} direct, {:.2} through a router",
         plan.vehicles.len(),
         summary.results.ticks,
@@ -752,19 +772,21 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
         tick / median(&routed)
     );
     // A short mission's wall time is much its start: the tick says how fast the fleet runs.
-    println!(
+    sayln!(
         "simulated / wall time: {:.1} by the tick, {:.1} from the start to the end",
         mission.mission.control_period / (tick * 1e-6),
         summary.speedup()
     );
     let (rss, pss) = busiest.per_process_mib();
     let (idle_rss, idle_pss) = idle.per_process_mib();
-    println!(
+    sayln!(
         "per agent: RSS {rss:.1} MiB, PSS {pss:.1} MiB; an idle Zenoh client (baseline): RSS {idle_rss:.1} MiB, PSS {idle_pss:.1} MiB"
     );
-    println!(
+    sayln!(
         "agents' sockets: {} for {} agents; idle clients' (baseline): {}",
-        busiest.sockets, busiest.processes, idle.sockets
+        busiest.sockets,
+        busiest.processes,
+        idle.sockets
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -778,7 +800,7 @@ fn report(dir: &Path) -> Result<ExitCode, Failure> {
     }
     // What it cannot read or make sense of is the directory's fault: bad input.
     tcpf_report::report::write(dir).map_err(Failure::Input)?;
-    println!("{}", dir.join("report.html").display());
+    sayln!("{}", dir.join("report.html").display());
     Ok(ExitCode::SUCCESS)
 }
 
@@ -876,8 +898,8 @@ fn sweep(
     let mode = if processes { "processes" } else { "in-process" };
     let summary = rows.summary(&base.mission.name, &key, seeds, mode);
     let table = tcpf_report::sweep::write(&out, &summary).map_err(Failure::Failed)?;
-    print!("{table}");
-    println!("sweep directory: {}", out.display());
+    say!("{table}");
+    sayln!("sweep directory: {}", out.display());
     Ok(code(true, interrupted))
 }
 
@@ -905,8 +927,8 @@ fn record(
         startup_timeout,
     ))?
     .map_err(role_failure)?;
-    print!("{}", table::summary(&summary));
-    println!("run directory: {}", dir.path.display());
+    say!("{}", table::summary(&summary));
+    sayln!("run directory: {}", dir.path.display());
     let realtime = mission.mission.clock == mission::ClockKind::Realtime;
     Ok(code(
         summary.completed && (summary.reproducible || realtime),

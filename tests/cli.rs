@@ -147,6 +147,39 @@ fn a_run_that_does_not_finish_exits_1() {
     );
 }
 
+/// `tcpf gen lanes … | head -1`: the reader goes away, and the writer stops without a word; a
+/// stdout that cannot be written for another reason fails the command.
+#[test]
+fn output_to_a_reader_that_left_ends_quietly_and_to_a_full_disk_fails() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let mut gen = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["gen", "lanes", "--vehicles", "1000"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(gen.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("# 1000 vehicles"), "{first}");
+    let o = gen.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(o.stderr.is_empty(), "{}", text(&o));
+    let full = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["gen", "lanes", "--vehicles", "3"])
+        .stdout(std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap())
+        .output()
+        .unwrap();
+    assert_eq!(full.status.code(), Some(1), "{}", text(&full));
+    assert!(
+        text(&full).contains("writing to stdout: No space left"),
+        "{}",
+        text(&full)
+    );
+}
+
 #[test]
 fn a_generated_fleet_of_ten_plans_and_arrives() {
     let dir = scratch("gen");
