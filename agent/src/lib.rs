@@ -404,6 +404,7 @@ fn check_clock(mission: &Mission, clock: &Clock) -> Result<()> {
     let m = &mission.mission;
     Ok(clock::check_clock(
         "agent",
+        mission.digest(),
         m.clock == ClockKind::Realtime,
         m.time_scale,
         clock,

@@ -26,9 +26,9 @@ impl std::fmt::Display for WrongClock {
 
 impl std::error::Error for WrongClock {}
 
-/// One kind of clock and one time scale for the whole fleet: `role` runs the mission's
-/// `realtime` clock at `time_scale`, and `clock` is the world's.
-pub fn check_clock(role: &str, realtime: bool, time_scale: f64, clock: &Clock) -> Result<(), WrongClock> {
+/// One mission, one kind of clock and one time scale for the whole fleet: `role` runs the
+/// mission of digest `mission` on its `realtime` clock at `time_scale`, and `clock` is the world's.
+pub fn check_clock(role: &str, mission: u64, realtime: bool, time_scale: f64, clock: &Clock) -> Result<(), WrongClock> {
     let kind = |r: bool| if r { "realtime" } else { "lockstep" };
     if clock.realtime != realtime {
         return Err(WrongClock(format!(
@@ -41,6 +41,12 @@ pub fn check_clock(role: &str, realtime: bool, time_scale: f64, clock: &Clock) -
         return Err(WrongClock(format!(
             "this {role} runs at time scale {time_scale} but the world at {}: start every role with the same --time-scale",
             clock.time_scale
+        )));
+    }
+    if clock.mission != mission {
+        return Err(WrongClock(format!(
+            "this {role} runs another mission than the world (mission digest {mission:016x}, the world's {:016x}): start every role with the same mission file, --set and --seed (the world's run directory has the mission it runs, mission.toml)",
+            clock.mission
         )));
     }
     let apart = unix_now() - clock.epoch;
@@ -182,6 +188,7 @@ mod tests {
             time_scale: 10.0,
             epoch: unix_now() - 1.0,
             tick: 0,
+            mission: 5,
         };
         let fleet = FleetClock::new(&clock, 0.01);
         assert_eq!(fleet.period(), Duration::from_millis(1));
@@ -207,12 +214,31 @@ mod tests {
             time_scale: 1.0,
             epoch,
             tick: 0,
+            mission: 5,
         };
-        assert!(check_clock("agent", true, 1.0, &clock(unix_now() - 3600.0)).is_ok());
+        assert!(check_clock("agent", 5, true, 1.0, &clock(unix_now() - 3600.0)).is_ok());
         for epoch in [1e20, -1e20, 0.0] {
-            let e = check_clock("agent", true, 1.0, &clock(epoch)).unwrap_err().0;
+            let e = check_clock("agent", 5, true, 1.0, &clock(epoch)).unwrap_err().0;
             assert!(e.contains("the hosts' clocks disagree"), "{e}");
         }
+    }
+
+    #[test]
+    fn a_role_with_another_mission_than_the_worlds_is_told_so() {
+        let clock = Clock {
+            version: PROTOCOL_VERSION,
+            realtime: false,
+            time_scale: 1.0,
+            epoch: unix_now(),
+            tick: 0,
+            mission: 0xab,
+        };
+        assert!(check_clock("recorder", 0xab, false, 1.0, &clock).is_ok());
+        let e = check_clock("recorder", 0xcd, false, 1.0, &clock).unwrap_err().0;
+        assert!(
+            e.contains("this recorder runs another mission than the world (mission digest 00000000000000cd, the world's 00000000000000ab)"),
+            "{e}"
+        );
     }
 
     #[tokio::test]
@@ -223,6 +249,7 @@ mod tests {
             time_scale: 1.0,
             epoch: unix_now(),
             tick: 0,
+            mission: 5,
         };
         let fleet = FleetClock::new(&clock, 0.005);
         let mut beats = metronome(fleet, 0.0, 0);

@@ -62,7 +62,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x06, 0xac, 0x02, 0x02, 0x01,
+            0x07, 0xac, 0x02, 0x02, 0x01,
             0, 0, 0, 0, 0, 0, 0x08, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
@@ -71,27 +71,28 @@ mod tests {
         ];
         assert_eq!(encode(&g), bytes);
         let silent = Gamma { sample: None, ..g };
-        assert_eq!(encode(&silent), [0x06, 0xac, 0x02, 0x02, 0x00]);
+        assert_eq!(encode(&silent), [0x07, 0xac, 0x02, 0x02, 0x00]);
         let loss = Loss {
             version: PROTOCOL_VERSION,
             id: 2,
             tick: 300,
             reason: LossReason::Silent,
         };
-        assert_eq!(encode(&loss), [0x06, 0x02, 0xac, 0x02, 0x01]);
+        assert_eq!(encode(&loss), [0x07, 0x02, 0xac, 0x02, 0x01]);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
             time_scale: 10.0,
             epoch: 1.5,
             tick: 300,
+            mission: 5,
         };
         #[rustfmt::skip]
         let bytes = [
-            0x06, 0x01,
+            0x07, 0x01,
             0, 0, 0, 0, 0, 0, 0x24, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
-            0xac, 0x02,
+            0xac, 0x02, 0x05,
         ];
         assert_eq!(encode(&clock), bytes);
     }

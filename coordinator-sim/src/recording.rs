@@ -111,6 +111,8 @@ pub struct Recording {
     time_scale: f64,
     /// The world's clock, until it has answered (it does once the run has started).
     clock: Option<ClockAnswer>,
+    /// The mission's digest, which must be the world's.
+    digest: u64,
 }
 
 impl Recording {
@@ -159,6 +161,7 @@ impl Recording {
             from_world: 0,
             time_scale: mission.mission.time_scale,
             clock: Some(clock),
+            digest: mission.digest(),
         })
     }
 
@@ -221,7 +224,7 @@ impl Recording {
                 // A realtime world would send no record: say so rather than wait for one.
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
-                    check_clock("recorder", false, self.time_scale, &answer?)?;
+                    check_clock("recorder", self.digest, false, self.time_scale, &answer?)?;
                 }
             },
             Machine::Realtime {
@@ -238,7 +241,7 @@ impl Recording {
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
                     let clock = answer?;
-                    check_clock("recorder", true, self.time_scale, &clock)?;
+                    check_clock("recorder", self.digest, true, self.time_scale, &clock)?;
                     let fleet = FleetClock::new(&clock, *control_period);
                     *beats = Some((fleet, metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64)));
                 }

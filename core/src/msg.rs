@@ -11,7 +11,7 @@ use crate::path::GeneralizedPath;
 /// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`. 5: the γ a realtime
 /// agent received but saw overtaken (`PeriodTiming::overtaken`). 6: the lockstep world's
 /// `TickRecord`, which recorders take instead of every state and command.
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -343,6 +343,8 @@ pub struct Clock {
     pub epoch: f64,
     /// The world's tick when it answered.
     pub tick: u64,
+    /// The world's `Mission::digest`: every role checks it runs the same mission.
+    pub mission: u64,
 }
 
 impl Checked for Clock {

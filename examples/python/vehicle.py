@@ -21,7 +21,7 @@ import threading
 import time
 import tomllib
 
-VERSION = 6
+VERSION = 7
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
 # The longest a vehicle holds its agent's last command, in simulated seconds (the world's
@@ -47,7 +47,7 @@ COMMAND = record(("version", U16), ("tick", U64), ("id", U32), ("v", F), ("r", F
                  ("receptions", ("vec", record(("from", U32), ("delivered", BOOL)))))
 LOST = record(("id", U32), ("tick", U64), ("reason", ("enum", ("gone", "silent"))))
 END = record(("version", U16), ("ticks", U64), ("lost", ("vec", LOST)))
-CLOCK = record(("version", U16), ("realtime", BOOL), ("time_scale", F), ("epoch", F), ("tick", U64))
+CLOCK = record(("version", U16), ("realtime", BOOL), ("time_scale", F), ("epoch", F), ("tick", U64), ("mission", U64))
 # For the self-test alone: PROTOCOL.md's worked example.
 GAMMA = record(("version", U16), ("tick", U64), ("from", U32),
                ("sample", ("option", record(("t", F), ("gamma", F), ("gamma_dot", F), ("position", XY)))))
@@ -439,15 +439,16 @@ def self_test():
                "gamma_dot": 1.1, "v_d": 0.5, "x_e": 0.01, "y_e": -0.2, "psi_e": 0.03,
                "receptions": [{"from": 1, "delivered": True}, {"from": 3, "delivered": False}]}
     end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}]}
-    clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12}
-    gamma_bytes = ("06ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+    clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12,
+             "mission": 0x72b3548f8bc2f98c}
+    gamma_bytes = ("07ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
                    "0000000000000040" "000000000000e0bf")
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("06ac020200"),
-        "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300))
-        == bytes.fromhex("0601" "0000000000002440" "000000000000f83f" "ac02"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("07ac020200"),
+        "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300, mission=5))
+        == bytes.fromhex("0701" "0000000000002440" "000000000000f83f" "ac02" "05"),
         "u32 overflow refused": refused_as(version_id, varint(VERSION) + varint(2**32)) == "undecodable",
         "trailing byte refused": refused_as(COMMAND, encode(COMMAND, command) + b"\0") == "undecodable",
         "version 3 refused": refused_as(STATE, encode(STATE, dict(state, version=3))) == "wrong_version",

@@ -272,6 +272,7 @@ async fn serve(
                     time_scale: mission.mission.time_scale,
                     epoch: 0.0,
                     tick: 0,
+                    mission: mission.digest(),
                 },
                 since: Instant::now(),
                 over: false,
@@ -490,6 +491,7 @@ impl Shell {
             time_scale: mission.mission.time_scale,
             epoch: unix_now() + REALTIME_LEAD_S,
             tick: 0,
+            mission: mission.digest(),
         };
         self.clock.set(clock);
         let fleet = FleetClock::new(&clock, mission.mission.control_period);

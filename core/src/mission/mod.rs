@@ -387,6 +387,16 @@ mod defaults {
 }
 
 impl Mission {
+    /// A fingerprint of the mission as parsed, overrides and seed included: roles on several
+    /// hosts, each with its own copy of the file, compare it to find that they run one mission.
+    /// FNV-1a of its TOML (the run directory's `mission.toml`), stable from process to process.
+    pub fn digest(&self) -> u64 {
+        let text = toml::to_string(self).expect("a parsed mission writes as TOML");
+        text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+        })
+    }
+
     /// Ticks per communication period T_c.
     pub fn comm_every(&self) -> u64 {
         (self.comms.period / self.mission.control_period).round() as u64
@@ -530,6 +540,25 @@ goal_velocity = [0.75, 0.0]
         let far = text.replace("start = 10.0\nend = 20.0", "start = 130.0\nend = 140.0");
         let e = parse("m.toml", &far, &[]).unwrap_err();
         assert!(e.message.contains("outside the run's [0, 120)"), "{}", e.message);
+    }
+
+    /// Every child of `tcpf run` parses the mission.toml the launcher wrote: its digest must be
+    /// the launcher's own, and any override must change it.
+    #[test]
+    fn the_digest_survives_the_run_directory_and_tells_missions_apart() {
+        let m = parse("m.toml", PAPER, &["comms.loss=0.25".into()]).unwrap();
+        let written = toml::to_string(&m).unwrap();
+        let again = parse("mission.toml", &written, &[]).unwrap();
+        assert_eq!(again.digest(), m.digest());
+        for other in [
+            "comms.loss=0.3",
+            "mission.seed=2",
+            "control.kc=0.4",
+            "vehicle.2.weight=2",
+        ] {
+            let o = parse("m.toml", PAPER, &["comms.loss=0.25".into(), other.into()]).unwrap();
+            assert_ne!(o.digest(), m.digest(), "{other}");
+        }
     }
 
     #[test]
