@@ -474,6 +474,13 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
         // The last override of a key is the one in effect.
         match overrides.iter().rev().find(|o| overrides::touches(o, &path, &mission)) {
             Some(o) => err(None, Some(key), format!("{message} (from --set {o})")),
+            // A key of the file may be wrong only beside an override of another (tf_max against
+            // --set planner.tf_min=70): say which are in effect.
+            None if !overrides.is_empty() => {
+                let sets: Vec<String> = overrides.iter().map(|o| format!("--set {o}")).collect();
+                let message = format!("{message} (with {})", sets.join(", "));
+                err(line_of_key(text, table, &path), Some(key), message)
+            }
             None => err(line_of_key(text, table, &path), Some(key), message),
         }
     })?;
@@ -559,6 +566,17 @@ goal_velocity = [0.75, 0.0]
             let o = parse("m.toml", PAPER, &["comms.loss=0.25".into(), other.into()]).unwrap();
             assert_ne!(o.digest(), m.digest(), "{other}");
         }
+    }
+
+    #[test]
+    fn a_file_key_wrong_beside_an_override_names_the_override() {
+        let e = parse("m.toml", PAPER, &["planner.tf_min=70".into(), "comms.loss=0.1".into()]).unwrap_err();
+        assert!(e.message.contains("tf_min"), "{e}");
+        assert!(
+            e.message
+                .contains("(with --set planner.tf_min=70, --set comms.loss=0.1)"),
+            "{e}"
+        );
     }
 
     #[test]
