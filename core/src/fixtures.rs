@@ -1,6 +1,7 @@
 //! What the unit tests share: the paper's case (b), parsed and planned.
 
 use crate::mission::{self, Mission};
+use crate::msg::{Command, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::planner;
 
@@ -11,4 +12,24 @@ pub fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
     let plan = planner::plan(&m).unwrap();
     let paths = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
     (m, paths, plan.t_f)
+}
+
+/// A command of vehicle `id` at `tick` that says only where its γ is: for the recorder's machines,
+/// which take γ from commands.
+pub fn command_at(id: u32, tick: u64, gamma: f64) -> Command {
+    Command {
+        version: PROTOCOL_VERSION,
+        tick,
+        id,
+        v: 1.0,
+        r: 0.0,
+        hold: false,
+        gamma,
+        gamma_dot: 1.0,
+        v_d: 1.0,
+        x_e: 0.0,
+        y_e: 0.0,
+        psi_e: 0.0,
+        receptions: vec![],
+    }
 }

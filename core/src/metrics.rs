@@ -272,7 +272,7 @@ mod tests {
     /// first arrival between them, not a period before the later row.
     #[test]
     fn the_en_route_window_closes_at_an_arrival_between_rows_periods_apart() {
-        use crate::msg::{Command, State, PROTOCOL_VERSION};
+        use crate::msg::{State, PROTOCOL_VERSION};
         let dt = 0.01;
         let state = |id: u32, tick: u64| State {
             version: PROTOCOL_VERSION,
@@ -285,23 +285,7 @@ mod tests {
             sideslip_rate: 0.0,
             current: [0.0, 0.0],
         };
-        let command = |id: u32, tick: u64, gamma: f64| {
-            Some(Command {
-                version: PROTOCOL_VERSION,
-                tick,
-                id,
-                v: 1.0,
-                r: 0.0,
-                hold: false,
-                gamma,
-                gamma_dot: 1.0,
-                v_d: 1.0,
-                x_e: 0.0,
-                y_e: 0.0,
-                psi_e: 0.0,
-                receptions: vec![],
-            })
-        };
+        let command = |id, tick, gamma| Some(crate::fixtures::command_at(id, tick, gamma));
         let mut m = Metrics::new(&[1, 2], 1.0, dt);
         m.record(
             10,

@@ -876,21 +876,7 @@ mod tests {
     fn a_silent_agents_frozen_gamma_leaves_the_coordination_error() {
         let dt = 0.01;
         let mut sampler = Sampler::new(&[1, 2], 100.0, dt);
-        let command = |id: u32, tick: u64, gamma: f64| Command {
-            version: PROTOCOL_VERSION,
-            tick,
-            id,
-            v: 1.0,
-            r: 0.0,
-            hold: false,
-            gamma,
-            gamma_dot: 1.0,
-            v_d: 1.0,
-            x_e: 0.0,
-            y_e: 0.0,
-            psi_e: 0.0,
-            receptions: vec![],
-        };
+        let command = crate::fixtures::command_at;
         let mut uncommanded = Vec::new();
         for k in 0..300 {
             for id in [1, 2] {
