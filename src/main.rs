@@ -281,7 +281,6 @@ enum Command {
     },
 }
 
-/// How a command failed: exit code 2 for bad input, 1 for a mission or run that failed.
 /// Writes to stdout. A reader that went away (`tcpf gen lanes … | head`) ends the output, as it
 /// wanted, rather than the process with a panic; any other failure to write (a full disk under
 /// `> lanes.toml`) fails the command.
@@ -305,6 +304,7 @@ macro_rules! sayln {
     ($($arg:tt)*) => { out(format_args!("{}\n", format_args!($($arg)*)))? };
 }
 
+/// How a command failed: exit code 2 for bad input, 1 for a mission or run that failed.
 enum Failure {
     Input(anyhow::Error),
     Failed(anyhow::Error),
@@ -352,6 +352,11 @@ fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
     mission::parse(&name, &text, &sets).map_err(|mut e| {
         for (set, flag) in &args.flags {
             e.message = e.message.replace(&format!("--set {set}"), flag);
+        }
+        if let Some(seed) = seed {
+            e.message = e
+                .message
+                .replace(&format!("--set mission.seed={seed}"), &format!("--seed {seed}"));
         }
         Failure::Input(e.into())
     })

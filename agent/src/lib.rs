@@ -401,14 +401,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
 
 /// This agent's clock against the world's.
 fn check_clock(mission: &Mission, clock: &Clock) -> Result<()> {
-    let m = &mission.mission;
-    Ok(clock::check_clock(
-        "agent",
-        mission.digest(),
-        m.clock == ClockKind::Realtime,
-        m.time_scale,
-        clock,
-    )?)
+    Ok(clock::check_clock("agent", &clock::Expected::of(mission), clock)?)
 }
 
 impl Shell {

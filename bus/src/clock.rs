@@ -10,6 +10,7 @@
 
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::Clock;
 use tcpf_core::realtime::AHEAD_LIMIT_WALL_S;
 use tokio::sync::mpsc;
@@ -26,9 +27,38 @@ impl std::fmt::Display for WrongClock {
 
 impl std::error::Error for WrongClock {}
 
-/// One mission, one kind of clock and one time scale for the whole fleet: `role` runs the
-/// mission of digest `mission` on its `realtime` clock at `time_scale`, and `clock` is the world's.
-pub fn check_clock(role: &str, mission: u64, realtime: bool, time_scale: f64, clock: &Clock) -> Result<(), WrongClock> {
+/// What a role expects of the world's clock: its own mission, clock and time scale.
+#[derive(Debug, Clone, Copy)]
+pub struct Expected {
+    /// `Mission::digest` of the role's mission.
+    pub digest: u64,
+    pub realtime: bool,
+    pub time_scale: f64,
+    /// The longest the run can last, wall seconds: how long ago its epoch may be.
+    pub run_wall_s: f64,
+}
+
+impl Expected {
+    pub fn of(mission: &Mission) -> Expected {
+        let m = &mission.mission;
+        Expected {
+            digest: mission.digest(),
+            realtime: m.clock == ClockKind::Realtime,
+            time_scale: m.time_scale,
+            run_wall_s: m.max_duration / m.time_scale,
+        }
+    }
+}
+
+/// One mission, one kind of clock and one time scale for the whole fleet: `role` expects
+/// `expected`, and `clock` is the world's.
+pub fn check_clock(role: &str, expected: &Expected, clock: &Clock) -> Result<(), WrongClock> {
+    let &Expected {
+        digest,
+        realtime,
+        time_scale,
+        run_wall_s,
+    } = expected;
     let kind = |r: bool| if r { "realtime" } else { "lockstep" };
     if clock.realtime != realtime {
         return Err(WrongClock(format!(
@@ -43,23 +73,25 @@ pub fn check_clock(role: &str, mission: u64, realtime: bool, time_scale: f64, cl
             clock.time_scale
         )));
     }
-    if clock.mission != mission {
+    if clock.mission != digest {
         return Err(WrongClock(format!(
-            "this {role} runs another mission than the world (mission digest {mission:016x}, the world's {:016x}): start every role with the same mission file, --set and --seed (the world's run directory has the mission it runs, mission.toml)",
+            "this {role} runs another mission than the world (mission digest {digest:016x}, the world's {:016x}, which the world logs as it starts): start every role with the same mission file, --set and --seed",
             clock.mission
         )));
     }
-    let apart = unix_now() - clock.epoch;
-    if realtime && (apart.is_nan() || apart.abs() > MAX_SKEW_S) {
+    // Since the epoch: up to the run's length after it, and a little before (the world's lead).
+    let since = unix_now() - clock.epoch;
+    let representable = Duration::try_from_secs_f64(since.abs()).is_ok();
+    if realtime && !(representable && since < run_wall_s + MAX_SKEW_S && since > -MAX_SKEW_S) {
         return Err(WrongClock(format!(
-            "the world's clock started {apart:.0} s from this host's: the hosts' clocks disagree (set them with NTP or PTP, docs/TESTBED.md)"
+            "the world's clock started {since:.0} s from this host's: the hosts' clocks disagree (set them with NTP or PTP, docs/TESTBED.md)"
         )));
     }
     Ok(())
 }
 
-/// How far from this host's clock a world's epoch may be: a run is not a year long, and a
-/// farther epoch is a host's clock that was never set (or a message that lies).
+/// How far from this host's clock, besides the run's own length, a world's epoch may be: a
+/// farther one is a host's clock that was never set (or a message that lies).
 const MAX_SKEW_S: f64 = 365.0 * 86_400.0;
 
 /// Unix time now, in seconds.
@@ -216,9 +248,21 @@ mod tests {
             tick: 0,
             mission: 5,
         };
-        assert!(check_clock("agent", 5, true, 1.0, &clock(unix_now() - 3600.0)).is_ok());
+        let expected = Expected {
+            digest: 5,
+            realtime: true,
+            time_scale: 1.0,
+            run_wall_s: 600.0,
+        };
+        assert!(check_clock("agent", &expected, &clock(unix_now() - 3600.0)).is_ok());
+        // A run at time scale 1e-6 lasts years: its epoch may be as long ago.
+        let slow = Expected {
+            run_wall_s: 1e8,
+            ..expected
+        };
+        assert!(check_clock("agent", &slow, &clock(unix_now() - 5e7)).is_ok());
         for epoch in [1e20, -1e20, 0.0] {
-            let e = check_clock("agent", 5, true, 1.0, &clock(epoch)).unwrap_err().0;
+            let e = check_clock("agent", &expected, &clock(epoch)).unwrap_err().0;
             assert!(e.contains("the hosts' clocks disagree"), "{e}");
         }
     }
@@ -233,10 +277,16 @@ mod tests {
             tick: 0,
             mission: 0xab,
         };
-        assert!(check_clock("recorder", 0xab, false, 1.0, &clock).is_ok());
-        let e = check_clock("recorder", 0xcd, false, 1.0, &clock).unwrap_err().0;
+        let expected = |digest| Expected {
+            digest,
+            realtime: false,
+            time_scale: 1.0,
+            run_wall_s: 120.0,
+        };
+        assert!(check_clock("recorder", &expected(0xab), &clock).is_ok());
+        let e = check_clock("recorder", &expected(0xcd), &clock).unwrap_err().0;
         assert!(
-            e.contains("this recorder runs another mission than the world (mission digest 00000000000000cd, the world's 00000000000000ab)"),
+            e.contains("this recorder runs another mission than the world (mission digest 00000000000000cd, the world's 00000000000000ab"),
             "{e}"
         );
     }

@@ -158,12 +158,20 @@ fn files_of(config: &Config, path: &std::path::Path) -> Result<()> {
         else {
             continue;
         };
-        if let Err(e) = std::fs::File::open(&file) {
-            let here = std::env::current_dir().map_or_else(|_| "?".into(), |d| d.display().to_string());
-            return Err(bad(format!(
-                "{}: {key}: {file}: {e} (a relative path is from the working directory, {here})",
-                path.display()
-            )));
+        let unreadable = match std::fs::metadata(&file) {
+            Ok(m) if m.is_dir() => Some("a directory, not a file".to_string()),
+            Ok(_) => std::fs::File::open(&file).err().map(|e| e.to_string()),
+            Err(e) => Some(e.to_string()),
+        };
+        if let Some(why) = unreadable {
+            let here = match std::path::Path::new(&file).is_relative() {
+                true => std::env::current_dir().map_or_else(
+                    |_| String::new(),
+                    |d| format!(" (a relative path is from the working directory, {})", d.display()),
+                ),
+                false => String::new(),
+            };
+            return Err(bad(format!("{}: {key}: {file}: {why}{here}", path.display())));
         }
     }
     Ok(())
@@ -337,6 +345,16 @@ mod tests {
         )
         .unwrap();
         assert!(args.config().is_ok(), "a file that is there");
+        std::fs::write(
+            &config,
+            format!(
+                "{{ transport: {{ link: {{ tls: {{ root_ca_certificate: \"{}\" }} }} }} }}",
+                dir.display()
+            ),
+        )
+        .unwrap();
+        let e = args.config().unwrap_err().to_string();
+        assert!(e.ends_with(": a directory, not a file"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

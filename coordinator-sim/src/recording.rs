@@ -7,7 +7,7 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::clock::{check_clock, metronome, Beat, FleetClock};
+use tcpf_bus::clock::{check_clock, metronome, Beat, Expected, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
 use tcpf_core::links::LinkStats;
@@ -106,13 +106,10 @@ pub struct Recording {
     ids: Vec<u32>,
     /// Messages taken from the world so far.
     pub from_world: u64,
-    /// The time scale this recorder runs at, which must be the world's (its clock is the
-    /// machine's).
-    time_scale: f64,
     /// The world's clock, until it has answered (it does once the run has started).
     clock: Option<ClockAnswer>,
-    /// The mission's digest, which must be the world's.
-    digest: u64,
+    /// The mission, clock and time scale the world's clock must have.
+    expected: Expected,
 }
 
 impl Recording {
@@ -159,9 +156,8 @@ impl Recording {
             token: None,
             ids,
             from_world: 0,
-            time_scale: mission.mission.time_scale,
             clock: Some(clock),
-            digest: mission.digest(),
+            expected: Expected::of(mission),
         })
     }
 
@@ -182,7 +178,7 @@ impl Recording {
     }
 
     fn take_report(&mut self, key: &str, report: Report) {
-        if !keep_report(&mut self.exit_reports, key, report) {
+        if !keep_report(&mut self.exit_reports, &self.keys, key, report) {
             self.rejected.wrong_sender(key);
         }
     }
@@ -224,7 +220,7 @@ impl Recording {
                 // A realtime world would send no record: say so rather than wait for one.
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
-                    check_clock("recorder", self.digest, false, self.time_scale, &answer?)?;
+                    check_clock("recorder", &self.expected, &answer?)?;
                 }
             },
             Machine::Realtime {
@@ -241,7 +237,7 @@ impl Recording {
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
                     let clock = answer?;
-                    check_clock("recorder", self.digest, true, self.time_scale, &clock)?;
+                    check_clock("recorder", &self.expected, &clock)?;
                     let fleet = FleetClock::new(&clock, *control_period);
                     *beats = Some((fleet, metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64)));
                 }
@@ -294,7 +290,6 @@ impl Recording {
         }
     }
 
-    /// The roles whose exit report the end calls for and has not come.
     /// The vehicles lost so far: the world's end says, or before it, its losses.
     fn lost(&self) -> Vec<u32> {
         match (&self.end, &self.machine) {
@@ -304,6 +299,7 @@ impl Recording {
         }
     }
 
+    /// The roles whose exit report the end calls for and has not come.
     pub fn unreported(&self) -> Vec<(Role, u32)> {
         unreported(&self.ids, self.end.as_ref(), &self.exit_reports)
     }
@@ -392,12 +388,14 @@ impl Recording {
                     .peekable();
                 reports.peek().is_some().then_some(reports)
             };
-            // A sampled period merges the broadcasts since the last one: a vehicle's broadcasts
-            // are what its agent says it published (without its report, what its neighbours'
-            // sampled commands show, fewer).
             for v in results.vehicles.iter_mut() {
+                let lives = 1 + restarts
+                    .iter()
+                    .filter(|r| r.id == v.id)
+                    .map(|r| r.restarts)
+                    .sum::<u64>();
                 if let Some(reports) = agent(v.id) {
-                    v.gamma_sent = reports.map(|r| r.published).sum();
+                    v.gamma_sent = broadcasts(v.gamma_sent, lives, reports.map(|r| r.published));
                 }
             }
             for link in results.links.iter_mut() {
@@ -593,13 +591,26 @@ pub async fn record(
     )
 }
 
-/// Of a mission of vehicles `ids`, the roles whose exit report `end` calls for and that are not
-/// among `reports`: the world, and the agent of every vehicle the world did not give up on (an
-/// agent started again reports once per life; any one will do). None before the end.
+/// A realtime vehicle's γ broadcasts, from what the neighbours' sampled commands show (`sampled`:
+/// a row merges the broadcasts since the one before, so fewer) and what each life of its agent
+/// that reported says it published: theirs, if all `lives` reported, else at least the sampled.
+fn broadcasts(sampled: u64, lives: u64, published: impl Iterator<Item = u64>) -> u64 {
+    let (told, published) = published.fold((0, 0), |(n, sum), p| (n + 1, sum + p));
+    if told == lives {
+        published
+    } else {
+        sampled.max(published)
+    }
+}
+
 /// Keeps a process's exit report if its key names the role and id its body does (false if
 /// not); the same process's report again replaces the first, so its counts are not summed twice.
-fn keep_report(reports: &mut Vec<Report>, key: &str, report: Report) -> bool {
-    if !key.ends_with(&format!("/report/{}/{}", report.role, report.id)) {
+fn keep_report(reports: &mut Vec<Report>, keys: &Keys, key: &str, report: Report) -> bool {
+    if Role::parse(&report.role)
+        .map(|role| keys.report(role, report.id))
+        .as_deref()
+        != Some(key)
+    {
         return false;
     }
     let same = |r: &&mut Report| (&r.role, r.id, r.pid) == (&report.role, report.id, report.pid);
@@ -626,6 +637,9 @@ fn silent_children(children: &[ChildSummary], lost: &[u32]) -> Vec<(Role, u32)> 
         .collect()
 }
 
+/// Of a mission of vehicles `ids`, the roles whose exit report `end` calls for and that are not
+/// among `reports`: the world, and the agent of every vehicle the world did not give up on (an
+/// agent started again reports once per life; any one will do). None before the end.
 fn unreported(ids: &[u32], end: Option<&End>, reports: &[Report]) -> Vec<(Role, u32)> {
     let Some(end) = end else {
         return Vec::new();
@@ -708,18 +722,38 @@ mod tests {
     }
 
     #[test]
+    fn broadcasts_are_the_agents_own_count_when_every_life_reported() {
+        assert_eq!(broadcasts(547, 1, [556].into_iter()), 556);
+        assert_eq!(broadcasts(547, 2, [300, 256].into_iter()), 556);
+        assert_eq!(
+            broadcasts(547, 2, [256].into_iter()),
+            547,
+            "a life that died told nothing"
+        );
+        assert_eq!(broadcasts(100, 2, [256].into_iter()), 256);
+    }
+
+    #[test]
     fn a_report_is_kept_once_and_only_under_its_own_key() {
         let mut kept = Vec::new();
+        let keys = Keys::new("m");
         let mut twice = report(Role::Agent, 2);
-        assert!(keep_report(&mut kept, "tcpf/m/report/agent/2", twice.clone()));
+        assert!(keep_report(&mut kept, &keys, "tcpf/m/report/agent/2", twice.clone()));
         twice.stale_timeouts = 3;
-        assert!(keep_report(&mut kept, "tcpf/m/report/agent/2", twice.clone()));
+        assert!(keep_report(&mut kept, &keys, "tcpf/m/report/agent/2", twice.clone()));
         assert_eq!(kept.len(), 1, "the same process again replaces its report");
         assert_eq!(kept[0].stale_timeouts, 3);
-        assert!(!keep_report(&mut kept, "tcpf/m/report/agent/3", twice.clone()));
-        assert!(!keep_report(&mut kept, "tcpf/m/report/world/2", twice.clone()));
+        assert!(!keep_report(&mut kept, &keys, "tcpf/m/report/agent/3", twice.clone()));
+        assert!(!keep_report(&mut kept, &keys, "tcpf/m/report/world/2", twice.clone()));
+        assert!(!keep_report(&mut kept, &keys, "tcpf/x/report/agent/2", twice.clone()));
+        assert!(!keep_report(
+            &mut kept,
+            &keys,
+            "tcpf/m/report/x/report/agent/2",
+            twice.clone()
+        ));
         twice.pid = 2;
-        assert!(keep_report(&mut kept, "tcpf/m/report/agent/2", twice));
+        assert!(keep_report(&mut kept, &keys, "tcpf/m/report/agent/2", twice));
         assert_eq!(kept.len(), 2, "an agent started again reports as another process");
     }
 }

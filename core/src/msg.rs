@@ -343,7 +343,7 @@ pub struct Clock {
     pub epoch: f64,
     /// The world's tick when it answered.
     pub tick: u64,
-    /// The world's `Mission::digest`: every role checks it runs the same mission.
+    /// The world's `Mission::digest`: agents and recorders check they run the same mission.
     pub mission: u64,
 }
 

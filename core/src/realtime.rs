@@ -437,6 +437,8 @@ pub struct Sampler {
     hold_ticks: u64,
     /// The newest tick of each vehicle's commands, held or let go.
     newest: Vec<Option<u64>>,
+    /// Whether the held command has been in a row: its receptions are counted.
+    sampled: Vec<bool>,
 }
 
 impl Sampler {
@@ -447,6 +449,7 @@ impl Sampler {
             commands: vec![None; ids.len()],
             hold_ticks: (HOLD_LIMIT_S / dt).ceil() as u64,
             newest: vec![None; ids.len()],
+            sampled: vec![false; ids.len()],
             metrics: Metrics::new(ids, t_f, dt),
             last: None,
             fresh: false,
@@ -504,6 +507,7 @@ impl Sampler {
             command.receptions = receptions;
         }
         self.commands[n] = Some(command);
+        self.sampled[n] = false;
         self.fresh = true;
         Ok(())
     }
@@ -553,9 +557,10 @@ impl Sampler {
         self.row.clear();
         self.row.extend(self.states.iter().flatten());
         // A vehicle the world no longer commands has no command in the row, and its frozen γ
-        // leaves the coordination error until its agent speaks again, as a lost vehicle's does.
-        for command in &mut self.commands {
-            if command.as_ref().is_some_and(|c| c.tick + self.hold_ticks < tick) {
+        // leaves the coordination error until its agent speaks again, as a lost vehicle's does;
+        // a command is let go once a row had it, so that its receptions count.
+        for (command, &sampled) in self.commands.iter_mut().zip(&self.sampled) {
+            if sampled && command.as_ref().is_some_and(|c| c.tick + self.hold_ticks < tick) {
                 *command = None;
             }
         }
@@ -564,6 +569,7 @@ impl Sampler {
         for c in self.commands.iter_mut().flatten() {
             c.receptions.clear();
         }
+        self.sampled.iter_mut().for_each(|s| *s = true);
         self.last = Some(tick);
         self.fresh = false;
         self.moved = false;
@@ -898,6 +904,27 @@ mod tests {
         let error = sampler.results().max_coordination_error;
         assert!((error - 1.0).abs() < 0.011, "{error}");
         assert_eq!(sampler.on_command(command(2, 40, 0.4), HORIZON), Err(Reject::Past));
+        // A command that comes already too old to hold is in one row, for its receptions.
+        let late = Command {
+            receptions: vec![Reception {
+                from: 1,
+                delivered: true,
+            }],
+            ..command(2, 150, 1.5)
+        };
+        sampler.on_command(late, HORIZON).unwrap();
+        let mut rows = Vec::new();
+        for k in [300, 301] {
+            for id in [1, 2] {
+                sampler
+                    .on_state(still(id, k, dt, [0.0, 10.0 * id as f64]), HORIZON)
+                    .unwrap();
+            }
+            sampler.sample(k, |_, commands| rows.push(commands[1].is_some()));
+        }
+        assert_eq!(rows, [true, false], "sampled once, then let go");
+        let link = sampler.results().links.into_iter().find(|l| (l.from, l.to) == (1, 2));
+        assert_eq!(link.map(|l| l.delivered), Some(1), "its reception counts");
     }
 
     /// Two γ of a neighbour between two of the receiver's instants: the newer is judged, the

@@ -198,6 +198,12 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let mut shutdown = Shutdown::new()?;
     let session = zenoh.open_unless(&mut shutdown).await?;
+    // What a role on another host whose mission is not this one is told to compare with.
+    tracing::info!(
+        "world: mission {} (digest {:016x})",
+        mission.mission.name,
+        mission.digest()
+    );
     let rejected = Rejected::default();
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once they have passed through it.

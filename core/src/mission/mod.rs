@@ -550,13 +550,39 @@ goal_velocity = [0.75, 0.0]
     }
 
     /// Every child of `tcpf run` parses the mission.toml the launcher wrote: its digest must be
-    /// the launcher's own, and any override must change it.
+    /// the launcher's own, or every process run would refuse its own recorder; and any override
+    /// must change it.
     #[test]
     fn the_digest_survives_the_run_directory_and_tells_missions_apart() {
+        let configs = [
+            include_str!("../../../configs/paper/a-nominal.toml"),
+            include_str!("../../../configs/paper/b-current.toml"),
+            include_str!("../../../configs/paper/c-uncoordinated.toml"),
+            include_str!("../../../configs/paper/d-lossy.toml"),
+            include_str!("../../../configs/ring5.toml"),
+            include_str!("../../../configs/acoustic.toml"),
+            include_str!("../../../configs/outage.toml"),
+            include_str!("../../../configs/long3.toml"),
+        ];
+        let extra = "\n[[comms.link]]\nfrom = 1\nto = 2\ndelay = 0.5\n[[comms.outage]]\nfrom = \"*\"\nto = 2\nstart = 1.0\nend = 2.0\n";
+        let mut missions: Vec<Mission> = configs.iter().map(|t| parse("c.toml", t, &[]).unwrap()).collect();
+        missions.push(parse("lanes.toml", &generate::lanes(7, 0.2), &[]).unwrap());
+        missions.push(
+            parse(
+                "m.toml",
+                &format!("{PAPER}{extra}"),
+                &[
+                    "comms.burst={ p_enter_bad = 0.1, p_leave_bad = 0.2 }".into(),
+                    "comms.loss=0.0".into(),
+                ],
+            )
+            .unwrap(),
+        );
+        for m in &missions {
+            let again = parse("mission.toml", &toml::to_string(m).unwrap(), &[]).unwrap();
+            assert_eq!(again.digest(), m.digest(), "{}", m.mission.name);
+        }
         let m = parse("m.toml", PAPER, &["comms.loss=0.25".into()]).unwrap();
-        let written = toml::to_string(&m).unwrap();
-        let again = parse("mission.toml", &written, &[]).unwrap();
-        assert_eq!(again.digest(), m.digest());
         for other in [
             "comms.loss=0.3",
             "mission.seed=2",
