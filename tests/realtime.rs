@@ -293,6 +293,38 @@ fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
     );
     let drifted = without_command(&s, 2);
     assert!(drifted > 100, "vehicle 2 drifted with thrusters off: {}", s["timing"]);
+    // Vehicle 1 waited for 2, so both arrive late and together: 0.52–0.57 s measured.
+    let error = s["max_coordination_error"].as_f64().unwrap();
+    assert!(error < 1.5, "coordination error {error} s");
+    assert_none_left(&s);
+}
+
+/// Fault injection in realtime: an agent killed for good. Its vehicle is lost, and from the
+/// moment the world lets its last command go its frozen γ is no coordination error: 0.8 s
+/// measured, where the recorder that held the command for ever said 34 s.
+#[test]
+fn a_realtime_agent_killed_for_good_leaves_the_coordination_error() {
+    let dir = scratch("killed-realtime");
+    let out = dir.join("run");
+    let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
+    wait_until_simulated(&out, 15.0);
+    kill("-9", agent_pid(launch.child.id(), 2));
+    let status = launch.wait(Duration::from_secs(60));
+    assert_eq!(status.code(), Some(1), "a vehicle lost: not completed");
+    let s = launch.summary();
+    let vehicles = s["vehicles"].as_array().unwrap();
+    assert_eq!(vehicles[1]["lost"], true, "{vehicles:?}");
+    assert!(vehicles[0]["arrival_time"].as_f64().is_some(), "{vehicles:?}");
+    let error = s["max_coordination_error"].as_f64().unwrap();
+    assert!(error < 2.0, "coordination error {error} s");
+    // Its last row has no command: its γ cell is empty, as a lost vehicle's in lockstep.
+    let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
+    let last = telemetry
+        .lines()
+        .rev()
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .find(|f| f[2] == "2");
+    assert_eq!(last.as_ref().map(|f| f[6]), Some(""), "{last:?}");
     assert_none_left(&s);
 }
 
