@@ -346,17 +346,12 @@ fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
     let text = std::fs::read_to_string(&args.file)
         .map_err(|e| Failure::Input(anyhow!("{name}: cannot read the mission file: {e}")))?;
     let mut sets = args.set.clone();
-    if let Some(seed) = seed {
-        sets.push(format!("mission.seed={seed}"));
-    }
+    // `--seed` is one more `--set` that stands for a flag.
+    let seed = seed.map(|seed| (format!("mission.seed={seed}"), format!("--seed {seed}")));
+    sets.extend(seed.iter().map(|(set, _)| set.clone()));
     mission::parse(&name, &text, &sets).map_err(|mut e| {
-        for (set, flag) in &args.flags {
+        for (set, flag) in args.flags.iter().chain(&seed) {
             e.message = e.message.replace(&format!("--set {set}"), flag);
-        }
-        if let Some(seed) = seed {
-            e.message = e
-                .message
-                .replace(&format!("--set mission.seed={seed}"), &format!("--seed {seed}"));
         }
         Failure::Input(e.into())
     })

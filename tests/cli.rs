@@ -401,6 +401,19 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "portless.json5: listen/endpoints tcp/127.0.0.1: the address needs a port",
         ),
         (vec!["planner", &mission, "-e", "tcp/::1"], "an IPv6 host in brackets"),
+        // A file key wrong beside the overrides names them, each as it was typed.
+        (
+            vec![
+                "run",
+                &mission,
+                "--in-process",
+                "--seed",
+                "3",
+                "--set",
+                "planner.tf_min=70",
+            ],
+            "(with --set planner.tf_min=70, --seed 3)",
+        ),
         (
             vec![
                 "run",
