@@ -192,6 +192,8 @@ impl ZenohArgs {
                 };
                 set(&mut c, "mode", "\"peer\"")?;
                 set(&mut c, "scouting/multicast/enabled", "false")?;
+                // Nothing to scout for: a router's open would sleep 500 ms for it.
+                set(&mut c, "scouting/delay", "0")?;
                 set(&mut c, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
                 c
             }

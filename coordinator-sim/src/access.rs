@@ -76,9 +76,11 @@ pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
         },
         "transport": { "auth": auth },
     });
+    // A router's open sleeps the scouting delay (500 ms by default) for multicast to find its
+    // peers; this one scouts for nothing, and every run's first tick waited on it.
     let world = json!({
         "mode": "router",
-        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
+        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false }, "delay": 0 },
         "listen": { "endpoints": [endpoint] },
         "connect": { "endpoints": [] },
         "transport": { "auth": auth },
