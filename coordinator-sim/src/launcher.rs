@@ -329,14 +329,21 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     if restart {
         world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
     }
-    // The world is the run's router: every other process, this one too, is its client.
-    let mut children = vec![spawn(exe, dir, Role::World, None, &world_args, lockstep)?];
+    // The world is the run's router: every other process, this one too, is its client. The
+    // planner plans while the world starts (a client, it waits for the world to listen): the
+    // world cannot start before the recorder below is there, so nothing is missed, and the plan
+    // is not on the path to the first tick.
+    let mut children = vec![
+        spawn(exe, dir, Role::World, None, &world_args, lockstep)?,
+        spawn(exe, dir, Role::Planner, None, &common, lockstep)?,
+    ];
     let session = match connect(&configs.client, &mut children[0], dir, startup_timeout, &mut shutdown).await {
         Ok(session) => session,
         Err(e) => {
-            let world = &mut children[0].child;
-            let _ = world.start_kill();
-            let _ = world.wait().await;
+            for c in children.iter_mut() {
+                let _ = c.child.start_kill();
+                let _ = c.child.wait().await;
+            }
             if e.downcast_ref::<Interrupted>().is_some() {
                 return Err(e);
             }
@@ -358,7 +365,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     recording.declare().await?;
 
     // Listed as before the world routed: the planner, the world, the agents.
-    children.insert(0, spawn(exe, dir, Role::Planner, None, &common, lockstep)?);
+    children.swap(0, 1);
     for v in &mission.vehicles {
         children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common, lockstep)?);
     }
