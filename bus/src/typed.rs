@@ -443,11 +443,21 @@ pub async fn fetch_paths(
     } else {
         keys.plan("*")
     };
+    let querier = session
+        .declare_querier(selector.clone())
+        .timeout(Duration::from_secs(2))
+        .await
+        .map_err(|e| anyhow!("cannot query {selector}: {e}"))?;
+    // A planner still planning is not there yet: ask again the moment its queryable appears
+    // (the fleet's first tick waited up to a whole retry period for the last agent's path).
+    let appeared = querier
+        .matching_listener()
+        .await
+        .map_err(|e| anyhow!("cannot follow the planner's presence on {selector}: {e}"))?;
     let mut found: BTreeMap<u32, GeneralizedPath> = BTreeMap::new();
     loop {
-        let replies = session
-            .get(selector.clone())
-            .timeout(Duration::from_secs(2))
+        let replies = querier
+            .get()
             .await
             .map_err(|e| anyhow!("cannot query {selector}: {e}"))?;
         while let Ok(reply) = replies.recv_async().await {
@@ -471,7 +481,7 @@ pub async fn fetch_paths(
                 timeout.as_secs_f64()
             ));
         }
-        tokio::time::sleep(Duration::from_millis(100)).await;
+        let _ = tokio::time::timeout(Duration::from_millis(100), appeared.recv_async()).await;
     }
 }
 
