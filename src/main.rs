@@ -403,6 +403,22 @@ fn fresh_out(out: Option<&Path>) -> Result<(), Failure> {
     }
 }
 
+/// Makes the run directory.
+fn run_dir(out: Option<&Path>, mission: &Mission) -> Result<RunDir, Failure> {
+    RunDir::create(out, mission).map_err(|e| out_failure(e.context("--out")))
+}
+
+/// An output directory that cannot be made: a path that cannot be one (under a file, under a
+/// directory that is not there or not ours) is the user's to change, exit 2; a failing disk
+/// is not.
+fn out_failure(e: anyhow::Error) -> Failure {
+    use std::io::ErrorKind::*;
+    match e.root_cause().downcast_ref::<std::io::Error>().map(|io| io.kind()) {
+        Some(NotFound | NotADirectory | PermissionDenied | ReadOnlyFilesystem | AlreadyExists) => Failure::Input(e),
+        _ => Failure::Failed(e),
+    }
+}
+
 fn solve(mission: &Mission, file: &Path) -> Result<Plan, Failure> {
     planning::plan(mission).map_err(|e| Failure::Failed(anyhow!("{}: infeasible plan: {e}", file.display())))
 }
@@ -590,7 +606,7 @@ fn run(
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     live_free(options.live)?;
-    let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
+    let dir = run_dir(out, &mission)?;
     let summary = if in_process {
         inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::Failed)?
     } else {
@@ -885,7 +901,7 @@ fn sweep(
     let base = &grid.values[0].1;
     let out = out.map_or_else(|| tcpf_report::sweep::default_out(base), Path::to_path_buf);
     let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values)
-        .map_err(|e| Failure::Failed(anyhow!("{}: cannot write the sweep there: {e}", out.display())))?;
+        .map_err(|e| out_failure(e.context(format!("--out {}: cannot write the sweep there", out.display()))))?;
     let interrupted = if processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
@@ -917,7 +933,8 @@ fn record(
     // Bad Zenoh options are bad input before the run directory is made, which they would
     // leave behind half written.
     zenoh.config().map_err(role_failure)?;
-    let dir = RunDir::create(out, &mission).map_err(Failure::Failed)?;
+    let existed = out.is_some_and(Path::exists);
+    let dir = run_dir(out, &mission)?;
     let summary = role(tcpf_coordinator::recording::record(
         &mission,
         &plan,
@@ -926,7 +943,15 @@ fn record(
         live,
         startup_timeout,
     ))?
-    .map_err(role_failure)?;
+    .map_err(|e| {
+        let failure = role_failure(e);
+        // Refused by the world's clock (another mission or clock), nothing was recorded: the
+        // corrected command may take the same --out.
+        if matches!(failure, Failure::Input(_)) {
+            dir.discard(!existed);
+        }
+        failure
+    })?;
     say!("{}", table::summary(&summary));
     sayln!("run directory: {}", dir.path.display());
     let realtime = mission.mission.clock == mission::ClockKind::Realtime;

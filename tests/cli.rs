@@ -214,6 +214,7 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
     let dir = scratch("misuse");
     let file = dir.join("a-file");
     std::fs::write(&file, "not a directory").unwrap();
+    let under_file = file.join("run");
     let full = dir.join("full");
     std::fs::create_dir_all(&full).unwrap();
     std::fs::write(full.join("telemetry.csv"), "another run's").unwrap();
@@ -264,6 +265,23 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         (
             vec!["run", &mission, "--in-process", "--out", full.to_str().unwrap()],
             "already holds files",
+        ),
+        (
+            vec!["run", &mission, "--in-process", "--out", under_file.to_str().unwrap()],
+            "--out: cannot create run directory",
+        ),
+        (
+            vec![
+                "sweep",
+                &mission,
+                "--loss",
+                "0",
+                "--seeds",
+                "1",
+                "--out",
+                under_file.to_str().unwrap(),
+            ],
+            "cannot write the sweep there",
         ),
         (
             vec![

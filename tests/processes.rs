@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 mod common;
 use common::{
     alive, assert_none_left, assert_same_run, config, descendants, exited, free_endpoint, kill, lanes, paper,
-    run_in_process, scratch, Launch,
+    processes, run_in_process, scratch, Launch,
 };
 
 #[test]
@@ -198,6 +198,19 @@ fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
     assert!(!stderr.contains(".rs:"), "no source paths: {stderr}");
     assert!(dir.join("logs/world.log").is_file());
     assert!(!dir.join("endpoint").exists(), "nobody was told to join");
+    // The planner, started beside the world, went with it.
+    assert!(dir.join("logs/planner.log").is_file());
+    let run = dir.display().to_string();
+    let left: Vec<u32> = processes()
+        .into_iter()
+        .filter(|&(pid, _, state)| {
+            state != 'Z'
+                && std::fs::read(format!("/proc/{pid}/cmdline"))
+                    .is_ok_and(|c| String::from_utf8_lossy(&c).contains(&run))
+        })
+        .map(|p| p.0)
+        .collect();
+    assert!(left.is_empty(), "processes of the run outlived it: {left:?}");
 }
 
 #[test]
@@ -677,6 +690,10 @@ fn roles_on_another_clock_than_the_worlds_refuse_to_run() {
         let why = format!("this {who} runs the lockstep clock but the world runs realtime");
         assert!(stderr.contains(&why), "{stderr}");
     }
+    assert!(
+        !out.exists(),
+        "the refused recorder leaves --out free for the corrected command"
+    );
     // A lockstep world (and its recorder), and a realtime agent.
     let second = dir.join("lockstep");
     std::fs::create_dir_all(&second).unwrap();

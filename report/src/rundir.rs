@@ -50,6 +50,17 @@ impl RunDir {
         Ok(RunDir { path })
     }
 
+    /// Removes the files a recording writes, and the directory too when `made` (it was made for
+    /// them): what a recording refused before its first tick leaves.
+    pub fn discard(&self, made: bool) {
+        for name in ["mission.toml", "plan.json", "telemetry.csv", "messages.csv", "run.mcap"] {
+            let _ = fs::remove_file(self.path.join(name));
+        }
+        if made {
+            let _ = fs::remove_dir(&self.path);
+        }
+    }
+
     fn write(&self, name: &str, contents: &str) -> Result<()> {
         let file = self.path.join(name);
         fs::write(&file, contents).with_context(|| format!("cannot write {}", file.display()))
