@@ -443,21 +443,27 @@ pub async fn fetch_paths(
     } else {
         keys.plan("*")
     };
-    let querier = session
-        .declare_querier(selector.clone())
-        .timeout(Duration::from_secs(2))
+    // A planner still planning is not there yet: ask again the moment its token appears,
+    // which it declares once it serves (the fleet's first tick waited up to a whole retry
+    // period for the last agent's path). Plain gets, not a querier, whose matching would ask
+    // only once the router passed the planner's queryable declaration: access control that
+    // hides it would then keep a vehicle from ever asking.
+    let (planner_up, mut appeared) = mpsc::unbounded_channel();
+    let _planner = session
+        .liveliness()
+        .declare_subscriber(keys.alive(Role::Planner, 0))
+        .callback(move |sample| {
+            if sample.kind() == SampleKind::Put {
+                let _ = planner_up.send(());
+            }
+        })
         .await
-        .map_err(|e| anyhow!("cannot query {selector}: {e}"))?;
-    // A planner still planning is not there yet: ask again the moment its queryable appears
-    // (the fleet's first tick waited up to a whole retry period for the last agent's path).
-    let appeared = querier
-        .matching_listener()
-        .await
-        .map_err(|e| anyhow!("cannot follow the planner's presence on {selector}: {e}"))?;
+        .map_err(|e| anyhow!("cannot follow liveliness: {e}"))?;
     let mut found: BTreeMap<u32, GeneralizedPath> = BTreeMap::new();
     loop {
-        let replies = querier
-            .get()
+        let replies = session
+            .get(selector.clone())
+            .timeout(Duration::from_secs(2))
             .await
             .map_err(|e| anyhow!("cannot query {selector}: {e}"))?;
         while let Ok(reply) = replies.recv_async().await {
@@ -481,7 +487,7 @@ pub async fn fetch_paths(
                 timeout.as_secs_f64()
             ));
         }
-        let _ = tokio::time::timeout(Duration::from_millis(100), appeared.recv_async()).await;
+        let _ = tokio::time::timeout(Duration::from_millis(100), appeared.recv()).await;
     }
 }
 
