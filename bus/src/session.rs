@@ -192,8 +192,6 @@ impl ZenohArgs {
                 };
                 set(&mut c, "mode", "\"peer\"")?;
                 set(&mut c, "scouting/multicast/enabled", "false")?;
-                // Nothing to scout for: a router's open would sleep 500 ms for it.
-                set(&mut c, "scouting/delay", "0")?;
                 set(&mut c, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
                 c
             }
@@ -205,6 +203,13 @@ impl ZenohArgs {
             config
                 .insert_json5("mode", &format!("\"{mode}\""))
                 .map_err(|e| anyhow!("--mode: {}", zenoh_words(e)))?;
+            // Without a config nothing is scouted for, and a router's open would sleep 500 ms
+            // for it (a peer's waits as long for its --connect links, which it keeps).
+            if self.config.is_none() && mode == "router" {
+                config
+                    .insert_json5("scouting/delay", "0")
+                    .map_err(|e| anyhow!("zenoh scouting/delay: {}", zenoh_words(e)))?;
+            }
         }
         for (flag, endpoints, key) in [
             ("--connect", &self.connect, "connect/endpoints"),
