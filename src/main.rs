@@ -405,16 +405,21 @@ fn fresh_out(out: Option<&Path>) -> Result<(), Failure> {
 
 /// Makes the run directory.
 fn run_dir(out: Option<&Path>, mission: &Mission) -> Result<RunDir, Failure> {
-    RunDir::create(out, mission).map_err(|e| out_failure(e.context("--out")))
+    RunDir::create(out, mission).map_err(|e| out_failure(e, out.is_some()))
 }
 
-/// An output directory that cannot be made: a path that cannot be one (under a file, under a
-/// directory that is not there or not ours) is the user's to change, exit 2; a failing disk
-/// is not.
-fn out_failure(e: anyhow::Error) -> Failure {
+/// An output directory that cannot be made. One the user named (`given`) on a path that cannot
+/// hold it (under a file or a directory that is not there or not theirs, a name too long) is
+/// theirs to change, exit 2; a failing disk, or the default directory, is not.
+fn out_failure(e: anyhow::Error, given: bool) -> Failure {
     use std::io::ErrorKind::*;
-    match e.root_cause().downcast_ref::<std::io::Error>().map(|io| io.kind()) {
-        Some(NotFound | NotADirectory | PermissionDenied | ReadOnlyFilesystem | AlreadyExists) => Failure::Input(e),
+    let kind = e.root_cause().downcast_ref::<std::io::Error>().map(|io| io.kind());
+    match kind {
+        Some(NotFound | NotADirectory | PermissionDenied | ReadOnlyFilesystem | AlreadyExists | InvalidFilename)
+            if given =>
+        {
+            Failure::Input(e.context("--out"))
+        }
         _ => Failure::Failed(e),
     }
 }
@@ -899,9 +904,14 @@ fn sweep(
     let plans = grid.plans().map_err(Failure::Failed)?;
     // The file alone may be incomplete (a table set key by key, the swept key among them).
     let base = &grid.values[0].1;
+    let given = out.is_some();
     let out = out.map_or_else(|| tcpf_report::sweep::default_out(base), Path::to_path_buf);
-    let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values)
-        .map_err(|e| out_failure(e.context(format!("--out {}: cannot write the sweep there", out.display()))))?;
+    let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values).map_err(|e| {
+        out_failure(
+            e.context(format!("{}: cannot write the sweep there", out.display())),
+            given,
+        )
+    })?;
     let interrupted = if processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
@@ -933,7 +943,6 @@ fn record(
     // Bad Zenoh options are bad input before the run directory is made, which they would
     // leave behind half written.
     zenoh.config().map_err(role_failure)?;
-    let existed = out.is_some_and(Path::exists);
     let dir = run_dir(out, &mission)?;
     let summary = role(tcpf_coordinator::recording::record(
         &mission,
@@ -944,11 +953,12 @@ fn record(
         startup_timeout,
     ))?
     .map_err(|e| {
+        let nothing = e.downcast_ref::<tcpf_coordinator::recording::NoWorld>().is_some();
         let failure = role_failure(e);
-        // Refused by the world's clock (another mission or clock), nothing was recorded: the
-        // corrected command may take the same --out.
-        if matches!(failure, Failure::Input(_)) {
-            dir.discard(!existed);
+        // Refused by the world's clock (another mission or clock), or no world came: nothing
+        // was recorded, and the corrected command may take the same --out.
+        if nothing || matches!(failure, Failure::Input(_)) {
+            dir.discard();
         }
         failure
     })?;

@@ -547,7 +547,8 @@ fn roles_waiting_at_startup_honour_sigterm_and_sigint() {
 
 #[test]
 fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
-    let out = scratch("no-world").join("p");
+    let dir = scratch("no-world");
+    let out = dir.join("runs").join("p");
     // Nobody listens there: the world of a mistyped endpoint, or of another mission.
     let mut recorder = Reaper(
         std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
@@ -567,6 +568,13 @@ fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
     assert!(
         stderr.contains("no world of mission paper-b-current within 1s"),
         "{stderr}"
+    );
+    // Nothing was recorded: the directories it made for --out are gone, and the corrected
+    // command may take the same --out.
+    assert!(
+        !dir.join("runs").exists(),
+        "{:?}",
+        std::fs::read_dir(&dir).unwrap().collect::<Vec<_>>()
     );
 }
 

@@ -72,6 +72,18 @@ enum Machine {
     },
 }
 
+/// `tcpf record` heard no world within its start-up timeout: nothing was recorded.
+#[derive(Debug)]
+pub struct NoWorld(pub String);
+
+impl std::fmt::Display for NoWorld {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for NoWorld {}
+
 /// How a recorded run ended, and who ran it.
 pub struct Closing {
     /// The run reached its end.
@@ -542,10 +554,11 @@ pub async fn record(
                 }
             }
             _ = tokio::time::sleep_until(give_up_at.into()), if !world.seen() => {
-                return Err(anyhow!(
+                return Err(NoWorld(format!(
                     "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
                     mission.mission.name
-                ));
+                ))
+                .into());
             }
             _ = tokio::time::sleep_until(stall_at.unwrap_or_else(Instant::now).into()), if stall_at.is_some() => {
                 match recording.end {

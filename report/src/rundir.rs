@@ -19,6 +19,8 @@ use crate::viewer::Viewer;
 
 pub struct RunDir {
     pub path: PathBuf,
+    /// The outermost directory `create` made, if it made any: what `discard` takes away.
+    made: Option<PathBuf>,
 }
 
 /// Now, as the default directories name it.
@@ -46,18 +48,27 @@ impl RunDir {
             Some(p) => p.to_path_buf(),
             None => unused(&format!("{}-{}", mission.mission.name, stamp())),
         };
+        let made = path
+            .ancestors()
+            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+            .last();
+        let made = made.map(Path::to_path_buf);
         fs::create_dir_all(&path).with_context(|| format!("cannot create run directory {}", path.display()))?;
-        Ok(RunDir { path })
+        Ok(RunDir { path, made })
     }
 
-    /// Removes the files a recording writes, and the directory too when `made` (it was made for
-    /// them): what a recording refused before its first tick leaves.
-    pub fn discard(&self, made: bool) {
+    /// Removes the files a recording writes, and the directories `create` made for them: what
+    /// a recording refused before its first tick leaves.
+    pub fn discard(&self) {
         for name in ["mission.toml", "plan.json", "telemetry.csv", "messages.csv", "run.mcap"] {
             let _ = fs::remove_file(self.path.join(name));
         }
-        if made {
-            let _ = fs::remove_dir(&self.path);
+        let Some(made) = &self.made else { return };
+        for dir in self.path.ancestors() {
+            // Only empty directories go: anything else put there meanwhile stays.
+            if fs::remove_dir(dir).is_err() || dir == made {
+                break;
+            }
         }
     }
 
