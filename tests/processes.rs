@@ -426,6 +426,37 @@ fn no_child_outlives_a_launcher_killed_with_sigkill() {
     }
 }
 
+/// The scheduling policy of `pid` (/proc/PID/stat, field 41): 0 SCHED_OTHER, 3 SCHED_BATCH.
+fn policy(pid: u32) -> u32 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    let rest: Vec<&str> = stat[stat.rfind(')').unwrap() + 2..].split(' ').collect();
+    rest[41 - 3].parse().unwrap()
+}
+
+#[test]
+fn lockstep_agents_run_as_batch_jobs_and_realtime_agents_do_not() {
+    let lockstep = ["--set", "mission.control_period=0.002"];
+    let realtime = ["--clock", "realtime", "--time-scale", "10"];
+    for (clock, agent) in [(&lockstep[..], 3), (&realtime[..], 0)] {
+        let dir = scratch(&format!("policy-{agent}"));
+        let mut launch = Launch::start(&paper("b-current"), &dir, clock);
+        launch.wait_for("logs/world.log", "starting");
+        // A tick's states all leave the world before the agents they wake take its CPU.
+        assert_eq!(policy(agent_pid(&launch, 1)), agent, "{clock:?}");
+        assert_eq!(policy(agent_pid(&launch, 2)), agent, "{clock:?}");
+        let world = descendants(launch.child.id())
+            .into_iter()
+            .find(|pid| {
+                let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+                cmdline.split(|b| *b == 0).nth(1) == Some(b"world")
+            })
+            .expect("the world runs");
+        assert_eq!(policy(world), 0, "the world keeps the usual policy");
+        kill("-INT", launch.child.id());
+        launch.wait(Duration::from_secs(10));
+    }
+}
+
 #[test]
 fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     let dir = scratch("sigint");

@@ -165,10 +165,22 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
     // their own they hear it from the launcher, which tells each to stop.
     command.process_group(0);
     let launcher = std::process::id();
+    // A lockstep agent is a batch job: the tick waits for every agent, not for any one soon.
+    // Under SCHED_BATCH a woken agent does not preempt the thread that woke it, so the world
+    // writes a tick's states to every agent before they run, instead of being preempted at
+    // each write (50 agents: the world's writer preempted 8.9 -> 0.5 times a tick, the tick
+    // 2.20 -> 1.95 ms, six runs each interleaved). Not in realtime, where an agent waits on its
+    // own clock; not for a launcher the user gave a policy of their own, which children keep.
+    let batch = lockstep && role == Role::Agent;
     // SAFETY: between fork and exec the closure makes only async-signal-safe calls (prctl,
-    // getppid, _exit) and allocates nothing.
+    // getppid, _exit, sched_getscheduler, sched_setscheduler) and allocates nothing.
     unsafe {
         command.pre_exec(move || {
+            if batch && libc::sched_getscheduler(0) == libc::SCHED_OTHER {
+                let param = libc::sched_param { sched_priority: 0 };
+                // Refused (a sandbox), the agent only runs as before.
+                libc::sched_setscheduler(0, libc::SCHED_BATCH, &param);
+            }
             // A child must never outlive its launcher, even one killed with SIGKILL: the kernel
             // kills it when the launcher goes.
             if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
