@@ -8,12 +8,11 @@ use tcpf_bus::signals::Shutdown;
 /// Routes until SIGINT or SIGTERM. Router mode unless the options say otherwise.
 pub async fn run(zenoh: &ZenohArgs) -> Result<()> {
     let mut shutdown = Shutdown::new()?;
-    let mut config = zenoh.config()?;
-    if zenoh.mode.is_none() {
-        config
-            .insert_json5("mode", "\"router\"")
-            .map_err(|e| anyhow!("zenoh mode: {e}"))?;
-    }
+    let zenoh = ZenohArgs {
+        mode: zenoh.mode.clone().or_else(|| Some("router".into())),
+        ..zenoh.clone()
+    };
+    let config = zenoh.config()?;
     let listening = config
         .get_json("listen/endpoints")
         .map_err(|e| anyhow!("zenoh listen/endpoints: {e}"))?;
