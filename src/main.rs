@@ -953,14 +953,14 @@ fn record(
         startup_timeout,
     ))?
     .map_err(|e| {
-        let nothing = e.downcast_ref::<tcpf_coordinator::recording::NoWorld>().is_some();
-        let failure = role_failure(e);
-        // Refused by the world's clock (another mission or clock), or no world came: nothing
-        // was recorded, and the corrected command may take the same --out.
-        if nothing || matches!(failure, Failure::Input(_)) {
+        // Nothing recorded (no session, no world, refused by the world's clock): the
+        // corrected command may take the same --out.
+        if e.downcast_ref::<tcpf_coordinator::recording::NothingRecorded>()
+            .is_some()
+        {
             dir.discard();
         }
-        failure
+        role_failure(e)
     })?;
     say!("{}", table::summary(&summary));
     sayln!("run directory: {}", dir.path.display());

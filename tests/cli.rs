@@ -571,11 +571,26 @@ fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
     );
     // Nothing was recorded: the directories it made for --out are gone, and the corrected
     // command may take the same --out.
+    let left = || std::fs::read_dir(&dir).unwrap().collect::<Vec<_>>();
+    assert!(!dir.join("runs").exists(), "{:?}", left());
+    // Nor when its session never opens (a client, and no router there).
+    let o = tcpf(&[
+        "record",
+        &paper("b-current"),
+        "--mode",
+        "client",
+        "-e",
+        &free_endpoint(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(
-        !dir.join("runs").exists(),
-        "{:?}",
-        std::fs::read_dir(&dir).unwrap().collect::<Vec<_>>()
+        text(&o).contains("nothing recorded: cannot open the Zenoh session"),
+        "{}",
+        text(&o)
     );
+    assert!(!dir.join("runs").exists(), "{:?}", left());
 }
 
 /// `tcpf bench` prints each figure beside the baseline it is measured against, all from one

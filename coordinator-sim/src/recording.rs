@@ -72,17 +72,16 @@ enum Machine {
     },
 }
 
-/// `tcpf record` heard no world within its start-up timeout: nothing was recorded.
+/// `tcpf record` stopped before it recorded a tick (its session did not open, no world came,
+/// the world's clock refused it): the context of its error.
 #[derive(Debug)]
-pub struct NoWorld(pub String);
+pub struct NothingRecorded;
 
-impl std::fmt::Display for NoWorld {
+impl std::fmt::Display for NothingRecorded {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
+        f.write_str("nothing recorded")
     }
 }
-
-impl std::error::Error for NoWorld {}
 
 /// How a recorded run ended, and who ran it.
 pub struct Closing {
@@ -491,11 +490,14 @@ pub async fn record(
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
-    let session = zenoh.open_unless(&mut shutdown).await?;
-    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
+    let unrecorded = |e: anyhow::Error| e.context(NothingRecorded);
+    let session = zenoh.open_unless(&mut shutdown).await.map_err(unrecorded)?;
+    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?)
+        .await
+        .map_err(unrecorded)?;
     let keys = Keys::new(&mission.mission.name);
-    let (_presence, mut presence) = presence(&session, &keys).await?;
-    recording.declare().await?;
+    let (_presence, mut presence) = presence(&session, &keys).await.map_err(unrecorded)?;
+    recording.declare().await.map_err(unrecorded)?;
     let progress = Ticks::new(mission);
     let started = Instant::now();
     // A world that dies says no end: without this the recording would wait for it forever.
@@ -521,7 +523,9 @@ pub async fn record(
         let ask_at = world.ask_at().filter(|_| asking.is_none()).map(instant);
         tokio::select! {
             r = recording.step() => {
-                r?;
+                if let Err(e) = r {
+                    return Err(if recording.ticks() == 0 { unrecorded(e) } else { e });
+                }
                 progress.set(recording.ticks());
                 if recording.from_world > from_world {
                     from_world = recording.from_world;
@@ -554,11 +558,10 @@ pub async fn record(
                 }
             }
             _ = tokio::time::sleep_until(give_up_at.into()), if !world.seen() => {
-                return Err(NoWorld(format!(
+                return Err(unrecorded(anyhow!(
                     "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
                     mission.mission.name
-                ))
-                .into());
+                )));
             }
             _ = tokio::time::sleep_until(stall_at.unwrap_or_else(Instant::now).into()), if stall_at.is_some() => {
                 match recording.end {

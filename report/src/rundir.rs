@@ -19,8 +19,8 @@ use crate::viewer::Viewer;
 
 pub struct RunDir {
     pub path: PathBuf,
-    /// The outermost directory `create` made, if it made any: what `discard` takes away.
-    made: Option<PathBuf>,
+    /// The directories `create` made, outermost first: what `discard` takes away.
+    made: Vec<PathBuf>,
 }
 
 /// Now, as the default directories name it.
@@ -48,11 +48,12 @@ impl RunDir {
             Some(p) => p.to_path_buf(),
             None => unused(&format!("{}-{}", mission.mission.name, stamp())),
         };
-        let made = path
+        let mut made: Vec<PathBuf> = path
             .ancestors()
             .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
-            .last();
-        let made = made.map(Path::to_path_buf);
+            .map(Path::to_path_buf)
+            .collect();
+        made.reverse();
         fs::create_dir_all(&path).with_context(|| format!("cannot create run directory {}", path.display()))?;
         Ok(RunDir { path, made })
     }
@@ -63,12 +64,9 @@ impl RunDir {
         for name in ["mission.toml", "plan.json", "telemetry.csv", "messages.csv", "run.mcap"] {
             let _ = fs::remove_file(self.path.join(name));
         }
-        let Some(made) = &self.made else { return };
-        for dir in self.path.ancestors() {
-            // Only empty directories go: anything else put there meanwhile stays.
-            if fs::remove_dir(dir).is_err() || dir == made {
-                break;
-            }
+        // Only empty directories go: anything else put there meanwhile stays.
+        for dir in self.made.iter().rev() {
+            let _ = fs::remove_dir(dir);
         }
     }
 
