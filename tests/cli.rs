@@ -119,6 +119,14 @@ fn run_writes_the_run_directory() {
 }
 
 #[test]
+fn an_out_given_as_a_new_directory_and_a_dot_is_that_directory() {
+    let dir = scratch("out-dot");
+    let o = run_in_process(&paper("a-nominal"), &dir.join("new").join("."), &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(dir.join("new/summary.json").is_file());
+}
+
+#[test]
 fn same_mission_and_seed_give_byte_identical_telemetry() {
     let dir = scratch("identical");
     let (a, b, c) = (dir.join("a"), dir.join("b"), dir.join("c"));

@@ -44,8 +44,9 @@ pub fn unused(name: &str) -> PathBuf {
 impl RunDir {
     /// `out`, or a fresh `runs/<mission>-<timestamp>/`.
     pub fn create(out: Option<&Path>, mission: &Mission) -> Result<RunDir> {
-        let path = match out {
-            Some(p) => p.to_path_buf(),
+        // Through its components, which drop a trailing `.`: create_dir_all refuses `new/.`.
+        let path: PathBuf = match out {
+            Some(p) => p.components().collect(),
             None => unused(&format!("{}-{}", mission.mission.name, stamp())),
         };
         let mut made: Vec<PathBuf> = path
