@@ -905,7 +905,7 @@ fn sweep(
     // The file alone may be incomplete (a table set key by key, the swept key among them).
     let base = &grid.values[0].1;
     let given = out.is_some();
-    let out = out.map_or_else(|| tcpf_report::sweep::default_out(base), Path::to_path_buf);
+    let out: PathBuf = out.map_or_else(|| tcpf_report::sweep::default_out(base), |o| o.components().collect());
     let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values).map_err(|e| {
         out_failure(
             e.context(format!("{}: cannot write the sweep there", out.display())),

@@ -124,6 +124,19 @@ fn an_out_given_as_a_new_directory_and_a_dot_is_that_directory() {
     let o = run_in_process(&paper("a-nominal"), &dir.join("new").join("."), &[]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(dir.join("new/summary.json").is_file());
+    let sweep = dir.join("sweep").join(".");
+    let o = tcpf(&[
+        "sweep",
+        &paper("a-nominal"),
+        "--loss",
+        "0",
+        "--seeds",
+        "1",
+        "--out",
+        sweep.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(dir.join("sweep/sweep.csv").is_file());
 }
 
 #[test]
