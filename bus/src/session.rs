@@ -98,6 +98,11 @@ fn endpoint(flag: &str, text: &str) -> Result<()> {
             TRANSPORTS.join(", ")
         )));
     }
+    for key in ENDPOINT_FILE_KEYS {
+        if let Some(file) = parsed.config().get(key) {
+            readable(file).map_err(|why| bad(format!("{flag} {text}: {key}: {file}: {why}")))?;
+        }
+    }
     let address = parsed.address();
     let address = address.as_str();
     let (host, port) = match address.strip_prefix('[') {
@@ -158,23 +163,36 @@ fn files_of(config: &Config, path: &std::path::Path) -> Result<()> {
         else {
             continue;
         };
-        let unreadable = match std::fs::metadata(&file) {
-            Ok(m) if m.is_dir() => Some("a directory, not a file".to_string()),
-            Ok(_) => std::fs::File::open(&file).err().map(|e| e.to_string()),
-            Err(e) => Some(e.to_string()),
-        };
-        if let Some(why) = unreadable {
-            let here = match std::path::Path::new(&file).is_relative() {
-                true => std::env::current_dir().map_or_else(
-                    |_| String::new(),
-                    |d| format!(" (a relative path is from the working directory, {})", d.display()),
-                ),
-                false => String::new(),
-            };
-            return Err(bad(format!("{}: {key}: {file}: {why}{here}", path.display())));
-        }
+        readable(&file).map_err(|why| bad(format!("{}: {key}: {file}: {why}", path.display())))?;
     }
     Ok(())
+}
+
+/// The files an endpoint's own TLS options name (`tls/host:port#root_ca_certificate_file=…`).
+const ENDPOINT_FILE_KEYS: [&str; 5] = [
+    "root_ca_certificate_file",
+    "listen_private_key_file",
+    "listen_certificate_file",
+    "connect_private_key_file",
+    "connect_certificate_file",
+];
+
+/// Why `file` cannot be read, if it cannot.
+fn readable(file: &str) -> std::result::Result<(), String> {
+    let unreadable = match std::fs::metadata(file) {
+        Ok(m) if m.is_dir() => Some("a directory, not a file".to_string()),
+        Ok(_) => std::fs::File::open(file).err().map(|e| e.to_string()),
+        Err(e) => Some(e.to_string()),
+    };
+    let Some(why) = unreadable else { return Ok(()) };
+    let here = match std::path::Path::new(file).is_relative() {
+        true => std::env::current_dir().map_or_else(
+            |_| String::new(),
+            |d| format!(" (a relative path is from the working directory, {})", d.display()),
+        ),
+        false => String::new(),
+    };
+    Err(format!("{why}{here}"))
 }
 
 impl ZenohArgs {
@@ -362,6 +380,29 @@ mod tests {
         .unwrap();
         let e = args.config().unwrap_err().to_string();
         assert!(e.ends_with(": a directory, not a file"), "{e}");
+        // The same files named in an endpoint's own options, on the command line.
+        let missing = format!(
+            "tls/127.0.0.1:7447#root_ca_certificate_file={}/missing.pem",
+            dir.display()
+        );
+        let flagged = ZenohArgs {
+            connect: vec![missing.clone()],
+            ..Default::default()
+        };
+        let e = flagged.config().unwrap_err();
+        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+        let words = e.to_string();
+        assert!(
+            words.starts_with(&format!("--connect {missing}: root_ca_certificate_file: ")),
+            "{words}"
+        );
+        assert!(words.contains("missing.pem: No such file"), "{words}");
+        let there = format!("tls/127.0.0.1:7447#root_ca_certificate_file={}", ca.display());
+        let flagged = ZenohArgs {
+            connect: vec![there],
+            ..Default::default()
+        };
+        assert!(flagged.config().is_ok(), "a file that is there");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
