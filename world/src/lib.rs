@@ -198,12 +198,6 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let mut shutdown = Shutdown::new()?;
     let session = zenoh.open_unless(&mut shutdown).await?;
-    // What a role on another host whose mission is not this one is told to compare with.
-    tracing::info!(
-        "world: mission {} (digest {:016x})",
-        mission.mission.name,
-        mission.digest()
-    );
     let rejected = Rejected::default();
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once they have passed through it.
@@ -247,6 +241,10 @@ async fn serve(
         None => ids.to_vec(),
     };
     let realtime = mission.mission.clock == ClockKind::Realtime;
+    // Computed once: a TOML of the whole mission, which the clock carries.
+    let digest = mission.digest();
+    // What a role on another host whose mission is not this one is told to compare with.
+    tracing::info!("world: mission {} (digest {digest:016x})", mission.mission.name);
     let (_presence, mut presence) = presence(session, keys).await?;
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
@@ -278,7 +276,7 @@ async fn serve(
                     time_scale: mission.mission.time_scale,
                     epoch: 0.0,
                     tick: 0,
-                    mission: mission.digest(),
+                    mission: digest,
                 },
                 since: Instant::now(),
                 over: false,
@@ -377,7 +375,7 @@ async fn serve(
         clock,
     };
     let exit = match inbound {
-        Inbound::Queued(commands) => shell.realtime(mission, &paths, &simulated, commands).await?,
+        Inbound::Queued(commands) => shell.realtime(mission, digest, &paths, &simulated, commands).await?,
         Inbound::Fed { stepper, mut ends } => shell.lockstep(&paths, &stepper, &mut ends, options).await?,
     };
     Ok((exit, Some(token)))
@@ -484,6 +482,7 @@ impl Shell {
     async fn realtime(
         &mut self,
         mission: &Mission,
+        digest: u64,
         paths: &[(u32, GeneralizedPath)],
         simulated: &[u32],
         mut commands: Receiver<Received<Command>>,
@@ -497,7 +496,7 @@ impl Shell {
             time_scale: mission.mission.time_scale,
             epoch: unix_now() + REALTIME_LEAD_S,
             tick: 0,
-            mission: mission.digest(),
+            mission: digest,
         };
         self.clock.set(clock);
         let fleet = FleetClock::new(&clock, mission.mission.control_period);
