@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, assert_none_left, assert_same_run, config, descendants, exited, free_endpoint, kill, lanes, paper,
-    processes, run_in_process, scratch, Launch,
+    alive, assert_none_left, assert_same_run, config, descendants, exited, kill, lanes, listening, paper, processes,
+    run_in_process, scratch, Launch,
 };
 
 #[test]
@@ -577,9 +577,9 @@ fn role(args: &[&str], stderr: Stdio) -> Child {
 /// by hand on a free loopback endpoint with the `clock` options (the world is the second, its
 /// log `world.log` in `dir`), and that endpoint.
 fn by_hand(mission: &str, ids: &[&str], clock: &[&str], dir: &Path) -> (Fleet, String) {
-    let endpoint = free_endpoint();
     let start = |args: &[&str]| role(&[args, clock].concat(), Stdio::null());
-    let mut fleet = Fleet(vec![start(&["planner", mission, "-l", &endpoint])]);
+    let (planner, endpoint) = listening(|endpoint| start(&["planner", mission, "-l", endpoint]));
+    let mut fleet = Fleet(vec![planner]);
     let world_log = std::fs::File::create(dir.join("world.log")).unwrap();
     let world = [&["world", mission, "-e", &endpoint, "--recorders", "1"], clock].concat();
     fleet.0.push(role(&world, Stdio::from(world_log)));

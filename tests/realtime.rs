@@ -8,7 +8,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    assert_none_left, descendants, free_endpoint, kill, paper, run_in_process, scratch, summary, timing,
+    assert_none_left, descendants, kill, listening, paper, run_in_process, scratch, summary, timing,
     wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
@@ -107,23 +107,22 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
 fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     let dir = scratch("python-vehicle");
     let mission = paper("b-current");
-    let endpoint = free_endpoint();
     let clock = ["--clock", "realtime", "--time-scale", "5"];
     let logs = dir.join("logs");
     std::fs::create_dir_all(&logs).unwrap();
-    let spawn = |name: &str, program: &str, args: &[&str]| {
+    let child = |name: &str, program: &str, args: &[&str]| {
         let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
-        Reaper(
-            Command::new(program)
-                .args(args)
-                .stdout(Stdio::from(log.try_clone().unwrap()))
-                .stderr(Stdio::from(log))
-                .spawn()
-                .unwrap(),
-        )
+        Command::new(program)
+            .args(args)
+            .stdout(Stdio::from(log.try_clone().unwrap()))
+            .stderr(Stdio::from(log))
+            .spawn()
+            .unwrap()
     };
+    let spawn = |name: &str, program: &str, args: &[&str]| Reaper(child(name, program, args));
     let tcpf = env!("CARGO_BIN_EXE_tcpf");
-    let _planner = spawn("planner", tcpf, &["planner", &mission, "-l", &endpoint]);
+    let (planner, endpoint) = listening(|e| child("planner", tcpf, &["planner", &mission, "-l", e]));
+    let _planner = Reaper(planner);
     let mut world = vec![
         "world",
         &mission,

@@ -274,6 +274,56 @@ pub fn free_endpoint() -> String {
     format!("tcp/127.0.0.1:{port}")
 }
 
+/// The process `start` makes on a loopback endpoint, once it listens there, and that endpoint.
+/// A port free a moment ago may be taken (by another test's process) before the one started
+/// binds it: then it starts again on another port, until it holds the listening socket itself.
+pub fn listening(start: impl Fn(&str) -> Child) -> (Child, String) {
+    let mut exits = Vec::new();
+    for _ in 0..5 {
+        let endpoint = free_endpoint();
+        let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
+        let mut child = start(&endpoint);
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                exits.push(format!("{endpoint}: {status}"));
+                break;
+            }
+            if holds_listener(child.id(), port) {
+                return (child, endpoint);
+            }
+            if Instant::now() > deadline {
+                let _ = child.kill();
+                panic!("nothing listens at {endpoint} after 30 s");
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+    panic!("the process to listen exited each time: {exits:?}")
+}
+
+/// Whether process `pid` holds a socket listening on loopback TCP `port`.
+fn holds_listener(pid: u32, port: u16) -> bool {
+    let tcp = std::fs::read_to_string("/proc/net/tcp").unwrap_or_default();
+    // Columns: sl, local address (hex ip:port), remote, state (0A: listen), ..., inode (tenth).
+    let sockets: Vec<String> = tcp
+        .lines()
+        .skip(1)
+        .filter_map(|line| {
+            let f: Vec<&str> = line.split_whitespace().collect();
+            let local = u16::from_str_radix(f.get(1)?.rsplit(':').next()?, 16).ok()?;
+            let inode = f.get(9)?;
+            (local == port && f.get(3) == Some(&"0A")).then(|| format!("socket:[{inode}]"))
+        })
+        .collect();
+    let fds = std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .into_iter()
+        .flatten()
+        .flatten();
+    fds.filter_map(|fd| std::fs::read_link(fd.path()).ok())
+        .any(|link| sockets.iter().any(|s| link.as_os_str() == s.as_str()))
+}
+
 /// Waits for `child` to exit (at most `limit`, or says `what` is still running) and returns its
 /// exit code and standard error.
 pub fn exited(child: &mut Child, limit: Duration, what: &str) -> (Option<i32>, String) {
