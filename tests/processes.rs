@@ -433,6 +433,16 @@ fn policy(pid: u32) -> u32 {
     rest[41 - 3].parse().unwrap()
 }
 
+/// The binary is linked at a fixed address (build.rs), so that every process of a fleet shares
+/// its relocated data instead of holding a copy the loader wrote: ELF type 2 (an executable),
+/// not 3 (a shared object, as a position-independent executable is).
+#[test]
+fn the_binary_is_position_dependent_so_a_fleet_shares_its_pages() {
+    let header = std::fs::read(env!("CARGO_BIN_EXE_tcpf")).unwrap();
+    assert_eq!(&header[..4], b"\x7fELF");
+    assert_eq!(u16::from_le_bytes([header[16], header[17]]), 2, "e_type");
+}
+
 #[test]
 fn lockstep_agents_run_as_batch_jobs_and_realtime_agents_do_not() {
     let lockstep = ["--set", "mission.control_period=0.002"];
