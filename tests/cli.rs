@@ -491,9 +491,17 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
     );
 }
 
+/// Ctrl-C, or the terminal closing (SIGHUP), stops an in-process run with its summary and
+/// report of whole ticks.
 #[test]
-fn sigint_on_an_in_process_run_exits_130_with_summary_and_report() {
-    let out = scratch("in-process-sigint");
+fn sigint_or_sighup_on_an_in_process_run_exits_130_with_summary_and_report() {
+    for signal in ["-INT", "-HUP"] {
+        interrupt_an_in_process_run(signal);
+    }
+}
+
+fn interrupt_an_in_process_run(signal: &str) {
+    let out = scratch(&format!("in-process{signal}"));
     let mut run = Reaper(
         std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
             .args([
@@ -514,9 +522,9 @@ fn sigint_on_an_in_process_run_exits_130_with_summary_and_report() {
         assert!(Instant::now() < deadline, "the run never started writing");
         std::thread::sleep(Duration::from_millis(10));
     }
-    kill("-INT", run.0.id());
+    kill(signal, run.0.id());
     let status = run.0.wait().unwrap();
-    assert_eq!(status.code(), Some(130));
+    assert_eq!(status.code(), Some(130), "{signal}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["interrupted"], true);
@@ -533,10 +541,11 @@ fn sigint_on_an_in_process_run_exits_130_with_summary_and_report() {
 }
 
 #[test]
-fn roles_waiting_at_startup_honour_sigterm_and_sigint() {
+fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
     for (args, signal) in [
         (vec!["agent", "--id", "1"], "-TERM"),
         (vec!["world"], "-TERM"),
+        (vec!["agent", "--id", "1"], "-HUP"),
         (vec!["agent", "--id", "2"], "-INT"),
         (vec!["world"], "-INT"),
     ] {

@@ -148,15 +148,16 @@ fn an_interrupted_fleet_of_ten_hears_from_every_process() {
     let dir = scratch("interrupted-ten");
     let mission = lanes(&dir, 10);
     // An agent that closed its session as soon as it had reported lost the report now and then
-    // (1 run in 6): three runs.
-    for run in 0..3 {
+    // (1 run in 6): three runs, stopped by Ctrl-C, SIGTERM and the terminal closing (SIGHUP).
+    for (run, signal) in ["-INT", "-TERM", "-HUP"].into_iter().enumerate() {
         let out = dir.join(format!("p{run}"));
         let mut launch = Launch::start(mission.to_str().unwrap(), &out, &[]);
         launch.wait_for("logs/world.log", "starting");
         std::thread::sleep(Duration::from_millis(500));
-        kill("-INT", launch.child.id());
-        assert_eq!(launch.wait(Duration::from_secs(10)).code(), Some(130));
+        kill(signal, launch.child.id());
+        assert_eq!(launch.wait(Duration::from_secs(10)).code(), Some(130), "{signal}");
         let s = launch.summary();
+        assert_eq!(s["interrupted"], true, "{signal}");
         for c in s["children"].as_array().unwrap() {
             assert!(c["exit_code"].is_i64(), "run {run}: {c}");
             assert_eq!(c["pid"], c["reported_pid"], "run {run}: {c}");

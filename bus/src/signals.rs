@@ -1,5 +1,6 @@
-//! SIGINT and SIGTERM as one stream, registered once at start so that no signal is lost between
-//! two waits.
+//! SIGINT, SIGTERM and SIGHUP as one stream, registered once at start so that no signal is lost
+//! between two waits. SIGHUP is the terminal closing: it stops a role as Ctrl-C does, with its
+//! run directory written, rather than by the default action, which writes nothing.
 
 use anyhow::{Context, Result};
 use tokio::signal::unix::{signal, Signal, SignalKind};
@@ -20,6 +21,7 @@ impl std::error::Error for Interrupted {}
 pub struct Shutdown {
     interrupt: Signal,
     terminate: Signal,
+    hangup: Signal,
 }
 
 impl Shutdown {
@@ -27,11 +29,12 @@ impl Shutdown {
         Ok(Shutdown {
             interrupt: signal(SignalKind::interrupt()).context("cannot handle SIGINT")?,
             terminate: signal(SignalKind::terminate()).context("cannot handle SIGTERM")?,
+            hangup: signal(SignalKind::hangup()).context("cannot handle SIGHUP")?,
         })
     }
 
-    /// Runs `work` unless a signal comes first, which gives `None`: a role honours SIGINT and
-    /// SIGTERM while it waits at startup too.
+    /// Runs `work` unless a signal comes first, which gives `None`: a role honours SIGINT,
+    /// SIGTERM and SIGHUP while it waits at startup too.
     pub async fn unless<T>(&mut self, work: impl std::future::Future<Output = T>) -> Option<T> {
         tokio::select! {
             done = work => Some(done),
@@ -39,11 +42,12 @@ impl Shutdown {
         }
     }
 
-    /// Resolves when either signal arrives.
+    /// Resolves when any of the signals arrives.
     pub async fn recv(&mut self) {
         tokio::select! {
             _ = self.interrupt.recv() => {}
             _ = self.terminate.recv() => {}
+            _ = self.hangup.recv() => {}
         }
     }
 }

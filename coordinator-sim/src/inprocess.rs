@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use signal_hook::consts::{SIGINT, SIGTERM};
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::Rejections;
 use tcpf_core::planner::Plan;
@@ -16,12 +16,13 @@ use crate::progress::Ticks;
 use tcpf_report::rundir::RunDir;
 use tcpf_report::summary::{Clock, Mode, Summary};
 
-/// Runs the mission in one loop and writes the run directory. SIGINT or SIGTERM stop it after
-/// the tick under way, with the summary and report of the ticks run.
+/// Runs the mission in one loop and writes the run directory. SIGINT, SIGTERM or SIGHUP (the
+/// terminal closing) stop it after the tick under way, with the summary and report of the ticks
+/// run.
 pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr>) -> Result<Summary> {
     let interrupted = Arc::new(AtomicBool::new(false));
-    for signal in [SIGINT, SIGTERM] {
-        signal_hook::flag::register(signal, interrupted.clone()).context("cannot handle SIGINT and SIGTERM")?;
+    for signal in [SIGINT, SIGTERM, SIGHUP] {
+        signal_hook::flag::register(signal, interrupted.clone()).context("cannot handle SIGINT, SIGTERM and SIGHUP")?;
     }
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;

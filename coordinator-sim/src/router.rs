@@ -5,7 +5,7 @@ use anyhow::{anyhow, Result};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 
-/// Routes until SIGINT or SIGTERM. Router mode unless the options say otherwise.
+/// Routes until SIGINT, SIGTERM or SIGHUP. Router mode unless the options say otherwise.
 pub async fn run(zenoh: &ZenohArgs) -> Result<()> {
     let mut shutdown = Shutdown::new()?;
     let zenoh = ZenohArgs {

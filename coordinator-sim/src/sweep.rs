@@ -9,7 +9,7 @@ use std::sync::{mpsc, Arc};
 
 use anyhow::{anyhow, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use signal_hook::consts::{SIGINT, SIGTERM};
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
@@ -61,11 +61,12 @@ fn progress(total: u64) -> ProgressBar {
     bar
 }
 
-/// A flag that SIGINT and SIGTERM raise: the sweep then starts no new run.
+/// A flag that SIGINT, SIGTERM and SIGHUP (the terminal closing) raise: the sweep then starts no
+/// new run.
 fn interrupt_flag() -> Result<Arc<AtomicBool>> {
     let flag = Arc::new(AtomicBool::new(false));
-    for signal in [SIGINT, SIGTERM] {
-        signal_hook::flag::register(signal, flag.clone()).context("cannot handle SIGINT and SIGTERM")?;
+    for signal in [SIGINT, SIGTERM, SIGHUP] {
+        signal_hook::flag::register(signal, flag.clone()).context("cannot handle SIGINT, SIGTERM and SIGHUP")?;
     }
     Ok(flag)
 }
