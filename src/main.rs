@@ -867,12 +867,21 @@ fn sweep(
             "--set {set}: {key} is the key the sweep sets, value by value"
         )));
     }
-    if let Some(v) = values
+    if let Some(v) = values.iter().find(|v| v.starts_with('[') || v.ends_with(']')) {
+        return Err(Failure::Input(anyhow!(
+            "{key}: {v} is part of an array, and an array cannot be swept: the values are split at commas"
+        )));
+    }
+    // "0" and "0.0" are one number: the same runs twice.
+    let same = |a: &str, b: &str| a == b || matches!((a.parse::<f64>(), b.parse::<f64>()), (Ok(x), Ok(y)) if x == y);
+    if let Some((v, w)) = values
         .iter()
         .enumerate()
-        .find_map(|(i, v)| values[..i].contains(v).then_some(v))
+        .find_map(|(i, v)| values[..i].iter().find(|w| same(v, w)).map(|w| (v, w)))
     {
-        return Err(Failure::Input(anyhow!("the value {v} is swept twice")));
+        return Err(Failure::Input(anyhow!(
+            "{key}: the value {v} is swept twice ({w} and {v})"
+        )));
     }
     fresh_out(out)?;
     let mut grid = sweep::Grid {
@@ -904,13 +913,13 @@ fn sweep(
     let plans = grid.plans().map_err(Failure::Failed)?;
     // The file alone may be incomplete (a table set key by key, the swept key among them).
     let base = &grid.values[0].1;
-    let given = out.is_some();
-    let out: PathBuf = out.map_or_else(|| tcpf_report::sweep::default_out(base), |o| o.components().collect());
-    let mut rows = tcpf_report::sweep::Sweep::create(&out, &column, &values).map_err(|e| {
-        out_failure(
-            e.context(format!("{}: cannot write the sweep there", out.display())),
-            given,
-        )
+    let (out, mut rows) = tcpf_report::sweep::Sweep::create(out, base, &column, &values).map_err(|e| {
+        let given = out.is_some();
+        let e = match out {
+            Some(out) => e.context(format!("{}: cannot write the sweep there", out.display())),
+            None => e,
+        };
+        out_failure(e, given)
     })?;
     let interrupted = if processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;

@@ -139,6 +139,69 @@ fn an_out_given_as_a_new_directory_and_a_dot_is_that_directory() {
     assert!(dir.join("sweep/sweep.csv").is_file());
 }
 
+/// Runs started at once each write a directory of their own: without `--out`, each its own
+/// `runs/…` (the same second, the same name); given the same `--out`, one runs and the other is
+/// refused, never writing its files among the first's.
+#[test]
+fn runs_started_at_once_never_share_a_run_directory() {
+    let dir = scratch("at-once");
+    let seed_of = |run: &Path| -> String {
+        let mission = std::fs::read_to_string(run.join("mission.toml")).unwrap();
+        let seed = mission.lines().find(|l| l.starts_with("seed")).unwrap();
+        seed.rsplit(' ').next().unwrap().to_string()
+    };
+    for round in 0..5 {
+        let cwd = dir.join(format!("default{round}"));
+        std::fs::create_dir_all(&cwd).unwrap();
+        let runs: Vec<_> = (1..=3)
+            .map(|seed| {
+                std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+                    .args(["run", &paper("a-nominal"), "--in-process", "--seed", &seed.to_string()])
+                    .current_dir(&cwd)
+                    .stdout(std::process::Stdio::piped())
+                    .stderr(std::process::Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        for run in runs {
+            let o = run.wait_with_output().unwrap();
+            assert!(o.status.success(), "{}", text(&o));
+        }
+        let made: Vec<_> = std::fs::read_dir(cwd.join("runs"))
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .collect();
+        assert_eq!(made.len(), 3, "{made:?}");
+        let mut seeds: Vec<String> = made.iter().map(|run| seed_of(run)).collect();
+        seeds.sort();
+        assert_eq!(seeds, ["1", "2", "3"], "each run's own mission, in its own directory");
+
+        let out = dir.join(format!("same{round}"));
+        let spawn = |seed: &str| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+                .args(["run", &paper("a-nominal"), "--in-process", "--seed", seed])
+                .args(["--out", out.to_str().unwrap()])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        };
+        let (first, second) = (spawn("1"), spawn("2"));
+        let codes = [first.wait_with_output().unwrap(), second.wait_with_output().unwrap()];
+        let won: Vec<usize> = (0..2).filter(|&k| codes[k].status.success()).collect();
+        assert_eq!(won.len(), 1, "{:?}", codes.iter().map(text).collect::<Vec<_>>());
+        let lost = &codes[1 - won[0]];
+        assert_eq!(lost.status.code(), Some(2), "{}", text(lost));
+        assert_eq!(
+            seed_of(&out),
+            (won[0] + 1).to_string(),
+            "the run that ran owns the directory"
+        );
+    }
+}
+
 #[test]
 fn same_mission_and_seed_give_byte_identical_telemetry() {
     let dir = scratch("identical");
@@ -336,6 +399,21 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         (
             vec!["sweep", &mission, "--loss", "0.5,0.5", "--seeds", "1"],
             "swept twice",
+        ),
+        (
+            vec!["sweep", &mission, "--loss", "0,0.0", "--seeds", "1"],
+            "the value 0.0 is swept twice (0 and 0.0)",
+        ),
+        (
+            vec![
+                "sweep",
+                &mission,
+                "--param",
+                "vehicle.1.start=[0,0],[0,1]",
+                "--seeds",
+                "1",
+            ],
+            "an array cannot be swept",
         ),
         (
             vec!["run", &mission, "--clock", "realtime", "--time-scale", "0"],

@@ -28,34 +28,72 @@ pub fn stamp() -> String {
     chrono::Utc::now().format("%Y%m%d-%H%M%S").to_string()
 }
 
-/// `runs/<name>`, or `runs/<name>-2`, `-3`, … if it exists: two runs in the same second do not
-/// share a directory.
-pub fn unused(name: &str) -> PathBuf {
-    let base = PathBuf::from("runs").join(name);
-    let mut path = base.clone();
-    let mut n = 2;
-    while path.exists() {
-        path = PathBuf::from(format!("{}-{n}", base.display()));
+/// A directory of one run or sweep, and the directories made for it, outermost first.
+pub struct Claimed {
+    pub path: PathBuf,
+    pub file: File,
+    pub made: Vec<PathBuf>,
+}
+
+/// Makes the directory `path`, with its missing parents, and in it the file `first`, which is
+/// made only if it is not there: of two runs given the same directory at once, one makes it and
+/// the other is refused (`AlreadyExists`), rather than both writing their files into one.
+pub fn claim(path: &Path, first: &str) -> Result<Claimed> {
+    // Through its components, which drop a trailing `.`: create_dir_all refuses `new/.`.
+    let path: PathBuf = path.components().collect();
+    let mut made: Vec<PathBuf> = path
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+        .map(Path::to_path_buf)
+        .collect();
+    made.reverse();
+    fs::create_dir_all(&path).with_context(|| format!("cannot create run directory {}", path.display()))?;
+    let file = File::options()
+        .write(true)
+        .create_new(true)
+        .open(path.join(first))
+        .with_context(|| format!("{} is another run's: it holds {first}", path.display()))?;
+    Ok(Claimed { path, file, made })
+}
+
+/// `claim` of `<root>/<name>`, or of `<name>-2`, `-3`, … if another has it: runs started in the
+/// same second, one after the other or at once, each have a directory of their own.
+pub fn claim_unused(root: &Path, name: &str, first: &str) -> Result<Claimed> {
+    let base = root.join(name);
+    let mut n = 1;
+    loop {
+        let path = match n {
+            1 => base.clone(),
+            n => PathBuf::from(format!("{}-{n}", base.display())),
+        };
         n += 1;
+        if path.exists() {
+            continue;
+        }
+        match claim(&path, first) {
+            Err(e) if is_taken(&e) => continue,
+            claimed => return claimed,
+        }
     }
-    path
+}
+
+fn is_taken(e: &anyhow::Error) -> bool {
+    e.root_cause()
+        .downcast_ref::<std::io::Error>()
+        .is_some_and(|io| io.kind() == std::io::ErrorKind::AlreadyExists)
 }
 
 impl RunDir {
-    /// `out`, or a fresh `runs/<mission>-<timestamp>/`.
+    /// `out`, or a fresh `runs/<mission>-<timestamp>/`, claimed by its `mission.toml`.
     pub fn create(out: Option<&Path>, mission: &Mission) -> Result<RunDir> {
-        // Through its components, which drop a trailing `.`: create_dir_all refuses `new/.`.
-        let path: PathBuf = match out {
-            Some(p) => p.components().collect(),
-            None => unused(&format!("{}-{}", mission.mission.name, stamp())),
+        let Claimed { path, made, .. } = match out {
+            Some(p) => claim(p, "mission.toml")?,
+            None => claim_unused(
+                Path::new("runs"),
+                &format!("{}-{}", mission.mission.name, stamp()),
+                "mission.toml",
+            )?,
         };
-        let mut made: Vec<PathBuf> = path
-            .ancestors()
-            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
-            .map(Path::to_path_buf)
-            .collect();
-        made.reverse();
-        fs::create_dir_all(&path).with_context(|| format!("cannot create run directory {}", path.display()))?;
         Ok(RunDir { path, made })
     }
 
@@ -215,5 +253,33 @@ impl Drop for Telemetry {
         if let Err(e) = self.close_viewer() {
             tracing::warn!("run.mcap: {e}");
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_claimed_directory_is_refused_to_the_next_and_the_next_name_is_taken_instead() {
+        let root = std::env::temp_dir().join(format!("tcpf-claim-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&root);
+        let first = claim(&root.join("given"), "mission.toml").unwrap();
+        assert_eq!(first.made, [root.clone(), root.join("given")]);
+        let again = claim(&root.join("given"), "mission.toml").err().unwrap();
+        assert!(is_taken(&again), "{again:#}");
+        assert!(format!("{again:#}").contains("is another run's: it holds mission.toml"));
+
+        let names: Vec<PathBuf> = (0..3)
+            .map(|_| claim_unused(&root, "run", "mission.toml").unwrap().path)
+            .collect();
+        assert_eq!(names, [root.join("run"), root.join("run-2"), root.join("run-3")]);
+        // A directory that is there, even empty, is someone's: passed over.
+        fs::create_dir(root.join("next")).unwrap();
+        assert_eq!(
+            claim_unused(&root, "next", "mission.toml").unwrap().path,
+            root.join("next-2")
+        );
+        fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -150,20 +150,30 @@ pub struct Sweep {
 }
 
 impl Sweep {
-    /// Creates `out` and sweep.csv with its header; `values` in the order they are swept.
-    pub fn create(out: &Path, column: &str, values: &[String]) -> Result<Sweep> {
-        std::fs::create_dir_all(out)?;
-        let mut csv = std::io::BufWriter::new(std::fs::File::create(out.join("sweep.csv"))?);
+    /// Creates `out`, or a fresh `runs/<mission>-sweep-<timestamp>/`, and sweep.csv with its
+    /// header, which claims the directory (`rundir::claim`); `values` in the order they are
+    /// swept. Returns the directory too.
+    pub fn create(out: Option<&Path>, mission: &Mission, column: &str, values: &[String]) -> Result<(PathBuf, Sweep)> {
+        let claimed = match out {
+            Some(out) => crate::rundir::claim(out, "sweep.csv")?,
+            None => crate::rundir::claim_unused(
+                Path::new("runs"),
+                &format!("{}-sweep-{}", mission.mission.name, crate::rundir::stamp()),
+                "sweep.csv",
+            )?,
+        };
+        let mut csv = std::io::BufWriter::new(claimed.file);
         writeln!(
             csv,
             "{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s,last_arrival"
         )?;
         csv.flush()?;
-        Ok(Sweep {
+        let sweep = Sweep {
             csv,
             values: values.iter().map(|v| (v.clone(), PerValue::default())).collect(),
             done: 0,
-        })
+        };
+        Ok((claimed.path, sweep))
     }
 
     pub fn push(&mut self, r: &Row) -> Result<()> {
@@ -385,11 +395,6 @@ pub fn table(summary: &SweepSummary) -> String {
         );
     }
     s
-}
-
-/// Where a sweep writes by default.
-pub fn default_out(mission: &Mission) -> PathBuf {
-    crate::rundir::unused(&format!("{}-sweep-{}", mission.mission.name, crate::rundir::stamp()))
 }
 
 #[cfg(test)]
