@@ -623,6 +623,36 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     assert_same_run(&out, &dir.join("i"));
 }
 
+/// A world that gives up at startup (a vehicle's agent never came) takes the agents that did
+/// come with it: they stop, exit 1, rather than wait for a tick that will never come.
+#[test]
+fn agents_stop_when_the_world_gives_up_before_the_start() {
+    let mission = paper("b-current");
+    let (planner, endpoint) = listening(|e| role(&["planner", &mission, "-l", e], Stdio::null()));
+    let mut fleet = Fleet(vec![planner]);
+    let world = ["world", &mission, "-e", &endpoint, "--startup-timeout", "3"];
+    fleet.0.push(role(&world, Stdio::null()));
+    // Agent 2 never comes; agent 1 waits for it longer than the world does.
+    let agent = [
+        "agent",
+        &mission,
+        "--id",
+        "1",
+        "-e",
+        &endpoint,
+        "--startup-timeout",
+        "5",
+    ];
+    fleet.0.push(role(&agent, Stdio::piped()));
+    let (code, stderr) = exited(
+        &mut fleet.0[2],
+        Duration::from_secs(30),
+        "agent 1 still waits for a world that gave up",
+    );
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("is gone before the run started; stopping"), "{stderr}");
+}
+
 /// `tcpf run --recorders 1` holds the run until another recorder has joined with the run
 /// directory's Zenoh configuration; that recorder then records the same run, tick for tick.
 #[test]

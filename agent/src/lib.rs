@@ -371,6 +371,12 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                         Ok(Some(p)) if p.role == Role::Agent && neighbours.contains(&p.id) => {
                             feed.with(|node| node.set_gone(p.id, !p.alive))
                         }
+                        // The world gives up when the fleet is not there within its startup
+                        // timeout: its token goes, and no tick will ever come.
+                        Ok(Some(p)) if matches!(p.role, Role::World | Role::Planner) && !p.alive => {
+                            tracing::warn!("agent {id}: the {} is gone before the run started; stopping", p.role);
+                            return Ok(Exit::Orphaned);
+                        }
                         Ok(Some(_)) => {}
                         Ok(None) => return Err(anyhow!("liveliness subscription closed")),
                         Err(_) => {
