@@ -307,6 +307,14 @@ fn an_agent_stopped_past_the_worlds_bound_is_lost_as_silent_and_nothing_hangs() 
     assert_eq!(v2["lost"], true, "{s}");
     assert_eq!(v2["lost_reason"], "silent", "{s}");
     assert!(s["vehicles"][0]["arrival_time"].is_number(), "vehicle 1 arrives: {s}");
+    // When the world gave up is wall-clock time: not the in-process run.
+    assert_eq!(s["reproducible"], false, "{s}");
+    assert!(
+        s["reproducible_reasons"]
+            .to_string()
+            .contains("vehicle 2 was lost (no command within"),
+        "{s}"
+    );
     let world = std::fs::read_to_string(dir.join("logs/world.log")).unwrap();
     assert!(world.contains("agent 2 sent no command"), "{world}");
     let agent2 = std::fs::read_to_string(dir.join("logs/agent-2.log")).unwrap();
@@ -354,6 +362,12 @@ fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicl
     let telemetry = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
     assert_eq!(telemetry.lines().count() as u64, 1 + 3 * ticks, "every tick recorded");
     assert_eq!(s["vehicles"][1]["lost"], true);
+    assert!(
+        s["reproducible_reasons"]
+            .to_string()
+            .contains("vehicle 2 was lost (its agent's process went away)"),
+        "{s}"
+    );
     for v in [0, 2] {
         assert!(
             s["vehicles"][v]["arrival_time"].as_f64().is_some(),

@@ -13,7 +13,7 @@ use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, Cl
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Command, End, Loss, Lost, Report, State, TickRecord};
+use tcpf_core::msg::{Command, End, Loss, LossReason, Lost, Report, State, TickRecord};
 use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
 use tcpf_core::watch::WorldWatch;
@@ -440,6 +440,16 @@ impl Recording {
         }
         if realtime {
             reproducible_reasons.push("the realtime clock: what happens depends on timing".into());
+        } else {
+            // When the world gives up on an agent is a matter of wall-clock time (its command
+            // timeout, or when the agent's process died), which the in-process run knows nothing of.
+            for v in results.vehicles.iter().filter(|v| v.lost) {
+                let why = match v.lost_reason {
+                    Some(LossReason::Silent) => "no command within the world's --command-timeout",
+                    _ => "its agent's process went away",
+                };
+                reproducible_reasons.push(format!("vehicle {} was lost ({why})", v.id));
+            }
         }
         reproducible_reasons.extend(
             restarts
