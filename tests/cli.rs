@@ -653,6 +653,26 @@ fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
     }
 }
 
+/// A role that cannot listen where it was told says why: the port is taken, or the address
+/// is not this host's.
+#[test]
+fn a_role_that_cannot_listen_says_why() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let busy = format!("tcp/{}", taken.local_addr().unwrap());
+    for (endpoint, hint) in [
+        (
+            busy.as_str(),
+            "Address already in use (os error 98)] (is another process listening there?)",
+        ),
+        // TEST-NET-1: nobody's address.
+        ("tcp/192.0.2.1:7447", "(is that address one of this host's?)"),
+    ] {
+        let o = tcpf(&["planner", &paper("b-current"), "-l", endpoint]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains(hint), "{}", text(&o));
+    }
+}
+
 #[test]
 fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
     let dir = scratch("no-world");

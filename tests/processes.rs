@@ -676,6 +676,25 @@ fn a_run_waits_for_a_recorder_from_elsewhere_which_records_the_same_run() {
     let mut launch = Launch::start(&mission, &dir.join("p"), &["--recorders", "1"]);
     launch.wait_for("endpoint", "tcp/");
     launch.wait_for("logs/world.log", "a recorder is here (1 of 2)");
+    // At the run's endpoint but without its credentials (its zenoh.json5): refused, and told so.
+    let endpoint = std::fs::read_to_string(dir.join("p/endpoint")).unwrap();
+    let refused = dir.join("refused");
+    let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["record", dir.join("p/mission.toml").to_str().unwrap()])
+        .args([
+            "-e",
+            endpoint.trim(),
+            "--mode",
+            "client",
+            "--out",
+            refused.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(said.contains("the router refused this process's credentials"), "{said}");
+    assert!(!refused.exists(), "nothing recorded, nothing left");
     std::thread::sleep(Duration::from_secs(1));
     assert!(
         launch.child.try_wait().unwrap().is_none(),

@@ -75,7 +75,7 @@ pub fn check_clock(role: &str, expected: &Expected, clock: &Clock) -> Result<(),
     }
     if clock.mission != digest {
         return Err(WrongClock(format!(
-            "this {role} runs another mission than the world (mission digest {digest:016x}, the world's {:016x}, which the world logs as it starts): start every role with the same mission file, --set and --seed",
+            "this {role} runs another mission than the world (mission digest {digest:016x}, the world's {:016x}, which the world logs as it starts): start every role with the same mission file and --set (a seed as --set mission.seed=N)",
             clock.mission
         )));
     }

@@ -281,17 +281,25 @@ impl ZenohArgs {
         let config = self.config()?;
         let opened = zenoh::open(config).await.map_err(|e| anyhow!("{}", zenoh_words(e)));
         if let Err(e) = &opened {
-            if e.to_string().contains("listener") {
-                return Err(anyhow!(
-                    "cannot open the Zenoh session: {e} (is another process listening there?)"
-                ));
+            let words = e.to_string();
+            if words.contains("listener") {
+                let hint = if words.contains("Address already in use") {
+                    " (is another process listening there?)"
+                } else if words.contains("Cannot assign requested address") {
+                    " (is that address one of this host's?)"
+                } else {
+                    ""
+                };
+                return Err(anyhow!("cannot open the Zenoh session: {e}{hint}"));
             }
         }
         opened.context(
-            "cannot open the Zenoh session: nothing answered at the endpoints to connect to, or \
-                 a TLS handshake failed (is the router up and reachable? does it accept this host's \
-                 certificate? is the router's certificate valid for the address connected to, and \
-                 signed by the CA this host trusts? RUST_LOG=zenoh=debug says which)",
+            "cannot open the Zenoh session: nothing answered at the endpoints to connect to, a \
+                 TLS handshake failed, or the router refused this process's credentials (is the \
+                 router up and reachable? does it accept this host's certificate? is the router's \
+                 certificate valid for the address connected to, and signed by the CA this host \
+                 trusts? to join a `tcpf run`, use its run directory's zenoh.json5, which holds the \
+                 run's credentials; RUST_LOG=zenoh=debug says which)",
         )
     }
 }
