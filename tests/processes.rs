@@ -667,6 +667,48 @@ fn agents_stop_when_the_world_gives_up_before_the_start() {
     assert!(stderr.contains("is gone before the run started; stopping"), "{stderr}");
 }
 
+/// An agent started with another mission than the world's (here another `--set`) is refused
+/// before its first command: it exits 2, and its vehicle is given up on at t = 0, never steered
+/// by a law the run was not planned with.
+#[test]
+fn an_agent_of_another_mission_steers_nothing_before_it_is_refused() {
+    let dir = scratch("other-mission");
+    let mission = paper("b-current");
+    let (planner, endpoint) = listening(|e| role(&["planner", &mission, "-l", e], Stdio::null()));
+    let mut fleet = Fleet(vec![planner]);
+    let world_log = std::fs::File::create(dir.join("world.log")).unwrap();
+    fleet
+        .0
+        .push(role(&["world", &mission, "-e", &endpoint], Stdio::from(world_log)));
+    fleet
+        .0
+        .push(role(&["agent", &mission, "--id", "1", "-e", &endpoint], Stdio::null()));
+    let other = [
+        "agent",
+        &mission,
+        "--id",
+        "2",
+        "-e",
+        &endpoint,
+        "--set",
+        "control.kc=0.4",
+    ];
+    fleet.0.push(role(&other, Stdio::piped()));
+    let (code, stderr) = exited(&mut fleet.0[3], Duration::from_secs(30), "agent 2 was never refused");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("runs another mission than the world"), "{stderr}");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let log = loop {
+        let log = std::fs::read_to_string(dir.join("world.log")).unwrap();
+        if log.contains("agent 2 is gone at t = ") {
+            break log;
+        }
+        assert!(Instant::now() < deadline, "the world never saw agent 2 go: {log}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(log.contains("agent 2 is gone at t = 0.00 s"), "{log}");
+}
+
 /// `tcpf run --recorders 1` holds the run until another recorder has joined with the run
 /// directory's Zenoh configuration; that recorder then records the same run, tick for tick.
 #[test]

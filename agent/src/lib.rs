@@ -20,6 +20,7 @@ use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, State};
 use tcpf_core::realtime::RealtimeAgent;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
+use tokio::sync::Notify;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
@@ -115,6 +116,8 @@ struct Feed {
     gamma_out: Outlet,
     rejected: Rejected,
     faults: UnboundedSender<anyhow::Error>,
+    /// A state came while the node was held: the world has started, and its clock answers.
+    first_state: Notify,
 }
 
 struct Fed {
@@ -138,7 +141,12 @@ impl Feed {
     fn take(&self, key: &str, input: Input) {
         let mut fed = self.lock();
         match &mut fed.held {
-            Some(held) => held.push((key.to_string(), input)),
+            Some(held) => {
+                if matches!(input, Input::State(_)) {
+                    self.first_state.notify_one();
+                }
+                held.push((key.to_string(), input))
+            }
             None => {
                 self.apply(&mut fed, key, input);
                 self.settle(&mut fed);
@@ -254,6 +262,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             gamma_out: Outlet::gamma(&session, keys.gamma(id), false).await?,
             rejected: rejected.clone(),
             faults: faults_tx,
+            first_state: Notify::new(),
         });
         let to = feed.clone();
         subscribers.push(
@@ -459,9 +468,15 @@ impl Shell {
         options: &Options,
     ) -> Result<Exit> {
         let id = self.id;
-        feed.start();
+        // Came before the world started: what arrives stays held, and no command leaves, until
+        // the world's clock says it runs this agent's mission (an agent of another would steer
+        // its vehicle for hundreds of ticks before it heard). The clock answers once the world
+        // has started, which its first state shows: asked then, and every so often meanwhile.
         let mut clock =
             unchecked.then(|| await_clock(&self.session, &self.keys, &self.rejected, CLOCK_POLL, CLOCK_POLL_MAX));
+        if !unchecked {
+            feed.start();
+        }
         let exit = loop {
             // Woken once per timeout while the fleet moves on, to look whether it still waits.
             let stale_at = feed.lock().waiting_since.unwrap_or_else(Instant::now) + options.stale_timeout;
@@ -470,6 +485,14 @@ impl Shell {
                 answer = answered(&mut clock), if clock.is_some() => {
                     clock = None;
                     check_clock(mission, &answer?)?;
+                    feed.start();
+                }
+                _ = feed.first_state.notified(), if clock.is_some() => {
+                    if let Some(answer) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
+                        clock = None;
+                        check_clock(mission, &answer)?;
+                        feed.start();
+                    }
                 }
                 Some(p) = self.presence.recv() => match p.role {
                     Role::World | Role::Planner if !p.alive => {
