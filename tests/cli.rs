@@ -202,6 +202,22 @@ fn runs_started_at_once_never_share_a_run_directory() {
     }
 }
 
+/// A law whose commands are not finite (d1 so small that it overflows) loses both vehicles
+/// in-process as over Zenoh, where the world refuses such a command as it decodes it, and says
+/// why: the refusals are counted as the processes count them.
+#[test]
+fn an_in_process_run_counts_the_commands_it_refused() {
+    let out = scratch("refused-in-process");
+    let o = run_in_process(&paper("a-nominal"), &out, &["--set", "control.d1=1e-300"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("refused messages: 2 (2 non_finite)"), "{}", text(&o));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["rejected_messages"], 2, "{s}");
+    assert_eq!(s["rejections"]["non_finite"], 2, "{s}");
+    assert_eq!(s["vehicles"][0]["lost_reason"], "silent", "{s}");
+}
+
 #[test]
 fn same_mission_and_seed_give_byte_identical_telemetry() {
     let dir = scratch("identical");

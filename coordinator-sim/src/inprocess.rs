@@ -8,7 +8,6 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use tcpf_core::mission::Mission;
-use tcpf_core::msg::Rejections;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 
@@ -31,7 +30,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
     let progress = Ticks::new(mission);
     let mut ticks = 0;
     let started = Instant::now();
-    let results = Fleet::new(mission, plan).run_until(
+    let (results, rejections) = Fleet::new(mission, plan).run_until(
         |states, commands| {
             ticks += 1;
             progress.set(ticks);
@@ -62,8 +61,10 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         results,
         tick_wall_time_us: 1e6 * wall_time_s / ticks.max(1) as f64,
         wall_time_s,
-        rejected_messages: 0,
-        rejections: Rejections::default(),
+        // What the world or an agent refused (a command with a non-finite number, say), which
+        // loses its vehicle here as it does over Zenoh.
+        rejected_messages: rejections.total(),
+        rejections,
         children: Vec::new(),
         time_scale: None,
         timing: Vec::new(),

@@ -7,7 +7,7 @@ use crate::agent::Agent;
 use crate::lockstep::{AgentNode, WorldNode};
 use crate::metrics::Results;
 use crate::mission::Mission;
-use crate::msg::{Command, Gamma, LossReason, State, PROTOCOL_VERSION};
+use crate::msg::{Command, Gamma, LossReason, Rejections, State, PROTOCOL_VERSION};
 use crate::planner::Plan;
 use crate::record::Recorder;
 use crate::world::World;
@@ -64,20 +64,22 @@ impl Fleet {
     /// Runs to the end (every vehicle arrived, or max_duration); `observe` sees every tick as the
     /// recorder hands it on.
     pub fn run(self, observe: impl FnMut(&[State], &[Option<Command>])) -> Results {
-        self.run_until(observe, || false)
+        self.run_until(observe, || false).0
     }
 
     /// `run`, but asking `stop` before each tick: when it says so, the results are those of the
-    /// whole ticks run so far.
+    /// whole ticks run so far. Also returns what the world and the agents refused, counted as
+    /// the processes count what they drop.
     pub fn run_until(
         mut self,
         mut observe: impl FnMut(&[State], &[Option<Command>]),
         mut stop: impl FnMut() -> bool,
-    ) -> Results {
+    ) -> (Results, Rejections) {
         let mut sent: Vec<(usize, Gamma)> = Vec::with_capacity(self.agents.len());
+        let mut rejections = Rejections::default();
         loop {
             if stop() {
-                return self.recorder.results();
+                return (self.recorder.results(), rejections);
             }
             // The world publishes the states of the tick; each agent answers its own.
             let mut refused = Vec::new();
@@ -86,7 +88,10 @@ impl Fleet {
                 if self.live[n] {
                     match self.agents[n].on_state(state) {
                         Ok(gamma) => sent.extend(gamma.map(|g| (n, g))),
-                        Err(_) => refused.push(n),
+                        Err(why) => {
+                            why.count(&mut rejections);
+                            refused.push(n);
+                        }
                     }
                 }
             }
@@ -100,7 +105,8 @@ impl Fleet {
                 let command = self.agents[n]
                     .command()
                     .expect("the state and every γ of the tick are in");
-                if self.world.on_command(command).is_err() {
+                if let Err(why) = self.world.on_command(command) {
+                    why.count(&mut rejections);
                     refused.push(n);
                 }
             }
@@ -114,7 +120,7 @@ impl Fleet {
             self.recorder.drain(&mut observe);
             if let Some(end) = end {
                 self.recorder.on_end(end).expect("the world's end, once");
-                return self.recorder.results();
+                return (self.recorder.results(), rejections);
             }
         }
     }
