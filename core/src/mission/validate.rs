@@ -178,6 +178,22 @@ impl Mission {
             key("control", "kc"),
             "must be in [0, 1) so that the commanded speed stays positive",
         )?;
+        // The law acts once a control period T: x_e then decays as x_e (1 − k1 T) and ψ_e − ζ as
+        // (1 − k3 T) (eqs. 22b, 23), which overshoot past k T = 1 and diverge past 2, while γ
+        // runs ahead to t_f: a run that "arrives" where no vehicle is.
+        let period = m.control_period;
+        for (k, v) in [("k1", c.k1), ("k3", c.k3)] {
+            check(
+                v * period < 1.0,
+                key("control", k),
+                format!(
+                    "{} with mission.control_period = {} s gives {k}·T = {}: the law, acting once a period, overshoots; {k}·T must be < 1",
+                    num(v),
+                    num(period),
+                    num(v * period)
+                ),
+            )?;
+        }
         finite(key("current", "speed"), &[self.current.speed])?;
         check(self.current.speed >= 0.0, key("current", "speed"), "must be ≥ 0")?;
         check(
