@@ -288,6 +288,15 @@ impl Mission {
             let offset = v.initial_offset[0].hypot(v.initial_offset[1]);
             let length = (v.goal[0] - v.start[0]).hypot(v.goal[1] - v.start[1]);
             check(
+                length > 1e-9,
+                vkey(i, "goal"),
+                format!(
+                    "is the vehicle's start ({}, {}): a path needs somewhere to go",
+                    num(v.start[0]),
+                    num(v.start[1])
+                ),
+            )?;
+            check(
                 offset < 0.5 * length,
                 vkey(i, "initial_offset"),
                 format!(
