@@ -5,7 +5,7 @@ use std::process::Output;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{exited, free_endpoint, kill, paper, scratch, tcpf, text, Reaper};
+use common::{config, exited, free_endpoint, kill, paper, scratch, tcpf, text, Reaper};
 
 #[test]
 fn plan_json_has_the_contract_fields() {
@@ -216,6 +216,37 @@ fn an_in_process_run_counts_the_commands_it_refused() {
     assert_eq!(s["rejected_messages"], 2, "{s}");
     assert_eq!(s["rejections"]["non_finite"], 2, "{s}");
     assert_eq!(s["vehicles"][0]["lost_reason"], "silent", "{s}");
+}
+
+/// A disk that fills up while a run writes (a tmpfs of 300 kB, which long3's telemetry
+/// outgrows) fails the run naming the file it could not write.
+#[test]
+fn a_run_on_a_full_disk_names_the_file_it_could_not_write() {
+    struct Mounted(std::path::PathBuf);
+    impl Drop for Mounted {
+        fn drop(&mut self) {
+            let _ = std::process::Command::new("umount").arg(&self.0).status();
+        }
+    }
+    let small = scratch("full-disk");
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=300k", "tmpfs"])
+        .arg(&small)
+        .status()
+        .unwrap();
+    assert!(
+        mounted.success(),
+        "mount a tmpfs (the tests run as root, as .ci/run does)"
+    );
+    let _mounted = Mounted(small.clone());
+    let out = small.join("r");
+    let o = tcpf(&["run", &config("long3"), "--in-process", "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let said = text(&o);
+    let named = ["telemetry.csv", "messages.csv", "run.mcap", "summary.json"]
+        .iter()
+        .any(|f| said.contains(&format!("error: cannot write {}", out.join(f).display())));
+    assert!(named && said.contains("No space left on device"), "{said}");
 }
 
 #[test]

@@ -132,9 +132,9 @@ impl RunDir {
         let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
         let create = |name: &str, header: &str| -> Result<BufWriter<File>> {
             let file = self.path.join(name);
-            let mut out =
-                BufWriter::new(File::create(&file).with_context(|| format!("cannot write {}", file.display()))?);
-            out.write_all(header.as_bytes())?;
+            let cannot = || format!("cannot write {}", file.display());
+            let mut out = BufWriter::new(File::create(&file).with_context(cannot)?);
+            out.write_all(header.as_bytes()).with_context(cannot)?;
             Ok(out)
         };
         let viewer = Viewer::create(&self.path.join("run.mcap"), &paths, live)?;
@@ -158,6 +158,7 @@ impl RunDir {
             batch: Vec::with_capacity(VIEWER_BATCH),
             since: Instant::now(),
             line: String::new(),
+            dir: self.path.clone(),
         })
     }
 }
@@ -186,6 +187,8 @@ pub struct Telemetry {
     batch: Vec<Tick>,
     since: Instant,
     line: String,
+    /// The run directory, for errors to name the file they failed on (a full disk, say).
+    dir: PathBuf,
 }
 
 impl Telemetry {
@@ -194,14 +197,14 @@ impl Telemetry {
         for (s, c) in states.iter().zip(commands) {
             telemetry::row(&mut self.line, s, c.as_ref());
         }
-        self.out.write_all(self.line.as_bytes())?;
+        (self.out.write_all(self.line.as_bytes())).with_context(|| cannot_write(&self.dir, "telemetry.csv"))?;
         self.line.clear();
         for (s, c) in states.iter().zip(commands) {
             if let Some(c) = c {
                 telemetry::messages(&mut self.line, s, c);
             }
         }
-        self.messages.write_all(self.line.as_bytes())?;
+        (self.messages.write_all(self.line.as_bytes())).with_context(|| cannot_write(&self.dir, "messages.csv"))?;
         if self.batch.is_empty() {
             self.since = Instant::now();
         }
@@ -224,8 +227,11 @@ impl Telemetry {
     }
 
     pub fn finish(mut self) -> Result<()> {
-        self.out.flush()?;
-        self.messages.flush()?;
+        let cannot = |dir: &Path, name: &str| format!("cannot write {}", dir.join(name).display());
+        self.out.flush().with_context(|| cannot(&self.dir, "telemetry.csv"))?;
+        self.messages
+            .flush()
+            .with_context(|| cannot(&self.dir, "messages.csv"))?;
         self.close_viewer()
     }
 
@@ -245,6 +251,10 @@ impl Telemetry {
             .join()
             .map_err(|_| anyhow!("the thread writing run.mcap panicked"))?
     }
+}
+
+fn cannot_write(dir: &Path, name: &str) -> String {
+    format!("cannot write {}", dir.join(name).display())
 }
 
 /// A run that failed still leaves a readable run.mcap of the ticks it had.
