@@ -371,7 +371,8 @@ pub struct PeriodTiming {
     /// World: vehicle-periods integrated with the command of an earlier tick held, because this
     /// tick's had not come.
     pub late_commands: u64,
-    /// Agent: periods in which the freshest state was older than one period.
+    /// Agent: periods in which the freshest state was older than one period, or none had come
+    /// (after tick 0).
     pub stale_states: u64,
     /// World: per vehicle, periods integrated with no command at all (none yet, or its agent gone).
     pub without_command: Vec<(u32, u64)>,

@@ -211,10 +211,15 @@ impl RealtimeAgent {
 
     /// The period of `tick` began `late_s` wall seconds after its deadline (of `period_s`), after
     /// `skipped` periods that never ran. Without a state yet there is nothing to act on (the
-    /// vehicle drifts with thrusters off); a tick already acted on is not acted on again.
+    /// vehicle drifts with thrusters off), and past tick 0, when the first could not have come
+    /// yet, that period counts as stale: no state is older than any; a tick already acted on is
+    /// not acted on again.
     pub fn act(&mut self, tick: u64, late_s: f64, period_s: f64, skipped: u64) -> Option<Action> {
         self.lateness.record(late_s, period_s, skipped);
-        let state = self.state?;
+        let Some(state) = self.state else {
+            self.stale_states += u64::from(tick > 0);
+            return None;
+        };
         if self.acted.is_some_and(|a| a >= tick) {
             return None;
         }
@@ -822,12 +827,19 @@ mod tests {
             agent.act(0, 0.0, 0.001, 0).is_none(),
             "nothing measured, nothing commanded"
         );
+        assert_eq!(
+            agent.timing().stale_states,
+            0,
+            "the first state cannot have come at tick 0"
+        );
+        assert!(agent.act(1, 0.0, 0.001, 0).is_none());
+        assert_eq!(agent.timing().stale_states, 1, "no state a period after the start");
         let state = still(2, 5, m.mission.control_period, [0.0, 5.0]);
         agent.on_state(state, HORIZON).unwrap();
         assert_eq!(agent.on_state(State { tick: 4, ..state }, HORIZON), Err(Reject::Past));
         assert_eq!(agent.on_state(state, HORIZON), Err(Reject::Duplicate));
         let command = agent.act(8, 0.0, 0.001, 0).expect("a state to act on").command;
-        assert_eq!(agent.timing().stale_states, 1, "a state three periods old");
+        assert_eq!(agent.timing().stale_states, 2, "and then a state three periods old");
         assert!(agent.act(8, 0.0, 0.001, 0).is_none(), "tick 8 is done");
         world.on_command(command.clone(), HORIZON).unwrap();
         assert_eq!(
