@@ -625,6 +625,41 @@ fn sigint_or_sighup_on_an_in_process_run_exits_130_with_summary_and_report() {
     }
 }
 
+/// Started under `nohup`, a run goes on when the terminal closes (SIGHUP), as asked.
+#[test]
+fn under_nohup_a_run_ignores_sighup() {
+    let out = scratch("nohup");
+    let mut run = Reaper(
+        std::process::Command::new("nohup")
+            .arg(env!("CARGO_BIN_EXE_tcpf"))
+            .args([
+                "run",
+                &paper("b-current"),
+                "--in-process",
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .args(["--set", "mission.control_period=0.0002"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while std::fs::metadata(out.join("telemetry.csv")).map_or(0, |m| m.len()) < 100_000 {
+        assert!(Instant::now() < deadline, "the run never started writing");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    kill("-HUP", run.0.id());
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        run.0.try_wait().unwrap().is_none(),
+        "SIGHUP stopped a run started under nohup"
+    );
+    kill("-INT", run.0.id());
+    assert_eq!(run.0.wait().unwrap().code(), Some(130));
+}
+
 fn interrupt_an_in_process_run(signal: &str) {
     let out = scratch(&format!("in-process{signal}"));
     let mut run = Reaper(

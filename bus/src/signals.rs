@@ -1,6 +1,7 @@
 //! SIGINT, SIGTERM and SIGHUP as one stream, registered once at start so that no signal is lost
 //! between two waits. SIGHUP is the terminal closing: it stops a role as Ctrl-C does, with its
-//! run directory written, rather than by the default action, which writes nothing.
+//! run directory written, rather than by the default action, which writes nothing; unless the
+//! process was started ignoring it (`nohup`, a vehicle's agent that outlives its ssh login).
 
 use anyhow::{Context, Result};
 use tokio::signal::unix::{signal, Signal, SignalKind};
@@ -21,7 +22,16 @@ impl std::error::Error for Interrupted {}
 pub struct Shutdown {
     interrupt: Signal,
     terminate: Signal,
-    hangup: Signal,
+    hangup: Option<Signal>,
+}
+
+/// Whether this process was started with SIGHUP ignored (by `nohup`): a handler would undo that.
+pub fn hangup_ignored() -> bool {
+    // SAFETY: sigaction(2) with no new action only reads the current one into `current`.
+    unsafe {
+        let mut current: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(libc::SIGHUP, std::ptr::null(), &mut current) == 0 && current.sa_sigaction == libc::SIG_IGN
+    }
 }
 
 impl Shutdown {
@@ -29,7 +39,10 @@ impl Shutdown {
         Ok(Shutdown {
             interrupt: signal(SignalKind::interrupt()).context("cannot handle SIGINT")?,
             terminate: signal(SignalKind::terminate()).context("cannot handle SIGTERM")?,
-            hangup: signal(SignalKind::hangup()).context("cannot handle SIGHUP")?,
+            hangup: match hangup_ignored() {
+                true => None,
+                false => Some(signal(SignalKind::hangup()).context("cannot handle SIGHUP")?),
+            },
         })
     }
 
@@ -47,7 +60,7 @@ impl Shutdown {
         tokio::select! {
             _ = self.interrupt.recv() => {}
             _ = self.terminate.recv() => {}
-            _ = self.hangup.recv() => {}
+            Some(_) = async { self.hangup.as_mut()?.recv().await }, if self.hangup.is_some() => {}
         }
     }
 }

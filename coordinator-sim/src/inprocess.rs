@@ -16,11 +16,12 @@ use tcpf_report::rundir::RunDir;
 use tcpf_report::summary::{Clock, Mode, Summary};
 
 /// Runs the mission in one loop and writes the run directory. SIGINT, SIGTERM or SIGHUP (the
-/// terminal closing) stop it after the tick under way, with the summary and report of the ticks
+/// terminal closing; not under `nohup`) stop it after the tick under way, with the summary and report of the ticks
 /// run.
 pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr>) -> Result<Summary> {
     let interrupted = Arc::new(AtomicBool::new(false));
-    for signal in [SIGINT, SIGTERM, SIGHUP] {
+    let hangup = (!tcpf_bus::signals::hangup_ignored()).then_some(SIGHUP);
+    for signal in [SIGINT, SIGTERM].into_iter().chain(hangup) {
         signal_hook::flag::register(signal, interrupted.clone()).context("cannot handle SIGINT, SIGTERM and SIGHUP")?;
     }
     dir.write_mission(mission)?;

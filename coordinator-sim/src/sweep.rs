@@ -61,11 +61,12 @@ fn progress(total: u64) -> ProgressBar {
     bar
 }
 
-/// A flag that SIGINT, SIGTERM and SIGHUP (the terminal closing) raise: the sweep then starts no
+/// A flag that SIGINT, SIGTERM and SIGHUP (the terminal closing; not under `nohup`) raise: the sweep then starts no
 /// new run.
 fn interrupt_flag() -> Result<Arc<AtomicBool>> {
     let flag = Arc::new(AtomicBool::new(false));
-    for signal in [SIGINT, SIGTERM, SIGHUP] {
+    let hangup = (!tcpf_bus::signals::hangup_ignored()).then_some(SIGHUP);
+    for signal in [SIGINT, SIGTERM].into_iter().chain(hangup) {
         signal_hook::flag::register(signal, flag.clone()).context("cannot handle SIGINT, SIGTERM and SIGHUP")?;
     }
     Ok(flag)
