@@ -742,11 +742,10 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     );
 
     let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
-    let dir = RunDir::create(
-        Some(&std::env::temp_dir().join(format!("tcpf-bench-{}", std::process::id()))),
-        &mission,
-    )
-    .map_err(Failure::Failed)?;
+    // This process's own scratch directory: one a killed bench of the same pid left is stale.
+    let scratch = std::env::temp_dir().join(format!("tcpf-bench-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&scratch);
+    let dir = RunDir::create(Some(&scratch), &mission).map_err(Failure::Failed)?;
     let rt = runtime()?;
     let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
     let direct = rt.block_on(bench::ping(&exe, count, false)).map_err(Failure::Failed)?;

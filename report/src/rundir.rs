@@ -48,12 +48,26 @@ pub fn claim(path: &Path, first: &str) -> Result<Claimed> {
         .collect();
     made.reverse();
     fs::create_dir_all(&path).with_context(|| format!("cannot create run directory {}", path.display()))?;
-    let file = File::options()
-        .write(true)
-        .create_new(true)
-        .open(path.join(first))
-        .with_context(|| format!("{} is another run's: it holds {first}", path.display()))?;
+    let file = match File::options().write(true).create_new(true).open(path.join(first)) {
+        Ok(file) => file,
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            return Err(
+                anyhow::Error::new(e).context(Taken(format!("{} is another run's: it holds {first}", path.display())))
+            )
+        }
+        Err(e) => return Err(anyhow::Error::new(e).context(cannot_write(&path, first))),
+    };
     Ok(Claimed { path, file, made })
+}
+
+/// The directory `claim` was given holds its first file already: another run's.
+#[derive(Debug)]
+struct Taken(String);
+
+impl std::fmt::Display for Taken {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
 }
 
 /// `claim` of `<root>/<name>`, or of `<name>-2`, `-3`, … if another has it: runs started in the
@@ -78,9 +92,7 @@ pub fn claim_unused(root: &Path, name: &str, first: &str) -> Result<Claimed> {
 }
 
 fn is_taken(e: &anyhow::Error) -> bool {
-    e.root_cause()
-        .downcast_ref::<std::io::Error>()
-        .is_some_and(|io| io.kind() == std::io::ErrorKind::AlreadyExists)
+    e.downcast_ref::<Taken>().is_some()
 }
 
 impl RunDir {
@@ -197,14 +209,18 @@ impl Telemetry {
         for (s, c) in states.iter().zip(commands) {
             telemetry::row(&mut self.line, s, c.as_ref());
         }
-        (self.out.write_all(self.line.as_bytes())).with_context(|| cannot_write(&self.dir, "telemetry.csv"))?;
+        self.out
+            .write_all(self.line.as_bytes())
+            .with_context(|| cannot_write(&self.dir, "telemetry.csv"))?;
         self.line.clear();
         for (s, c) in states.iter().zip(commands) {
             if let Some(c) = c {
                 telemetry::messages(&mut self.line, s, c);
             }
         }
-        (self.messages.write_all(self.line.as_bytes())).with_context(|| cannot_write(&self.dir, "messages.csv"))?;
+        self.messages
+            .write_all(self.line.as_bytes())
+            .with_context(|| cannot_write(&self.dir, "messages.csv"))?;
         if self.batch.is_empty() {
             self.since = Instant::now();
         }
@@ -219,19 +235,21 @@ impl Telemetry {
     fn hand_over(&mut self) -> Result<()> {
         let batch = std::mem::replace(&mut self.batch, Vec::with_capacity(VIEWER_BATCH));
         match &self.viewer {
+            // The thread stops on a write that failed, and says why as it is joined.
             Some((batches, _)) => batches
                 .send(batch)
-                .map_err(|_| anyhow!("the thread writing run.mcap stopped")),
+                .map_err(|_| anyhow!("{}: the thread writing it stopped", cannot_write(&self.dir, "run.mcap"))),
             None => Err(anyhow!("run.mcap is closed")),
         }
     }
 
     pub fn finish(mut self) -> Result<()> {
-        let cannot = |dir: &Path, name: &str| format!("cannot write {}", dir.join(name).display());
-        self.out.flush().with_context(|| cannot(&self.dir, "telemetry.csv"))?;
+        self.out
+            .flush()
+            .with_context(|| cannot_write(&self.dir, "telemetry.csv"))?;
         self.messages
             .flush()
-            .with_context(|| cannot(&self.dir, "messages.csv"))?;
+            .with_context(|| cannot_write(&self.dir, "messages.csv"))?;
         self.close_viewer()
     }
 
@@ -286,6 +304,10 @@ mod tests {
         assert_eq!(names, [root.join("run"), root.join("run-2"), root.join("run-3")]);
         // A directory that is there, even empty, is someone's: passed over.
         fs::create_dir(root.join("next")).unwrap();
+        // A root that cannot be made is an error at once, not a search through names.
+        std::os::unix::fs::symlink(root.join("nowhere"), root.join("gone")).unwrap();
+        let dangling = claim_unused(&root.join("gone"), "run", "mission.toml").err().unwrap();
+        assert!(!is_taken(&dangling), "{dangling:#}");
         assert_eq!(
             claim_unused(&root, "next", "mission.toml").unwrap().path,
             root.join("next-2")
