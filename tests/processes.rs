@@ -452,10 +452,17 @@ fn policy(pid: u32) -> u32 {
 /// its relocated data instead of holding a copy the loader wrote: ELF type 2 (an executable),
 /// not 3 (a shared object, as a position-independent executable is).
 #[test]
+#[cfg(all(target_os = "linux", target_env = "gnu", not(target_feature = "crt-static")))]
 fn the_binary_is_position_dependent_so_a_fleet_shares_its_pages() {
     let header = std::fs::read(env!("CARGO_BIN_EXE_tcpf")).unwrap();
     assert_eq!(&header[..4], b"\x7fELF");
-    assert_eq!(u16::from_le_bytes([header[16], header[17]]), 2, "e_type");
+    // e_type in the file's byte order (EI_DATA: 1 little-endian, 2 big-endian).
+    let e_type = [header[16], header[17]];
+    let e_type = match header[5] {
+        1 => u16::from_le_bytes(e_type),
+        _ => u16::from_be_bytes(e_type),
+    };
+    assert_eq!(e_type, 2, "e_type");
 }
 
 #[test]
@@ -644,9 +651,8 @@ fn agents_stop_when_the_world_gives_up_before_the_start() {
     let mission = paper("b-current");
     let (planner, endpoint) = listening(|e| role(&["planner", &mission, "-l", e], Stdio::null()));
     let mut fleet = Fleet(vec![planner]);
-    let world = ["world", &mission, "-e", &endpoint, "--startup-timeout", "3"];
-    fleet.0.push(role(&world, Stdio::null()));
-    // Agent 2 never comes; agent 1 waits for it longer than the world does.
+    // Agent 2 never comes; agent 1, started first so that it is there to see the world come
+    // and go, waits for it longer than the world does.
     let agent = [
         "agent",
         &mission,
@@ -655,11 +661,13 @@ fn agents_stop_when_the_world_gives_up_before_the_start() {
         "-e",
         &endpoint,
         "--startup-timeout",
-        "5",
+        "10",
     ];
     fleet.0.push(role(&agent, Stdio::piped()));
+    let world = ["world", &mission, "-e", &endpoint, "--startup-timeout", "4"];
+    fleet.0.push(role(&world, Stdio::null()));
     let (code, stderr) = exited(
-        &mut fleet.0[2],
+        &mut fleet.0[1],
         Duration::from_secs(30),
         "agent 1 still waits for a world that gave up",
     );
