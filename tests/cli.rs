@@ -629,9 +629,25 @@ fn sigint_or_sighup_on_an_in_process_run_exits_130_with_summary_and_report() {
 #[test]
 fn under_nohup_a_run_ignores_sighup() {
     let out = scratch("nohup");
-    let mut run = Reaper(
-        std::process::Command::new("nohup")
-            .arg(env!("CARGO_BIN_EXE_tcpf"))
+    let mut run = a_long_in_process_run(
+        std::process::Command::new("nohup").arg(env!("CARGO_BIN_EXE_tcpf")),
+        &out,
+    );
+    kill("-HUP", run.0.id());
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        run.0.try_wait().unwrap().is_none(),
+        "SIGHUP stopped a run started under nohup"
+    );
+    kill("-INT", run.0.id());
+    assert_eq!(run.0.wait().unwrap().code(), Some(130));
+}
+
+/// `tcpf` (behind `command`'s program) running case (b) in-process into `out`, long enough to be
+/// interrupted (277 000 ticks), once it has written its first ticks.
+fn a_long_in_process_run(command: &mut std::process::Command, out: &Path) -> Reaper {
+    let run = Reaper(
+        command
             .args([
                 "run",
                 &paper("b-current"),
@@ -650,38 +666,12 @@ fn under_nohup_a_run_ignores_sighup() {
         assert!(Instant::now() < deadline, "the run never started writing");
         std::thread::sleep(Duration::from_millis(10));
     }
-    kill("-HUP", run.0.id());
-    std::thread::sleep(Duration::from_millis(500));
-    assert!(
-        run.0.try_wait().unwrap().is_none(),
-        "SIGHUP stopped a run started under nohup"
-    );
-    kill("-INT", run.0.id());
-    assert_eq!(run.0.wait().unwrap().code(), Some(130));
+    run
 }
 
 fn interrupt_an_in_process_run(signal: &str) {
     let out = scratch(&format!("in-process{signal}"));
-    let mut run = Reaper(
-        std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args([
-                "run",
-                &paper("b-current"),
-                "--in-process",
-                "--out",
-                out.to_str().unwrap(),
-            ])
-            // Long enough to be interrupted: 277 000 ticks.
-            .args(["--set", "mission.control_period=0.0002"])
-            .stdout(std::process::Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while std::fs::metadata(out.join("telemetry.csv")).map_or(0, |m| m.len()) < 100_000 {
-        assert!(Instant::now() < deadline, "the run never started writing");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    let mut run = a_long_in_process_run(&mut std::process::Command::new(env!("CARGO_BIN_EXE_tcpf")), &out);
     kill(signal, run.0.id());
     let status = run.0.wait().unwrap();
     assert_eq!(status.code(), Some(130), "{signal}");
