@@ -3,7 +3,11 @@
 //! run directory written, rather than by the default action, which writes nothing; unless the
 //! process was started ignoring it (`nohup`, a vehicle's agent that outlives its ssh login).
 
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
 use anyhow::{Context, Result};
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use tokio::signal::unix::{signal, Signal, SignalKind};
 
 /// A signal came before the role could start its work (its session still opening, say): it
@@ -26,7 +30,7 @@ pub struct Shutdown {
 }
 
 /// Whether this process was started with SIGHUP ignored (by `nohup`): a handler would undo that.
-pub fn hangup_ignored() -> bool {
+fn hangup_ignored() -> bool {
     // SAFETY: sigaction(2) with no new action only reads the current one into `current`.
     unsafe {
         let mut current: libc::sigaction = std::mem::zeroed();
@@ -63,4 +67,15 @@ impl Shutdown {
             Some(_) = async { self.hangup.as_mut()?.recv().await }, if self.hangup.is_some() => {}
         }
     }
+}
+
+/// The same signals as a flag, for a loop with no runtime to wait in (an in-process run, a
+/// sweep): raised when one arrives; the loop stops at its next look.
+pub fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let hangup = (!hangup_ignored()).then_some(SIGHUP);
+    for signal in [SIGINT, SIGTERM].into_iter().chain(hangup) {
+        signal_hook::flag::register(signal, flag.clone()).context("cannot handle SIGINT, SIGTERM and SIGHUP")?;
+    }
+    Ok(flag)
 }

@@ -1,12 +1,10 @@
 //! `tcpf run --in-process`: the reference run, every machine in one loop.
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
-use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+use anyhow::Result;
 use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
@@ -16,14 +14,10 @@ use tcpf_report::rundir::RunDir;
 use tcpf_report::summary::{Clock, Mode, Summary};
 
 /// Runs the mission in one loop and writes the run directory. SIGINT, SIGTERM or SIGHUP (the
-/// terminal closing; not under `nohup`) stop it after the tick under way, with the summary and report of the ticks
-/// run.
+/// terminal closing; not under `nohup`) stop it after the tick under way, with the summary and
+/// report of the ticks run.
 pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr>) -> Result<Summary> {
-    let interrupted = Arc::new(AtomicBool::new(false));
-    let hangup = (!tcpf_bus::signals::hangup_ignored()).then_some(SIGHUP);
-    for signal in [SIGINT, SIGTERM].into_iter().chain(hangup) {
-        signal_hook::flag::register(signal, interrupted.clone()).context("cannot handle SIGINT, SIGTERM and SIGHUP")?;
-    }
+    let interrupted = tcpf_bus::signals::stop_flag()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
     let mut telemetry = dir.telemetry(plan, live)?;

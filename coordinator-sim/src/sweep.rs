@@ -4,12 +4,11 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{mpsc, Arc};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc;
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
@@ -61,22 +60,12 @@ fn progress(total: u64) -> ProgressBar {
     bar
 }
 
-/// A flag that SIGINT, SIGTERM and SIGHUP (the terminal closing; not under `nohup`) raise: the sweep then starts no
-/// new run.
-fn interrupt_flag() -> Result<Arc<AtomicBool>> {
-    let flag = Arc::new(AtomicBool::new(false));
-    let hangup = (!tcpf_bus::signals::hangup_ignored()).then_some(SIGHUP);
-    for signal in [SIGINT, SIGTERM].into_iter().chain(hangup) {
-        signal_hook::flag::register(signal, flag.clone()).context("cannot handle SIGINT, SIGTERM and SIGHUP")?;
-    }
-    Ok(flag)
-}
-
 /// Every run in-process, spread over `threads` threads, each row pushed into `sweep` in grid
 /// order. Returns whether a signal cut the sweep short (the rows finished are kept).
 pub fn run_in_process(grid: &Grid, plans: &[Plan], threads: usize, sweep: &mut Sweep) -> Result<bool> {
     let runs = grid.runs()?;
-    let stop = interrupt_flag()?;
+    // A signal (Ctrl-C, SIGTERM, SIGHUP but under nohup): the sweep starts no new run.
+    let stop = tcpf_bus::signals::stop_flag()?;
     let next = AtomicU64::new(0);
     let bar = progress(runs);
     let (tx, rx) = mpsc::sync_channel::<(u64, Row)>(threads.max(1) * 4);
