@@ -38,7 +38,7 @@ pub struct Claimed {
 /// Makes the directory `path`, with its missing parents, and in it the file `first`, which is
 /// made only if it is not there: of two runs given the same directory at once, one makes it and
 /// the other is refused (`AlreadyExists`), rather than both writing their files into one.
-pub fn claim(path: &Path, first: &str) -> Result<Claimed> {
+fn claim(path: &Path, first: &str) -> Result<Claimed> {
     // Through its components, which drop a trailing `.`: create_dir_all refuses `new/.`.
     let path: PathBuf = path.components().collect();
     let mut made: Vec<PathBuf> = path
@@ -72,7 +72,7 @@ impl std::fmt::Display for Taken {
 
 /// `claim` of `<root>/<name>`, or of `<name>-2`, `-3`, … if another has it: runs started in the
 /// same second, one after the other or at once, each have a directory of their own.
-pub fn claim_unused(root: &Path, name: &str, first: &str) -> Result<Claimed> {
+fn claim_unused(root: &Path, name: &str, first: &str) -> Result<Claimed> {
     let base = root.join(name);
     let mut n = 1;
     loop {
@@ -91,6 +91,14 @@ pub fn claim_unused(root: &Path, name: &str, first: &str) -> Result<Claimed> {
     }
 }
 
+/// `out` claimed, or without one a fresh `runs/<name>` (`-2`, … if taken).
+pub fn claim_out(out: Option<&Path>, name: &str, first: &str) -> Result<Claimed> {
+    match out {
+        Some(out) => claim(out, first),
+        None => claim_unused(Path::new("runs"), name, first),
+    }
+}
+
 fn is_taken(e: &anyhow::Error) -> bool {
     e.downcast_ref::<Taken>().is_some()
 }
@@ -98,14 +106,8 @@ fn is_taken(e: &anyhow::Error) -> bool {
 impl RunDir {
     /// `out`, or a fresh `runs/<mission>-<timestamp>/`, claimed by its `mission.toml`.
     pub fn create(out: Option<&Path>, mission: &Mission) -> Result<RunDir> {
-        let Claimed { path, made, .. } = match out {
-            Some(p) => claim(p, "mission.toml")?,
-            None => claim_unused(
-                Path::new("runs"),
-                &format!("{}-{}", mission.mission.name, stamp()),
-                "mission.toml",
-            )?,
-        };
+        let name = format!("{}-{}", mission.mission.name, stamp());
+        let Claimed { path, made, .. } = claim_out(out, &name, "mission.toml")?;
         Ok(RunDir { path, made })
     }
 
@@ -122,8 +124,7 @@ impl RunDir {
     }
 
     fn write(&self, name: &str, contents: &str) -> Result<()> {
-        let file = self.path.join(name);
-        fs::write(&file, contents).with_context(|| format!("cannot write {}", file.display()))
+        fs::write(self.path.join(name), contents).with_context(|| cannot_write(&self.path, name))
     }
 
     pub fn write_mission(&self, mission: &Mission) -> Result<()> {
@@ -143,9 +144,8 @@ impl RunDir {
     pub fn telemetry(&self, plan: &Plan, live: Option<SocketAddr>) -> Result<Telemetry> {
         let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
         let create = |name: &str, header: &str| -> Result<BufWriter<File>> {
-            let file = self.path.join(name);
-            let cannot = || format!("cannot write {}", file.display());
-            let mut out = BufWriter::new(File::create(&file).with_context(cannot)?);
+            let cannot = || cannot_write(&self.path, name);
+            let mut out = BufWriter::new(File::create(self.path.join(name)).with_context(cannot)?);
             out.write_all(header.as_bytes()).with_context(cannot)?;
             Ok(out)
         };

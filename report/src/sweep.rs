@@ -151,17 +151,11 @@ pub struct Sweep {
 
 impl Sweep {
     /// Creates `out`, or a fresh `runs/<mission>-sweep-<timestamp>/`, and sweep.csv with its
-    /// header, which claims the directory (`rundir::claim`); `values` in the order they are
+    /// header, which claims the directory (`rundir::claim_out`); `values` in the order they are
     /// swept. Returns the directory too.
     pub fn create(out: Option<&Path>, mission: &Mission, column: &str, values: &[String]) -> Result<(PathBuf, Sweep)> {
-        let claimed = match out {
-            Some(out) => crate::rundir::claim(out, "sweep.csv")?,
-            None => crate::rundir::claim_unused(
-                Path::new("runs"),
-                &format!("{}-sweep-{}", mission.mission.name, crate::rundir::stamp()),
-                "sweep.csv",
-            )?,
-        };
+        let name = format!("{}-sweep-{}", mission.mission.name, crate::rundir::stamp());
+        let claimed = crate::rundir::claim_out(out, &name, "sweep.csv")?;
         let mut csv = std::io::BufWriter::new(claimed.file);
         writeln!(
             csv,
