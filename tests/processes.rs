@@ -1,6 +1,7 @@
 //! `tcpf run` as a fleet of processes over Zenoh, spawned as a user would. Every test kills what
 //! it started, whatever happens, and checks that no process is left behind.
 
+use std::collections::HashSet;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -463,6 +464,64 @@ fn the_binary_is_position_dependent_so_a_fleet_shares_its_pages() {
         _ => u16::from_be_bytes(e_type),
     };
     assert_eq!(e_type, 2, "e_type");
+}
+
+/// The functions an agent runs lie side by side (build.rs, link-order.txt), so that an agent
+/// maps about 3 MiB of the binary's code rather than 11: its functions are found in the binary,
+/// and they fill the span they take.
+#[test]
+#[cfg(all(target_os = "linux", target_env = "gnu", target_arch = "x86_64"))]
+fn an_agents_functions_are_linked_side_by_side() {
+    let list = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/link-order.txt")).unwrap();
+    let made_by = list
+        .lines()
+        .find_map(|l| l.strip_prefix("# ").filter(|l| l.starts_with("rustc ")))
+        .expect("link-order.txt names the rustc it was made for");
+    let binary = std::fs::read(env!("CARGO_BIN_EXE_tcpf")).unwrap();
+    let mark = b"rustc version ";
+    let at = binary
+        .windows(mark.len())
+        .position(|w| w == mark)
+        .expect("the binary names its rustc");
+    let len = binary[at..].iter().position(|&b| b == 0).unwrap();
+    let built_by = String::from_utf8_lossy(&binary[at..at + len]).replacen("rustc version ", "rustc ", 1);
+    if built_by != made_by {
+        // build.rs said so as it built: the list is for another compiler's names.
+        eprintln!("link-order.txt is for {made_by}, the binary is built by {built_by}: not checked");
+        return;
+    }
+    let wanted: HashSet<&str> = list.lines().filter(|l| !l.starts_with('#')).collect();
+    let nm = Command::new("nm")
+        .args(["--defined-only", "-S", env!("CARGO_BIN_EXE_tcpf")])
+        .output()
+        .expect("binutils' nm lists the binary's symbols");
+    let symbols = String::from_utf8(nm.stdout).unwrap();
+    let (mut found, mut start, mut end, mut code) = (HashSet::new(), u64::MAX, 0, 0);
+    for line in symbols.lines() {
+        let fields: Vec<&str> = line.split(' ').collect();
+        if let [address, size, _, name] = fields[..] {
+            if wanted.contains(name) {
+                let (address, size) = (
+                    u64::from_str_radix(address, 16).unwrap(),
+                    u64::from_str_radix(size, 16).unwrap(),
+                );
+                found.insert(name);
+                (start, end, code) = (start.min(address), end.max(address + size), code + size);
+            }
+        }
+    }
+    assert!(
+        found.len() * 100 >= wanted.len() * 95,
+        "only {} of the {} functions of link-order.txt are in the binary: a change of Cargo.lock, of \
+         features or of what an agent runs? scripts/link-order makes the list anew",
+        found.len(),
+        wanted.len()
+    );
+    let span = end - start;
+    assert!(
+        span * 100 <= code * 105,
+        "the agent's {code} bytes of code span {span}: the linker did not take link-order.txt"
+    );
 }
 
 #[test]
