@@ -982,3 +982,50 @@ fn a_report_of_a_damaged_run_directory_says_what_is_wrong() {
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("a run stopped before it wrote one"), "{}", text(&o));
 }
+
+/// A router given no endpoint listens on a port of its choosing, and says which: a client can
+/// connect where the log says.
+#[test]
+fn a_bare_router_names_the_port_it_got() {
+    use std::io::{BufRead, BufReader};
+    let mut router = Reaper(
+        std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .arg("router")
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let stderr = router.0.stderr.take().unwrap();
+    let (lines, said) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = lines.send(line);
+        }
+    });
+    let line = loop {
+        let line = said
+            .recv_timeout(Duration::from_secs(30))
+            .expect("the router says where it listens within 30 s");
+        if line.contains("listening on") {
+            break line;
+        }
+    };
+    let port: u16 = line
+        .rsplit("tcp/127.0.0.1:")
+        .next()
+        .and_then(|p| p.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no loopback port in: {line}"));
+    assert_ne!(port, 0, "{line}");
+    std::net::TcpStream::connect(("127.0.0.1", port)).unwrap_or_else(|e| panic!("{line}: {e}"));
+    kill("-TERM", router.0.id());
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let status = loop {
+        if let Some(status) = router.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "the router ignored SIGTERM");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(status.code(), Some(0));
+}

@@ -12,14 +12,13 @@ pub async fn run(zenoh: &ZenohArgs) -> Result<()> {
         mode: zenoh.mode.clone().or_else(|| Some("router".into())),
         ..zenoh.clone()
     };
-    let config = zenoh.config()?;
-    let listening = config
-        .get_json("listen/endpoints")
-        .map_err(|e| anyhow!("zenoh listen/endpoints: {e}"))?;
-    let session = zenoh::open(config)
+    let session = zenoh::open(zenoh.config()?)
         .await
         .map_err(|e| anyhow!("cannot open the Zenoh router: {}", tcpf_bus::session::zenoh_words(e)))?;
-    tracing::info!("router {} listening on {listening}", session.zid());
+    // The locators it got, not the endpoints it was given: a port 0 becomes the one bound, an
+    // unspecified address the host's.
+    let listening: Vec<String> = session.info().locators().await.iter().map(|l| l.to_string()).collect();
+    tracing::info!("router {} listening on {}", session.zid(), listening.join(", "));
     shutdown.recv().await;
     tracing::info!("router: stopping");
     session.close().await.map_err(|e| anyhow!("closing the router: {e}"))
