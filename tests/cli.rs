@@ -955,7 +955,8 @@ fn a_report_of_a_cut_telemetry_says_so() {
     assert!(text(&o).contains("the file was cut short"), "{}", text(&o));
 }
 
-/// `tcpf report` of a run directory missing its messages, with a summary cut short, or with none.
+/// `tcpf report` of a run directory missing its messages, with a summary cut short, another JSON
+/// document in its place, or none.
 #[test]
 fn a_report_of_a_damaged_run_directory_says_what_is_wrong() {
     let out = a_run_to_report("report-damaged");
@@ -974,6 +975,17 @@ fn a_report_of_a_damaged_run_directory_says_what_is_wrong() {
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(
         text(&o).contains(&format!("{}: not the JSON a run writes", summary.display())),
+        "{}",
+        text(&o)
+    );
+    std::fs::write(&summary, "{}").unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains(&format!(
+            "{}: not the summary a run writes: `mission` is not a string",
+            summary.display()
+        )),
         "{}",
         text(&o)
     );

@@ -127,6 +127,9 @@ fn number(v: &Value, digits: usize) -> String {
     v.as_f64().map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
 }
 
+/// Whether a JSON value is of the kind a field needs.
+type Is = fn(&Value) -> bool;
+
 /// Writes `report.html` into `dir` from its mission.toml, summary.json and telemetry.csv.
 pub fn write(dir: &Path) -> Result<()> {
     let read = |name: &str| {
@@ -134,8 +137,22 @@ pub fn write(dir: &Path) -> Result<()> {
     };
     let mission_file = dir.join("mission.toml").display().to_string();
     let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| anyhow!("{e}"))?;
+    let summary_file = dir.join("summary.json").display().to_string();
     let summary: Value = serde_json::from_str(&read("summary.json")?)
-        .with_context(|| format!("{}: not the JSON a run writes", dir.join("summary.json").display()))?;
+        .with_context(|| format!("{summary_file}: not the JSON a run writes"))?;
+    // What the page is made of: JSON without it is another file than a run's summary.
+    let fields: [(&str, Is, &str); 5] = [
+        ("mission", Value::is_string, "a string"),
+        ("clock", Value::is_string, "a string"),
+        ("t_f", Value::is_number, "a number"),
+        ("ticks", Value::is_u64, "a count"),
+        ("vehicles", Value::is_array, "a list"),
+    ];
+    if let Some((key, _, what)) = fields.iter().find(|(key, is, _)| !is(&summary[key])) {
+        return Err(anyhow!(
+            "{summary_file}: not the summary a run writes: `{key}` is not {what}"
+        ));
+    }
     let tracks = read_telemetry(&dir.join("telemetry.csv"))?;
     // A lockstep recording has a row per vehicle and tick (a realtime one, a row per period the
     // recorder sampled): fewer, and the file was cut short.
