@@ -11,9 +11,12 @@
 //! An agent runs about 3 MiB of the binary's 17 MiB of code, scattered over all of it, and
 //! Linux maps a process's code by the 64 KiB around each page it touches: an agent held 11 MiB
 //! of it. `link-order.txt` lists those functions (`scripts/link-order` makes it) and the linker
-//! puts them first, in one piece. The list holds mangled names, which change with the compiler
-//! and the dependencies: a stale list costs memory, never correctness, and this script says so.
-use std::path::Path;
+//! puts them first, in one piece. The list holds mangled names, which change with the compiler,
+//! the dependencies, their features and the profile: a stale list costs memory, never
+//! correctness. The list is passed only to a linker that takes it, for the compiler it was made
+//! for, in a release build; otherwise this script says why not, and so does
+//! `TCPF_LINK_ORDER`, which the tests read.
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn main() {
@@ -21,6 +24,7 @@ fn main() {
     println!("cargo:rerun-if-changed=link-order.txt");
     let var = |name: &str| std::env::var(name).unwrap_or_default();
     if var("CARGO_CFG_TARGET_OS") != "linux" || var("CARGO_CFG_TARGET_ENV") != "gnu" {
+        println!("cargo:rustc-env=TCPF_LINK_ORDER=skipped: not Linux with glibc");
         return;
     }
     // A static binary (crt-static) is linked as static-pie, which -no-pie would contradict.
@@ -28,51 +32,104 @@ fn main() {
     if !static_crt {
         println!("cargo:rustc-link-arg-bins=-no-pie");
     }
+    let order = match link_order(&var) {
+        Ok(args) => {
+            for arg in args {
+                println!("cargo:rustc-link-arg-bins={arg}");
+            }
+            "applied".to_string()
+        }
+        Err(Skip { why, warn }) => {
+            if warn {
+                println!("cargo:warning=link-order.txt not used: {why}; every agent process will hold about 7 MiB more of the binary");
+            }
+            format!("skipped: {why}")
+        }
+    };
+    println!("cargo:rustc-env=TCPF_LINK_ORDER={order}");
+}
+
+struct Skip {
+    why: String,
+    /// Whether a user should hear of it: not for a debug build, where memory is not the point.
+    warn: bool,
+}
+
+fn skip(why: impl Into<String>) -> Skip {
+    Skip {
+        why: why.into(),
+        warn: true,
+    }
+}
+
+/// The linker arguments that order the binary by link-order.txt, or why there are none.
+fn link_order(var: &dyn Fn(&str) -> String) -> Result<Vec<String>, Skip> {
+    if var("PROFILE") != "release" {
+        return Err(Skip {
+            why: "the list names a release build's functions".into(),
+            warn: false,
+        });
+    }
+    let list = Path::new(env!("CARGO_MANIFEST_DIR")).join("link-order.txt");
+    let text = std::fs::read_to_string(&list).map_err(|e| skip(format!("{}: {e}", list.display())))?;
     let rustc = Command::new(var("RUSTC"))
         .arg("-V")
         .output()
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
         .unwrap_or_default();
-    if var("CARGO_CFG_TARGET_ARCH") == "x86_64" && links_with_lld(&rustc, &var) {
-        link_in_order(&rustc);
-    }
-}
-
-/// Whether the linker is rustc's own lld, the default on x86_64 Linux since Rust 1.90: the only
-/// linker here known to take a symbol ordering file.
-fn links_with_lld(rustc: &str, var: &dyn Fn(&str) -> String) -> bool {
-    let minor = rustc.split([' ', '.']).nth(2).and_then(|m| m.parse::<u32>().ok());
-    let flags = var("CARGO_ENCODED_RUSTFLAGS");
-    let chosen = ["linker", "link-self-contained", "fuse-ld"]
-        .iter()
-        .any(|f| flags.contains(f));
-    minor.is_some_and(|m| m >= 90) && var("RUSTC_LINKER").is_empty() && !chosen
-}
-
-fn link_in_order(rustc: &str) {
-    let list = Path::new(env!("CARGO_MANIFEST_DIR")).join("link-order.txt");
-    let Ok(text) = std::fs::read_to_string(&list) else {
-        println!(
-            "cargo:warning=no {}: an agent's functions are linked apart",
-            list.display()
-        );
-        return;
-    };
     let made_by = text
         .lines()
         .find_map(|l| l.strip_prefix("# ").filter(|l| l.starts_with("rustc ")));
-    if made_by != Some(rustc) {
-        println!(
-            "cargo:warning=link-order.txt names the functions of a build by {}, this is {rustc}: \
-             most will not be found, and every agent process will hold about 7 MiB more of the \
-             binary; scripts/link-order makes the list anew",
+    if made_by != Some(rustc.as_str()) {
+        return Err(skip(format!(
+            "it names the functions of a build by {}, this is {rustc} (scripts/link-order makes it anew)",
             made_by.unwrap_or("an unnamed rustc")
-        );
+        )));
     }
-    println!(
-        "cargo:rustc-link-arg-bins=-Wl,--symbol-ordering-file={}",
-        list.display()
-    );
-    // Names the build does not have (another target's, a rarer path's) are expected.
-    println!("cargo:rustc-link-arg-bins=-Wl,--no-warn-symbol-ordering");
+    // -Xlinker keeps the path whole (-Wl, would split it at a comma). Names the build does not
+    // have (a rarer path's, another target's) are expected.
+    let args: Vec<String> = [
+        format!("--symbol-ordering-file={}", list.display()),
+        "--no-warn-symbol-ordering".into(),
+    ]
+    .into_iter()
+    .flat_map(|a| ["-Xlinker".to_string(), a])
+    .collect();
+    takes(&args, var)?;
+    Ok(args)
+}
+
+/// Whether the linker this build uses takes `args`: rustc's own lld does, GNU ld and gold do
+/// not, and which one links is up to the toolchain (a distribution's rustc may not use lld) and
+/// to the user's flags. So link an empty program with them and see.
+fn takes(args: &[String], var: &dyn Fn(&str) -> String) -> Result<(), Skip> {
+    let out = PathBuf::from(var("OUT_DIR"));
+    let source = out.join("probe.rs");
+    std::fs::write(&source, "fn main() {}\n").map_err(|e| skip(format!("{}: {e}", source.display())))?;
+    let mut rustc = Command::new(var("RUSTC"));
+    rustc
+        .args(["--edition", "2021", "--crate-type", "bin", "--target", &var("TARGET")])
+        .arg("-o")
+        .arg(out.join("probe"))
+        .arg(&source);
+    let flags = var("CARGO_ENCODED_RUSTFLAGS");
+    rustc.args(flags.split('\x1f').filter(|f| !f.is_empty()));
+    if !var("RUSTC_LINKER").is_empty() {
+        rustc.arg(format!("-Clinker={}", var("RUSTC_LINKER")));
+    }
+    for arg in args {
+        rustc.arg(format!("-Clink-arg={arg}"));
+    }
+    match rustc.output() {
+        Ok(o) if o.status.success() => Ok(()),
+        Ok(o) => {
+            let said = String::from_utf8_lossy(&o.stderr);
+            let line = said.lines().find(|l| l.contains("option")).unwrap_or("it failed");
+            Err(skip(format!(
+                "this build's linker does not take a symbol ordering file ({})",
+                line.trim()
+            )))
+        }
+        Err(e) => Err(skip(format!("cannot run {}: {e}", var("RUSTC")))),
+    }
 }
