@@ -311,22 +311,24 @@ impl Rejections {
         ]
     }
 
+    /// Saturating, as `add`: the counts come in reports over the bus, which a forged one could
+    /// make wrap.
     pub fn total(&self) -> u64 {
-        self.kinds().iter().map(|k| k.1).sum()
+        self.kinds().iter().fold(0, |total, k| total.saturating_add(k.1))
     }
 
     pub fn add(&mut self, other: &Rejections) {
-        self.undecodable += other.undecodable;
-        self.wrong_version += other.wrong_version;
-        self.non_finite += other.non_finite;
-        self.wrong_sender += other.wrong_sender;
-        self.not_a_neighbour += other.not_a_neighbour;
-        self.past += other.past;
-        self.future += other.future;
-        self.duplicate += other.duplicate;
-        self.conflict += other.conflict;
-        self.lost_vehicle += other.lost_vehicle;
-        self.overflow += other.overflow;
+        self.undecodable = self.undecodable.saturating_add(other.undecodable);
+        self.wrong_version = self.wrong_version.saturating_add(other.wrong_version);
+        self.non_finite = self.non_finite.saturating_add(other.non_finite);
+        self.wrong_sender = self.wrong_sender.saturating_add(other.wrong_sender);
+        self.not_a_neighbour = self.not_a_neighbour.saturating_add(other.not_a_neighbour);
+        self.past = self.past.saturating_add(other.past);
+        self.future = self.future.saturating_add(other.future);
+        self.duplicate = self.duplicate.saturating_add(other.duplicate);
+        self.conflict = self.conflict.saturating_add(other.conflict);
+        self.lost_vehicle = self.lost_vehicle.saturating_add(other.lost_vehicle);
+        self.overflow = self.overflow.saturating_add(other.overflow);
     }
 }
 
@@ -425,5 +427,26 @@ impl Checked for Report {
         self.timing
             .as_ref()
             .is_none_or(|t| all_finite([t.lateness_p50_ms, t.lateness_p99_ms, t.lateness_max_ms]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusal_counts_from_a_forged_report_saturate_rather_than_wrap() {
+        let forged = Rejections {
+            future: u64::MAX,
+            past: 9,
+            ..Rejections::default()
+        };
+        assert_eq!(forged.total(), u64::MAX);
+        let mut sum = Rejections {
+            future: 3,
+            ..Rejections::default()
+        };
+        sum.add(&forged);
+        assert_eq!((sum.future, sum.past, sum.total()), (u64::MAX, 9, u64::MAX));
     }
 }
