@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 mod common;
 use common::{
     alive, assert_none_left, assert_same_run, config, descendants, exited, kill, lanes, listening, paper, processes,
-    run_in_process, scratch, Launch,
+    run_in_process, scratch, summary, Launch, Reaper,
 };
 
 #[test]
@@ -691,6 +691,59 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     }
     run_in_process(&mission, &dir.join("i"), &[]);
     assert_same_run(&out, &dir.join("i"));
+}
+
+/// A new agent of a vehicle the world has lost (no `--rejoin-timeout`) is told so and stops:
+/// its neighbours never wait for it again, and arrive.
+#[test]
+fn a_new_agent_of_a_lost_vehicle_is_told_and_the_others_arrive() {
+    let dir = scratch("lost-again");
+    let mission = config("long3");
+    let (mut fleet, endpoint) = by_hand(&mission, &["1", "2", "3"], &[], &dir);
+    let out = dir.join("r");
+    let mut record = Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let world_log = dir.join("world.log");
+    let logged = |what: &str| std::fs::read_to_string(&world_log).unwrap_or_default().contains(what);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !logged("starting") {
+        assert!(Instant::now() < deadline, "the world never started");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let _ = fleet.0[3].kill();
+    while !logged("agent 2 is gone at t = ") {
+        assert!(Instant::now() < deadline, "the world never saw agent 2 go");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut again = Reaper(role(&["agent", &mission, "--id", "2", "-e", &endpoint], Stdio::piped()));
+    let (code, stderr) = exited(
+        &mut again.0,
+        Duration::from_secs(30),
+        "the new agent of a lost vehicle ran on",
+    );
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("the world gave up on this vehicle"), "{stderr}");
+    assert!(logged("but the vehicle was lost at tick"));
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while record.0.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < deadline, "the run did not end");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let s = summary(&out);
+    assert_eq!(s["vehicles"][1]["lost"], true);
+    for n in [0, 2] {
+        assert!(
+            s["vehicles"][n]["arrival_time"].as_f64().is_some(),
+            "vehicle {} arrives: {s}",
+            n + 1
+        );
+    }
 }
 
 /// A world that gives up at startup (a vehicle's agent never came) takes the agents that did

@@ -17,7 +17,7 @@ use tcpf_bus::typed::{
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, State};
+use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
 use tcpf_core::realtime::RealtimeAgent;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
@@ -506,18 +506,23 @@ impl Shell {
                     Err(why) => self.rejected.reject(why, &e.key),
                 },
                 Some(l) = self.losses.recv() => {
-                    if Keys::id_of(&l.key) != Some(l.message.id) {
+                    let loss = l.message;
+                    let lost = Lost { id: loss.id, tick: loss.tick, reason: loss.reason };
+                    if Keys::id_of(&l.key) != Some(loss.id) {
                         self.rejected.wrong_sender(&l.key);
-                    } else if l.message.id == id {
-                        tracing::warn!(
-                            "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
-                            l.message.tick,
-                            l.message.reason
-                        );
-                        break Exit::Lost;
-                    } else if self.neighbours.contains(&l.message.id) {
-                        // Nobody waits for a lost vehicle's agent: neither the world nor its neighbours.
-                        feed.with(|node| node.set_gone(l.message.id, true));
+                    } else {
+                        match feed.with(|node| node.on_lost(&lost)) {
+                            Ok(true) => {
+                                tracing::warn!(
+                                    "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
+                                    loss.tick,
+                                    loss.reason
+                                );
+                                break Exit::Lost;
+                            }
+                            Ok(false) => {}
+                            Err(why) => self.rejected.reject(why, &l.key),
+                        }
                     }
                 }
                 _ = self.shutdown.recv() => break Exit::Interrupted,

@@ -409,8 +409,13 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                     }
                 }
                 if restart && recording.end.is_none() {
+                    let lost = recording.lost();
                     for c in children.iter_mut() {
                         if c.role != Role::Agent || c.poll().is_none_or(|code| code == Some(0)) {
+                            continue;
+                        }
+                        // A new agent of a lost vehicle is told so by the world, and stops.
+                        if lost.contains(&c.id) {
                             continue;
                         }
                         let how = c.exit_code.flatten().map_or("killed by a signal".into(), |code| format!("exit code {code}"));

@@ -302,7 +302,7 @@ impl Recording {
     }
 
     /// The vehicles lost so far: the world's end says, or before it, its losses.
-    fn lost(&self) -> Vec<u32> {
+    pub fn lost(&self) -> Vec<u32> {
         match (&self.end, &self.machine) {
             (Some(end), _) => end.lost.iter().map(|l| l.id).collect(),
             (None, Machine::Lockstep(recorder)) => recorder.losses().iter().map(|l| l.id).collect(),

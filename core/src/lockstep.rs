@@ -138,6 +138,11 @@ impl WorldNode {
         Some(lost)
     }
 
+    /// How vehicle `id` was lost, if it was: told again to a new agent of it, which came after.
+    pub fn loss_of(&self, id: u32) -> Option<Lost> {
+        self.lost.iter().find(|l| l.id == id).copied()
+    }
+
     /// Live vehicles whose command of this tick has not come yet.
     pub fn waiting_for(&self) -> Vec<u32> {
         self.awaited().collect()
@@ -223,6 +228,9 @@ pub struct AgentNode {
     inbox: Vec<Gamma>,
     /// Neighbours whose agent is gone (liveliness).
     gone: BTreeSet<u32>,
+    /// Neighbours whose vehicle the world gave up on: gone for good, whatever a new agent of
+    /// theirs does (the world refuses its commands, so its γ follows no vehicle).
+    lost: BTreeSet<u32>,
     /// Live neighbours not waited for since the stale timeout fired, until they speak again.
     stale: BTreeSet<u32>,
     /// Per neighbour, the latest tick of which a γ came: a copy of one already heard is not late.
@@ -240,6 +248,7 @@ impl AgentNode {
             state: None,
             inbox: Vec::new(),
             gone: BTreeSet::new(),
+            lost: BTreeSet::new(),
             stale: BTreeSet::new(),
             heard: Vec::new(),
             timing: Timing::default(),
@@ -283,6 +292,9 @@ impl AgentNode {
     pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {
         if !self.agent.neighbours().any(|j| j == gamma.from) {
             return Err(Reject::NotANeighbour);
+        }
+        if self.lost.contains(&gamma.from) {
+            return Err(Reject::LostVehicle);
         }
         if !gamma.finite() {
             return Err(Reject::NonFinite);
@@ -331,13 +343,33 @@ impl AgentNode {
         }
     }
 
-    /// Stop (or resume) waiting for neighbour `id`: its agent is gone (or back).
+    /// Stop (or resume) waiting for neighbour `id`: its agent is gone (or back). A lost
+    /// neighbour's is never waited for again.
     pub fn set_gone(&mut self, id: u32, gone: bool) {
         if gone {
             self.gone.insert(id);
-        } else {
+        } else if !self.lost.contains(&id) {
             self.gone.remove(&id);
         }
+    }
+
+    /// The world gave up on vehicle `lost.id` at `lost.tick`; returns whether it is this agent's
+    /// own, which then stops. A lost neighbour is never waited for again. The world loses a
+    /// vehicle at the tick it is at, which no agent is behind of (it waits for their commands):
+    /// a loss beyond this agent's tick is not the world's, unless this agent is rejoining and
+    /// does not know the tick yet.
+    pub fn on_lost(&mut self, lost: &Lost) -> Result<bool, Reject> {
+        if lost.tick > self.next_tick && !self.rejoining {
+            return Err(Reject::Future);
+        }
+        if lost.id == self.agent.id() {
+            return Ok(true);
+        }
+        if self.agent.neighbours().any(|j| j == lost.id) {
+            self.lost.insert(lost.id);
+            self.gone.insert(lost.id);
+        }
+        Ok(false)
     }
 
     /// Every neighbour is counted (none gone).
@@ -494,6 +526,33 @@ mod tests {
         assert_eq!(node.absent(), vec![1]);
         let command = node.command().expect("nobody to wait for");
         assert!(command.receptions.is_empty(), "nothing heard, nothing counted");
+    }
+
+    #[test]
+    fn a_lost_neighbour_is_never_waited_for_again_and_a_lost_vehicles_agent_stops() {
+        let (m, paths, t_f) = case_b();
+        let mut world = WorldNode::new(&m, &paths, t_f);
+        let mut node = AgentNode::new(Agent::new(&m, 2, paths[1].1));
+        let gamma = node.on_state(world.states()[1]).unwrap().expect("tick 0 is an instant");
+        let lost = world.on_lost(1, LossReason::Gone).expect("lost the first time");
+        assert_eq!(world.loss_of(1), Some(lost), "told again to a new agent of vehicle 1");
+        assert_eq!(world.loss_of(2), None);
+        assert_eq!(
+            node.on_lost(&Lost { tick: 1, ..lost }),
+            Err(Reject::Future),
+            "the world loses a vehicle at a tick no agent is behind of"
+        );
+        assert_eq!(node.on_lost(&lost), Ok(false), "a neighbour's vehicle");
+        assert!(node.waiting_for().is_empty());
+        // A new agent of vehicle 1 comes, and speaks: neither brings the vehicle back.
+        node.set_gone(1, false);
+        assert_eq!(node.on_gamma(Gamma { from: 1, ..gamma }), Err(Reject::LostVehicle));
+        assert!(node.waiting_for().is_empty() && node.command().is_some());
+
+        let mut own = AgentNode::new(Agent::new(&m, 1, paths[0].1));
+        own.rejoin();
+        let later = Lost { tick: 4000, ..lost };
+        assert_eq!(own.on_lost(&later), Ok(true), "rejoining, its tick is not known yet");
     }
 
     #[test]

@@ -143,6 +143,10 @@ impl Recorder {
         if self.ids.position(lost.id).is_none() {
             return Err(Reject::UnknownVehicle);
         }
+        // Kept, a loss far ahead would stand for the vehicle's real one, which is then ignored.
+        if lost.tick > self.next + WINDOW {
+            return Err(Reject::Future);
+        }
         if !self.losses.iter().any(|l| l.id == lost.id) {
             self.losses.push(lost);
         }
@@ -357,6 +361,16 @@ mod tests {
         let mut ticks = 0;
         recorder.drain(|_, _| ticks += 1);
         assert_eq!(ticks, lost_at, "stuck where vehicle 2's commands stop");
+        let forged = Lost {
+            id: 2,
+            tick: lost_at + WINDOW + 1,
+            reason: crate::msg::LossReason::Gone,
+        };
+        assert_eq!(
+            recorder.on_lost(forged),
+            Err(Reject::Future),
+            "kept, it would stand for the real loss below"
+        );
         recorder
             .on_end(End {
                 version: PROTOCOL_VERSION,

@@ -18,7 +18,7 @@ use tcpf_bus::typed::{
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, PROTOCOL_VERSION};
+use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
@@ -179,17 +179,22 @@ impl Stepper {
     /// Vehicle `id` is lost: says so, then the tick goes on without it.
     fn lose(&self, stepped: &mut Stepped, id: u32, reason: LossReason) {
         if let Some(lost) = stepped.node.on_lost(id, reason) {
-            let loss = Loss {
-                version: PROTOCOL_VERSION,
-                id: lost.id,
-                tick: lost.tick,
-                reason: lost.reason,
-            };
-            if let Err(e) = say_now(&self.session, self.keys.lost(lost.id), &loss) {
-                let _ = self.ends.send(Err(e));
-            }
+            self.announce(lost);
         }
         self.step(stepped);
+    }
+
+    /// Tells the agents and the recorders that a vehicle is lost.
+    fn announce(&self, lost: Lost) {
+        let loss = Loss {
+            version: PROTOCOL_VERSION,
+            id: lost.id,
+            tick: lost.tick,
+            reason: lost.reason,
+        };
+        if let Err(e) = say_now(&self.session, self.keys.lost(lost.id), &loss) {
+            let _ = self.ends.send(Err(e));
+        }
     }
 }
 
@@ -413,16 +418,27 @@ impl Shell {
                     let Some(n) = ids.iter().position(|&i| i == p.id) else { continue };
                     let mut stepped = stepper.lock();
                     let t = stepped.node.states()[0].t;
-                    match (p.alive, options.rejoin_timeout) {
-                        (false, Some(wait)) => {
+                    match (p.alive, options.rejoin_timeout, stepped.node.loss_of(p.id)) {
+                        (false, _, Some(_)) => {}
+                        (false, Some(wait), None) => {
                             tracing::warn!("world: agent {} is gone at t = {t:.2} s; waiting {wait:?} for it to come back", p.id);
                             restarting.push((p.id, tokio::time::Instant::now() + wait));
                         }
-                        (false, None) => {
+                        (false, None, None) => {
                             tracing::warn!("world: agent {} is gone at t = {t:.2} s; its vehicle drifts", p.id);
                             stepper.lose(&mut stepped, p.id, LossReason::Gone);
                         }
-                        (true, _) if restarting.iter().any(|r| r.0 == p.id) => {
+                        // A new agent of a lost vehicle: the world refuses its commands, and
+                        // its neighbours would wait for it again. It is told, and stops.
+                        (true, _, Some(lost)) => {
+                            tracing::warn!(
+                                "world: an agent of vehicle {} is here at t = {t:.2} s, but the vehicle was lost at tick {}: telling it again",
+                                p.id,
+                                lost.tick
+                            );
+                            stepper.announce(lost);
+                        }
+                        (true, _, None) if restarting.iter().any(|r| r.0 == p.id) => {
                             tracing::info!("world: agent {} is back at t = {t:.2} s", p.id);
                             restarting.retain(|r| r.0 != p.id);
                             // It subscribed before its token: the state it missed, again.
@@ -430,7 +446,7 @@ impl Shell {
                                 self.outlets[n].put_now(&stepped.node.states()[n])?;
                             }
                         }
-                        (true, _) => {}
+                        (true, _, None) => {}
                     }
                 }
                 _ = tokio::time::sleep_until(back_by.unwrap_or(deadline)), if back_by.is_some() => {
