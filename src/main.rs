@@ -713,9 +713,14 @@ fn agent(
 
 fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
-    if mission.mission.clock == mission::ClockKind::Lockstep {
-        launcher::launcher_runtime();
+    // Its figures are of lockstep ticks; a realtime fleet ticks with the wall clock.
+    if mission.mission.clock != mission::ClockKind::Lockstep {
+        return Err(Failure::Input(anyhow!(
+            "{}: tcpf bench measures a lockstep fleet, and mission.clock is realtime (a realtime run takes the mission's own time)",
+            args.file.display()
+        )));
     }
+    launcher::launcher_runtime();
     let seconds = |d: Duration| d.as_secs_f64();
     let started = Instant::now();
     let plan = solve(&mission, &args.file)?;
@@ -852,9 +857,23 @@ fn sweep(
     if values.iter().any(|v| v.is_empty()) {
         return Err(Failure::Input(anyhow!("{key}: an empty value in {}", values.join(","))));
     }
-    if key == "mission.seed" {
+    let sets_seed = args
+        .set
+        .iter()
+        .any(|s| s.split_once('=').is_some_and(|(k, _)| k.trim() == "mission.seed"));
+    if key == "mission.seed" || sets_seed {
         return Err(Failure::Input(anyhow!(
-            "mission.seed: the sweep gives each run its seed (--seeds N: 1 to N); sweep another key"
+            "mission.seed: the sweep gives each run its seed (--seeds N: 1 to N); sweep or set another key"
+        )));
+    }
+    // Runs are counted, and written in sweep.json, as integers JSON keeps exact.
+    if (values.len() as u64)
+        .checked_mul(seeds)
+        .is_none_or(|runs| runs > 1 << 53)
+    {
+        return Err(Failure::Input(anyhow!(
+            "--seeds {seeds}: {} values × {seeds} seeds are more runs than a sweep counts (2^53)",
+            values.len()
         )));
     }
     if let Some(set) = args

@@ -448,6 +448,27 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "swept twice",
         ),
         (
+            vec![
+                "sweep",
+                &mission,
+                "--loss",
+                "0",
+                "--seeds",
+                "1",
+                "--set",
+                "mission.seed=9",
+            ],
+            "the sweep gives each run its seed",
+        ),
+        (
+            vec!["sweep", &mission, "--loss", "0,0.5", "--seeds", "9223372036854775807"],
+            "more runs than a sweep counts",
+        ),
+        (
+            vec!["bench", &mission, "--set", "mission.clock=realtime"],
+            "tcpf bench measures a lockstep fleet",
+        ),
+        (
             vec!["sweep", &mission, "--loss", "0,0.0", "--seeds", "1"],
             "the value 0.0 is swept twice (0 and 0.0)",
         ),
