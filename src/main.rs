@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
 use tcpf_bus::session::ZenohArgs;
+use tcpf_bus::signals::Shutdown;
 use tcpf_coordinator::{bench, inprocess, launcher, planner_node, planning, sweep};
 use tcpf_core::mission::{self, Mission};
 use tcpf_core::planner::Plan;
@@ -752,9 +753,22 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     let _ = std::fs::remove_dir_all(&scratch);
     let dir = RunDir::create(Some(&scratch), &mission).map_err(Failure::Failed)?;
     let rt = runtime()?;
+    // Stopped by a signal, it measured nothing: its children go (dropped, they are killed), and
+    // so does its scratch directory.
+    let mut shutdown = rt.block_on(async { Shutdown::new() }).map_err(Failure::Failed)?;
+    let interrupted = || {
+        let _ = std::fs::remove_dir_all(&scratch);
+        eprintln!("interrupted: no figures");
+        Ok(code(false, true))
+    };
     let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
-    let direct = rt.block_on(bench::ping(&exe, count, false)).map_err(Failure::Failed)?;
-    let routed = rt.block_on(bench::ping(&exe, count, true)).map_err(Failure::Failed)?;
+    let Some(direct) = rt.block_on(shutdown.unless(bench::ping(&exe, count, false))) else {
+        return interrupted();
+    };
+    let Some(routed) = rt.block_on(shutdown.unless(bench::ping(&exe, count, true))) else {
+        return interrupted();
+    };
+    let (direct, routed) = (direct.map_err(Failure::Failed)?, routed.map_err(Failure::Failed)?);
     let (summary, busiest) = rt
         .block_on(async {
             // The fleet's footprint, sampled while it runs: the largest seen.
@@ -778,9 +792,13 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
             summary.map(|s| (s, busiest.ok().and_then(Result::ok).unwrap_or_default()))
         })
         .map_err(Failure::Failed)?;
-    let idle = rt
-        .block_on(bench::idle_fleet(&exe, plan.vehicles.len()))
-        .map_err(Failure::Failed)?;
+    if summary.interrupted {
+        return interrupted();
+    }
+    let Some(idle) = rt.block_on(shutdown.unless(bench::idle_fleet(&exe, plan.vehicles.len()))) else {
+        return interrupted();
+    };
+    let idle = idle.map_err(Failure::Failed)?;
     let _ = std::fs::remove_dir_all(&dir.path);
     let tick = summary.tick_wall_time_us;
     sayln!(

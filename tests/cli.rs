@@ -1062,3 +1062,50 @@ fn a_bare_router_names_the_port_it_got() {
     };
     assert_eq!(status.code(), Some(0));
 }
+
+/// `tcpf bench` stopped by a signal measured nothing: it says so, exits 130, and leaves no child
+/// and no scratch directory, whether it was timing round trips or running the fleet.
+#[test]
+fn an_interrupted_bench_prints_no_figures_and_leaves_nothing() {
+    use std::io::Read;
+    let dir = scratch("bench-interrupted");
+    let mission = common::lanes(&dir, 3);
+    // Round trips counted in the millions never end; a few, and the fleet comes soon.
+    for (signal, child, count) in [("-TERM", "pong", "100000000"), ("-INT", "agent", "200")] {
+        let mut bench = Reaper(
+            std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+                .args(["bench", mission.to_str().unwrap(), "--count", count])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap(),
+        );
+        let pid = bench.0.id();
+        let role_of = |p: u32| {
+            std::fs::read(format!("/proc/{p}/cmdline")).ok().and_then(|c| {
+                c.split(|&b| b == 0)
+                    .nth(1)
+                    .map(|r| String::from_utf8_lossy(r).to_string())
+            })
+        };
+        let deadline = Instant::now() + Duration::from_secs(120);
+        let children = loop {
+            let children = common::descendants(pid);
+            if children.iter().any(|&p| role_of(p).as_deref() == Some(child)) {
+                break children;
+            }
+            assert!(Instant::now() < deadline, "no {child} under the bench");
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        kill(signal, pid);
+        let (code, stderr) = exited(&mut bench.0, Duration::from_secs(30), "the bench ignored the signal");
+        assert_eq!(code, Some(130), "{signal}: {stderr}");
+        assert!(stderr.contains("interrupted: no figures"), "{stderr}");
+        let mut stdout = String::new();
+        bench.0.stdout.take().unwrap().read_to_string(&mut stdout).unwrap();
+        assert!(!stdout.contains("lockstep tick"), "{signal}: {stdout}");
+        let left: Vec<u32> = children.into_iter().filter(|&p| common::alive(p)).collect();
+        assert!(left.is_empty(), "{signal}: children left: {left:?}");
+        assert!(!std::env::temp_dir().join(format!("tcpf-bench-{pid}")).exists());
+    }
+}

@@ -87,21 +87,21 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
     let (_sub, mut pongs) = subscribe::<Gamma>(&session, PONG, &rejected).await?;
     let (_alive, mut alive) = presence(&session, &Keys::new("bench")).await?;
     let out = Outlet::new(&session, PING.into()).await?;
-    let mut child = Command::new(exe)
-        .args([
-            "pong",
-            "--count",
-            &(count + 100).to_string(),
-            "-e",
-            &endpoint,
-            "--mode",
-            mode,
-        ])
-        .envs(crate::launcher::child_runtime(Role::Agent))
-        .stdout(Stdio::null())
-        .kill_on_drop(true)
-        .spawn()
-        .context("cannot start tcpf pong")?;
+    let mut pong = Command::new(exe);
+    pong.args([
+        "pong",
+        "--count",
+        &(count + 100).to_string(),
+        "-e",
+        &endpoint,
+        "--mode",
+        mode,
+    ])
+    .envs(crate::launcher::child_runtime(Role::Agent))
+    .stdout(Stdio::null())
+    .kill_on_drop(true);
+    crate::launcher::dies_with_this_process(&mut pong);
+    let mut child = pong.spawn().context("cannot start tcpf pong")?;
     let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
     while tokio::time::timeout_at(deadline, alive.recv())
         .await
@@ -246,25 +246,23 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
     let (_alive, mut alive) = presence(&router, &Keys::new("bench")).await?;
     let mut children = Vec::with_capacity(n);
     for id in 0..n {
-        children.push(
-            Command::new(exe)
-                .args([
-                    "pong",
-                    "--count",
-                    "1",
-                    "--id",
-                    &id.to_string(),
-                    "-e",
-                    &endpoint,
-                    "--mode",
-                    "client",
-                ])
-                .envs(crate::launcher::child_runtime(Role::Agent))
-                .stdout(Stdio::null())
-                .kill_on_drop(true)
-                .spawn()
-                .context("cannot start tcpf pong")?,
-        );
+        let mut pong = Command::new(exe);
+        pong.args([
+            "pong",
+            "--count",
+            "1",
+            "--id",
+            &id.to_string(),
+            "-e",
+            &endpoint,
+            "--mode",
+            "client",
+        ])
+        .envs(crate::launcher::child_runtime(Role::Agent))
+        .stdout(Stdio::null())
+        .kill_on_drop(true);
+        crate::launcher::dies_with_this_process(&mut pong);
+        children.push(pong.spawn().context("cannot start tcpf pong")?);
     }
     let mut up = std::collections::BTreeSet::new();
     let deadline = tokio::time::Instant::now() + Duration::from_secs(120);

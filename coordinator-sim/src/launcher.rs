@@ -138,6 +138,26 @@ fn died(dir: &RunDir, role: Role, code: Option<i32>, when: &str) -> String {
     }
 }
 
+/// A child must never outlive the process that started it, even one killed with SIGKILL: the
+/// kernel kills the child when its parent goes.
+pub(crate) fn dies_with_this_process(command: &mut Command) {
+    let parent = std::process::id();
+    // SAFETY: between fork and exec the closure makes only async-signal-safe calls (prctl,
+    // getppid, _exit) and allocates nothing.
+    unsafe {
+        command.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // The parent died before the line above: nobody would kill us.
+            if libc::getppid() as u32 != parent {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
+}
+
 fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String], lockstep: bool) -> Result<Process> {
     let logs = dir.path.join("logs");
     std::fs::create_dir_all(&logs)?;
@@ -164,7 +184,6 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
     // and the run read as completed, not arrived: exit 1, "interrupted": false. In a group of
     // their own they hear it from the launcher, which tells each to stop.
     command.process_group(0);
-    let launcher = std::process::id();
     // A lockstep agent is a batch job: the tick waits for every agent, not for any one soon.
     // Under SCHED_BATCH a woken agent does not preempt the thread that woke it, so the world
     // writes a tick's states to every agent before they run, instead of being preempted at
@@ -172,8 +191,8 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
     // 2.20 -> 1.95 ms, six runs each interleaved). Not in realtime, where an agent waits on its
     // own clock; not for a launcher the user gave a policy of their own, which children keep.
     let batch = lockstep && role == Role::Agent;
-    // SAFETY: between fork and exec the closure makes only async-signal-safe calls (prctl,
-    // getppid, _exit, sched_getscheduler, sched_setscheduler) and allocates nothing.
+    // SAFETY: between fork and exec the closure makes only async-signal-safe calls
+    // (sched_getscheduler, sched_setscheduler) and allocates nothing.
     unsafe {
         command.pre_exec(move || {
             if batch && libc::sched_getscheduler(0) == libc::SCHED_OTHER {
@@ -181,18 +200,10 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
                 // Refused (a sandbox), the agent only runs as before.
                 libc::sched_setscheduler(0, libc::SCHED_BATCH, &param);
             }
-            // A child must never outlive its launcher, even one killed with SIGKILL: the kernel
-            // kills it when the launcher goes.
-            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            // The launcher died before the line above: nobody would kill us.
-            if libc::getppid() as u32 != launcher {
-                libc::_exit(1);
-            }
             Ok(())
         });
     }
+    dies_with_this_process(&mut command);
     let child = command
         .stdin(Stdio::null())
         .stdout(Stdio::from(log.try_clone()?))
