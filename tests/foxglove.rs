@@ -204,3 +204,28 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
         last as f64 * 1e-9
     );
 }
+
+/// `--live` on port 0 serves on a port of the system's choosing, and says which.
+#[test]
+fn the_live_view_says_where_it_serves() {
+    let dir = scratch("live-port");
+    let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args([
+            "run",
+            &paper("a-nominal"),
+            "--in-process",
+            "--out",
+            dir.to_str().unwrap(),
+        ])
+        .args(["--live", "127.0.0.1:0"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let port = stderr
+        .split("live view for Foxglove on ws://127.0.0.1:")
+        .nth(1)
+        .and_then(|rest| rest.lines().next()?.trim().parse::<u16>().ok())
+        .unwrap_or_else(|| panic!("no address: {stderr}"));
+    assert_ne!(port, 0);
+}

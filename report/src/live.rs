@@ -109,7 +109,8 @@ impl Live {
         let addr = ready_rx
             .recv()
             .map_err(|_| anyhow!("the live view's thread stopped before listening"))??;
-        tracing::info!("live view for Foxglove on ws://{addr}");
+        // Said whatever the log level: with a port of 0 it is the only way to know where.
+        eprintln!("live view for Foxglove on ws://{addr}");
         Ok(Live {
             shared,
             stop: Some(stop),
