@@ -693,6 +693,69 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     assert_same_run(&out, &dir.join("i"));
 }
 
+/// A lockstep recorder writes nothing it could be refused for: one of another mission's
+/// settings is refused by the world's clock before its first tick is written, and one that
+/// comes when the run is under way says it came too late; both leave `--out` free.
+#[test]
+fn a_recorder_of_another_mission_or_too_late_writes_nothing() {
+    let dir = scratch("recorder-refused");
+    let mission = config("long3");
+    let (_fleet, endpoint) = by_hand(&mission, &["1", "2", "3"], &[], &dir);
+    let out = dir.join("other");
+    let other = [
+        "record",
+        &mission,
+        "-e",
+        &endpoint,
+        "--out",
+        out.to_str().unwrap(),
+        "--set",
+        "comms.loss=0.1",
+    ];
+    let mut other = Fleet(vec![role(&other, Stdio::piped())]);
+    let (code, stderr) = exited(
+        &mut other.0[0],
+        Duration::from_secs(30),
+        "the recorder of another mission ran on",
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("digest"), "{stderr}");
+    assert!(!out.exists(), "nothing written: {stderr}");
+
+    // A world that waits for no recorder, and one that comes once it runs.
+    let late = dir.join("late");
+    std::fs::create_dir_all(&late).unwrap();
+    let (planner, endpoint) = listening(|e| role(&["planner", &mission, "-l", e], Stdio::null()));
+    let world_log = std::fs::File::create(late.join("world.log")).unwrap();
+    let mut fleet = Fleet(vec![
+        planner,
+        role(&["world", &mission, "-e", &endpoint], Stdio::from(world_log)),
+    ]);
+    for id in ["1", "2", "3"] {
+        fleet
+            .0
+            .push(role(&["agent", &mission, "--id", id, "-e", &endpoint], Stdio::null()));
+    }
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !std::fs::read_to_string(late.join("world.log"))
+        .unwrap_or_default()
+        .contains("starting")
+    {
+        assert!(Instant::now() < deadline, "the world never started");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let out = late.join("p");
+    fleet.0.push(role(
+        &["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()],
+        Stdio::piped(),
+    ));
+    let recorder = fleet.0.last_mut().unwrap();
+    let (code, stderr) = exited(recorder, Duration::from_secs(30), "the late recorder ran on");
+    assert_ne!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("was under way when this recorder came"), "{stderr}");
+    assert!(!out.exists(), "nothing written: {stderr}");
+}
+
 /// A new agent of a vehicle the world has lost (no `--rejoin-timeout`) is told so and stops:
 /// its neighbours never wait for it again, and arrive.
 #[test]
@@ -736,7 +799,8 @@ fn a_new_agent_of_a_lost_vehicle_is_told_and_the_others_arrive() {
         std::thread::sleep(Duration::from_millis(20));
     }
     let s = summary(&out);
-    assert_eq!(s["vehicles"][1]["lost"], true);
+    let log = std::fs::read_to_string(&world_log).unwrap();
+    assert_eq!(s["vehicles"][1]["lost"], true, "{s}\n{log}");
     for n in [0, 2] {
         assert!(
             s["vehicles"][n]["arrival_time"].as_f64().is_some(),

@@ -119,6 +119,8 @@ pub struct Recording {
     pub from_world: u64,
     /// The world's clock, until it has answered (it does once the run has started).
     clock: Option<ClockAnswer>,
+    /// Lockstep: the first tick record has come.
+    ticking: bool,
     /// The mission, clock and time scale the world's clock must have.
     expected: Expected,
 }
@@ -168,6 +170,7 @@ impl Recording {
             ids,
             from_world: 0,
             clock: Some(clock),
+            ticking: false,
             expected: Expected::of(mission),
         })
     }
@@ -207,6 +210,22 @@ impl Recording {
                     self.from_world += m.message.is_the_worlds() as u64;
                     match m.message {
                         Message::Tick(t) => {
+                            if !std::mem::replace(&mut self.ticking, true) {
+                                // The world waits for this recorder's token before its first
+                                // tick: a first record of a later one is a run this recorder
+                                // came to too late.
+                                if t.tick > 0 {
+                                    return Err(anyhow!(
+                                        "recorder: the lockstep run was under way when this recorder came (the first tick it heard is {}): a lockstep recording starts at tick 0, so start the world with --recorders 1, which waits for it",
+                                        t.tick
+                                    ));
+                                }
+                                // The clock answers now: asked again at once rather than at the
+                                // next poll, as ticks are held until it has.
+                                if self.clock.is_some() {
+                                    self.clock = Some(await_clock(&self.session, &self.keys, &self.rejected, CLOCK_POLL, CLOCK_POLL));
+                                }
+                            }
                             if let Err(why) = recorder.on_tick(t) {
                                 self.rejected.reject(why, &m.key);
                             }
@@ -273,7 +292,10 @@ impl Recording {
             },
         }
         let mut failure = Ok(());
-        if let Machine::Lockstep(recorder) = &mut self.machine {
+        // Nothing is written before the world's clock says it runs this recorder's mission: one
+        // of another would write ticks it is then refused for. (On a task of its own, the
+        // question leaves this step free to be dropped by its caller's select without loss.)
+        if let (Machine::Lockstep(recorder), None) = (&mut self.machine, &self.clock) {
             let telemetry = &mut self.telemetry;
             recorder.drain(|states, commands| {
                 if failure.is_ok() {
