@@ -693,6 +693,49 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
     assert_same_run(&out, &dir.join("i"));
 }
 
+/// A second agent of one vehicle, or a second world of one fleet, is refused (exit 2): both
+/// would steer the same vehicles. Every role a client of one router, as on a testbed: the router
+/// knows every token (peers that have not yet met every other peer may not).
+#[test]
+fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
+    let dir = scratch("second");
+    let mission = paper("b-current");
+    let (router, endpoint) = listening(|e| role(&["router", "-l", e], Stdio::null()));
+    let _router = Reaper(router);
+    let client = |args: &[&str], stderr: Stdio| role(&[args, &["-e", &endpoint, "--mode", "client"]].concat(), stderr);
+    let world_log = std::fs::File::create(dir.join("world.log")).unwrap();
+    let _fleet = Fleet(vec![
+        client(&["planner", &mission], Stdio::null()),
+        client(&["world", &mission, "--recorders", "1"], Stdio::from(world_log)),
+        client(&["agent", &mission, "--id", "1"], Stdio::null()),
+        client(&["agent", &mission, "--id", "2"], Stdio::null()),
+    ]);
+    // The world waits for its recorder: everyone else is there, nothing runs yet.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !std::fs::read_to_string(dir.join("world.log"))
+        .unwrap_or_default()
+        .contains("(2 of 2)")
+    {
+        assert!(Instant::now() < deadline, "the agents never came");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut second = Fleet(vec![
+        client(&["agent", &mission, "--id", "2"], Stdio::piped()),
+        client(&["world", &mission], Stdio::piped()),
+    ]);
+    for (n, words) in [
+        "agent 2 of mission paper-b-current is already running",
+        "a world of mission paper-b-current is already running",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let (code, stderr) = exited(&mut second.0[n], Duration::from_secs(30), words);
+        assert_eq!(code, Some(2), "{stderr}");
+        assert!(stderr.contains(words), "{stderr}");
+    }
+}
+
 /// A lockstep recorder writes nothing it could be refused for: one of another mission's
 /// settings is refused by the world's clock before its first tick is written, and one that
 /// comes when the run is under way says it came too late; both leave `--out` free.

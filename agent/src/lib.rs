@@ -11,7 +11,7 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    answered, ask_clock, await_clock, fetch_paths, linger, linger_within, presence, queue, report, subscribe,
+    alone, answered, ask_clock, await_clock, fetch_paths, linger, linger_within, presence, queue, report, subscribe,
     subscribe_into, subscribe_with, Outlet, Presence, Received, Rejected,
 };
 use tcpf_core::agent::Agent;
@@ -330,6 +330,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         check_clock(mission, clock)?;
         tracing::info!("agent {id}: the run is under way (tick {}); rejoining it", clock.tick);
     }
+    alone(&session, &keys, Role::Agent, id, &mission.mission.name).await?;
     let token = session
         .liveliness()
         .declare_token(keys.alive(Role::Agent, id))

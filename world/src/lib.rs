@@ -13,7 +13,7 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    fetch_paths, linger, linger_for_reports, presence, report, say_now, subscribe, subscribe_with, Carried,
+    alone, fetch_paths, linger, linger_for_reports, presence, report, say_now, subscribe, subscribe_with, Carried,
     ClockServer, Outlet, Presence, Received, Rejected,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
@@ -306,6 +306,7 @@ async fn serve(
         }
         (subscribers, Inbound::Fed { stepper, ends })
     };
+    alone(session, keys, Role::World, 0, &mission.mission.name).await?;
     let token = session
         .liveliness()
         .declare_token(keys.alive(Role::World, 0))
@@ -336,7 +337,12 @@ async fn serve(
         match arrived {
             Ok(Some(p)) => {
                 let recorder = p.alive && p.role == Role::Record;
+                let vehicle = (p.alive && p.role == Role::Agent && ids.contains(&p.id)).then_some(p.id);
                 track(p, &mut present);
+                if let Some(id) = vehicle {
+                    let here = ids.iter().filter(|i| agent(i, &present)).count();
+                    tracing::info!("world: agent {id} is here ({here} of {})", ids.len());
+                }
                 if recorder {
                     tracing::info!(
                         "world: a recorder is here ({} of {})",
