@@ -836,6 +836,13 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
 }
 
 fn report(dir: &Path) -> Result<ExitCode, Failure> {
+    // A sweep's directory holds its runs' directories when it ran them as processes.
+    if dir.join("sweep.csv").is_file() && !dir.join("summary.json").exists() {
+        return Err(Failure::Input(anyhow!(
+            "{}: a sweep's directory (sweep.csv), which tcpf sweep wrote with its sweep.html; tcpf report reads one run's directory",
+            dir.display()
+        )));
+    }
     if !dir.join("summary.json").is_file() {
         return Err(Failure::Input(anyhow!(
             "{}: no summary.json: not a run directory, or a run stopped before it wrote one (killed outright, or failed before its first tick)",

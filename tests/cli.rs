@@ -1109,3 +1109,23 @@ fn an_interrupted_bench_prints_no_figures_and_leaves_nothing() {
         assert!(!std::env::temp_dir().join(format!("tcpf-bench-{pid}")).exists());
     }
 }
+
+/// `tcpf report` of a sweep's directory says what it is, rather than "not a run directory".
+#[test]
+fn a_report_of_a_sweeps_directory_says_it_reads_one_run() {
+    let out = scratch("report-sweep");
+    let o = tcpf(&[
+        "sweep",
+        &paper("a-nominal"),
+        "--loss",
+        "0",
+        "--seeds",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("a sweep's directory (sweep.csv)"), "{}", text(&o));
+}
