@@ -124,19 +124,15 @@ fn an_out_given_as_a_new_directory_and_a_dot_is_that_directory() {
     let o = run_in_process(&paper("a-nominal"), &dir.join("new").join("."), &[]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(dir.join("new/summary.json").is_file());
-    let sweep = dir.join("sweep").join(".");
-    let o = tcpf(&[
-        "sweep",
-        &paper("a-nominal"),
-        "--loss",
-        "0",
-        "--seeds",
-        "1",
-        "--out",
-        sweep.to_str().unwrap(),
-    ]);
+    let o = a_small_sweep(&dir.join("sweep").join("."));
     assert!(o.status.success(), "{}", text(&o));
     assert!(dir.join("sweep/sweep.csv").is_file());
+}
+
+/// Case (a) swept over one loss and one seed, in-process, into `out`.
+fn a_small_sweep(out: &Path) -> Output {
+    let args = ["--loss", "0", "--seeds", "1", "--out", out.to_str().unwrap()];
+    tcpf(&[&["sweep", &paper("a-nominal")], &args[..]].concat())
 }
 
 /// Runs started at once each write a directory of their own: without `--out`, each its own
@@ -1114,16 +1110,7 @@ fn an_interrupted_bench_prints_no_figures_and_leaves_nothing() {
 #[test]
 fn a_report_of_a_sweeps_directory_says_it_reads_one_run() {
     let out = scratch("report-sweep");
-    let o = tcpf(&[
-        "sweep",
-        &paper("a-nominal"),
-        "--loss",
-        "0",
-        "--seeds",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = a_small_sweep(&out);
     assert!(o.status.success(), "{}", text(&o));
     let o = tcpf(&["report", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
