@@ -148,7 +148,7 @@ impl Recording {
         let machine = match mission.mission.clock {
             ClockKind::Lockstep => Machine::Lockstep(Recorder::new(&ids, t_f, dt)),
             ClockKind::Realtime => Machine::Realtime {
-                sampler: Sampler::new(&ids, t_f, dt),
+                sampler: Sampler::new(&ids, &mission.graph(), t_f, dt),
                 beats: None,
                 control_period: dt,
             },

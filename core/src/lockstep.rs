@@ -9,7 +9,7 @@ use std::collections::BTreeSet;
 use crate::roster::Roster;
 
 use crate::agent::Agent;
-use crate::mission::Mission;
+use crate::mission::{neighbour_lists, Mission};
 use crate::msg::{
     tally, Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, TickRecord, PROTOCOL_VERSION,
 };
@@ -78,6 +78,8 @@ pub struct WorldNode {
     states: Vec<State>,
     pending: Vec<Option<Command>>,
     lost: Vec<Lost>,
+    /// Each vehicle's neighbours, in roster order.
+    neighbours: Vec<Vec<u32>>,
 }
 
 impl WorldNode {
@@ -92,6 +94,7 @@ impl WorldNode {
             arrived: vec![false; ids.len()],
             max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
+            neighbours: neighbour_lists(&mission.graph(), &ids),
             ids: Roster::new(&ids),
             world,
             lost: Vec::new(),
@@ -114,6 +117,9 @@ impl WorldNode {
         }
         if !command.finite() {
             return Err(Reject::NonFinite);
+        }
+        if !command.hears_only(&self.neighbours[n]) {
+            return Err(Reject::NotANeighbour);
         }
         Reject::tick(command.tick, self.tick())?;
         if let Some(first) = &self.pending[n] {
@@ -434,7 +440,7 @@ impl AgentNode {
 mod tests {
     use super::*;
     use crate::fixtures::case_b;
-    use crate::msg::Sample;
+    use crate::msg::{Reception, Sample};
 
     #[test]
     fn an_agent_waits_for_its_live_neighbours_at_communication_instants_only() {
@@ -526,6 +532,31 @@ mod tests {
         assert_eq!(node.absent(), vec![1]);
         let command = node.command().expect("nobody to wait for");
         assert!(command.receptions.is_empty(), "nothing heard, nothing counted");
+    }
+
+    #[test]
+    fn a_command_that_heard_from_a_stranger_or_twice_is_refused() {
+        let (m, paths, t_f) = case_b();
+        let mut world = WorldNode::new(&m, &paths, t_f);
+        let mut node = AgentNode::new(Agent::new(&m, 1, paths[0].1));
+        let gamma = node.on_state(world.states()[0]).unwrap().expect("tick 0 is an instant");
+        node.on_gamma(Gamma { from: 2, ..gamma }).unwrap();
+        let command = node.command().expect("all in");
+        let heard = |from: &[u32]| Command {
+            receptions: from.iter().map(|&from| Reception { from, delivered: true }).collect(),
+            ..command.clone()
+        };
+        assert_eq!(
+            world.on_command(heard(&[99])),
+            Err(Reject::NotANeighbour),
+            "a link that is not"
+        );
+        assert_eq!(
+            world.on_command(heard(&[2, 2])),
+            Err(Reject::NotANeighbour),
+            "one counted twice"
+        );
+        assert_eq!(world.on_command(command), Ok(()));
     }
 
     #[test]

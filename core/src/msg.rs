@@ -60,6 +60,17 @@ pub struct Command {
     pub receptions: Vec<Reception>,
 }
 
+impl Command {
+    /// Whether each reception names a neighbour of this vehicle, and none twice: the links a
+    /// run's summary counts are made of them, and a forged one would invent a link.
+    pub fn hears_only(&self, neighbours: &[u32]) -> bool {
+        self.receptions
+            .iter()
+            .enumerate()
+            .all(|(k, r)| neighbours.contains(&r.from) && !self.receptions[..k].iter().any(|q| q.from == r.from))
+    }
+}
+
 /// What a sender knew of itself at the instant it sampled (MODEL D19): enough for a receiver to
 /// predict γ to its own time, and for the link to know how far the message travelled (D21).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

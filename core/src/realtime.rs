@@ -7,7 +7,7 @@
 use crate::agent::Agent;
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
-use crate::mission::Mission;
+use crate::mission::{neighbour_lists, Graph, Mission};
 use crate::msg::{tally, Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::roster::Roster;
@@ -258,6 +258,8 @@ pub struct RealtimeWorld {
     world: World,
     /// Every vehicle of the mission.
     ids: Roster,
+    /// Each vehicle's neighbours, in roster order.
+    neighbours: Vec<Vec<u32>>,
     /// Per simulated body, its index in `ids`.
     bodies: Vec<usize>,
     held: Vec<Option<Command>>,
@@ -292,6 +294,7 @@ impl RealtimeWorld {
         world.states(&mut states);
         let n = ids.len();
         RealtimeWorld {
+            neighbours: neighbour_lists(&mission.graph(), &ids),
             world,
             bodies,
             held: vec![None; n],
@@ -326,6 +329,9 @@ impl RealtimeWorld {
         let n = self.ids.position(command.id).ok_or(Reject::UnknownVehicle)?;
         if !command.finite() {
             return Err(Reject::NonFinite);
+        }
+        if !command.hears_only(&self.neighbours[n]) {
+            return Err(Reject::NotANeighbour);
         }
         not_ahead(command.tick, horizon.min(self.max_ticks))?;
         if let Some(held) = &self.held[n] {
@@ -444,11 +450,14 @@ pub struct Sampler {
     newest: Vec<Option<u64>>,
     /// Whether the held command has been in a row: its receptions are counted.
     sampled: Vec<bool>,
+    /// Each vehicle's neighbours, in roster order.
+    neighbours: Vec<Vec<u32>>,
 }
 
 impl Sampler {
-    pub fn new(ids: &[u32], t_f: f64, dt: f64) -> Sampler {
+    pub fn new(ids: &[u32], graph: &Graph, t_f: f64, dt: f64) -> Sampler {
         Sampler {
+            neighbours: neighbour_lists(graph, ids),
             ids: Roster::new(ids),
             states: vec![None; ids.len()],
             commands: vec![None; ids.len()],
@@ -493,6 +502,9 @@ impl Sampler {
         let n = self.index(command.id)?;
         if !command.finite() {
             return Err(Reject::NonFinite);
+        }
+        if !command.hears_only(&self.neighbours[n]) {
+            return Err(Reject::NotANeighbour);
         }
         not_ahead(command.tick, horizon)?;
         if let Some(newest) = self.newest[n].filter(|&t| t >= command.tick) {
@@ -631,7 +643,7 @@ mod tests {
             .iter()
             .map(|&(id, p)| RealtimeAgent::new(Agent::new(&m, id, p), false))
             .collect();
-        let mut sampler = Sampler::new(&[1, 2], t_f, m.mission.control_period);
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, m.mission.control_period);
         let mut tick = 0;
         let end = loop {
             let horizon = tick + AHEAD;
@@ -749,7 +761,7 @@ mod tests {
             ..agent.step(tick, &state, &[])
         };
         let (before, after) = (command(99, t_f - 0.001), command(100, t_f + 0.009));
-        let mut sampler = Sampler::new(&[1], t_f, dt);
+        let mut sampler = Sampler::new(&[1], &m.graph(), t_f, dt);
         sampler.on_state(state, HORIZON).unwrap();
         sampler.on_command(before, HORIZON).unwrap();
         let mut rows = 0;
@@ -783,7 +795,7 @@ mod tests {
             ..agent.step(tick, &state(tick), &[])
         };
         let (before, after) = (command(10, t_f - 0.05), command(15, t_f + 0.05));
-        let mut sampler = Sampler::new(&[1], t_f, dt);
+        let mut sampler = Sampler::new(&[1], &m.graph(), t_f, dt);
         sampler.on_state(state(10), HORIZON).unwrap();
         sampler.on_command(before, HORIZON).unwrap();
         sampler.sample(10, |_, _| {});
@@ -805,7 +817,7 @@ mod tests {
     fn a_period_without_a_new_state_is_not_sampled() {
         let (m, _, t_f) = case_b();
         let dt = m.mission.control_period;
-        let mut sampler = Sampler::new(&[1], t_f, dt);
+        let mut sampler = Sampler::new(&[1], &m.graph(), t_f, dt);
         let mut rows = Vec::new();
         sampler.on_state(still(1, 10, dt, [0.0, 0.0]), HORIZON).unwrap();
         for tick in 10..15 {
@@ -887,13 +899,32 @@ mod tests {
         assert!((late.agent().gamma() - 5.0).abs() < 1e-6, "{}", late.agent().gamma());
     }
 
+    /// A command whose receptions name a vehicle that is no neighbour would invent a link in the
+    /// run's summary: the world and the recorder refuse it.
+    #[test]
+    fn a_command_that_heard_from_a_stranger_is_refused() {
+        let (m, paths, t_f) = case_b();
+        let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]);
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, m.mission.control_period);
+        let stranger = Command {
+            receptions: vec![Reception {
+                from: 99,
+                delivered: true,
+            }],
+            ..crate::fixtures::command_at(1, 0, 0.0)
+        };
+        assert_eq!(world.on_command(stranger.clone(), HORIZON), Err(Reject::NotANeighbour));
+        assert_eq!(sampler.on_command(stranger, HORIZON), Err(Reject::NotANeighbour));
+    }
+
     /// An agent that stops (killed, hung) leaves its vehicle uncommanded once the world lets
     /// its last command go: from then on the recorder's rows hold no command for it and its
     /// frozen γ is not a coordination error, as a lost vehicle's in lockstep.
     #[test]
     fn a_silent_agents_frozen_gamma_leaves_the_coordination_error() {
         let dt = 0.01;
-        let mut sampler = Sampler::new(&[1, 2], 100.0, dt);
+        let pair = Graph::from([(1, vec![2]), (2, vec![1])]);
+        let mut sampler = Sampler::new(&[1, 2], &pair, 100.0, dt);
         let command = crate::fixtures::command_at;
         let mut uncommanded = Vec::new();
         for k in 0..300 {

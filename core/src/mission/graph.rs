@@ -7,6 +7,14 @@ use super::{Mission, Topology};
 /// Undirected communication graph: each vehicle's neighbours in ascending id order.
 pub type Graph = BTreeMap<u32, Vec<u32>>;
 
+/// Each of `ids`' neighbours, in the order of `ids`: what a machine that counts vehicles by
+/// their place in the roster looks up.
+pub fn neighbour_lists(graph: &Graph, ids: &[u32]) -> Vec<Vec<u32>> {
+    ids.iter()
+        .map(|id| graph.get(id).cloned().unwrap_or_default())
+        .collect()
+}
+
 /// The graph of a validated mission (validation checks every edge before anything builds it).
 pub(super) fn build(mission: &Mission) -> Graph {
     let mut ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();

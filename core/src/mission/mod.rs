@@ -14,7 +14,7 @@ use toml::de::DeTable;
 
 pub use diagnostics::MissionError;
 use diagnostics::{key_at, line_of, line_of_key, path_string};
-pub use graph::Graph;
+pub use graph::{neighbour_lists, Graph};
 
 /// The tables a mission file must have, with their headers.
 const REQUIRED_TABLES: [(&str, &str); 2] = [("mission", "[mission]"), ("vehicle", "[[vehicle]]")];
