@@ -683,7 +683,7 @@ fn world(args: &MissionArgs, zenoh: &ZenohArgs, options: tcpf_world::Options) ->
     }
     let exit = role(tcpf_world::run(&mission, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
-        matches!(exit, tcpf_world::Exit::Ended { lost: 0, .. }),
+        matches!(exit, tcpf_world::Exit::Ended { lost: 0, short: 0, .. }),
         exit == tcpf_world::Exit::Interrupted,
     ))
 }

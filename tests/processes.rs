@@ -236,6 +236,28 @@ fn a_killed_agent_is_lost_and_the_others_arrive() {
     assert!(descendants(launch.child.id()).is_empty());
 }
 
+/// A mission whose vehicles do not arrive by its max_duration failed: the world, which alone
+/// knows it in a fleet started by hand without a recorder, says so and exits 1.
+#[test]
+fn a_world_whose_vehicles_do_not_arrive_exits_1() {
+    let dir = scratch("short");
+    let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.max_duration=20"]);
+    assert_eq!(launch.wait(Duration::from_secs(120)).code(), Some(1));
+    let s = launch.summary();
+    let world = s["children"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["role"] == "world")
+        .unwrap();
+    assert_eq!(world["exit_code"], 1, "{s}");
+    let log = std::fs::read_to_string(dir.join("logs/world.log")).unwrap();
+    assert!(
+        log.contains("0 vehicle(s) lost, 2 not arrived by the mission's max_duration"),
+        "{log}"
+    );
+}
+
 #[test]
 fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run() {
     let dir = scratch("sigstop");

@@ -144,6 +144,13 @@ impl WorldNode {
         Some(lost)
     }
 
+    /// The vehicles neither arrived nor lost: at the end, those the mission failed to bring in.
+    pub fn not_arrived(&self) -> usize {
+        (0..self.arrived.len())
+            .filter(|&n| !self.arrived[n] && !self.world.is_lost(n))
+            .count()
+    }
+
     /// How vehicle `id` was lost, if it was: told again to a new agent of it, which came after.
     pub fn loss_of(&self, id: u32) -> Option<Lost> {
         self.lost.iter().find(|l| l.id == id).copied()

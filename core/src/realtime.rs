@@ -357,6 +357,14 @@ impl RealtimeWorld {
         self.gone[n] = gone;
     }
 
+    /// The vehicles that did not arrive and whose agent was never gone (those are in the end's
+    /// losses): at the end, those the mission failed to bring in.
+    pub fn not_arrived(&self) -> usize {
+        (0..self.arrived.len())
+            .filter(|&n| !self.arrived[n] && self.ever_gone[n].is_none())
+            .count()
+    }
+
     /// The period that integrates to `tick` began `late_s` wall seconds late (of `period_s`),
     /// `skipped` periods having been missed: integrates from the current tick to `tick`, one
     /// control period at a time with the commands held, so that simulated time keeps up with

@@ -46,10 +46,11 @@ pub struct Options {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Exit {
-    /// Every vehicle arrived (or was lost), or max_duration.
+    /// Every vehicle arrived (or was lost), or max_duration: `short` vehicles did neither.
     Ended {
         ticks: u64,
         lost: usize,
+        short: usize,
     },
     Interrupted,
 }
@@ -57,7 +58,11 @@ pub enum Exit {
 impl std::fmt::Display for Exit {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Exit::Ended { ticks, lost } => write!(f, "ended after {ticks} ticks, {lost} vehicle(s) lost"),
+            Exit::Ended { ticks, lost, short: 0 } => write!(f, "ended after {ticks} ticks, {lost} vehicle(s) lost"),
+            Exit::Ended { ticks, lost, short } => write!(
+                f,
+                "ended after {ticks} ticks, {lost} vehicle(s) lost, {short} not arrived by the mission's max_duration"
+            ),
             Exit::Interrupted => write!(f, "interrupted"),
         }
     }
@@ -415,6 +420,7 @@ impl Shell {
                     break Exit::Ended {
                         ticks: end.ticks,
                         lost: end.lost.len(),
+                        short: stepper.lock().node.not_arrived(),
                     };
                 }
                 Some(p) = self.presence.recv() => {
@@ -532,7 +538,7 @@ impl Shell {
                 Some(beat) = beats.recv() => {
                     if let Some(end) = node.advance_to(beat.tick, beat.late_s(), period, beat.skipped) {
                         self.end_out.put(&end).await?;
-                        break Exit::Ended { ticks: end.ticks, lost: end.lost.len() };
+                        break Exit::Ended { ticks: end.ticks, lost: end.lost.len(), short: node.not_arrived() };
                     }
                     self.clock.set(Clock { tick: node.tick(), ..clock });
                     for (outlet, state) in self.outlets.iter().zip(node.states()) {
