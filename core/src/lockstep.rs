@@ -191,12 +191,7 @@ impl WorldNode {
             states: self.states[..].into(),
             commands: self.pending[..].into(),
         });
-        let done = self
-            .arrived
-            .iter()
-            .enumerate()
-            .all(|(n, a)| *a || self.world.is_lost(n));
-        if done || tick >= self.max_ticks {
+        if self.not_arrived() == 0 || tick >= self.max_ticks {
             return Some(self.end());
         }
         self.world.step(&self.pending);
