@@ -507,17 +507,16 @@ impl Shell {
                     Err(why) => self.rejected.reject(why, &e.key),
                 },
                 Some(l) = self.losses.recv() => {
-                    let loss = l.message;
-                    let lost = Lost { id: loss.id, tick: loss.tick, reason: loss.reason };
-                    if Keys::id_of(&l.key) != Some(loss.id) {
+                    let lost = Lost::from(l.message);
+                    if Keys::id_of(&l.key) != Some(lost.id) {
                         self.rejected.wrong_sender(&l.key);
                     } else {
                         match feed.with(|node| node.on_lost(&lost)) {
                             Ok(true) => {
                                 tracing::warn!(
                                     "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
-                                    loss.tick,
-                                    loss.reason
+                                    lost.tick,
+                                    lost.reason
                                 );
                                 break Exit::Lost;
                             }

@@ -13,7 +13,7 @@ use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, Cl
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Command, End, Loss, LossReason, Lost, Report, State, TickRecord};
+use tcpf_core::msg::{Command, End, Loss, LossReason, Report, State, TickRecord};
 use tcpf_core::realtime::Sampler;
 use tcpf_core::record::Recorder;
 use tcpf_core::watch::WorldWatch;
@@ -237,14 +237,7 @@ impl Recording {
                             Err(why) => self.rejected.reject(why, &m.key),
                         },
                         Message::Report(r) => self.take_report(&m.key, r),
-                        Message::Loss(l) => {
-                            let lost = Lost {
-                                id: l.id,
-                                tick: l.tick,
-                                reason: l.reason,
-                            };
-                            self.rejected.check(&m.key, l.id, || recorder.on_lost(lost));
-                        }
+                        Message::Loss(l) => self.rejected.check(&m.key, l.id, || recorder.on_lost(l.into())),
                     }
                 }
                 // A realtime world would send no record: say so rather than wait for one.
@@ -702,7 +695,7 @@ fn unreported(ids: &[u32], end: Option<&End>, reports: &[Report]) -> Vec<(Role, 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tcpf_core::msg::{LossReason, PROTOCOL_VERSION};
+    use tcpf_core::msg::{LossReason, Lost, PROTOCOL_VERSION};
 
     fn report(role: Role, id: u32) -> Report {
         Report {

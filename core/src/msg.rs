@@ -253,6 +253,29 @@ pub struct Loss {
     pub reason: LossReason,
 }
 
+/// What the message says: the loss, as the world's node and the recorder keep it.
+impl From<Loss> for Lost {
+    fn from(loss: Loss) -> Lost {
+        Lost {
+            id: loss.id,
+            tick: loss.tick,
+            reason: loss.reason,
+        }
+    }
+}
+
+/// The message that announces a loss.
+impl From<Lost> for Loss {
+    fn from(lost: Lost) -> Loss {
+        Loss {
+            version: PROTOCOL_VERSION,
+            id: lost.id,
+            tick: lost.tick,
+            reason: lost.reason,
+        }
+    }
+}
+
 impl Checked for Loss {
     fn version(&self) -> u16 {
         self.version

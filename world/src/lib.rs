@@ -191,13 +191,7 @@ impl Stepper {
 
     /// Tells the agents and the recorders that a vehicle is lost.
     fn announce(&self, lost: Lost) {
-        let loss = Loss {
-            version: PROTOCOL_VERSION,
-            id: lost.id,
-            tick: lost.tick,
-            reason: lost.reason,
-        };
-        if let Err(e) = say_now(&self.session, self.keys.lost(lost.id), &loss) {
+        if let Err(e) = say_now(&self.session, self.keys.lost(lost.id), &Loss::from(lost)) {
             let _ = self.ends.send(Err(e));
         }
     }
