@@ -16,7 +16,7 @@ use tcpf_core::mission::Mission;
 use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::{world_alone, Fleet};
-use tokio::process::Command;
+use tokio::process::{Child, Command};
 
 const PING: &str = "tcpf/bench/ping";
 const PONG: &str = "tcpf/bench/pong";
@@ -61,6 +61,19 @@ pub async fn pong(zenoh: &ZenohArgs, count: u64, id: u32) -> Result<()> {
     Ok(())
 }
 
+/// A `tcpf pong` child with `args`, run as an agent is (its Zenoh threads), which dies with this
+/// process.
+fn start_pong(exe: &Path, args: &[&str]) -> Result<Child> {
+    let mut pong = Command::new(exe);
+    pong.arg("pong")
+        .args(args)
+        .envs(crate::launcher::child_runtime(Role::Agent))
+        .stdout(Stdio::null())
+        .kill_on_drop(true);
+    crate::launcher::dies_with_this_process(&mut pong);
+    pong.spawn().context("cannot start tcpf pong")
+}
+
 /// Round-trip times to a `tcpf pong` child on a loopback port, sorted: peer to peer, or with
 /// `routed` both sides clients of a router in this process: the path of a γ, which the world
 /// passes from one agent to another.
@@ -87,21 +100,10 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
     let (_sub, mut pongs) = subscribe::<Gamma>(&session, PONG, &rejected).await?;
     let (_alive, mut alive) = presence(&session, &Keys::new("bench")).await?;
     let out = Outlet::new(&session, PING.into()).await?;
-    let mut pong = Command::new(exe);
-    pong.args([
-        "pong",
-        "--count",
-        &(count + 100).to_string(),
-        "-e",
-        &endpoint,
-        "--mode",
-        mode,
-    ])
-    .envs(crate::launcher::child_runtime(Role::Agent))
-    .stdout(Stdio::null())
-    .kill_on_drop(true);
-    crate::launcher::dies_with_this_process(&mut pong);
-    let mut child = pong.spawn().context("cannot start tcpf pong")?;
+    let mut child = start_pong(
+        exe,
+        &["--count", &(count + 100).to_string(), "-e", &endpoint, "--mode", mode],
+    )?;
     let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
     while tokio::time::timeout_at(deadline, alive.recv())
         .await
@@ -246,23 +248,11 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
     let (_alive, mut alive) = presence(&router, &Keys::new("bench")).await?;
     let mut children = Vec::with_capacity(n);
     for id in 0..n {
-        let mut pong = Command::new(exe);
-        pong.args([
-            "pong",
-            "--count",
-            "1",
-            "--id",
-            &id.to_string(),
-            "-e",
-            &endpoint,
-            "--mode",
-            "client",
-        ])
-        .envs(crate::launcher::child_runtime(Role::Agent))
-        .stdout(Stdio::null())
-        .kill_on_drop(true);
-        crate::launcher::dies_with_this_process(&mut pong);
-        children.push(pong.spawn().context("cannot start tcpf pong")?);
+        let id = id.to_string();
+        children.push(start_pong(
+            exe,
+            &["--count", "1", "--id", &id, "-e", &endpoint, "--mode", "client"],
+        )?);
     }
     let mut up = std::collections::BTreeSet::new();
     let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
