@@ -883,11 +883,13 @@ fn sweep(
     if values.iter().any(|v| v.is_empty()) {
         return Err(Failure::Input(anyhow!("{key}: an empty value in {}", values.join(","))));
     }
-    let sets_seed = args
-        .set
-        .iter()
-        .any(|s| s.split_once('=').is_some_and(|(k, _)| k.trim() == "mission.seed"));
-    if key == "mission.seed" || sets_seed {
+    // The `--set` that names `k`, if one does.
+    let set_of = |k: &str| {
+        args.set
+            .iter()
+            .find(|s| s.split_once('=').is_some_and(|(set, _)| set.trim() == k))
+    };
+    if key == "mission.seed" || set_of("mission.seed").is_some() {
         return Err(Failure::Input(anyhow!(
             "mission.seed: the sweep gives each run its seed (--seeds N: 1 to N); sweep or set another key"
         )));
@@ -902,11 +904,7 @@ fn sweep(
             values.len()
         )));
     }
-    if let Some(set) = args
-        .set
-        .iter()
-        .find(|s| s.split_once('=').is_some_and(|(k, _)| k.trim() == key))
-    {
+    if let Some(set) = set_of(&key) {
         return Err(Failure::Input(anyhow!(
             "--set {set}: {key} is the key the sweep sets, value by value"
         )));
