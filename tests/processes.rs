@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 mod common;
 use common::{
     alive, assert_none_left, assert_same_run, config, descendants, exited, kill, lanes, listening, paper, processes,
-    run_in_process, scratch, summary, Launch, Reaper,
+    run_in_process, scratch, summary, wait_for_text, Launch, Reaper,
 };
 
 #[test]
@@ -733,14 +733,7 @@ fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
         client(&["agent", &mission, "--id", "2"], Stdio::null()),
     ]);
     // The world waits for its recorder: everyone else is there, nothing runs yet.
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while !std::fs::read_to_string(dir.join("world.log"))
-        .unwrap_or_default()
-        .contains("(2 of 2)")
-    {
-        assert!(Instant::now() < deadline, "the agents never came");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_for_text(&dir.join("world.log"), "(2 of 2)", Duration::from_secs(30));
     let mut second = Fleet(vec![
         client(&["agent", &mission, "--id", "2"], Stdio::piped()),
         client(&["world", &mission], Stdio::piped()),
@@ -801,14 +794,7 @@ fn a_recorder_of_another_mission_or_too_late_writes_nothing() {
             .0
             .push(role(&["agent", &mission, "--id", id, "-e", &endpoint], Stdio::null()));
     }
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while !std::fs::read_to_string(late.join("world.log"))
-        .unwrap_or_default()
-        .contains("starting")
-    {
-        assert!(Instant::now() < deadline, "the world never started");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_for_text(&late.join("world.log"), "starting", Duration::from_secs(60));
     let out = late.join("p");
     fleet.0.push(role(
         &["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()],
@@ -839,16 +825,9 @@ fn a_new_agent_of_a_lost_vehicle_is_told_and_the_others_arrive() {
     );
     let world_log = dir.join("world.log");
     let logged = |what: &str| std::fs::read_to_string(&world_log).unwrap_or_default().contains(what);
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while !logged("starting") {
-        assert!(Instant::now() < deadline, "the world never started");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_for_text(&world_log, "starting", Duration::from_secs(30));
     let _ = fleet.0[3].kill();
-    while !logged("agent 2 is gone at t = ") {
-        assert!(Instant::now() < deadline, "the world never saw agent 2 go");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_for_text(&world_log, "agent 2 is gone at t = ", Duration::from_secs(30));
     let mut again = Reaper(role(&["agent", &mission, "--id", "2", "-e", &endpoint], Stdio::piped()));
     let (code, stderr) = exited(
         &mut again.0,
@@ -1013,14 +992,7 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
     .concat();
     let mut recorder = Fleet(vec![role(&record, Stdio::piped())]);
     // Once the world has met the recorder, the recorder has met the world too.
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while !std::fs::read_to_string(dir.join("world.log"))
-        .unwrap()
-        .contains("a recorder is here")
-    {
-        assert!(Instant::now() < deadline, "the world never met the recorder");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_for_text(&dir.join("world.log"), "a recorder is here", Duration::from_secs(30));
     // Killed at once: should the recorder's first look at who is present (its liveliness
     // history) arrive after the world's token went, it asks again and finds the world gone.
     fleet.0[1].kill().unwrap();

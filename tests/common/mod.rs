@@ -157,11 +157,7 @@ impl Launch {
 
     /// Waits until `file` in the run directory contains `text`.
     pub fn wait_for(&self, file: &str, text: &str) {
-        let deadline = Instant::now() + Duration::from_secs(60);
-        while !std::fs::read_to_string(self.out.join(file)).is_ok_and(|s| s.contains(text)) {
-            assert!(Instant::now() < deadline, "{file} never said {text:?}");
-            std::thread::sleep(Duration::from_millis(5));
-        }
+        wait_for_text(&self.out.join(file), text, Duration::from_secs(60));
     }
 
     pub fn summary(&self) -> Value {
@@ -300,6 +296,15 @@ pub fn listening(start: impl Fn(&str) -> Child) -> (Child, String) {
         }
     }
     panic!("the process to listen exited each time: {exits:?}")
+}
+
+/// Waits until the file at `path` (a role's log) says `text`, at most `limit`.
+pub fn wait_for_text(path: &Path, text: &str, limit: Duration) {
+    let deadline = Instant::now() + limit;
+    while !std::fs::read_to_string(path).is_ok_and(|s| s.contains(text)) {
+        assert!(Instant::now() < deadline, "{} never said {text:?}", path.display());
+        std::thread::sleep(Duration::from_millis(5));
+    }
 }
 
 /// Whether process `pid` holds a socket listening on loopback TCP `port`.
