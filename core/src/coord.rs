@@ -9,11 +9,11 @@ use crate::mission::Graph;
 /// D13: |cos ψ_e| is floored so that the speed command stays bounded.
 const COS_FLOOR: f64 = 1e-3;
 
-/// eq. 25 (and 22a): v = v_d/|cos ψ_e| · (1 − k_c sat(Σ_j (γ_i − γ_j))). `sum` is `None` when no
-/// neighbour was heard, which is D14's N_i = ∅.
-pub fn speed(v_d: f64, psi_e: f64, kc: f64, sum: Option<f64>) -> f64 {
+/// eq. 25 (and 22a): v = v_d/|cos ψ_e| · (1 − k_c sat(Σ_j (γ_i − γ_j))), given cos ψ_e. `sum` is
+/// `None` when no neighbour was heard, which is D14's N_i = ∅.
+pub fn speed(v_d: f64, cos_psi_e: f64, kc: f64, sum: Option<f64>) -> f64 {
     let correction = sum.map_or(1.0, |s| 1.0 - kc * sat(s));
-    v_d / psi_e.cos().abs().max(COS_FLOOR) * correction
+    v_d / cos_psi_e.abs().max(COS_FLOOR) * correction
 }
 
 /// D19: the coordination gain capped by the largest delay d (s) and the graph, so that the loop
@@ -55,27 +55,28 @@ mod tests {
 
     #[test]
     fn no_neighbour_heard_gives_the_uncoordinated_speed() {
-        for psi_e in [0.0, 0.4, -1.2, 3.0] {
-            let v = speed(0.6, psi_e, 0.5, None);
+        for psi_e in [0.0f64, 0.4, -1.2, 3.0] {
+            let v = speed(0.6, psi_e.cos(), 0.5, None);
             assert!((v - 0.6 / psi_e.cos().abs()).abs() < 1e-15);
         }
-        assert_eq!(speed(0.6, 0.3, 0.5, Some(0.0)), speed(0.6, 0.3, 0.5, None));
+        assert_eq!(
+            speed(0.6, 0.3f64.cos(), 0.5, Some(0.0)),
+            speed(0.6, 0.3f64.cos(), 0.5, None)
+        );
     }
 
     #[test]
     fn ahead_slows_down_behind_speeds_up_saturated() {
-        assert!((speed(1.0, 0.0, 0.5, Some(0.4)) - 0.8).abs() < 1e-15);
-        assert!((speed(1.0, 0.0, 0.5, Some(-7.0)) - 1.5).abs() < 1e-15);
+        assert!((speed(1.0, 1.0, 0.5, Some(0.4)) - 0.8).abs() < 1e-15);
+        assert!((speed(1.0, 1.0, 0.5, Some(-7.0)) - 1.5).abs() < 1e-15);
     }
 
     #[test]
     fn the_speed_is_floored_at_a_right_angle() {
         // D13: at ψ_e = π/2, cos ψ_e is 6e-17 in floating point; the floor 10⁻³ makes v_d·1000.
-        assert_eq!(speed(1.0, std::f64::consts::FRAC_PI_2, 0.5, None), 1000.0);
-        assert_eq!(
-            speed(0.5, -std::f64::consts::FRAC_PI_2, 0.5, Some(0.4)),
-            0.5 / 1e-3 * 0.8
-        );
+        use std::f64::consts::FRAC_PI_2;
+        assert_eq!(speed(1.0, FRAC_PI_2.cos(), 0.5, None), 1000.0);
+        assert_eq!(speed(0.5, (-FRAC_PI_2).cos(), 0.5, Some(0.4)), 0.5 / 1e-3 * 0.8);
     }
 
     #[test]

@@ -17,6 +17,22 @@ pub struct Errors {
     pub x_e: f64,
     pub y_e: f64,
     pub psi_e: f64,
+    /// sin ψ_e and cos ψ_e, which eqs. 21, 23 and 25 all take: evaluated together, once.
+    pub sin_psi_e: f64,
+    pub cos_psi_e: f64,
+}
+
+impl Errors {
+    pub fn new(x_e: f64, y_e: f64, psi_e: f64) -> Errors {
+        let (sin_psi_e, cos_psi_e) = psi_e.sin_cos();
+        Errors {
+            x_e,
+            y_e,
+            psi_e,
+            sin_psi_e,
+            cos_psi_e,
+        }
+    }
 }
 
 /// The law's outputs: speed through the water, yaw rate and the virtual-time rate.
@@ -67,11 +83,7 @@ impl Frame {
 /// `t_frame` (`Frame::new(point.heading)`).
 pub fn errors(position: Vec2, psi_f: f64, point: &PathPoint, t_frame: &Frame) -> Errors {
     let e = t_frame.of(position - point.position);
-    Errors {
-        x_e: e.x,
-        y_e: e.y,
-        psi_e: wrap(psi_f - point.heading),
-    }
+    Errors::new(e.x, e.y, wrap(psi_f - point.heading))
 }
 
 /// ζ = −arcsin(k2 y_e/(|y_e| + d1)), the approach angle.
@@ -106,8 +118,8 @@ pub fn error_rates(
 ) -> [f64; 3] {
     let s = point.speed * gamma_dot;
     [
-        (e.y_e * point.curvature - 1.0) * s + v * e.psi_e.cos() + current.x,
-        -e.x_e * point.curvature * s + v * e.psi_e.sin() + current.y,
+        (e.y_e * point.curvature - 1.0) * s + v * e.cos_psi_e + current.x,
+        -e.x_e * point.curvature * s + v * e.sin_psi_e + current.y,
         r - point.curvature * s + beta_dot,
     ]
 }
@@ -116,7 +128,7 @@ pub fn error_rates(
 pub fn control(g: &Gains, point: &PathPoint, e: &Errors, v: f64, current: Vec2, beta_dot: f64) -> Law {
     let v_d = point.speed;
     // eq. 23, with 1 + ṽ_d/v_d = v/v_d
-    let gamma_dot = v / v_d * e.psi_e.cos() + g.k1 / v_d * sat(e.x_e);
+    let gamma_dot = v / v_d * e.cos_psi_e + g.k1 / v_d * sat(e.x_e);
     // D7: ζ̇ from the measured ẏ_e of eq. 21
     let y_e_dot = error_rates(point, e, v, 0.0, gamma_dot, current, 0.0)[1];
     let z = zeta(g, e.y_e);
@@ -220,11 +232,11 @@ mod tests {
                 curvature: uniform(&mut rng, -2.0, 2.0),
                 speed: uniform(&mut rng, 0.05, 1.5),
             };
-            let e = Errors {
-                x_e: uniform(&mut rng, -5.0, 5.0),
-                y_e: uniform(&mut rng, -5.0, 5.0),
-                psi_e: uniform(&mut rng, -3.1, 3.1),
-            };
+            let e = Errors::new(
+                uniform(&mut rng, -5.0, 5.0),
+                uniform(&mut rng, -5.0, 5.0),
+                uniform(&mut rng, -3.1, 3.1),
+            );
             let g = Gains {
                 k2: uniform(&mut rng, 0.1, 1.0),
                 ..G
@@ -279,11 +291,7 @@ mod tests {
             curvature: 0.2,
             speed: 0.6,
         };
-        let e = Errors {
-            x_e: 0.0,
-            y_e: 0.0,
-            psi_e: 0.0,
-        };
+        let e = Errors::new(0.0, 0.0, 0.0);
         let law = control(&G, &point, &e, 0.6, Vec2::zeros(), 0.0);
         assert!((law.gamma_dot - 1.0).abs() < 1e-15);
         assert!((law.r - 0.2 * 0.6).abs() < 1e-15, "turns at c_c v_d");

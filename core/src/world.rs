@@ -112,29 +112,28 @@ impl World {
     pub fn step(&mut self, commands: &[Option<Command>]) {
         let t = self.time();
         let dt = self.dt;
+        // β at the three instants RK4 samples, the same for every vehicle: evaluated once per tick,
+        // and not at all without side-slip.
+        let beta = (self.sideslip_amplitude != 0.0)
+            .then(|| [0.0, 0.5 * dt, dt].map(|s| self.sideslip_amplitude * (self.sideslip_omega * (t + s)).sin()));
+        let current = self.current;
         for (n, b) in self.bodies.iter_mut().enumerate() {
             let command = commands.get(n).and_then(Option::as_ref).filter(|_| !b.lost);
             if command.is_some_and(|c| c.hold) {
                 continue;
             }
             let (v, r) = command.map_or((0.0, 0.0), |c| (c.v, c.r));
-            let (amp, omega, current) = (self.sideslip_amplitude, self.sideslip_omega, self.current);
             // ṗ = v (cos ψ_F, sin ψ_F) + v_c (cos ψ_c, sin ψ_c), ψ_F = ψ_B + β(t), ψ̇_B = r.
-            let f = |s: f64, heading: f64| {
-                // Without side-slip β is 0: no sine to evaluate.
-                let psi_f = if amp == 0.0 {
-                    heading
-                } else {
-                    heading + amp * (omega * (t + s)).sin()
-                };
+            let f = |k: usize, heading: f64| {
+                let psi_f = beta.map_or(heading, |beta| heading + beta[k]);
                 Vec2::new(v * psi_f.cos(), v * psi_f.sin()) + current
             };
             let h0 = b.heading;
-            let k1 = f(0.0, h0);
-            let k2 = f(0.5 * dt, h0 + 0.5 * dt * r);
+            let k1 = f(0, h0);
+            let k2 = f(1, h0 + 0.5 * dt * r);
             // The field depends on time and heading only, not on position, so k3 = k2.
             let k3 = k2;
-            let k4 = f(dt, h0 + dt * r);
+            let k4 = f(2, h0 + dt * r);
             b.position += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
             b.heading = follow::wrap(h0 + dt * r);
         }
