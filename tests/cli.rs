@@ -833,9 +833,10 @@ fn bench_prints_every_figure_beside_its_baseline() {
     assert!(plan[1] > 0.0 && plan[3] > 0.0, "{plan:?}");
     let fleet = numbers(&line("in-process:"));
     assert!(
-        fleet[0] > 0.1 && fleet[1] > fleet[0],
-        "the world alone is faster: {fleet:?}"
+        fleet[0] > 0.1 && fleet[1] > fleet[0] && fleet[3] > fleet[0],
+        "the world alone, and the world with the laws alone, are faster: {fleet:?}"
     );
+    assert!((fleet[4] - fleet[0] / fleet[3]).abs() < 0.01, "{fleet:?}");
     // Round trips and ticks are medians taken apart from each other on a shared machine, and
     // a router on its own threads adds little to a round trip: which of them is larger varies
     // from run to run, so only their range and the printed ratios are checked.

@@ -15,7 +15,7 @@ use tcpf_bus::typed::{presence, subscribe, subscribe_with, Outlet, Rejected};
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
-use tcpf_core::sim::{world_alone, Fleet};
+use tcpf_core::sim::{world_alone, world_and_laws, Fleet};
 use tokio::process::{Child, Command};
 
 const PING: &str = "tcpf/bench/ping";
@@ -137,8 +137,16 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
 }
 
 /// The in-process fleet against the world alone integrating as many vehicles for as many ticks
-/// with constant commands: (vehicle-steps, fleet time, world time), the best of `repeat`.
-pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> (u64, Duration, Duration) {
+/// with constant commands, and against the world with the agents' laws alone (the fleet's
+/// arithmetic, without its machines): the best of `repeat` of each.
+pub struct InProcess {
+    pub steps: u64,
+    pub fleet: Duration,
+    pub world: Duration,
+    pub laws: Duration,
+}
+
+pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> InProcess {
     let best = |f: &mut dyn FnMut()| {
         (0..repeat)
             .map(|_| {
@@ -154,7 +162,15 @@ pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> (u64, Durati
     let world = best(&mut || {
         std::hint::black_box(world_alone(mission, plan, ticks));
     });
-    (ticks * plan.vehicles.len() as u64, fleet, world)
+    let laws = best(&mut || {
+        std::hint::black_box(world_and_laws(mission, plan, ticks));
+    });
+    InProcess {
+        steps: ticks * plan.vehicles.len() as u64,
+        fleet,
+        world,
+        laws,
+    }
 }
 
 /// A router listening on `endpoint`, with nothing else.

@@ -1,12 +1,14 @@
 //! Throughput of the in-process simulator on the paper's case (b) and on 50 vehicles in lanes, in
-//! vehicle-steps per second, beside a baseline measured in the same run: the world alone
-//! integrating the same fleet with constant commands. The ratio of the two is what to compare across machines.
+//! vehicle-steps per second, beside baselines measured in the same run: the world alone
+//! integrating the same fleet with constant commands, and the world with the agents' laws alone
+//! (the fleet's arithmetic without its machines' bookkeeping: the most the fleet could reach).
+//! The ratios are what to compare across machines.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use tcpf_core::mission;
 use tcpf_core::planner;
-use tcpf_core::sim::{world_alone, Fleet};
+use tcpf_core::sim::{world_alone, world_and_laws, Fleet};
 
 fn case_b() -> mission::Mission {
     let file = format!("{}/../configs/paper/b-current.toml", env!("CARGO_MANIFEST_DIR"));
@@ -33,6 +35,9 @@ fn fleet(c: &mut Criterion, name: &str, m: &mission::Mission) {
     group.throughput(Throughput::Elements(steps));
     group.bench_function("world_only_baseline", |b| {
         b.iter(|| black_box(world_alone(&m, &plan, ticks)))
+    });
+    group.bench_function("world_and_laws_floor", |b| {
+        b.iter(|| black_box(world_and_laws(&m, &plan, ticks)))
     });
     group.bench_function("fleet_in_process", |b| {
         b.iter(|| {
