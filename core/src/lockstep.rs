@@ -415,9 +415,14 @@ impl AgentNode {
     }
 
     fn awaited(&self) -> impl Iterator<Item = u32> + '_ {
-        let tick = self.state.filter(|s| self.agent.is_comm_tick(s.tick)).map(|s| s.tick);
-        self.agent.neighbours().filter(move |j| {
-            tick.is_some_and(|k| {
+        // Between communication instants nobody is awaited: no neighbour to go through.
+        let tick = self
+            .state
+            .as_ref()
+            .map(|s| s.tick)
+            .filter(|&k| self.agent.is_comm_tick(k));
+        tick.into_iter().flat_map(move |k| {
+            self.agent.neighbours().filter(move |j| {
                 !self.gone.contains(j)
                     && !self.stale.contains(j)
                     && !self.inbox.iter().any(|g| g.from == *j && g.tick == k)

@@ -104,12 +104,17 @@ impl Recorder {
             taken = taken.and(self.on_state(state));
         }
         // A received record owns its commands and gives them up; the world's own lends them.
-        let commands: Box<dyn Iterator<Item = Command>> = match record.commands {
-            Cow::Owned(commands) => Box::new(commands.into_iter().flatten()),
-            Cow::Borrowed(commands) => Box::new(commands.iter().flatten().cloned()),
-        };
-        for command in commands {
-            taken = taken.and(self.on_command(command));
+        match record.commands {
+            Cow::Owned(commands) => {
+                for command in commands.into_iter().flatten() {
+                    taken = taken.and(self.on_command(command));
+                }
+            }
+            Cow::Borrowed(commands) => {
+                for command in commands.iter().flatten() {
+                    taken = taken.and(self.on_command(command.clone()));
+                }
+            }
         }
         taken
     }

@@ -21,6 +21,12 @@ impl Roster {
 
     /// The position of `id` in the fleet's order.
     pub fn position(&self, id: u32) -> Option<usize> {
+        // A fleet numbered on from its first id, as missions are, holds `id` at its offset from
+        // the first: found without a search (ids are unique, so a match there is the one).
+        let offset = id.wrapping_sub(*self.ids.first()?) as usize;
+        if self.ids.get(offset) == Some(&id) {
+            return Some(offset);
+        }
         self.sorted
             .binary_search_by_key(&id, |&(i, _)| i)
             .ok()
@@ -52,6 +58,13 @@ mod tests {
             assert_eq!(roster.position(id), Some(n));
         }
         assert_eq!(roster.position(2), None);
+        let numbered = Roster::new(&[4, 5, 6, 9]);
+        for (n, id) in [4, 5, 6, 9].into_iter().enumerate() {
+            assert_eq!(numbered.position(id), Some(n));
+        }
+        assert_eq!(numbered.position(7), None);
+        assert_eq!(numbered.position(3), None);
+        assert_eq!(Roster::new(&[]).position(1), None);
         assert_eq!(roster.ids(), &ids);
     }
 }
