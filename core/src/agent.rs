@@ -118,7 +118,8 @@ impl CoordinationGain {
             .flat_map(|(&to, from)| from.iter().map(move |&j| LinkSpec::of(mission, j, to).max_delay()))
             .map(|d| in_ticks(d, k.period, comm_every) as f64 * dt)
             .fold(0.0, f64::max);
-        let effective = if c.delay_compensation {
+        // λ_max costs O(N³), and only a delay asks for it (D19 caps nothing without one).
+        let effective = if c.delay_compensation && max_delay_s > 0.0 {
             coord::capped_gain(c.kc, coord::laplacian_max_eigenvalue(&graph), max_delay_s)
         } else {
             c.kc
@@ -134,12 +135,18 @@ impl CoordinationGain {
 impl Agent {
     /// The agent of vehicle `id`, at the start of its path (D15).
     pub fn new(mission: &Mission, id: u32, path: GeneralizedPath) -> Agent {
+        Agent::with_gain(mission, &CoordinationGain::of(mission), id, path)
+    }
+
+    /// `new`, with the mission's coordination gain already worked out: a fleet in one process
+    /// works it out once, not once per agent.
+    pub fn with_gain(mission: &Mission, gain: &CoordinationGain, id: u32, path: GeneralizedPath) -> Agent {
         let c = &mission.control;
         let k = &mission.comms;
         let graph = mission.graph();
         let comm_every = mission.comm_every();
         let whole_periods = |seconds: f64| in_ticks(seconds, k.period, comm_every);
-        let kc = CoordinationGain::of(mission).effective;
+        let kc = gain.effective;
         let dt = mission.mission.control_period;
         let tdma = k.tdma_slot.map(|slot| Tdma {
             slot_ticks: (slot / k.period).round() as u64 * comm_every,

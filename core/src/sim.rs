@@ -3,7 +3,7 @@
 //! lockstep shells pass their messages over Zenoh. Nothing here decides anything the machines do
 //! not: that is what makes in-process and process runs bit-identical.
 
-use crate::agent::Agent;
+use crate::agent::{Agent, CoordinationGain};
 use crate::lockstep::{AgentNode, WorldNode};
 use crate::metrics::Results;
 use crate::mission::Mission;
@@ -26,9 +26,10 @@ impl Fleet {
     pub fn new(mission: &Mission, plan: &Plan) -> Fleet {
         let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
+        let gain = CoordinationGain::of(mission);
         let agents: Vec<AgentNode> = paths
             .iter()
-            .map(|&(id, path)| AgentNode::new(Agent::new(mission, id, path)))
+            .map(|&(id, path)| AgentNode::new(Agent::with_gain(mission, &gain, id, path)))
             .collect();
         let listeners = ids
             .iter()
@@ -165,7 +166,11 @@ pub fn world_alone(mission: &Mission, plan: &Plan, ticks: u64) -> World {
 /// arithmetic of a run and nothing else. Returns the world at the end.
 pub fn world_and_laws(mission: &Mission, plan: &Plan, ticks: u64) -> World {
     let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
-    let mut agents: Vec<Agent> = paths.iter().map(|&(id, path)| Agent::new(mission, id, path)).collect();
+    let gain = CoordinationGain::of(mission);
+    let mut agents: Vec<Agent> = paths
+        .iter()
+        .map(|&(id, path)| Agent::with_gain(mission, &gain, id, path))
+        .collect();
     let mut world = World::new(mission, &paths);
     let mut states = Vec::with_capacity(paths.len());
     let mut gammas = Vec::with_capacity(paths.len());
