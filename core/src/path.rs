@@ -45,6 +45,15 @@ impl Quintic {
         Quintic { coefficients }
     }
 
+    /// p′ at τ alone, by the same Horner as `eval` (so the same bits): what the planner's
+    /// quadrature of eq. 19 samples, a hundred times per candidate t_f and vehicle.
+    pub fn tangent(&self, tau: f64) -> Vec2 {
+        let [x, y] = self
+            .coefficients
+            .map(|a| (((5.0 * a[5] * tau + 4.0 * a[4]) * tau + 3.0 * a[3]) * tau + 2.0 * a[2]) * tau + a[1]);
+        Vec2::new(x, y)
+    }
+
     /// (p, p′, p″) at τ, by Horner.
     pub fn eval(&self, tau: f64) -> [Vec2; 3] {
         let mut out = [Vec2::zeros(); 3];
@@ -287,6 +296,15 @@ mod tests {
             for (got, want) in q.eval(tau_f).iter().zip(end.iter()) {
                 assert!((got - want).norm() < 1e-9, "τ=τf={tau_f}: {got} vs {want}");
             }
+        }
+    }
+
+    #[test]
+    fn the_tangent_alone_is_evals_bit_for_bit() {
+        let q = paper_vehicle_1(45.0).quintic;
+        for k in 0..=1000 {
+            let tau = k as f64 * 0.037;
+            assert_eq!(q.tangent(tau), q.eval(tau)[1], "τ = {tau}");
         }
     }
 

@@ -162,15 +162,22 @@ pub fn vehicle_path(v: &VehicleConfig, t_f: f64) -> GeneralizedPath {
 /// J_i of eq. 19 (D4), by Simpson's rule over τ ∈ [0, τ_f].
 pub fn cost(path: &GeneralizedPath, kind: CostKind) -> f64 {
     let profile = &path.profile;
-    let power = match kind {
-        CostKind::Printed => 3,
-        CostKind::Energy => 2,
+    // Written out, the powers are what powi gives (x·x², x·x), without its library call.
+    let power = |eta: f64| match kind {
+        CostKind::Printed => eta * (eta * eta),
+        CostKind::Energy => eta * eta,
     };
     let h = profile.tau_f / QUADRATURE as f64;
-    let f = |tau: f64| path.quintic.eval(tau)[1].norm().powi(3) * profile.eta(tau).powi(power);
+    let f = |tau: f64| path.quintic.tangent(tau).norm().powi(3) * power(profile.eta(tau));
+    // The samples first, apart from the sum: independent of each other, they are computed side
+    // by side; then summed in Simpson's order.
+    let mut samples = [0.0; QUADRATURE];
+    for (k, x) in samples.iter_mut().enumerate().skip(1) {
+        *x = f(k as f64 * h);
+    }
     let mut sum = f(0.0) + f(profile.tau_f);
-    for k in 1..QUADRATURE {
-        sum += f(k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+    for (k, x) in samples.iter().enumerate().skip(1) {
+        sum += x * if k % 2 == 1 { 4.0 } else { 2.0 };
     }
     sum * h / 3.0
 }
