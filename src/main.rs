@@ -739,16 +739,16 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
         seconds(on_one) / seconds(on_every_core)
     );
 
-    let fleet = bench::in_process(&mission, &plan, 3);
-    let rate = |d: Duration| fleet.steps as f64 / seconds(d) / 1e6;
+    let took = bench::in_process(&mission, &plan, 3);
+    let rate = |d: Duration| took.steps as f64 / seconds(d) / 1e6;
     sayln!(
         "in-process: {:.2} M vehicle-steps/s; the world alone (baseline) {:.2} M/s: {:.2}x; \
          the world and the laws alone {:.2} M/s: {:.2}x",
-        rate(fleet.fleet),
-        rate(fleet.world),
-        rate(fleet.fleet) / rate(fleet.world),
-        rate(fleet.laws),
-        rate(fleet.fleet) / rate(fleet.laws)
+        rate(took.fleet),
+        rate(took.world),
+        rate(took.fleet) / rate(took.world),
+        rate(took.laws),
+        rate(took.fleet) / rate(took.laws)
     );
 
     let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;

@@ -136,16 +136,18 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
     Ok(times)
 }
 
-/// The in-process fleet against the world alone integrating as many vehicles for as many ticks
-/// with constant commands, and against the world with the agents' laws alone (the fleet's
-/// arithmetic, without its machines): the best of `repeat` of each.
+/// How long the in-process fleet took, and its baselines.
 pub struct InProcess {
+    /// Vehicle-steps of the run.
     pub steps: u64,
     pub fleet: Duration,
+    /// The world alone, integrating as many vehicles for as many ticks with constant commands.
     pub world: Duration,
+    /// The world with the agents' laws alone: the fleet's arithmetic, without its machines.
     pub laws: Duration,
 }
 
+/// The in-process fleet and its baselines, each the best of `repeat`.
 pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> InProcess {
     let best = |f: &mut dyn FnMut()| {
         (0..repeat)

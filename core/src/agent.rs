@@ -321,7 +321,7 @@ impl Agent {
         let (v, r, gamma_dot) = if self.stopped {
             (0.0, 0.0, 0.0)
         } else {
-            let v = coord::speed(point.speed, errors.cos_psi_e, self.kc, self.sum); // eq. 25
+            let v = coord::speed(point.speed, errors.cos_psi_e(), self.kc, self.sum); // eq. 25
             let current = t_frame.of(Vec2::from(state.current));
             let law = follow::control(&self.gains, &point, &errors, v, current, state.sideslip_rate);
             (law.v, law.r, law.gamma_dot)

@@ -17,9 +17,10 @@ pub struct Errors {
     pub x_e: f64,
     pub y_e: f64,
     pub psi_e: f64,
-    /// sin ψ_e and cos ψ_e, which eqs. 21, 23 and 25 all take: evaluated together, once.
-    pub sin_psi_e: f64,
-    pub cos_psi_e: f64,
+    /// sin ψ_e and cos ψ_e, which eqs. 21, 23 and 25 all take: evaluated together, once, and
+    /// private so that they are always ψ_e's.
+    sin_psi_e: f64,
+    cos_psi_e: f64,
 }
 
 impl Errors {
@@ -32,6 +33,10 @@ impl Errors {
             sin_psi_e,
             cos_psi_e,
         }
+    }
+
+    pub fn cos_psi_e(&self) -> f64 {
+        self.cos_psi_e
     }
 }
 

@@ -65,6 +65,13 @@ mod tests {
         assert_eq!(numbered.position(7), None);
         assert_eq!(numbered.position(3), None);
         assert_eq!(Roster::new(&[]).position(1), None);
+        // At the offset sits another id: found by the search.
+        let unsorted = Roster::new(&[2, 1, 3]);
+        assert_eq!(unsorted.position(3), Some(2));
+        assert_eq!(unsorted.position(1), Some(1));
+        let wrapping = Roster::new(&[u32::MAX, 0]);
+        assert_eq!(wrapping.position(0), Some(1));
+        assert_eq!(wrapping.position(u32::MAX), Some(0));
         assert_eq!(roster.ids(), &ids);
     }
 }

@@ -113,7 +113,8 @@ impl World {
         let t = self.time();
         let dt = self.dt;
         // β at the three instants RK4 samples, the same for every vehicle: evaluated once per tick,
-        // and not at all without side-slip.
+        // and not at all without side-slip. (A branch inside the loop is not enough: LLVM hoists
+        // the sines out of it, and, sine being free of side effects, runs them unconditionally.)
         let beta = (self.sideslip_amplitude != 0.0)
             .then(|| [0.0, 0.5 * dt, dt].map(|s| self.sideslip_amplitude * (self.sideslip_omega * (t + s)).sin()));
         let current = self.current;
