@@ -56,7 +56,9 @@ impl Row {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Stats {
     pub mean: f64,
-    pub std: f64,
+    /// The sample's standard deviation (over n − 1); `None` (null) for one run, which has no
+    /// spread to measure.
+    pub std: Option<f64>,
     pub min: f64,
     pub max: f64,
 }
@@ -89,11 +91,7 @@ impl Running {
     fn stats(&self) -> Option<Stats> {
         (self.n > 0).then(|| Stats {
             mean: self.mean,
-            std: if self.n > 1 {
-                (self.m2 / (self.n - 1) as f64).sqrt()
-            } else {
-                0.0
-            },
+            std: (self.n > 1).then(|| (self.m2 / (self.n - 1) as f64).sqrt()),
             min: self.min,
             max: self.max,
         })
@@ -329,7 +327,13 @@ pub fn table(summary: &SweepSummary) -> String {
         "delivered",
         "msg/veh/s"
     );
-    let f = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3} ± {:.3}", s.mean, s.std));
+    let f = |x: Option<Stats>| match x {
+        None => "–".to_string(),
+        Some(Stats { mean, std: None, .. }) => format!("{mean:.3}"),
+        Some(Stats {
+            mean, std: Some(std), ..
+        }) => format!("{mean:.3} ± {std:.3}"),
+    };
     let m = |x: Option<Stats>| x.map_or("–".to_string(), |s| format!("{:.3}", s.mean));
     for v in &summary.values {
         let _ = writeln!(
@@ -396,11 +400,24 @@ mod tests {
     use super::*;
 
     #[test]
+    fn one_run_has_no_standard_deviation_and_two_have_the_samples() {
+        let mut running = Running::default();
+        running.push(Some(2.0));
+        assert_eq!(running.stats().unwrap().std, None, "one sample: no spread to speak of");
+        running.push(Some(4.0));
+        running.push(None);
+        running.push(Some(f64::INFINITY));
+        let stats = running.stats().unwrap();
+        assert_eq!((stats.mean, stats.min, stats.max), (3.0, 2.0, 4.0));
+        assert_eq!(stats.std, Some(2f64.sqrt()), "over n − 1");
+    }
+
+    #[test]
     fn values_that_differ_only_in_their_arrival_are_not_the_same_results() {
         let stats = |x: f64| {
             Some(Stats {
                 mean: x,
-                std: 0.0,
+                std: None,
                 min: x,
                 max: x,
             })
