@@ -433,6 +433,54 @@ fn agent_pid(launch: &Launch, id: u32) -> u32 {
         .unwrap_or_else(|| panic!("agent {id} runs"))
 }
 
+/// The pid of the run's world.
+fn world_pid(launch: &Launch) -> u32 {
+    descendants(launch.child.id())
+        .into_iter()
+        .find(|pid| {
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            cmdline.split(|b| *b == 0).nth(1) == Some(b"world")
+        })
+        .expect("the world runs")
+}
+
+#[test]
+fn a_run_whose_world_is_killed_says_so_in_its_summary_and_report() {
+    let dir = scratch("world-killed");
+    let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
+    launch.wait_for("logs/world.log", "starting");
+    kill("-9", world_pid(&launch));
+    let status = launch.wait(Duration::from_secs(60));
+    assert_eq!(status.code(), Some(1));
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(launch.child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
+    let why = "the world exited (killed by signal 9) before the end";
+    assert!(stderr.contains(why), "{stderr}");
+    // What the console said is what the run directory keeps: not "vehicles not arrived" alone.
+    let s = launch.summary();
+    assert_eq!(s["completed"], false);
+    assert!(
+        s["failure"].as_str().is_some_and(|f| f.starts_with(why)),
+        "{}",
+        s["failure"]
+    );
+    let world = s["children"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["role"] == "world")
+        .unwrap();
+    assert_eq!(
+        (&world["exit_code"], &world["signal"]),
+        (&serde_json::Value::Null, &serde_json::json!(9))
+    );
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(
+        html.contains(&format!("Stopped before the end:</strong> {why}")),
+        "report.html"
+    );
+}
+
 /// Processes whose parent is gone, killed when the test ends however it ends.
 struct Orphans(Vec<u32>);
 
@@ -612,6 +660,13 @@ fn a_run_whose_recorder_never_comes_says_who_is_missing() {
     assert!(
         stderr.contains("the world exited (code 1) before the end: world: after 2s, 1 of 2 recorders still missing (logs/world.log)"),
         "{stderr}"
+    );
+    assert!(
+        launch.summary()["failure"]
+            .as_str()
+            .is_some_and(|f| f.contains("1 of 2 recorders still missing")),
+        "{}",
+        launch.summary()
     );
 }
 
@@ -1007,6 +1062,13 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["completed"], false);
     assert_eq!(s["interrupted"], false);
+    assert!(
+        s["failure"]
+            .as_str()
+            .is_some_and(|f| f.starts_with("the world left without announcing the end")),
+        "{}",
+        s["failure"]
+    );
     assert!(out.join("report.html").is_file());
 }
 

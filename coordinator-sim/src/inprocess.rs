@@ -50,6 +50,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         clock: Clock::Lockstep,
         completed: !interrupted && Summary::all_arrived(&results),
         interrupted,
+        failure: None,
         reproducible: true,
         reproducible_reasons: Vec::new(),
         sim_time_s: results.ticks as f64 * mission.mission.control_period,

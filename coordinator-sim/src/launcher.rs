@@ -88,6 +88,8 @@ struct Process {
     pid: u32,
     child: Child,
     exit_code: Option<Option<i32>>,
+    /// The signal that ended it, if one did.
+    signal: Option<i32>,
     args: Vec<String>,
 }
 
@@ -95,10 +97,16 @@ impl Process {
     fn poll(&mut self) -> Option<Option<i32>> {
         if self.exit_code.is_none() {
             if let Ok(Some(status)) = self.child.try_wait() {
-                self.exit_code = Some(status.code());
+                self.exited(status);
             }
         }
         self.exit_code
+    }
+
+    fn exited(&mut self, status: std::process::ExitStatus) {
+        use std::os::unix::process::ExitStatusExt;
+        self.exit_code = Some(status.code());
+        self.signal = status.signal();
     }
 }
 
@@ -130,8 +138,13 @@ fn last_error(log: &Path) -> Option<String> {
 
 /// Why the run fails: `role` (the world or the planner) exited with `code` (none: a signal)
 /// `when`, in its own last words where its log has them.
-fn died(dir: &RunDir, role: Role, code: Option<i32>, when: &str) -> String {
-    let code = code.map_or("killed".into(), |c| format!("code {c}"));
+fn died(dir: &RunDir, process: &Process, when: &str) -> String {
+    let role = process.role;
+    let code = match (process.exit_code.flatten(), process.signal) {
+        (Some(c), _) => format!("code {c}"),
+        (None, Some(signal)) => format!("killed by signal {signal}"),
+        (None, None) => "killed".into(),
+    };
     match last_error(&dir.path.join("logs").join(format!("{role}.log"))) {
         Some(why) => format!("the {role} exited ({code}) {when}: {why} (logs/{role}.log)"),
         None => format!("the {role} exited ({code}) {when}; see logs/{role}.log"),
@@ -218,6 +231,7 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
         pid,
         child,
         exit_code: None,
+        signal: None,
         args: args.to_vec(),
     })
 }
@@ -258,8 +272,8 @@ async fn connect(
                     _ => break,
                 },
                 _ = shutdown.recv() => return Err(Interrupted("while the world was starting").into()),
-                _ = check.tick() => if let Some(code) = world.poll() {
-                    return Err(anyhow!(died(dir, Role::World, code, "as it started")));
+                _ = check.tick() => if world.poll().is_some() {
+                    return Err(anyhow!(died(dir, world, "as it started")));
                 },
             }
         }
@@ -411,8 +425,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             _ = shutdown.recv() => break Outcome::Interrupted,
             _ = check.tick() => {
                 let dead = children.iter_mut().find_map(|c| {
-                    let code = c.poll()?;
-                    matches!(c.role, Role::World | Role::Planner).then(|| died(dir, c.role, code, "before the end"))
+                    c.poll()?;
+                    matches!(c.role, Role::World | Role::Planner).then(|| died(dir, c, "before the end"))
                 });
                 if let Some(why) = dead {
                     if recording.end.is_none() {
@@ -494,7 +508,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         if c.poll().is_none() {
             let _ = c.child.start_kill();
             if let Ok(status) = c.child.wait().await {
-                c.exit_code = Some(status.code());
+                c.exited(status);
             }
         }
     }
@@ -509,6 +523,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             id: c.id,
             pid: c.pid,
             exit_code: c.exit_code.flatten(),
+            signal: c.signal,
             rejected: report(c).map(|r| r.rejected.total()),
             reported_pid: report(c).map(|r| r.pid),
         })
@@ -520,6 +535,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         Closing {
             ended,
             interrupted: matches!(outcome, Outcome::Interrupted),
+            failure: match &outcome {
+                Outcome::Failed(why) => Some(why.clone()),
+                _ => None,
+            },
             wall_time_s,
             children,
             restarts,

@@ -88,6 +88,8 @@ pub struct Closing {
     /// The run reached its end.
     pub ended: bool,
     pub interrupted: bool,
+    /// What stopped the run before its end, if something failed.
+    pub failure: Option<String>,
     pub wall_time_s: f64,
     pub children: Vec<ChildSummary>,
     pub restarts: Vec<Restarts>,
@@ -365,6 +367,7 @@ impl Recording {
         let Closing {
             ended,
             interrupted,
+            failure,
             wall_time_s,
             children,
             restarts,
@@ -480,6 +483,7 @@ impl Recording {
             clock: if realtime { Clock::Realtime } else { Clock::Lockstep },
             completed: ended && Summary::all_arrived(&results),
             interrupted,
+            failure,
             reproducible: reproducible_reasons.is_empty(),
             reproducible_reasons,
             sim_time_s: results.ticks as f64 * mission.mission.control_period,
@@ -535,6 +539,7 @@ pub async fn record(
     // Nor would one that never comes (another mission name, endpoint or credential).
     let give_up_at = started + startup_timeout;
     let realtime = mission.mission.clock == ClockKind::Realtime;
+    let mut failure = None;
     let interrupted = loop {
         if recording.complete() {
             break false;
@@ -589,16 +594,18 @@ pub async fn record(
                 )));
             }
             _ = tokio::time::sleep_until(stall_at.unwrap_or_else(Instant::now).into()), if stall_at.is_some() => {
-                match recording.end {
-                    Some(_) => tracing::error!(
-                        "recorder: the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder); writing what was recorded",
+                let why = match recording.end {
+                    Some(_) => format!(
+                        "the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder)",
                         recording.ticks()
                     ),
-                    None => tracing::error!(
-                        "recorder: the world left without announcing the end, after tick {}; writing what was recorded",
+                    None => format!(
+                        "the world left without announcing the end, after tick {}",
                         recording.world_ticks()
                     ),
-                }
+                };
+                tracing::error!("recorder: {why}; writing what was recorded");
+                failure = Some(why);
                 break false;
             }
         }
@@ -625,6 +632,7 @@ pub async fn record(
         Closing {
             ended,
             interrupted,
+            failure,
             wall_time_s,
             children: Vec::new(),
             restarts: Vec::new(),
@@ -743,6 +751,7 @@ mod tests {
             id,
             pid: 10 + id,
             exit_code: None,
+            signal: None,
             rejected: reported.then_some(0),
             reported_pid: reported.then_some(10 + id),
         };

@@ -459,6 +459,13 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         number(&summary["min_clearance"], 3),
         number(&summary["wall_time_s"], 3),
     );
+    if let Some(failure) = summary["failure"].as_str() {
+        let _ = writeln!(
+            html,
+            "<p id=\"failure\"><strong>Stopped before the end:</strong> {}</p>",
+            escape(failure)
+        );
+    }
     html.push_str(
         "<table id=\"vehicles\"><tr><th>vehicle</th><th>arrival (s)</th><th>arrival − t_f (s)</th><th>lost</th></tr>",
     );

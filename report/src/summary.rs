@@ -44,6 +44,10 @@ pub struct ChildSummary {
     pub pid: u32,
     /// Exit code; `None` if it was killed by a signal.
     pub exit_code: Option<i32>,
+    /// The signal that ended it, if one did: 9 for a process killed outright, or by `tcpf run`
+    /// as it stopped a run that failed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub signal: Option<i32>,
     /// Messages it refused, from its exit report; `None` if it sent none (killed).
     pub rejected: Option<u64>,
     /// The pid the process gave in its exit report: equal to `pid` when the role ran there.
@@ -76,6 +80,10 @@ pub struct Summary {
     pub completed: bool,
     /// Stopped by a signal before the end.
     pub interrupted: bool,
+    /// Why the run stopped before its end, when something failed (a role died, no tick came):
+    /// what `tcpf run` or `tcpf record` said as it stopped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
     /// Whether the run is what the in-process run of the same mission and seed gives. False
     /// when a wall-clock rule changed a lockstep run; `reproducible_reasons` says which.
     pub reproducible: bool,

@@ -63,6 +63,9 @@ fn why_not_completed(summary: &Summary) -> String {
     if summary.interrupted {
         why.push("interrupted".to_string());
     }
+    // What stopped the run comes before what it left undone: its vehicles did not arrive
+    // because of it.
+    why.extend(summary.failure.clone());
     if let Some(lost) = vehicles(&|v| v.lost) {
         why.push(format!("{lost} lost"));
     }
@@ -269,6 +272,17 @@ mod tests {
             first(&lost).ends_with("NOT completed: vehicle 1 lost"),
             "{}",
             first(&lost)
+        );
+        let failed = summary(serde_json::json!({
+            "ticks": 900, "sim_time_s": 9.0,
+            "failure": "the world exited (killed) before the end; see logs/world.log"
+        }));
+        assert!(
+            first(&failed).ends_with(
+                "NOT completed: the world exited (killed) before the end; see logs/world.log; vehicles 1, 2 not arrived by the run's last tick"
+            ),
+            "{}",
+            first(&failed)
         );
     }
 
