@@ -475,9 +475,16 @@ fn a_run_whose_world_is_killed_says_so_in_its_summary_and_report() {
         (&serde_json::Value::Null, &serde_json::json!(9))
     );
     let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(html.contains(&format!("Failed:</strong> {why}")), "report.html");
+    assert_eq!(s["reproducible"], false);
     assert!(
-        html.contains(&format!("Stopped before the end:</strong> {why}")),
-        "report.html"
+        s["reproducible_reasons"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|r| r.as_str().unwrap().contains("sent no exit report")),
+        "killed with the run, the agents did not report: {}",
+        s["reproducible_reasons"]
     );
 }
 

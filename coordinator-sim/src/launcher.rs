@@ -136,8 +136,8 @@ fn last_error(log: &Path) -> Option<String> {
     Some(line["error: ".len()..].to_string())
 }
 
-/// Why the run fails: `role` (the world or the planner) exited with `code` (none: a signal)
-/// `when`, in its own last words where its log has them.
+/// Why the run fails: `process` (the world or the planner) exited `when`, with its code or the
+/// signal that killed it, in its own last words where its log has them.
 fn died(dir: &RunDir, process: &Process, when: &str) -> String {
     let role = process.role;
     let code = match (process.exit_code.flatten(), process.signal) {
@@ -419,7 +419,9 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         }
         tokio::select! {
             r = recording.step() => {
-                r?;
+                if let Err(e) = r {
+                    break Outcome::Failed(format!("the recorder failed: {e:#}"));
+                }
                 progress.set(recording.ticks());
             }
             _ = shutdown.recv() => break Outcome::Interrupted,
@@ -443,7 +445,11 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         if lost.contains(&c.id) {
                             continue;
                         }
-                        let how = c.exit_code.flatten().map_or("killed by a signal".into(), |code| format!("exit code {code}"));
+                        let how = match (c.exit_code.flatten(), c.signal) {
+                            (Some(code), _) => format!("exit code {code}"),
+                            (None, Some(signal)) => format!("killed by signal {signal}"),
+                            (None, None) => "killed".into(),
+                        };
                         tracing::warn!("agent {} died ({how}); starting it again", c.id);
                         let again = spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep)?;
                         match restarts.iter_mut().find(|r| r.id == again.id) {
@@ -499,7 +505,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 }
             }
             tokio::select! {
-                r = recording.step() => r?,
+                r = recording.step() => if let Err(e) = r {
+                    tracing::error!("recorder: {e:#}; writing what was recorded");
+                    break;
+                },
                 _ = check.tick() => {}
             }
         }

@@ -439,7 +439,8 @@ impl Recording {
             }
         }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
-        let unreported = match (interrupted, children.is_empty()) {
+        // A failed run, too, was cut short: its children killed, or the world gone.
+        let unreported = match (interrupted || failure.is_some(), children.is_empty()) {
             (false, _) => self.unreported(),
             // `tcpf record` interrupted: the fleet goes on, and its reports are yet to come.
             (true, true) => Vec::new(),
@@ -481,7 +482,7 @@ impl Recording {
             seed: mission.mission.seed,
             mode: Mode::Processes,
             clock: if realtime { Clock::Realtime } else { Clock::Lockstep },
-            completed: ended && Summary::all_arrived(&results),
+            completed: ended && failure.is_none() && Summary::all_arrived(&results),
             interrupted,
             failure,
             reproducible: reproducible_reasons.is_empty(),
@@ -554,7 +555,12 @@ pub async fn record(
         tokio::select! {
             r = recording.step() => {
                 if let Err(e) = r {
-                    return Err(if recording.ticks() == 0 { unrecorded(e) } else { e });
+                    if recording.ticks() == 0 {
+                        return Err(unrecorded(e));
+                    }
+                    tracing::error!("recorder: {e:#}; writing what was recorded");
+                    failure = Some(format!("the recorder failed: {e:#}"));
+                    break false;
                 }
                 progress.set(recording.ticks());
                 if recording.from_world > from_world {

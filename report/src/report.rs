@@ -462,7 +462,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     if let Some(failure) = summary["failure"].as_str() {
         let _ = writeln!(
             html,
-            "<p id=\"failure\"><strong>Stopped before the end:</strong> {}</p>",
+            "<p id=\"failure\"><strong>Failed:</strong> {}</p>",
             escape(failure)
         );
     }

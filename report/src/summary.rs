@@ -45,7 +45,7 @@ pub struct ChildSummary {
     /// Exit code; `None` if it was killed by a signal.
     pub exit_code: Option<i32>,
     /// The signal that ended it, if one did: 9 for a process killed outright, or by `tcpf run`
-    /// as it stopped a run that failed.
+    /// when it did not exit by itself (a run that failed, a grace period that ran out).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub signal: Option<i32>,
     /// Messages it refused, from its exit report; `None` if it sent none (killed).
@@ -80,8 +80,9 @@ pub struct Summary {
     pub completed: bool,
     /// Stopped by a signal before the end.
     pub interrupted: bool,
-    /// Why the run stopped before its end, when something failed (a role died, no tick came):
-    /// what `tcpf run` or `tcpf record` said as it stopped.
+    /// What went wrong, if something did: a role that died, a start or a tick that never came,
+    /// the recorder's own error; what `tcpf run` or `tcpf record` said as it stopped. Such a
+    /// run is not completed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub failure: Option<String>,
     /// Whether the run is what the in-process run of the same mission and seed gives. False
