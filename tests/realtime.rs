@@ -174,6 +174,82 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     );
 }
 
+/// `--vehicles 1` with nobody playing vehicle 2: the recorder says within seconds that vehicle 2's
+/// states never come (a row needs every vehicle's), and the summary says why it has no row.
+#[test]
+fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
+    let dir = scratch("unplayed-vehicle");
+    let mission = paper("b-current");
+    let settings = [
+        "--clock",
+        "realtime",
+        "--time-scale",
+        "10",
+        "--set",
+        "mission.max_duration=6",
+    ];
+    let logs = dir.join("logs");
+    std::fs::create_dir_all(&logs).unwrap();
+    let tcpf = env!("CARGO_BIN_EXE_tcpf");
+    let child = |name: &str, args: &[&str]| {
+        let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
+        Command::new(tcpf)
+            .args(args)
+            .args(settings)
+            .stdout(Stdio::from(log.try_clone().unwrap()))
+            .stderr(Stdio::from(log))
+            .spawn()
+            .unwrap()
+    };
+    let (planner, endpoint) = listening(|e| child("planner", &["planner", &mission, "-l", e]));
+    let _planner = Reaper(planner);
+    let _world = Reaper(child(
+        "world",
+        &[
+            "world",
+            &mission,
+            "-e",
+            &endpoint,
+            "--recorders",
+            "1",
+            "--vehicles",
+            "1",
+        ],
+    ));
+    let _agents: Vec<Reaper> = ["1", "2"]
+        .iter()
+        .map(|id| {
+            Reaper(child(
+                &format!("agent-{id}"),
+                &["agent", &mission, "--id", id, "-e", &endpoint],
+            ))
+        })
+        .collect();
+    let out = dir.join("run");
+    let recorded = Command::new(tcpf)
+        .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+        .args(settings)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&recorded.stderr);
+    assert_eq!(recorded.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("no state of vehicle(s) [2] has come 2 s into the run, so nothing is recorded"),
+        "{stderr}"
+    );
+    let s = summary(&out);
+    assert_eq!(s["completed"], false);
+    assert!(
+        s["failure"]
+            .as_str()
+            .is_some_and(|f| f.starts_with("no state of vehicle(s) [2] ever came")),
+        "{}",
+        s["failure"]
+    );
+    let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
+    assert_eq!(telemetry.lines().count(), 1, "a header, and no row");
+}
+
 #[test]
 fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
     let dir = scratch("rejoin-realtime");

@@ -14,7 +14,7 @@ use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Command, End, Loss, LossReason, Report, State, TickRecord};
-use tcpf_core::realtime::Sampler;
+use tcpf_core::realtime::{Sampler, STATES_DUE_S};
 use tcpf_core::record::Recorder;
 use tcpf_core::watch::WorldWatch;
 use tokio::sync::mpsc::{self, Receiver};
@@ -258,6 +258,11 @@ impl Recording {
                     let telemetry = &mut self.telemetry;
                     sampler.sample(beat.tick, |states, commands| failure = telemetry.tick(states, commands));
                     failure?;
+                    if let Some(ids) = sampler.overdue_states() {
+                        tracing::warn!(
+                            "recorder: no state of vehicle(s) {ids:?} has come {STATES_DUE_S} s into the run, so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?"
+                        );
+                    }
                 }
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
@@ -372,11 +377,19 @@ impl Recording {
             children,
             restarts,
         } = how;
+        let mut failure = failure;
         if let Machine::Realtime { sampler, .. } = &mut self.machine {
-            let mut failure = Ok(());
+            let mut written = Ok(());
             let telemetry = &mut self.telemetry;
-            sampler.finish(|states, commands| failure = telemetry.tick(states, commands));
-            failure?;
+            sampler.finish(|states, commands| written = telemetry.tick(states, commands));
+            written?;
+            // The world ran (some vehicle's states came) without some other's.
+            let missing = sampler.without_state();
+            if !missing.is_empty() && sampler.newest_state().is_some() && failure.is_none() {
+                failure = Some(format!(
+                    "no state of vehicle(s) {missing:?} ever came, so the telemetry has no row (a row needs every vehicle's state)"
+                ));
+            }
         }
         let mut results = self.results();
         for r in self.exit_reports.iter().filter(|r| r.role == Role::Agent.as_str()) {

@@ -17,6 +17,9 @@ use crate::world::World;
 /// whose agent has been silent longer (its network is down, it hangs) stops its thrusters and
 /// drifts, as a vehicle's own command watchdog would make it.
 const HOLD_LIMIT_S: f64 = 1.0;
+/// How far into a run (by the newest state) every vehicle's first state is due at the recorder:
+/// a vehicle played by another program whose states never come keeps every row out.
+pub const STATES_DUE_S: f64 = 2.0;
 
 /// Lateness buckets per doubling: percentiles within 9 % of the truth.
 const PER_OCTAVE: f64 = 8.0;
@@ -460,6 +463,9 @@ pub struct Sampler {
     sampled: Vec<bool>,
     /// Each vehicle's neighbours, in roster order.
     neighbours: Vec<Vec<u32>>,
+    /// `STATES_DUE_S` in ticks, and whether the vehicles without a state then were told.
+    due_ticks: u64,
+    told_overdue: bool,
 }
 
 impl Sampler {
@@ -478,11 +484,34 @@ impl Sampler {
             moved: false,
             end: None,
             row: Vec::with_capacity(ids.len()),
+            due_ticks: (STATES_DUE_S / dt).ceil() as u64,
+            told_overdue: false,
         }
     }
 
     fn index(&self, id: u32) -> Result<usize, Reject> {
         self.ids.position(id).ok_or(Reject::UnknownVehicle)
+    }
+
+    /// The vehicles of which no state has come: while there is one, no row is written.
+    pub fn without_state(&self) -> Vec<u32> {
+        self.ids
+            .ids()
+            .iter()
+            .zip(&self.states)
+            .filter(|(_, s)| s.is_none())
+            .map(|(&id, _)| id)
+            .collect()
+    }
+
+    /// Once the run is `STATES_DUE_S` in and some vehicle has still sent no state, those
+    /// vehicles, once: what the recorder's user must hear, as nothing is recorded meanwhile.
+    pub fn overdue_states(&mut self) -> Option<Vec<u32>> {
+        if self.told_overdue || self.newest_state()? < self.due_ticks {
+            return None;
+        }
+        self.told_overdue = true;
+        Some(self.without_state()).filter(|ids| !ids.is_empty())
     }
 
     /// A vehicle's state, `horizon` the latest tick the recorder's clock allows.
@@ -637,6 +666,40 @@ mod tests {
 
     /// How far ahead of the tick under way the machines of `on_time` take messages.
     const AHEAD: u64 = 100;
+    #[test]
+    fn a_vehicle_whose_states_never_come_is_told_once_when_they_are_due() {
+        let (m, paths, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let world = RealtimeWorld::new(&m, &paths, t_f, &[1]);
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        let due = (STATES_DUE_S / dt).ceil() as u64;
+        let mut rows = 0;
+        for tick in 0..=due {
+            sampler
+                .on_state(
+                    State {
+                        tick,
+                        ..world.states()[0]
+                    },
+                    HORIZON,
+                )
+                .unwrap();
+            sampler.sample(tick, |_, _| rows += 1);
+            let told = sampler.overdue_states();
+            assert_eq!(told, (tick == due).then(|| vec![2]), "tick {tick}");
+        }
+        assert_eq!(rows, 0, "no row without vehicle 2's state");
+        assert_eq!(sampler.overdue_states(), None, "told once");
+        assert_eq!(sampler.without_state(), vec![2]);
+        // Every vehicle heard from in time: nothing to tell.
+        let mut both = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        for &state in RealtimeWorld::new(&m, &paths, t_f, &[1, 2]).states() {
+            both.on_state(State { tick: due, ..state }, HORIZON).unwrap();
+        }
+        assert_eq!(both.overdue_states(), None);
+        assert!(both.without_state().is_empty());
+    }
+
     /// A horizon beyond every tick the other tests send.
     const HORIZON: u64 = 1_000;
 
