@@ -8,8 +8,8 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, assert_none_left, assert_same_run, config, descendants, exited, kill, lanes, listening, paper, processes,
-    run_in_process, scratch, summary, wait_for_text, Launch, Reaper,
+    alive, assert_none_left, assert_same_run, child_of, config, descendants, exited, failure, kill, lanes, listening,
+    paper, processes, run_in_process, scratch, summary, wait_for_text, Launch, Reaper,
 };
 
 #[test]
@@ -244,12 +244,7 @@ fn a_world_whose_vehicles_do_not_arrive_exits_1() {
     let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.max_duration=20"]);
     assert_eq!(launch.wait(Duration::from_secs(120)).code(), Some(1));
     let s = launch.summary();
-    let world = s["children"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|c| c["role"] == "world")
-        .unwrap();
+    let world = child_of(&s, "world");
     assert_eq!(world["exit_code"], 1, "{s}");
     let log = std::fs::read_to_string(dir.join("logs/world.log")).unwrap();
     assert!(
@@ -459,17 +454,8 @@ fn a_run_whose_world_is_killed_says_so_in_its_summary_and_report() {
     // What the console said is what the run directory keeps: not "vehicles not arrived" alone.
     let s = launch.summary();
     assert_eq!(s["completed"], false);
-    assert!(
-        s["failure"].as_str().is_some_and(|f| f.starts_with(why)),
-        "{}",
-        s["failure"]
-    );
-    let world = s["children"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|c| c["role"] == "world")
-        .unwrap();
+    assert!(failure(&s).starts_with(why), "{s}");
+    let world = child_of(&s, "world");
     assert_eq!(
         (&world["exit_code"], &world["signal"]),
         (&serde_json::Value::Null, &serde_json::json!(9))
@@ -668,13 +654,7 @@ fn a_run_whose_recorder_never_comes_says_who_is_missing() {
         stderr.contains("the world exited (code 1) before the end: world: after 2s, 1 of 2 recorders still missing (logs/world.log)"),
         "{stderr}"
     );
-    assert!(
-        launch.summary()["failure"]
-            .as_str()
-            .is_some_and(|f| f.contains("1 of 2 recorders still missing")),
-        "{}",
-        launch.summary()
-    );
+    assert!(failure(&launch.summary()).contains("1 of 2 recorders still missing"));
 }
 
 /// The process group of `pid`, from /proc/PID/stat (the fifth field; the second, the command,
@@ -1070,11 +1050,8 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
     assert_eq!(s["completed"], false);
     assert_eq!(s["interrupted"], false);
     assert!(
-        s["failure"]
-            .as_str()
-            .is_some_and(|f| f.starts_with("the world left without announcing the end")),
-        "{}",
-        s["failure"]
+        failure(&s).starts_with("the world left without announcing the end"),
+        "{s}"
     );
     assert!(out.join("report.html").is_file());
 }

@@ -4,11 +4,12 @@
 
 mod common;
 
-use std::process::{Command, Stdio};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    assert_none_left, descendants, kill, listening, paper, run_in_process, scratch, summary, timing,
+    assert_none_left, descendants, failure, kill, listening, paper, run_in_process, scratch, summary, timing,
     wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
@@ -103,46 +104,57 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
     assert_none_left(&realtime);
 }
 
+/// A child logging into `logs/NAME.log`.
+fn logged(logs: &Path, name: &str, program: &str, args: &[&str]) -> Child {
+    let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
+    Command::new(program)
+        .args(args)
+        .stdout(Stdio::from(log.try_clone().unwrap()))
+        .stderr(Stdio::from(log))
+        .spawn()
+        .unwrap()
+}
+
+/// Case (b) by hand, its world simulating vehicle 1 alone (`--vehicles 1`): the planner, the
+/// world and both agents, `settings` given to each, logging into `logs`. Returns them and the
+/// endpoint; playing vehicle 2, and recording, is the caller's.
+fn fleet_without_vehicle_2(mission: &str, logs: &Path, settings: &[&str]) -> (Vec<Reaper>, String) {
+    std::fs::create_dir_all(logs).unwrap();
+    let tcpf = env!("CARGO_BIN_EXE_tcpf");
+    let role = |name: &str, args: &[&str]| logged(logs, name, tcpf, &[args, settings].concat());
+    let (planner, endpoint) = listening(|e| role("planner", &["planner", mission, "-l", e]));
+    let e = endpoint.as_str();
+    let mut fleet = vec![
+        Reaper(planner),
+        Reaper(role(
+            "world",
+            &["world", mission, "-e", e, "--recorders", "1", "--vehicles", "1"],
+        )),
+    ];
+    for id in ["1", "2"] {
+        fleet.push(Reaper(role(
+            &format!("agent-{id}"),
+            &["agent", mission, "--id", id, "-e", e],
+        )));
+    }
+    (fleet, endpoint)
+}
+
 #[test]
 fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     let dir = scratch("python-vehicle");
     let mission = paper("b-current");
     let clock = ["--clock", "realtime", "--time-scale", "5"];
     let logs = dir.join("logs");
-    std::fs::create_dir_all(&logs).unwrap();
-    let child = |name: &str, program: &str, args: &[&str]| {
-        let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
-        Command::new(program)
-            .args(args)
-            .stdout(Stdio::from(log.try_clone().unwrap()))
-            .stderr(Stdio::from(log))
-            .spawn()
-            .unwrap()
-    };
-    let spawn = |name: &str, program: &str, args: &[&str]| Reaper(child(name, program, args));
+    let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &logs, &clock);
     let tcpf = env!("CARGO_BIN_EXE_tcpf");
-    let (planner, endpoint) = listening(|e| child("planner", tcpf, &["planner", &mission, "-l", e]));
-    let _planner = Reaper(planner);
-    let mut world = vec![
-        "world",
-        &mission,
-        "-e",
-        &endpoint,
-        "--recorders",
-        "1",
-        "--vehicles",
-        "1",
-    ];
-    world.extend(clock);
-    let _world = spawn("world", tcpf, &world);
-    let mut agents = Vec::new();
-    for id in ["1", "2"] {
-        let mut args = vec!["agent", mission.as_str(), "--id", id, "-e", &endpoint];
-        args.extend(clock);
-        agents.push(spawn(&format!("agent-{id}"), tcpf, &args));
-    }
     let script = format!("{}/examples/python/vehicle.py", env!("CARGO_MANIFEST_DIR"));
-    let mut vehicle = spawn("vehicle", "python3", &[&script, &mission, "--id", "2", "-e", &endpoint]);
+    let mut vehicle = Reaper(logged(
+        &logs,
+        "vehicle",
+        "python3",
+        &[&script, &mission, "--id", "2", "-e", &endpoint],
+    ));
     let out = dir.join("run");
     let mut record = vec!["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()];
     record.extend(clock);
@@ -188,43 +200,8 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
         "--set",
         "mission.max_duration=6",
     ];
-    let logs = dir.join("logs");
-    std::fs::create_dir_all(&logs).unwrap();
+    let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &dir.join("logs"), &settings);
     let tcpf = env!("CARGO_BIN_EXE_tcpf");
-    let child = |name: &str, args: &[&str]| {
-        let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
-        Command::new(tcpf)
-            .args(args)
-            .args(settings)
-            .stdout(Stdio::from(log.try_clone().unwrap()))
-            .stderr(Stdio::from(log))
-            .spawn()
-            .unwrap()
-    };
-    let (planner, endpoint) = listening(|e| child("planner", &["planner", &mission, "-l", e]));
-    let _planner = Reaper(planner);
-    let _world = Reaper(child(
-        "world",
-        &[
-            "world",
-            &mission,
-            "-e",
-            &endpoint,
-            "--recorders",
-            "1",
-            "--vehicles",
-            "1",
-        ],
-    ));
-    let _agents: Vec<Reaper> = ["1", "2"]
-        .iter()
-        .map(|id| {
-            Reaper(child(
-                &format!("agent-{id}"),
-                &["agent", &mission, "--id", id, "-e", &endpoint],
-            ))
-        })
-        .collect();
     let out = dir.join("run");
     let recorded = Command::new(tcpf)
         .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
@@ -239,13 +216,7 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
     );
     let s = summary(&out);
     assert_eq!(s["completed"], false);
-    assert!(
-        s["failure"]
-            .as_str()
-            .is_some_and(|f| f.starts_with("no state of vehicle(s) [2] ever came")),
-        "{}",
-        s["failure"]
-    );
+    assert!(failure(&s).starts_with("no state of vehicle(s) [2] ever came"), "{s}");
     let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
     assert_eq!(telemetry.lines().count(), 1, "a header, and no row");
 }

@@ -189,6 +189,23 @@ pub fn summary(dir: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
 }
 
+/// The child of `role` in a summary (the first, for agents).
+pub fn child_of<'a>(summary: &'a Value, role: &str) -> &'a Value {
+    summary["children"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["role"] == role)
+        .unwrap_or_else(|| panic!("no {role} among the children: {summary}"))
+}
+
+/// A summary's `failure`, which must be there.
+pub fn failure(summary: &Value) -> &str {
+    summary["failure"]
+        .as_str()
+        .unwrap_or_else(|| panic!("no failure in the summary: {summary}"))
+}
+
 pub const METRICS: [&str; 6] = [
     "t_f",
     "ticks",
