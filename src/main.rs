@@ -848,7 +848,7 @@ fn report(dir: &Path) -> Result<ExitCode, Failure> {
     }
     if !dir.join("summary.json").is_file() {
         return Err(Failure::Input(anyhow!(
-            "{}: no summary.json: not a run directory, or a run stopped before it wrote one (killed outright, or failed before its first tick)",
+            "{}: no summary.json: not a run directory, or a run stopped before it wrote one (killed outright, say)",
             dir.display()
         )));
     }

@@ -171,20 +171,7 @@ fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
     // The launcher finds a free port, which the world binds: another process can take it in
     // between. Widen that moment (strace delays the world's exec by 2 s) and take the port.
     let dir = scratch("port-taken");
-    let mut strace = Command::new("strace");
-    strace.args([
-        "-f",
-        "-qq",
-        "-o",
-        "/dev/null",
-        "-e",
-        "trace=execve",
-        "-e",
-        "inject=execve:delay_exit=2000000:when=1",
-        env!("CARGO_BIN_EXE_tcpf"),
-    ]);
-    let mut launch = Launch::spawn(strace, &paper("b-current"), &dir, &[]);
-    launch.wait_for("world.json5", "router");
+    let mut launch = run_with_a_slow_world(&dir);
     let world: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("world.json5")).unwrap()).unwrap();
     let endpoint = world["listen"]["endpoints"][0].as_str().unwrap();
@@ -202,6 +189,19 @@ fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
     assert!(!dir.join("endpoint").exists(), "nobody was told to join");
     // The planner, started beside the world, went with it.
     assert!(dir.join("logs/planner.log").is_file());
+    // A run directory all the same: its summary says why, with no tick.
+    let s = launch.summary();
+    assert!(failure(&s).contains("the world exited (code 1) as it started"), "{s}");
+    assert_eq!(
+        (&s["completed"], &s["ticks"]),
+        (&serde_json::json!(false), &serde_json::json!(0))
+    );
+    assert_eq!(child_of(&s, "world")["exit_code"], 1, "{s}");
+    let telemetry = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
+    assert_eq!(telemetry.lines().count(), 1, "the header alone");
+    assert!(std::fs::read_to_string(dir.join("report.html"))
+        .unwrap()
+        .contains("Failed:"));
     let run = dir.display().to_string();
     let left: Vec<u32> = processes()
         .into_iter()
@@ -213,6 +213,57 @@ fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
         .map(|p| p.0)
         .collect();
     assert!(left.is_empty(), "processes of the run outlived it: {left:?}");
+}
+
+/// `tcpf run` under strace, the world's exec delayed by 2 s: the moment while the world starts,
+/// widened.
+fn run_with_a_slow_world(dir: &Path) -> Launch {
+    let mut strace = Command::new("strace");
+    strace.args([
+        "-f",
+        "-qq",
+        "-o",
+        "/dev/null",
+        "-e",
+        "trace=execve",
+        "-e",
+        "inject=execve:delay_exit=2000000:when=1",
+        env!("CARGO_BIN_EXE_tcpf"),
+    ]);
+    let launch = Launch::spawn(strace, &paper("b-current"), dir, &[]);
+    launch.wait_for("world.json5", "router");
+    launch
+}
+
+#[test]
+fn ctrl_c_while_the_world_starts_leaves_a_run_directory_that_says_so() {
+    let dir = scratch("interrupted-start");
+    let mut launch = run_with_a_slow_world(&dir);
+    // The launcher is strace's child; the world, still starting, the launcher's.
+    let launcher = descendants(launch.child.id())
+        .into_iter()
+        .find(|&pid| {
+            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+            let after = &stat[stat.rfind(')').map_or(0, |k| k + 2)..];
+            after.split(' ').nth(1) == Some(&launch.child.id().to_string())
+        })
+        .expect("the launcher runs");
+    kill("-INT", launcher);
+    let status = launch.wait(Duration::from_secs(30));
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut launch.child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert_eq!(status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted while the world was starting"), "{stderr}");
+    let s = launch.summary();
+    assert_eq!(
+        (&s["interrupted"], &s["completed"]),
+        (&serde_json::json!(true), &serde_json::json!(false))
+    );
+    assert_eq!(
+        (&s["ticks"], &s["failure"]),
+        (&serde_json::json!(0), &serde_json::Value::Null)
+    );
+    assert!(dir.join("report.html").is_file() && dir.join("telemetry.csv").is_file());
 }
 
 #[test]

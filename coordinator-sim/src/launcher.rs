@@ -334,6 +334,31 @@ fn stall_limit(mission: &Mission, command_timeout: Duration, restart: bool) -> D
     STALL.max(waits.saturating_add(START_MARGIN))
 }
 
+/// Kills the children that have not exited, and waits for them.
+async fn stop(children: &mut [Process]) {
+    for c in children.iter_mut() {
+        if c.poll().is_none() {
+            let _ = c.child.start_kill();
+            if let Ok(status) = c.child.wait().await {
+                c.exited(status);
+            }
+        }
+    }
+}
+
+/// A child as the summary lists it, with what its exit report said if it sent one.
+fn child_summary(c: &Process, report: Option<&Report>) -> ChildSummary {
+    ChildSummary {
+        role: c.role.as_str().into(),
+        id: c.id,
+        pid: c.pid,
+        exit_code: c.exit_code.flatten(),
+        signal: c.signal,
+        rejected: report.map(|r| r.rejected.total()),
+        reported_pid: report.map(|r| r.pid),
+    }
+}
+
 /// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
 pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, options: Options) -> Result<Summary> {
     let Options {
@@ -343,6 +368,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         recorders,
         startup_timeout,
     } = options;
+    let begun = Instant::now();
     let mut shutdown = Shutdown::new()?;
     let stall = stall_limit(mission, command_timeout, restart);
     dir.write_mission(mission)?;
@@ -377,11 +403,27 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let session = match connect(&configs.client, &mut children[0], dir, startup_timeout, &mut shutdown).await {
         Ok(session) => session,
         Err(e) => {
-            for c in children.iter_mut() {
-                let _ = c.child.start_kill();
-                let _ = c.child.wait().await;
+            stop(&mut children).await;
+            let interrupted = e.downcast_ref::<Interrupted>().is_some();
+            // The run directory is whole even so: a summary that says what stopped the run, with
+            // the telemetry's headers and the report, as a run that did start leaves.
+            let summary = Summary::before_the_first_tick(
+                mission,
+                plan.t_f,
+                interrupted,
+                (!interrupted).then(|| format!("{e:#}")),
+                begun.elapsed().as_secs_f64(),
+                children.iter().map(|c| child_summary(c, None)).collect(),
+            );
+            if let Err(unwritten) = dir
+                .telemetry(plan, None)
+                .and_then(|t| t.finish())
+                .and_then(|()| dir.write_summary(&summary))
+                .and_then(|()| tcpf_report::report::write(&dir.path))
+            {
+                tracing::warn!("the run directory's summary could not be written: {unwritten:#}");
             }
-            if e.downcast_ref::<Interrupted>().is_some() {
+            if interrupted {
                 return Err(e);
             }
             return Err(anyhow!("{e:#} (run directory {})", dir.path.display()));
@@ -513,29 +555,13 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             }
         }
     }
-    for c in children.iter_mut() {
-        if c.poll().is_none() {
-            let _ = c.child.start_kill();
-            if let Ok(status) = c.child.wait().await {
-                c.exited(status);
-            }
-        }
-    }
+    stop(&mut children).await;
     let _ = session.close().await;
 
-    let report = |c: &Process| report_of(&recording, c);
     let children: Vec<ChildSummary> = retired
         .iter()
         .chain(&children)
-        .map(|c| ChildSummary {
-            role: c.role.as_str().into(),
-            id: c.id,
-            pid: c.pid,
-            exit_code: c.exit_code.flatten(),
-            signal: c.signal,
-            rejected: report(c).map(|r| r.rejected.total()),
-            reported_pid: report(c).map(|r| r.pid),
-        })
+        .map(|c| child_summary(c, report_of(&recording, c)))
         .collect();
     let ended = matches!(outcome, Outcome::Completed);
     let summary = recording.close(

@@ -1,7 +1,8 @@
 //! `summary.json` (the README, "Reading the results").
 
 use serde::{Deserialize, Serialize};
-use tcpf_core::metrics::Results;
+use tcpf_core::metrics::{Metrics, Results};
+use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{PeriodTiming, Rejections, Report};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -120,6 +121,43 @@ pub struct Summary {
 }
 
 impl Summary {
+    /// A process run that stopped before its recording started: interrupted, or its world
+    /// failed to start (`failure`). No tick ran; every vehicle is still to arrive.
+    pub fn before_the_first_tick(
+        mission: &Mission,
+        t_f: f64,
+        interrupted: bool,
+        failure: Option<String>,
+        wall_time_s: f64,
+        children: Vec<ChildSummary>,
+    ) -> Summary {
+        let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+        let realtime = mission.mission.clock == ClockKind::Realtime;
+        Summary {
+            mission: mission.mission.name.clone(),
+            seed: mission.mission.seed,
+            mode: Mode::Processes,
+            clock: if realtime { Clock::Realtime } else { Clock::Lockstep },
+            completed: false,
+            interrupted,
+            failure,
+            reproducible: true,
+            reproducible_reasons: Vec::new(),
+            results: Metrics::new(&ids, t_f, mission.mission.control_period).results(),
+            sim_time_s: 0.0,
+            wall_time_s,
+            tick_wall_time_us: 0.0,
+            rejected_messages: 0,
+            rejections: Rejections::default(),
+            children,
+            time_scale: realtime.then_some(mission.mission.time_scale),
+            timing: Vec::new(),
+            restarts: Vec::new(),
+            unreported: Vec::new(),
+            coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
+        }
+    }
+
     /// Why a lockstep process run is not the in-process run, from the roles' exit reports.
     pub fn irreproducible_because(reports: &[Report]) -> Vec<String> {
         let mut reasons = Vec::new();
