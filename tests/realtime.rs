@@ -211,7 +211,7 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
     let stderr = String::from_utf8_lossy(&recorded.stderr);
     assert_eq!(recorded.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("no state of vehicle(s) [2] has come 2 s into the run, so nothing is recorded"),
+        stderr.contains("no state of vehicle(s) [2] has come in 2 s of the run (simulated), so nothing is recorded"),
         "{stderr}"
     );
     let s = summary(&out);

@@ -415,13 +415,13 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 begun.elapsed().as_secs_f64(),
                 children.iter().map(|c| child_summary(c, None)).collect(),
             );
-            if let Err(unwritten) = dir
-                .telemetry(plan, None)
-                .and_then(|t| t.finish())
-                .and_then(|()| dir.write_summary(&summary))
-                .and_then(|()| tcpf_report::report::write(&dir.path))
-            {
-                tracing::warn!("the run directory's summary could not be written: {unwritten:#}");
+            // The summary first, on its own: the rest is made from it and the telemetry.
+            let written = dir.write_summary(&summary).and_then(|()| {
+                dir.telemetry(plan, None)?.finish()?;
+                tcpf_report::report::write(&dir.path)
+            });
+            if let Err(unwritten) = written {
+                tracing::warn!("the run directory could not be written whole: {unwritten:#}");
             }
             if interrupted {
                 return Err(e);

@@ -18,7 +18,7 @@ fn spread<T: Sync, R: Send>(items: &[T], threads: usize, f: impl Fn(&T) -> R + S
             .collect();
         parts
             .into_iter()
-            .flat_map(|p| p.join().expect("the planner does not panic"))
+            .flat_map(|p| p.join().expect("a planning thread panicked"))
             .collect()
     })
 }
@@ -55,7 +55,7 @@ fn with_checkers<R>(
                 }
                 // A checker that panicked drops its answer's sender: no wait for ever.
                 round
-                    .map(|(_, (_, told))| told.recv().expect("the planner does not panic"))
+                    .map(|(_, (_, told))| told.recv().expect("a planning thread panicked"))
                     .collect()
             };
             work(&check)

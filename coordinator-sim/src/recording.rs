@@ -28,7 +28,7 @@ use tcpf_core::planner::Plan;
 
 use crate::progress::Ticks;
 use tcpf_report::rundir::{RunDir, Telemetry};
-use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary};
+use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary, REALTIME};
 
 /// How long `tcpf record` waits, after the world's end (or after the world left without one),
 /// for a tick that does not come whole.
@@ -260,7 +260,7 @@ impl Recording {
                     failure?;
                     if let Some(ids) = sampler.overdue_states() {
                         tracing::warn!(
-                            "recorder: no state of vehicle(s) {ids:?} has come {STATES_DUE_S} s into the run, so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?"
+                            "recorder: no state of vehicle(s) {ids:?} has come in {STATES_DUE_S} s of the run (simulated), so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?"
                         );
                     }
                 }
@@ -377,15 +377,16 @@ impl Recording {
             children,
             restarts,
         } = how;
+        // Cut short by a signal or by what stopped it: its roles may not have reported.
+        let cut_short = interrupted || failure.is_some();
         let mut failure = failure;
         if let Machine::Realtime { sampler, .. } = &mut self.machine {
             let mut written = Ok(());
             let telemetry = &mut self.telemetry;
             sampler.finish(|states, commands| written = telemetry.tick(states, commands));
             written?;
-            // The world ran (some vehicle's states came) without some other's.
-            let missing = sampler.without_state();
-            if !missing.is_empty() && sampler.newest_state().is_some() && failure.is_none() {
+            let missing = sampler.never_heard();
+            if !missing.is_empty() && !cut_short {
                 failure = Some(format!(
                     "no state of vehicle(s) {missing:?} ever came, so the telemetry has no row (a row needs every vehicle's state)"
                 ));
@@ -452,8 +453,7 @@ impl Recording {
             }
         }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
-        // A failed run, too, was cut short: its children killed, or the world gone.
-        let unreported = match (interrupted || failure.is_some(), children.is_empty()) {
+        let unreported = match (cut_short, children.is_empty()) {
             (false, _) => self.unreported(),
             // `tcpf record` interrupted: the fleet goes on, and its reports are yet to come.
             (true, true) => Vec::new(),
@@ -471,7 +471,7 @@ impl Recording {
             }
         }
         if realtime {
-            reproducible_reasons.push("the realtime clock: what happens depends on timing".into());
+            reproducible_reasons.push(REALTIME.into());
         } else {
             // When the world gives up on an agent is a matter of wall-clock time (its command
             // timeout, or when the agent's process died), which the in-process run knows nothing of.

@@ -466,6 +466,9 @@ pub struct Sampler {
     /// `STATES_DUE_S` in ticks, and whether the vehicles without a state then were told.
     due_ticks: u64,
     told_overdue: bool,
+    /// The tick of the first state this recorder took: one that joins a run under way counts
+    /// the time due from there.
+    first_state: Option<u64>,
 }
 
 impl Sampler {
@@ -486,6 +489,7 @@ impl Sampler {
             row: Vec::with_capacity(ids.len()),
             due_ticks: (STATES_DUE_S / dt).ceil() as u64,
             told_overdue: false,
+            first_state: None,
         }
     }
 
@@ -504,10 +508,27 @@ impl Sampler {
             .collect()
     }
 
-    /// Once the run is `STATES_DUE_S` in and some vehicle has still sent no state, those
-    /// vehicles, once: what the recorder's user must hear, as nothing is recorded meanwhile.
+    /// `STATES_DUE_S` of simulated time have passed since the first state this recorder took.
+    fn states_due(&self) -> bool {
+        match (self.first_state, self.newest_state()) {
+            (Some(first), Some(newest)) => newest.saturating_sub(first) >= self.due_ticks,
+            _ => false,
+        }
+    }
+
+    /// The vehicles of which no state has come though their states are due: none before then.
+    pub fn never_heard(&self) -> Vec<u32> {
+        if self.states_due() {
+            self.without_state()
+        } else {
+            Vec::new()
+        }
+    }
+
+    /// `never_heard`, once, as the states fall due: what the recorder's user must hear, as
+    /// nothing is recorded meanwhile.
     pub fn overdue_states(&mut self) -> Option<Vec<u32>> {
-        if self.told_overdue || self.newest_state()? < self.due_ticks {
+        if self.told_overdue || !self.states_due() {
             return None;
         }
         self.told_overdue = true;
@@ -525,6 +546,7 @@ impl Sampler {
             older(held.tick, state.tick, held, &state)?;
         }
         self.states[n] = Some(state);
+        self.first_state.get_or_insert(state.tick);
         self.moved = true;
         Ok(())
     }
@@ -698,6 +720,36 @@ mod tests {
         }
         assert_eq!(both.overdue_states(), None);
         assert!(both.without_state().is_empty());
+        // A recorder that joins a run under way counts from the first state it took: vehicle 2's
+        // coming a tick after vehicle 1's is not overdue.
+        let mut late = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        let states = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]).states().to_vec();
+        late.on_state(
+            State {
+                tick: 5 * due,
+                ..states[0]
+            },
+            10 * due,
+        )
+        .unwrap();
+        assert_eq!((late.overdue_states(), late.never_heard()), (None, vec![]));
+        late.on_state(
+            State {
+                tick: 5 * due + 1,
+                ..states[1]
+            },
+            10 * due,
+        )
+        .unwrap();
+        late.on_state(
+            State {
+                tick: 6 * due,
+                ..states[0]
+            },
+            10 * due,
+        )
+        .unwrap();
+        assert_eq!(late.overdue_states(), None, "every vehicle heard");
     }
 
     /// A horizon beyond every tick the other tests send.

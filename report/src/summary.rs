@@ -120,6 +120,9 @@ pub struct Summary {
     pub coordination_gain: Option<tcpf_core::agent::CoordinationGain>,
 }
 
+/// Why a realtime run is never reproducible.
+pub const REALTIME: &str = "the realtime clock: what happens depends on timing";
+
 impl Summary {
     /// A process run that stopped before its recording started: interrupted, or its world
     /// failed to start (`failure`). No tick ran; every vehicle is still to arrive.
@@ -141,19 +144,20 @@ impl Summary {
             completed: false,
             interrupted,
             failure,
-            reproducible: true,
-            reproducible_reasons: Vec::new(),
+            reproducible: !realtime,
+            reproducible_reasons: realtime.then(|| REALTIME.to_string()).into_iter().collect(),
             results: Metrics::new(&ids, t_f, mission.mission.control_period).results(),
             sim_time_s: 0.0,
             wall_time_s,
             tick_wall_time_us: 0.0,
             rejected_messages: 0,
             rejections: Rejections::default(),
-            children,
             time_scale: realtime.then_some(mission.mission.time_scale),
             timing: Vec::new(),
             restarts: Vec::new(),
-            unreported: Vec::new(),
+            // No role had started its work, and none reported.
+            unreported: children.iter().map(|c| format!("{} {}", c.role, c.id)).collect(),
+            children,
             coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         }
     }
@@ -208,5 +212,35 @@ impl Summary {
     /// How many times faster than real time the run went.
     pub fn speedup(&self) -> f64 {
         self.sim_time_s / self.wall_time_s.max(1e-9)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_stopped_before_its_first_tick_says_what_it_knows() {
+        let text = include_str!("../../configs/paper/b-current.toml");
+        let child = |role: &str| ChildSummary {
+            role: role.into(),
+            id: 0,
+            pid: 1,
+            exit_code: None,
+            signal: Some(9),
+            rejected: None,
+            reported_pid: None,
+        };
+        let children = || vec![child("world"), child("planner")];
+        let lockstep = tcpf_core::mission::parse("b-current.toml", text, &[]).unwrap();
+        let s = Summary::before_the_first_tick(&lockstep, 45.0, true, None, 0.1, children());
+        assert!(!s.completed && s.interrupted && s.reproducible && s.failure.is_none());
+        assert_eq!((s.results.ticks, s.results.vehicles.len()), (0, 2));
+        assert_eq!(s.unreported, ["world 0", "planner 0"], "killed as they started");
+        let overrides = ["mission.clock=\"realtime\"".to_string()];
+        let realtime = tcpf_core::mission::parse("b-current.toml", text, &overrides).unwrap();
+        let s = Summary::before_the_first_tick(&realtime, 45.0, false, Some("the world …".into()), 0.1, children());
+        assert!(!s.reproducible && s.reproducible_reasons == [REALTIME], "{s:?}");
+        assert_eq!(s.failure.as_deref(), Some("the world …"));
     }
 }
