@@ -215,9 +215,9 @@ fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
     assert!(left.is_empty(), "processes of the run outlived it: {left:?}");
 }
 
-/// `tcpf run` under strace, the world's exec delayed by 2 s: the moment while the world starts,
-/// widened.
-fn run_with_a_slow_world(dir: &Path) -> Launch {
+/// tcpf under strace, its first child's exec (the world's) delayed by 2 s: the moment while the
+/// world starts, widened.
+fn strace_with_a_slow_world() -> Command {
     let mut strace = Command::new("strace");
     strace.args([
         "-f",
@@ -230,25 +230,33 @@ fn run_with_a_slow_world(dir: &Path) -> Launch {
         "inject=execve:delay_exit=2000000:when=1",
         env!("CARGO_BIN_EXE_tcpf"),
     ]);
-    let launch = Launch::spawn(strace, &paper("b-current"), dir, &[]);
+    strace
+}
+
+/// `tcpf run` with a slow world, once the world is starting.
+fn run_with_a_slow_world(dir: &Path) -> Launch {
+    let launch = Launch::spawn(strace_with_a_slow_world(), &paper("b-current"), dir, &[]);
     launch.wait_for("world.json5", "router");
     launch
+}
+
+/// The tcpf that strace (`strace`) runs: its child.
+fn traced(strace: u32) -> u32 {
+    descendants(strace)
+        .into_iter()
+        .find(|&pid| {
+            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+            let after = &stat[stat.rfind(')').map_or(0, |k| k + 2)..];
+            after.split(' ').nth(1) == Some(&strace.to_string())
+        })
+        .expect("tcpf runs under strace")
 }
 
 #[test]
 fn ctrl_c_while_the_world_starts_leaves_a_run_directory_that_says_so() {
     let dir = scratch("interrupted-start");
     let mut launch = run_with_a_slow_world(&dir);
-    // The launcher is strace's child; the world, still starting, the launcher's.
-    let launcher = descendants(launch.child.id())
-        .into_iter()
-        .find(|&pid| {
-            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-            let after = &stat[stat.rfind(')').map_or(0, |k| k + 2)..];
-            after.split(' ').nth(1) == Some(&launch.child.id().to_string())
-        })
-        .expect("the launcher runs");
-    kill("-INT", launcher);
+    kill("-INT", traced(launch.child.id()));
     let status = launch.wait(Duration::from_secs(30));
     let mut stderr = String::new();
     std::io::Read::read_to_string(&mut launch.child.stderr.take().unwrap(), &mut stderr).unwrap();
@@ -264,6 +272,39 @@ fn ctrl_c_while_the_world_starts_leaves_a_run_directory_that_says_so() {
         (&serde_json::json!(0), &serde_json::Value::Null)
     );
     assert!(dir.join("report.html").is_file() && dir.join("telemetry.csv").is_file());
+}
+
+#[test]
+fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
+    let dir = scratch("sweep-interrupted-start");
+    let out = dir.join("sweep");
+    let mut sweep = Reaper(
+        strace_with_a_slow_world()
+            .args([
+                "sweep",
+                &paper("b-current"),
+                "--loss",
+                "0,0.5",
+                "--seeds",
+                "1",
+                "--processes",
+            ])
+            .args(["--out", out.to_str().unwrap()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    wait_for_text(&out.join("runs/0-seed1/world.json5"), "router", Duration::from_secs(30));
+    kill("-INT", traced(sweep.0.id()));
+    let (code, stderr) = exited(&mut sweep.0, Duration::from_secs(30), "the sweep ignored Ctrl-C");
+    assert_eq!(code, Some(130), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
+    assert_eq!(
+        (&summary["interrupted"], &summary["done_runs"]),
+        (&serde_json::json!(true), &serde_json::json!(0))
+    );
 }
 
 #[test]

@@ -211,12 +211,12 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
     let stderr = String::from_utf8_lossy(&recorded.stderr);
     assert_eq!(recorded.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("no state of vehicle(s) [2] has come in 2 s of the run (simulated), so nothing is recorded"),
+        stderr.contains("no state of vehicle 2 has come in 2 s of the run (simulated), so nothing is recorded"),
         "{stderr}"
     );
     let s = summary(&out);
     assert_eq!(s["completed"], false);
-    assert!(failure(&s).starts_with("no state of vehicle(s) [2] ever came"), "{s}");
+    assert!(failure(&s).starts_with("no state of vehicle 2 ever came"), "{s}");
     let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
     assert_eq!(telemetry.lines().count(), 1, "a header, and no row");
 }

@@ -103,6 +103,15 @@ impl Process {
         self.exit_code
     }
 
+    /// "code 1", "killed by signal 9": how a process that exited ended (on Unix, with a code
+    /// or by a signal).
+    fn how_it_ended(&self) -> String {
+        match (self.exit_code.flatten(), self.signal) {
+            (Some(code), _) => format!("code {code}"),
+            (None, signal) => format!("killed by signal {}", signal.map_or("?".into(), |s| s.to_string())),
+        }
+    }
+
     fn exited(&mut self, status: std::process::ExitStatus) {
         use std::os::unix::process::ExitStatusExt;
         self.exit_code = Some(status.code());
@@ -140,11 +149,7 @@ fn last_error(log: &Path) -> Option<String> {
 /// signal that killed it, in its own last words where its log has them.
 fn died(dir: &RunDir, process: &Process, when: &str) -> String {
     let role = process.role;
-    let code = match (process.exit_code.flatten(), process.signal) {
-        (Some(c), _) => format!("code {c}"),
-        (None, Some(signal)) => format!("killed by signal {signal}"),
-        (None, None) => "killed".into(),
-    };
+    let code = process.how_it_ended();
     match last_error(&dir.path.join("logs").join(format!("{role}.log"))) {
         Some(why) => format!("the {role} exited ({code}) {when}: {why} (logs/{role}.log)"),
         None => format!("the {role} exited ({code}) {when}; see logs/{role}.log"),
@@ -487,11 +492,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         if lost.contains(&c.id) {
                             continue;
                         }
-                        let how = match (c.exit_code.flatten(), c.signal) {
-                            (Some(code), _) => format!("exit code {code}"),
-                            (None, Some(signal)) => format!("killed by signal {signal}"),
-                            (None, None) => "killed".into(),
-                        };
+                        let how = c.how_it_ended();
                         tracing::warn!("agent {} died ({how}); starting it again", c.id);
                         let again = spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep)?;
                         match restarts.iter_mut().find(|r| r.id == again.id) {

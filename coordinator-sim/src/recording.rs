@@ -29,6 +29,7 @@ use tcpf_core::planner::Plan;
 use crate::progress::Ticks;
 use tcpf_report::rundir::{RunDir, Telemetry};
 use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary, REALTIME};
+use tcpf_report::table;
 
 /// How long `tcpf record` waits, after the world's end (or after the world left without one),
 /// for a tick that does not come whole.
@@ -260,7 +261,8 @@ impl Recording {
                     failure?;
                     if let Some(ids) = sampler.overdue_states() {
                         tracing::warn!(
-                            "recorder: no state of vehicle(s) {ids:?} has come in {STATES_DUE_S} s of the run (simulated), so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?"
+                            "recorder: no state of {} has come in {STATES_DUE_S} s of the run (simulated), so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?",
+                            table::vehicles(&ids)
                         );
                     }
                 }
@@ -372,14 +374,13 @@ impl Recording {
         let Closing {
             ended,
             interrupted,
-            failure,
+            mut failure,
             wall_time_s,
             children,
             restarts,
         } = how;
         // Cut short by a signal or by what stopped it: its roles may not have reported.
         let cut_short = interrupted || failure.is_some();
-        let mut failure = failure;
         if let Machine::Realtime { sampler, .. } = &mut self.machine {
             let mut written = Ok(());
             let telemetry = &mut self.telemetry;
@@ -388,7 +389,8 @@ impl Recording {
             let missing = sampler.never_heard();
             if !missing.is_empty() && !cut_short {
                 failure = Some(format!(
-                    "no state of vehicle(s) {missing:?} ever came, so the telemetry has no row (a row needs every vehicle's state)"
+                    "no state of {} ever came, so the telemetry has no row (a row needs every vehicle's state)",
+                    table::vehicles(&missing)
                 ));
             }
         }

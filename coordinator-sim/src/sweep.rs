@@ -118,7 +118,15 @@ pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, 
         let value = &grid.values[v].0;
         let name = format!("{}-seed{seed}", value.replace(['/', ' ', '"'], "_"));
         let dir = RunDir::create(Some(&out.join("runs").join(name)), &mission)?;
-        let summary = crate::launcher::run(&mission, &plans[v], &dir, exe, crate::launcher::Options::default()).await?;
+        let summary =
+            match crate::launcher::run(&mission, &plans[v], &dir, exe, crate::launcher::Options::default()).await {
+                // Stopped as its world started: the sweep is cut short there, as by any interrupt.
+                Err(e) if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() => {
+                    bar.finish_and_clear();
+                    return Ok(true);
+                }
+                run => run?,
+            };
         if summary.interrupted {
             bar.finish_and_clear();
             return Ok(true);

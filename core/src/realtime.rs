@@ -498,7 +498,7 @@ impl Sampler {
     }
 
     /// The vehicles of which no state has come: while there is one, no row is written.
-    pub fn without_state(&self) -> Vec<u32> {
+    fn without_state(&self) -> Vec<u32> {
         self.ids
             .ids()
             .iter()

@@ -155,8 +155,12 @@ impl Summary {
             time_scale: realtime.then_some(mission.mission.time_scale),
             timing: Vec::new(),
             restarts: Vec::new(),
-            // No role had started its work, and none reported.
-            unreported: children.iter().map(|c| format!("{} {}", c.role, c.id)).collect(),
+            // The world had not started its work, and did not report (the planner never does).
+            unreported: children
+                .iter()
+                .filter(|c| c.role == "world")
+                .map(|c| format!("{} {}", c.role, c.id))
+                .collect(),
             children,
             coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         }
@@ -236,7 +240,11 @@ mod tests {
         let s = Summary::before_the_first_tick(&lockstep, 45.0, true, None, 0.1, children());
         assert!(!s.completed && s.interrupted && s.reproducible && s.failure.is_none());
         assert_eq!((s.results.ticks, s.results.vehicles.len()), (0, 2));
-        assert_eq!(s.unreported, ["world 0", "planner 0"], "killed as they started");
+        assert_eq!(
+            s.unreported,
+            ["world 0"],
+            "killed as it started; a planner never reports"
+        );
         let overrides = ["mission.clock=\"realtime\"".to_string()];
         let realtime = tcpf_core::mission::parse("b-current.toml", text, &overrides).unwrap();
         let s = Summary::before_the_first_tick(&realtime, 45.0, false, Some("the world …".into()), 0.1, children());

@@ -45,19 +45,25 @@ pub fn plan(plan: &Plan) -> String {
     s
 }
 
+/// "vehicle 2", "vehicles 1, 3".
+pub fn vehicles(ids: &[u32]) -> String {
+    let plural = if ids.len() > 1 { "s" } else { "" };
+    let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
+    format!("vehicle{plural} {}", ids.join(", "))
+}
+
 /// What kept a run from completing, in the words of its summary.
 fn why_not_completed(summary: &Summary) -> String {
     // "vehicle 2", "vehicles 1, 3"
     let vehicles = |pick: &dyn Fn(&VehicleSummary) -> bool| -> Option<String> {
-        let ids: Vec<String> = summary
+        let ids: Vec<u32> = summary
             .results
             .vehicles
             .iter()
             .filter(|v| pick(v))
-            .map(|v| v.id.to_string())
+            .map(|v| v.id)
             .collect();
-        let plural = if ids.len() > 1 { "s" } else { "" };
-        (!ids.is_empty()).then(|| format!("vehicle{plural} {}", ids.join(", ")))
+        (!ids.is_empty()).then(|| vehicles(&ids))
     };
     let mut why = Vec::new();
     if summary.interrupted {
@@ -275,11 +281,11 @@ mod tests {
         );
         let failed = summary(serde_json::json!({
             "ticks": 900, "sim_time_s": 9.0,
-            "failure": "the world exited (killed) before the end; see logs/world.log"
+            "failure": "the world exited (killed by signal 9) before the end; see logs/world.log"
         }));
         assert!(
             first(&failed).ends_with(
-                "NOT completed: the world exited (killed) before the end; see logs/world.log; vehicles 1, 2 not arrived by the run's last tick"
+                "NOT completed: the world exited (killed by signal 9) before the end; see logs/world.log; vehicles 1, 2 not arrived by the run's last tick"
             ),
             "{}",
             first(&failed)
