@@ -10,8 +10,7 @@ pub fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
     let text = include_str!("../../configs/paper/b-current.toml");
     let m = mission::parse("b-current.toml", text, &[]).unwrap();
     let plan = planner::plan(&m).unwrap();
-    let paths = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
-    (m, paths, plan.t_f)
+    (m, plan.paths(), plan.t_f)
 }
 
 /// A command of vehicle `id` at `tick` that says only where its γ is: for the recorder's machines,

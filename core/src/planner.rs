@@ -58,6 +58,13 @@ pub struct Plan {
     pub vehicles: Vec<VehiclePlan>,
 }
 
+impl Plan {
+    /// Each vehicle's id and path, in the plan's order: what the world and the agents are made of.
+    pub fn paths(&self) -> Vec<(u32, GeneralizedPath)> {
+        self.vehicles.iter().map(|v| (v.id, v.path)).collect()
+    }
+}
+
 /// No t_f in [tf_min, tf_max] meets every constraint.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Infeasible {

@@ -24,7 +24,7 @@ pub struct Fleet {
 
 impl Fleet {
     pub fn new(mission: &Mission, plan: &Plan) -> Fleet {
-        let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+        let paths = plan.paths();
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         let gain = CoordinationGain::of(mission);
         let agents: Vec<AgentNode> = paths
@@ -130,7 +130,7 @@ impl Fleet {
 /// The baseline of the simulator's throughput: the world alone integrating the plan's vehicles
 /// for `ticks` with constant commands (no agents, no recorder). Returns the world at the end.
 pub fn world_alone(mission: &Mission, plan: &Plan, ticks: u64) -> World {
-    let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+    let paths = plan.paths();
     let held: Vec<Option<Command>> = paths
         .iter()
         .map(|&(id, _)| {
@@ -166,7 +166,7 @@ pub fn world_alone(mission: &Mission, plan: &Plan, ticks: u64) -> World {
 /// arithmetic of a run in which no agent is lost, and nothing else (nothing here refuses a
 /// message or gives up on an agent). Returns the world at the end.
 pub fn world_and_laws(mission: &Mission, plan: &Plan, ticks: u64) -> World {
-    let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+    let paths = plan.paths();
     let gain = CoordinationGain::of(mission);
     let mut agents: Vec<Agent> = paths
         .iter()

@@ -142,7 +142,7 @@ impl RunDir {
     /// The files written tick by tick: `telemetry.csv`, `messages.csv` and `run.mcap`; with
     /// `live`, the same channels are served to Foxglove there while the run goes on.
     pub fn telemetry(&self, plan: &Plan, live: Option<SocketAddr>) -> Result<Telemetry> {
-        let paths: Vec<_> = plan.vehicles.iter().map(|v| (v.id, v.path)).collect();
+        let paths = plan.paths();
         let create = |name: &str, header: &str| -> Result<BufWriter<File>> {
             let cannot = || cannot_write(&self.path, name);
             let mut out = BufWriter::new(File::create(self.path.join(name)).with_context(cannot)?);
