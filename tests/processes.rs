@@ -242,13 +242,10 @@ fn run_with_a_slow_world(dir: &Path) -> Launch {
 
 /// The tcpf that strace (`strace`) runs: its child.
 fn traced(strace: u32) -> u32 {
-    descendants(strace)
+    processes()
         .into_iter()
-        .find(|&pid| {
-            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-            let after = &stat[stat.rfind(')').map_or(0, |k| k + 2)..];
-            after.split(' ').nth(1) == Some(&strace.to_string())
-        })
+        .find(|p| p.1 == strace)
+        .map(|p| p.0)
         .expect("tcpf runs under strace")
 }
 
@@ -507,28 +504,28 @@ fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicl
     assert_none_left(&s);
 }
 
-/// The pid of `tcpf agent --id <id>` under a launch.
-fn agent_pid(launch: &Launch, id: u32) -> u32 {
+/// The pid of the process under a launch whose arguments `matches` (`what` it is, for the panic).
+fn pid_of(launch: &Launch, what: &str, matches: impl Fn(&[&[u8]]) -> bool) -> u32 {
     descendants(launch.child.id())
         .into_iter()
         .find(|pid| {
             let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-            let args: Vec<&[u8]> = cmdline.split(|b| *b == 0).collect();
-            args.windows(2)
-                .any(|w| w[0] == b"--id" && w[1] == id.to_string().as_bytes())
+            matches(&cmdline.split(|b| *b == 0).collect::<Vec<_>>())
         })
-        .unwrap_or_else(|| panic!("agent {id} runs"))
+        .unwrap_or_else(|| panic!("{what} runs"))
+}
+
+/// The pid of `tcpf agent --id <id>` under a launch.
+fn agent_pid(launch: &Launch, id: u32) -> u32 {
+    let id = id.to_string();
+    pid_of(launch, &format!("agent {id}"), |args| {
+        args.windows(2).any(|w| w[0] == b"--id" && w[1] == id.as_bytes())
+    })
 }
 
 /// The pid of the run's world.
 fn world_pid(launch: &Launch) -> u32 {
-    descendants(launch.child.id())
-        .into_iter()
-        .find(|pid| {
-            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-            cmdline.split(|b| *b == 0).nth(1) == Some(b"world")
-        })
-        .expect("the world runs")
+    pid_of(launch, "the world", |args| args.get(1) == Some(&&b"world"[..]))
 }
 
 #[test]
