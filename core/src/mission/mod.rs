@@ -473,7 +473,11 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
         let key = path_string(&path);
         // The last override of a key is the one in effect.
         match overrides.iter().rev().find(|o| overrides::touches(o, &path, &mission)) {
-            Some(o) => err(None, Some(key), format!("{message} (from --set {o})")),
+            // Named as the override names it: `vehicle.2.weight`, not the file's `vehicle[1]`.
+            Some(o) => {
+                let set = o.split('=').next().unwrap_or(o).trim().to_string();
+                err(None, Some(set), format!("{message} (from --set {o})"))
+            }
             // A key of the file may be wrong only beside an override of another (tf_max against
             // --set planner.tf_min=70): say which are in effect.
             None if !overrides.is_empty() => {
@@ -709,6 +713,31 @@ goal_velocity = [0.75, 0.0]
         ];
         let e = parse("x.toml", PAPER, &twice).unwrap_err();
         assert!(e.message.contains("(from --set comms.burst.loss_bad=2)"), "{e}");
+        // Named as the override names it, not by the vehicle's index in the file.
+        let e = parse("x.toml", PAPER, &["vehicle.2.weight=-1".into()]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("vehicle.2.weight"), "{e}");
+        assert!(e.message.contains("(from --set vehicle.2.weight=-1)"), "{e}");
+    }
+
+    #[test]
+    fn a_list_of_tables_is_set_whole_or_not_at_all() {
+        for key in ["comms.link.loss", "comms.outage.start"] {
+            let e = parse("x.toml", PAPER, &[format!("{key}=0.5")]).unwrap_err();
+            assert_eq!(e.key.as_deref(), Some(key));
+            let list = key.rsplit_once('.').unwrap().0;
+            assert!(
+                e.message
+                    .contains(&format!("`{list}` is a list of tables ([[{list}]] in the file)")),
+                "{e}"
+            );
+            assert!(e.message.contains(&format!("--set '{list}=[{{")), "{e}");
+        }
+        let whole = "comms.link=[{ from = 1, to = 2, loss = 0.5 }]".to_string();
+        let m = parse("x.toml", PAPER, &[whole]).unwrap();
+        assert_eq!(m.comms.links[0].loss, Some(0.5));
+        let whole = "comms.outage=[{ from = 1, to = \"*\", start = 10.0, end = 30.0 }]".to_string();
+        let m = parse("x.toml", PAPER, &[whole]).unwrap();
+        assert_eq!(m.comms.outages[0].start, 10.0);
     }
 
     #[test]
@@ -739,7 +768,7 @@ goal_velocity = [0.75, 0.0]
         let e = parse("f.toml", &text, &["comms.burst.p_enter_bad=2".into()]).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("comms.burst.p_enter_bad"), "{e}");
         let e = parse("f.toml", &text, &["comms.outage.start=1".into()]).unwrap_err();
-        assert!(e.message.contains("`comms.outage` is not a table"), "{e}");
+        assert!(e.message.contains("`comms.outage` is a list of tables"), "{e}");
         let bad = text.replace("to = \"*\"", "to = \"all\"");
         let e = parse("f.toml", &bad, &[]).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("comms.outage[0].to"), "{e}");

@@ -23,6 +23,13 @@ pub(super) fn touches(o: &str, path: &[Seg], mission: &Mission) -> bool {
     }
 }
 
+/// The lists of tables below a section, which a `--set` key cannot address element by element
+/// (no id names one), each with a whole list to show.
+const LISTS: [(&str, &str); 2] = [
+    ("comms.link", "[{ from = 1, to = 2, loss = 0.5 }]"),
+    ("comms.outage", "[{ from = 1, to = \"*\", start = 10.0, end = 30.0 }]"),
+];
+
 pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Mission, MissionError> {
     let mut root: toml::Table = toml::from_str(text).expect("the file parsed once already");
     let mut failing = None;
@@ -54,6 +61,15 @@ pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Miss
                 (vehicle, *k)
             }
             [tables @ .., k] if !tables.is_empty() && tables[0] != "vehicle" => {
+                if let Some((list, example)) = LISTS
+                    .iter()
+                    .find(|(list, _)| key.trim().starts_with(&format!("{list}.")))
+                {
+                    return Err(bad(format!(
+                        "`{list}` is a list of tables ([[{list}]] in the file), and --set cannot name one \
+                         of them: set the whole list, as in --set '{list}={example}', or edit the file"
+                    )));
+                }
                 let mut table = &mut root;
                 for (n, name) in tables.iter().enumerate() {
                     table = table
