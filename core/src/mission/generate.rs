@@ -10,6 +10,8 @@ pub const MAX_VEHICLES: u32 = 1000;
 /// talking on a ring with loss probability `loss`, against a 5 cm/s cross current: `ring5.toml`
 /// grown to any size. Lanes never cross, so every size plans.
 pub fn lanes(vehicles: u32, loss: f64) -> String {
+    // `--loss=-0` is written 0.0, not -0.0.
+    let loss = loss + 0.0;
     let mut s = format!(
         "# {vehicles} vehicles in parallel lanes 4 m apart on a ring, written by `tcpf gen lanes`.\n\
          [mission]\nname = \"lanes{vehicles}\"\nseed = 1\nmax_duration = 150.0\n\n\
@@ -45,6 +47,7 @@ mod tests {
             assert_eq!(m.mission.name, format!("lanes{n}"));
             assert_eq!(m.comms.loss, 0.2);
         }
+        assert!(lanes(2, -0.0).contains("\nloss = 0.0\n"));
     }
 
     #[test]
