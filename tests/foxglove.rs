@@ -88,8 +88,8 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
         Command::new(env!("CARGO_BIN_EXE_tcpf"))
             .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
             .args(["--live", &format!("127.0.0.1:{port}")])
-            // The wall clock, for a run as long on any machine (120 s of simulated time in 6 s): a
-            // lockstep run can end before a client has subscribed.
+            // The wall clock, for a run as long on any machine (its 55 s of simulated time in
+            // about 3 s): a lockstep run can end before a client has subscribed.
             .args(["--clock", "realtime", "--time-scale", "20"])
             .stdout(Stdio::null())
             .stderr(Stdio::null())

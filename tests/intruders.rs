@@ -17,7 +17,8 @@ use common::{
 };
 
 const MISSION: &str = "paper-b-current";
-const SLOWER: [&str; 2] = ["--set", "mission.control_period=0.005"];
+// About 4 s of lockstep ticks here, so that the flood is sent whole while the run lasts.
+const SLOWER: [&str; 2] = ["--set", "mission.control_period=0.002"];
 
 fn key(rest: &str) -> String {
     format!("tcpf/{MISSION}/{rest}")

@@ -152,7 +152,9 @@ fn an_interrupted_fleet_of_ten_hears_from_every_process() {
     // (1 run in 6): three runs, stopped by Ctrl-C, SIGTERM and the terminal closing (SIGHUP).
     for (run, signal) in ["-INT", "-TERM", "-HUP"].into_iter().enumerate() {
         let out = dir.join(format!("p{run}"));
-        let mut launch = Launch::start(mission.to_str().unwrap(), &out, &[]);
+        // About 6 s of ticks, to be stopped 0.5 s in on any machine.
+        let slower = ["--set", "mission.control_period=0.005"];
+        let mut launch = Launch::start(mission.to_str().unwrap(), &out, &slower);
         launch.wait_for("logs/world.log", "starting");
         std::thread::sleep(Duration::from_millis(500));
         kill(signal, launch.child.id());
@@ -693,7 +695,8 @@ fn lockstep_agents_run_as_batch_jobs_and_realtime_agents_do_not() {
 #[test]
 fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     let dir = scratch("sigint");
-    let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.005"]);
+    // About 8 s of ticks, to be stopped 0.3 s in on any machine.
+    let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.001"]);
     launch.wait_for("logs/world.log", "starting");
     std::thread::sleep(Duration::from_millis(300));
     let children = descendants(launch.child.id());
