@@ -980,7 +980,7 @@ fn sweep(
     let table = tcpf_report::sweep::write(&out, &summary).map_err(Failure::Failed)?;
     say!("{table}");
     sayln!("sweep directory: {}", out.display());
-    Ok(code(true, interrupted))
+    Ok(code(summary.failed_runs.is_empty(), interrupted))
 }
 
 fn record(

@@ -306,6 +306,79 @@ fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
     );
 }
 
+/// A fleet of a sweep that fails (its world killed) is named in the sweep's summary and left out
+/// of its statistics; the sweep goes on with the next run, and exits 1 at the end.
+#[test]
+fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
+    let dir = scratch("sweep-failed-run");
+    let out = dir.join("sweep");
+    let mut sweep = Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args([
+                "sweep",
+                &paper("b-current"),
+                "--loss",
+                "0,0.5",
+                "--seeds",
+                "1",
+                "--processes",
+            ])
+            // About 4 s of ticks: the first run's world is killed well before its end.
+            .args(["--set", "mission.control_period=0.002", "--out", out.to_str().unwrap()])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    wait_for_text(
+        &out.join("runs/0-seed1/logs/world.log"),
+        "starting",
+        Duration::from_secs(60),
+    );
+    kill("-9", world_pid(sweep.0.id()));
+    let (code, stderr) = exited(&mut sweep.0, Duration::from_secs(120), "the sweep never ended");
+    let mut stdout = String::new();
+    std::io::Read::read_to_string(sweep.0.stdout.as_mut().unwrap(), &mut stdout).unwrap();
+    assert_eq!(code, Some(1), "{stderr}");
+    let why = "the world exited (killed by signal 9) before the end";
+    assert!(stderr.contains(why), "{stderr}");
+    assert!(
+        stdout.contains(&format!("FAILED: comms.loss = 0, seed 1: {why}")),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("1 of 2 runs failed: the statistics are over the 1 done"),
+        "{stdout}"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
+    assert_eq!(
+        (&summary["interrupted"], &summary["done_runs"]),
+        (&serde_json::json!(false), &serde_json::json!(1))
+    );
+    let failed = &summary["failed_runs"][0];
+    assert_eq!(
+        (&failed["value"], &failed["seed"]),
+        (&serde_json::json!("0"), &serde_json::json!(1))
+    );
+    assert!(failed["failure"].as_str().unwrap().starts_with(why), "{failed}");
+    let run = std::path::PathBuf::from(failed["run_dir"].as_str().unwrap());
+    assert_eq!(run, out.join("runs/0-seed1"));
+    let failed_run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    assert!(failure(&failed_run).starts_with(why), "{failed_run}");
+    // The statistics are those of the run that was done.
+    let values = summary["values"].as_array().unwrap();
+    assert_eq!(values.len(), 1, "{summary}");
+    assert_eq!(
+        (&values[0]["value"], &values[0]["runs"]),
+        (&serde_json::json!("0.5"), &serde_json::json!(1))
+    );
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 2, "a header and the run done: {csv}");
+    assert!(csv.lines().nth(1).unwrap().starts_with("0.5,1,"), "{csv}");
+}
+
 #[test]
 fn a_killed_agent_is_lost_and_the_others_arrive() {
     let dir = scratch("kill");
@@ -506,9 +579,9 @@ fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicl
     assert_none_left(&s);
 }
 
-/// The pid of the process under a launch whose arguments `matches` (`what` it is, for the panic).
-fn pid_of(launch: &Launch, what: &str, matches: impl Fn(&[&[u8]]) -> bool) -> u32 {
-    descendants(launch.child.id())
+/// The pid of the process under `root` whose arguments `matches` (`what` it is, for the panic).
+fn pid_of(root: u32, what: &str, matches: impl Fn(&[&[u8]]) -> bool) -> u32 {
+    descendants(root)
         .into_iter()
         .find(|pid| {
             let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
@@ -520,14 +593,14 @@ fn pid_of(launch: &Launch, what: &str, matches: impl Fn(&[&[u8]]) -> bool) -> u3
 /// The pid of `tcpf agent --id <id>` under a launch.
 fn agent_pid(launch: &Launch, id: u32) -> u32 {
     let id = id.to_string();
-    pid_of(launch, &format!("agent {id}"), |args| {
+    pid_of(launch.child.id(), &format!("agent {id}"), |args| {
         args.windows(2).any(|w| w[0] == b"--id" && w[1] == id.as_bytes())
     })
 }
 
-/// The pid of the run's world.
-fn world_pid(launch: &Launch) -> u32 {
-    pid_of(launch, "the world", |args| args.get(1) == Some(&&b"world"[..]))
+/// The pid of the world under `root` (a launch, a sweep).
+fn world_pid(root: u32) -> u32 {
+    pid_of(root, "the world", |args| args.get(1) == Some(&&b"world"[..]))
 }
 
 #[test]
@@ -535,7 +608,7 @@ fn a_run_whose_world_is_killed_says_so_in_its_summary_and_report() {
     let dir = scratch("world-killed");
     let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
     launch.wait_for("logs/world.log", "starting");
-    kill("-9", world_pid(&launch));
+    kill("-9", world_pid(launch.child.id()));
     let status = launch.wait(Duration::from_secs(60));
     assert_eq!(status.code(), Some(1));
     let mut stderr = String::new();

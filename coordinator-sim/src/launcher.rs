@@ -302,6 +302,22 @@ enum Outcome {
 pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// How `tcpf run` runs its children.
+/// A run that failed (its world or recorder stopped short), its run directory written: what
+/// `failure` in its summary.json says.
+#[derive(Debug)]
+pub struct RunFailed {
+    pub why: String,
+    pub dir: std::path::PathBuf,
+}
+
+impl std::fmt::Display for RunFailed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} (run directory {})", self.why, self.dir.display())
+    }
+}
+
+impl std::error::Error for RunFailed {}
+
 #[derive(Debug, Clone)]
 pub struct Options {
     /// Serve the run to Foxglove live.
@@ -581,7 +597,11 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         },
     )?;
     match outcome {
-        Outcome::Failed(why) => Err(anyhow!("{why} (run directory {})", dir.path.display())),
+        Outcome::Failed(why) => Err(RunFailed {
+            why,
+            dir: dir.path.clone(),
+        }
+        .into()),
         _ => Ok(summary),
     }
 }

@@ -13,7 +13,9 @@ use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 use tcpf_report::rundir::RunDir;
-use tcpf_report::sweep::{Row, Sweep};
+
+use crate::launcher::RunFailed;
+use tcpf_report::sweep::{FailedRun, Row, Sweep};
 
 /// The runs of a sweep: every value's mission, each with seeds 1..=`seeds`. Run `k` is value
 /// `k / seeds` with seed `k % seeds + 1`; a mission is made for a run only when it starts.
@@ -108,8 +110,8 @@ pub fn run_in_process(grid: &Grid, plans: &[Plan], threads: usize, sweep: &mut S
     Ok(stop.load(Ordering::Relaxed))
 }
 
-/// Every run as a real fleet of processes, one after the other, each with its run directory.
-/// Returns whether a signal cut the sweep short.
+/// Every run as a real fleet of processes, one after the other, each with its run directory; a
+/// run that fails is put in the sweep's failed runs. Returns whether a signal cut the sweep short.
 pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, sweep: &mut Sweep) -> Result<bool> {
     let runs = grid.runs()?;
     let bar = progress(runs);
@@ -117,13 +119,28 @@ pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, 
         let (v, seed, mission) = grid.run(k);
         let value = &grid.values[v].0;
         let name = format!("{}-seed{seed}", value.replace(['/', ' ', '"'], "_"));
-        let dir = RunDir::create(Some(&out.join("runs").join(name)), &mission)?;
+        let dir = RunDir::create(Some(&out.join("runs").join(&name)), &mission)?;
         let summary =
             match crate::launcher::run(&mission, &plans[v], &dir, exe, crate::launcher::Options::default()).await {
                 // Stopped as its world started: the sweep is cut short there, as by any interrupt.
                 Err(e) if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() => {
                     bar.finish_and_clear();
                     return Ok(true);
+                }
+                // A fleet that failed (its world killed, say) is named in the summary, and the
+                // sweep goes on: the runs after it are as good as ever. Any other error (no
+                // process could start, the disk is full) would fail them all: it ends the sweep.
+                Err(e) if e.downcast_ref::<RunFailed>().is_some() => {
+                    bar.suspend(|| tracing::error!("run {name} failed: {e:#}; the sweep goes on"));
+                    let failed = e.downcast::<RunFailed>().expect("checked above");
+                    sweep.fail(FailedRun {
+                        value: value.clone(),
+                        seed,
+                        run_dir: failed.dir,
+                        failure: failed.why,
+                    });
+                    bar.inc(1);
+                    continue;
                 }
                 run => run?,
             };

@@ -125,17 +125,29 @@ pub struct ValueSummary {
     pub messages_per_vehicle_s: Option<Stats>,
 }
 
+/// A run of a sweep of fleets that failed (its world or a recorder stopped short): it has no
+/// row, its run directory says what happened, and the sweep goes on.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FailedRun {
+    pub value: String,
+    pub seed: u64,
+    pub run_dir: PathBuf,
+    pub failure: String,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct SweepSummary {
     pub mission: String,
     pub parameter: String,
     pub seeds: u64,
     pub mode: String,
-    /// Runs planned and runs done: fewer are done when the sweep was interrupted.
+    /// Runs planned and runs done: fewer are done when the sweep was interrupted or a run
+    /// failed.
     pub planned_runs: u64,
     pub done_runs: u64,
     pub interrupted: bool,
     pub values: Vec<ValueSummary>,
+    pub failed_runs: Vec<FailedRun>,
 }
 
 /// A sweep as it runs: each row is appended to sweep.csv (and flushed) the moment it is known
@@ -145,6 +157,7 @@ pub struct Sweep {
     csv: std::io::BufWriter<std::fs::File>,
     values: Vec<(String, PerValue)>,
     done: u64,
+    failed: Vec<FailedRun>,
 }
 
 impl Sweep {
@@ -164,6 +177,7 @@ impl Sweep {
             csv,
             values: values.iter().map(|v| (v.clone(), PerValue::default())).collect(),
             done: 0,
+            failed: Vec::new(),
         };
         Ok((claimed.path, sweep))
     }
@@ -198,16 +212,23 @@ impl Sweep {
         Ok(())
     }
 
+    /// A run that failed: named in the summary, left out of the statistics.
+    pub fn fail(&mut self, run: FailedRun) {
+        self.failed.push(run);
+    }
+
     /// The statistics per value of the rows pushed so far (values with no row are left out).
     pub fn summary(&self, mission: &str, parameter: &str, seeds: u64, mode: &str) -> SweepSummary {
+        let planned = seeds * self.values.len() as u64;
         SweepSummary {
             mission: mission.into(),
             parameter: parameter.into(),
             seeds,
             mode: mode.into(),
-            planned_runs: seeds * self.values.len() as u64,
+            planned_runs: planned,
             done_runs: self.done,
-            interrupted: self.done < seeds * self.values.len() as u64,
+            interrupted: self.done + (self.failed.len() as u64) < planned,
+            failed_runs: self.failed.clone(),
             values: self
                 .values
                 .iter()
@@ -385,11 +406,30 @@ pub fn table(summary: &SweepSummary) -> String {
             summary.parameter
         );
     }
+    for run in &summary.failed_runs {
+        let _ = writeln!(
+            s,
+            "FAILED: {} = {}, seed {}: {} (run directory {})",
+            summary.parameter,
+            run.value,
+            run.seed,
+            run.failure,
+            run.run_dir.display()
+        );
+    }
     if summary.interrupted {
         let _ = writeln!(
             s,
             "interrupted: {} of {} runs done; sweep.csv holds every one of them",
             summary.done_runs, summary.planned_runs
+        );
+    } else if !summary.failed_runs.is_empty() {
+        let _ = writeln!(
+            s,
+            "{} of {} runs failed: the statistics are over the {} done",
+            summary.failed_runs.len(),
+            summary.planned_runs,
+            summary.done_runs
         );
     }
     s
@@ -442,6 +482,7 @@ mod tests {
             done_runs: 2,
             interrupted: false,
             values,
+            failed_runs: Vec::new(),
         };
         let same = "gave the same results";
         assert!(table(&sweep(vec![value("0", 55.5), value("1", 55.5)])).contains(same));
