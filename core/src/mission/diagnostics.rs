@@ -36,7 +36,12 @@ pub(super) enum Seg {
 }
 
 pub(super) fn path_string(path: &[Seg]) -> String {
-    let mut s = String::new();
+    path_below(String::new(), path)
+}
+
+/// `key` and then `path`, a path below it: `comms.link` and `[0].loss`.
+pub(super) fn path_below(key: String, path: &[Seg]) -> String {
+    let mut s = key;
     for seg in path {
         match seg {
             Seg::Key(k) if s.is_empty() => s.push_str(k),

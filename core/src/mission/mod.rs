@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use toml::de::DeTable;
 
 pub use diagnostics::MissionError;
-use diagnostics::{key_at, line_of, line_of_key, path_string};
+use diagnostics::{key_at, line_of, line_of_key, path_below, path_string};
 pub use graph::{neighbour_lists, Graph};
 
 /// The tables a mission file must have, with their headers.
@@ -473,10 +473,14 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
         let key = path_string(&path);
         // The last override of a key is the one in effect.
         match overrides.iter().rev().find(|o| overrides::touches(o, &path, &mission)) {
-            // Named as the override names it: `vehicle.2.weight`, not the file's `vehicle[1]`.
+            // Named as the override names it, `vehicle.2.weight` rather than the file's
+            // `vehicle[1].weight`, and below it where a whole table or list was set:
+            // `comms.link[0].loss`.
             Some(o) => {
-                let set = o.split('=').next().unwrap_or(o).trim().to_string();
-                err(None, Some(set), format!("{message} (from --set {o})"))
+                let set = o.split('=').next().unwrap_or(o).trim();
+                let below = &path[set.split('.').count().min(path.len())..];
+                let key = path_below(set.to_string(), below);
+                err(None, Some(key), format!("{message} (from --set {o})"))
             }
             // A key of the file may be wrong only beside an override of another (tf_max against
             // --set planner.tf_min=70): say which are in effect.
@@ -735,6 +739,10 @@ goal_velocity = [0.75, 0.0]
         let whole = "comms.link=[{ from = 1, to = 2, loss = 0.5 }]".to_string();
         let m = parse("x.toml", PAPER, &[whole]).unwrap();
         assert_eq!(m.comms.links[0].loss, Some(0.5));
+        // An error in a list set whole names the element's key.
+        let wrong = "comms.link=[{ from = 1, to = 2, loss = 2.0 }]".to_string();
+        let e = parse("x.toml", PAPER, &[wrong]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.link[0].loss"), "{e}");
         let whole = "comms.outage=[{ from = 1, to = \"*\", start = 10.0, end = 30.0 }]".to_string();
         let m = parse("x.toml", PAPER, &[whole]).unwrap();
         assert_eq!(m.comms.outages[0].start, 10.0);
