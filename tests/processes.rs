@@ -379,6 +379,50 @@ fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
     assert!(csv.lines().nth(1).unwrap().starts_with("0.5,1,"), "{csv}");
 }
 
+/// A fleet of a sweep whose world cannot listen fails as it starts: named, and the sweep goes on.
+#[test]
+fn a_sweep_of_fleets_goes_on_past_a_world_that_could_not_start() {
+    let dir = scratch("sweep-world-unstarted");
+    let out = dir.join("sweep");
+    let mut sweep = Reaper(
+        strace_with_a_slow_world()
+            .args([
+                "sweep",
+                &paper("b-current"),
+                "--loss",
+                "0,0.5",
+                "--seeds",
+                "1",
+                "--processes",
+            ])
+            .args(["--out", out.to_str().unwrap()])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let config = out.join("runs/0-seed1/world.json5");
+    wait_for_text(&config, "router", Duration::from_secs(30));
+    let world: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(config).unwrap()).unwrap();
+    let endpoint = world["listen"]["endpoints"][0].as_str().unwrap();
+    let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
+    let taken = std::net::TcpListener::bind(("127.0.0.1", port)).unwrap();
+    let (code, stderr) = exited(&mut sweep.0, Duration::from_secs(120), "the sweep never ended");
+    drop(taken);
+    assert_eq!(code, Some(1), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
+    let failed = &summary["failed_runs"][0];
+    assert_eq!(failed["value"], "0", "{summary}");
+    let why = failed["failure"].as_str().unwrap();
+    assert!(why.contains("the world exited (code 1) as it started"), "{why}");
+    assert_eq!(
+        (&summary["done_runs"], &summary["values"][0]["value"]),
+        (&serde_json::json!(1), &serde_json::json!("0.5"))
+    );
+    assert_eq!(summary["gave_up"], false);
+}
+
 #[test]
 fn a_killed_agent_is_lost_and_the_others_arrive() {
     let dir = scratch("kill");

@@ -447,7 +447,11 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             if interrupted {
                 return Err(e);
             }
-            return Err(anyhow!("{e:#} (run directory {})", dir.path.display()));
+            return Err(RunFailed {
+                why: format!("{e:#}"),
+                dir: dir.path.clone(),
+            }
+            .into());
         }
     };
     crate::access::announce(&dir.path, &endpoint)?;

@@ -15,7 +15,7 @@ use tcpf_core::sim::Fleet;
 use tcpf_report::rundir::RunDir;
 
 use crate::launcher::RunFailed;
-use tcpf_report::sweep::{FailedRun, Row, Sweep};
+use tcpf_report::sweep::{FailedRun, Row, Sweep, GIVE_UP};
 
 /// The runs of a sweep: every value's mission, each with seeds 1..=`seeds`. Run `k` is value
 /// `k / seeds` with seed `k % seeds + 1`; a mission is made for a run only when it starts.
@@ -105,17 +105,25 @@ pub fn run_in_process(grid: &Grid, plans: &[Plan], threads: usize, sweep: &mut S
         }
         Ok(())
     });
+    // A signal after the last run cut nothing short.
+    let cut_short = stop.load(Ordering::Relaxed) && bar.position() < runs;
     bar.finish_and_clear();
     written?;
-    Ok(stop.load(Ordering::Relaxed))
+    Ok(cut_short)
 }
 
 /// Every run as a real fleet of processes, one after the other, each with its run directory; a
 /// run that fails is put in the sweep's failed runs. Returns whether a signal cut the sweep short.
 pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, sweep: &mut Sweep) -> Result<bool> {
     let runs = grid.runs()?;
+    // A signal between two runs (each run handles its own while it lasts) starts no new one.
+    let stop = tcpf_bus::signals::stop_flag()?;
     let bar = progress(runs);
     for k in 0..runs {
+        if stop.load(Ordering::Relaxed) {
+            bar.finish_and_clear();
+            return Ok(true);
+        }
         let (v, seed, mission) = grid.run(k);
         let value = &grid.values[v].0;
         let name = format!("{}-seed{seed}", value.replace(['/', ' ', '"'], "_"));
@@ -131,14 +139,21 @@ pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, 
                 // sweep goes on: the runs after it are as good as ever. Any other error (no
                 // process could start, the disk is full) would fail them all: it ends the sweep.
                 Err(e) if e.downcast_ref::<RunFailed>().is_some() => {
-                    bar.suspend(|| tracing::error!("run {name} failed: {e:#}; the sweep goes on"));
                     let failed = e.downcast::<RunFailed>().expect("checked above");
-                    sweep.fail(FailedRun {
+                    let run = FailedRun {
                         value: value.clone(),
                         seed,
-                        run_dir: failed.dir,
-                        failure: failed.why,
-                    });
+                        run_dir: failed.dir.clone(),
+                        failure: failed.why.clone(),
+                    };
+                    if sweep.fail(run) {
+                        bar.finish_and_clear();
+                        tracing::error!(
+                            "run {name} failed: {failed}; {GIVE_UP} runs in a row failed, and the sweep gives up"
+                        );
+                        return Ok(false);
+                    }
+                    bar.suspend(|| tracing::error!("run {name} failed: {failed}; the sweep goes on"));
                     bar.inc(1);
                     continue;
                 }

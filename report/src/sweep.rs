@@ -148,7 +148,13 @@ pub struct SweepSummary {
     pub interrupted: bool,
     pub values: Vec<ValueSummary>,
     pub failed_runs: Vec<FailedRun>,
+    /// `GIVE_UP` runs failed in a row, and the sweep stopped there: what fails them would
+    /// fail the rest.
+    pub gave_up: bool,
 }
+
+/// Failed runs in a row that end a sweep.
+pub const GIVE_UP: usize = 3;
 
 /// A sweep as it runs: each row is appended to sweep.csv (and flushed) the moment it is known
 /// and folded into its value's statistics, so memory stays bounded however many runs there are
@@ -158,6 +164,8 @@ pub struct Sweep {
     values: Vec<(String, PerValue)>,
     done: u64,
     failed: Vec<FailedRun>,
+    /// Failed runs since the last one done.
+    in_a_row: usize,
 }
 
 impl Sweep {
@@ -178,6 +186,7 @@ impl Sweep {
             values: values.iter().map(|v| (v.clone(), PerValue::default())).collect(),
             done: 0,
             failed: Vec::new(),
+            in_a_row: 0,
         };
         Ok((claimed.path, sweep))
     }
@@ -209,12 +218,16 @@ impl Sweep {
         v.delivered_fraction.push(r.delivered_fraction);
         v.messages_per_vehicle_s.push(Some(r.messages_per_vehicle_s));
         self.done += 1;
+        self.in_a_row = 0;
         Ok(())
     }
 
-    /// A run that failed: named in the summary, left out of the statistics.
-    pub fn fail(&mut self, run: FailedRun) {
+    /// A run that failed: named in the summary, left out of the statistics. Returns whether the
+    /// sweep gives up (`GIVE_UP` in a row).
+    pub fn fail(&mut self, run: FailedRun) -> bool {
         self.failed.push(run);
+        self.in_a_row += 1;
+        self.in_a_row >= GIVE_UP
     }
 
     /// The statistics per value of the rows pushed so far (values with no row are left out).
@@ -227,8 +240,9 @@ impl Sweep {
             mode: mode.into(),
             planned_runs: planned,
             done_runs: self.done,
-            interrupted: self.done + (self.failed.len() as u64) < planned,
+            interrupted: self.in_a_row < GIVE_UP && self.done + (self.failed.len() as u64) < planned,
             failed_runs: self.failed.clone(),
+            gave_up: self.in_a_row >= GIVE_UP,
             values: self
                 .values
                 .iter()
@@ -423,6 +437,12 @@ pub fn table(summary: &SweepSummary) -> String {
             "interrupted: {} of {} runs done; sweep.csv holds every one of them",
             summary.done_runs, summary.planned_runs
         );
+    } else if summary.gave_up {
+        let _ = writeln!(
+            s,
+            "gave up after {GIVE_UP} failed runs in a row: {} of {} runs done; sweep.csv holds every one of them",
+            summary.done_runs, summary.planned_runs
+        );
     } else if !summary.failed_runs.is_empty() {
         let _ = writeln!(
             s,
@@ -483,9 +503,61 @@ mod tests {
             interrupted: false,
             values,
             failed_runs: Vec::new(),
+            gave_up: false,
         };
         let same = "gave the same results";
         assert!(table(&sweep(vec![value("0", 55.5), value("1", 55.5)])).contains(same));
         assert!(!table(&sweep(vec![value("0", 55.5), value("1", 82.9)])).contains(same));
+    }
+
+    #[test]
+    fn failed_runs_are_named_and_three_in_a_row_end_the_sweep() {
+        let dir = std::env::temp_dir().join(format!("tcpf-sweep-failed-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let mission =
+            tcpf_core::mission::parse("b.toml", include_str!("../../configs/paper/b-current.toml"), &[]).unwrap();
+        let values = ["0".to_string(), "0.5".into()];
+        let (_, mut sweep) = Sweep::create(Some(&dir), &mission, "loss", &values).unwrap();
+        let failed = |seed| FailedRun {
+            value: "0".into(),
+            seed,
+            run_dir: dir.join(format!("runs/0-seed{seed}")),
+            failure: "the world exited (killed by signal 9) before the end".into(),
+        };
+        let row = |seed| Row {
+            value: "0.5".into(),
+            seed,
+            max_coordination_error: 0.36,
+            min_clearance: 3.5,
+            arrival_spread: Some(0.0),
+            delivered_fraction: Some(1.0),
+            messages_per_vehicle_s: 10.0,
+            last_arrival: Some(55.5),
+        };
+        // Failures between runs done: the sweep goes on.
+        assert!(!sweep.fail(failed(1)));
+        assert!(!sweep.fail(failed(2)));
+        sweep.push(&row(1)).unwrap();
+        assert!(!sweep.fail(failed(3)));
+        let summary = sweep.summary("m", "comms.loss", 3, "processes");
+        assert_eq!((summary.done_runs, summary.failed_runs.len()), (1, 3));
+        assert!(summary.interrupted, "2 of 6 runs neither done nor failed");
+        assert!(!summary.gave_up);
+        let t = table(&summary);
+        assert!(
+            t.contains("FAILED: comms.loss = 0, seed 2: the world exited (killed by signal 9) before the end"),
+            "{t}"
+        );
+        // Three in a row: the sweep gives up, which is no interrupt.
+        assert!(!sweep.fail(failed(4)));
+        assert!(sweep.fail(failed(5)));
+        let summary = sweep.summary("m", "comms.loss", 3, "processes");
+        assert!(summary.gave_up && !summary.interrupted);
+        assert!(
+            table(&summary).contains("gave up after 3 failed runs in a row: 1 of 6 runs done"),
+            "{}",
+            table(&summary)
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
