@@ -273,12 +273,11 @@ fn ctrl_c_while_the_world_starts_leaves_a_run_directory_that_says_so() {
     assert!(dir.join("report.html").is_file() && dir.join("telemetry.csv").is_file());
 }
 
-#[test]
-fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
-    let dir = scratch("sweep-interrupted-start");
-    let out = dir.join("sweep");
-    let mut sweep = Reaper(
-        strace_with_a_slow_world()
+/// `tcpf sweep` (run by `command`) of case (b) at two losses, a seed each, as fleets of
+/// processes, into `out`.
+fn sweep_of_fleets(mut command: Command, out: &Path, extra: &[&str]) -> Reaper {
+    Reaper(
+        command
             .args([
                 "sweep",
                 &paper("b-current"),
@@ -289,11 +288,19 @@ fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
                 "--processes",
             ])
             .args(["--out", out.to_str().unwrap()])
-            .stdout(Stdio::null())
+            .args(extra)
+            .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
             .unwrap(),
-    );
+    )
+}
+
+#[test]
+fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
+    let dir = scratch("sweep-interrupted-start");
+    let out = dir.join("sweep");
+    let mut sweep = sweep_of_fleets(strace_with_a_slow_world(), &out, &[]);
     wait_for_text(&out.join("runs/0-seed1/world.json5"), "router", Duration::from_secs(30));
     kill("-INT", traced(sweep.0.id()));
     let (code, stderr) = exited(&mut sweep.0, Duration::from_secs(30), "the sweep ignored Ctrl-C");
@@ -312,24 +319,9 @@ fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
 fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
     let dir = scratch("sweep-failed-run");
     let out = dir.join("sweep");
-    let mut sweep = Reaper(
-        Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args([
-                "sweep",
-                &paper("b-current"),
-                "--loss",
-                "0,0.5",
-                "--seeds",
-                "1",
-                "--processes",
-            ])
-            // About 4 s of ticks: the first run's world is killed well before its end.
-            .args(["--set", "mission.control_period=0.002", "--out", out.to_str().unwrap()])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap(),
-    );
+    // About 4 s of ticks: the first run's world is killed well before its end.
+    let slower = ["--set", "mission.control_period=0.002"];
+    let mut sweep = sweep_of_fleets(Command::new(env!("CARGO_BIN_EXE_tcpf")), &out, &slower);
     wait_for_text(
         &out.join("runs/0-seed1/logs/world.log"),
         "starting",
@@ -384,23 +376,7 @@ fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
 fn a_sweep_of_fleets_goes_on_past_a_world_that_could_not_start() {
     let dir = scratch("sweep-world-unstarted");
     let out = dir.join("sweep");
-    let mut sweep = Reaper(
-        strace_with_a_slow_world()
-            .args([
-                "sweep",
-                &paper("b-current"),
-                "--loss",
-                "0,0.5",
-                "--seeds",
-                "1",
-                "--processes",
-            ])
-            .args(["--out", out.to_str().unwrap()])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap(),
-    );
+    let mut sweep = sweep_of_fleets(strace_with_a_slow_world(), &out, &[]);
     let config = out.join("runs/0-seed1/world.json5");
     wait_for_text(&config, "router", Duration::from_secs(30));
     let world: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(config).unwrap()).unwrap();
