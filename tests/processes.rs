@@ -220,6 +220,12 @@ fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
 /// tcpf under strace, its first child's exec (the world's) delayed by 2 s: the moment while the
 /// world starts, widened.
 fn strace_with_a_slow_world() -> Command {
+    strace_with_a_slow_world_of(Path::new(env!("CARGO_BIN_EXE_tcpf")))
+}
+
+/// `tcpf` at `exe` under strace, which holds each process's first execve for 2 s: a world
+/// whose start is slow.
+fn strace_with_a_slow_world_of(exe: &Path) -> Command {
     let mut strace = Command::new("strace");
     strace.args([
         "-f",
@@ -230,8 +236,8 @@ fn strace_with_a_slow_world() -> Command {
         "trace=execve",
         "-e",
         "inject=execve:delay_exit=2000000:when=1",
-        env!("CARGO_BIN_EXE_tcpf"),
     ]);
+    strace.arg(exe);
     strace
 }
 
@@ -249,6 +255,66 @@ fn traced(strace: u32) -> u32 {
         .find(|p| p.1 == strace)
         .map(|p| p.0)
         .expect("tcpf runs under strace")
+}
+
+/// Agents that cannot be started fail the run before its first tick: the world and the planner
+/// go, and the run directory says why, as for a world that could not start.
+#[test]
+fn agents_that_cannot_be_started_fail_the_run_with_its_run_directory_written() {
+    let dir = scratch("agents-unstarted");
+    // A copy of tcpf, removed while the world it started is held at its start: the launcher
+    // cannot start the agents from it.
+    let bin = dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let exe = bin.join("tcpf");
+    std::fs::copy(env!("CARGO_BIN_EXE_tcpf"), &exe).unwrap();
+    let out = dir.join("run");
+    let mut launch = Launch::spawn(strace_with_a_slow_world_of(&exe), &paper("b-current"), &out, &[]);
+    let role = |pid: u32| {
+        let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+        cmdline.split(|b| *b == 0).nth(1).map(<[u8]>::to_vec)
+    };
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let roles: Vec<_> = descendants(launch.child.id()).into_iter().filter_map(role).collect();
+        if [&b"world"[..], b"planner"]
+            .iter()
+            .all(|r| roles.iter().any(|have| have == r))
+        {
+            break;
+        }
+        assert!(Instant::now() < deadline, "no world and planner under the launcher");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::fs::remove_file(&exe).unwrap();
+    let status = launch.wait(Duration::from_secs(30));
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut launch.child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    let why = format!("cannot start {} agent", exe.display());
+    assert!(stderr.contains(&why), "{stderr}");
+    let s = launch.summary();
+    assert!(failure(&s).starts_with(&why), "{s}");
+    assert_eq!(
+        (&s["completed"], &s["interrupted"], &s["ticks"]),
+        (
+            &serde_json::json!(false),
+            &serde_json::json!(false),
+            &serde_json::json!(0)
+        )
+    );
+    assert!(s["children"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|c| c["exit_code"].is_i64() || c["signal"].is_i64()));
+    let html =
+        std::fs::read_to_string(out.join("report.html")).unwrap_or_else(|e| panic!("report.html: {e}: {stderr}"));
+    assert!(html.contains("Failed:"));
+    assert!(
+        descendants(launch.child.id()).is_empty(),
+        "the world and the planner went"
+    );
 }
 
 #[test]

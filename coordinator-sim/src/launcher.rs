@@ -367,6 +367,46 @@ async fn stop(children: &mut [Process]) {
     }
 }
 
+/// A run stopped before its first tick by `e` (a signal, a world that could not start, an agent
+/// that could not be started): its children are stopped, and its run directory is whole even
+/// so, a summary that says what stopped it with the telemetry's headers and the report, as a run
+/// that did start leaves. Returns the error to give: `e` if a signal, else `RunFailed`.
+async fn unstarted(
+    mission: &Mission,
+    plan: &Plan,
+    dir: &RunDir,
+    children: &mut [Process],
+    begun: Instant,
+    e: anyhow::Error,
+) -> anyhow::Error {
+    stop(children).await;
+    let interrupted = e.downcast_ref::<Interrupted>().is_some();
+    let summary = Summary::before_the_first_tick(
+        mission,
+        plan.t_f,
+        interrupted,
+        (!interrupted).then(|| format!("{e:#}")),
+        begun.elapsed().as_secs_f64(),
+        children.iter().map(|c| child_summary(c, None)).collect(),
+    );
+    // The summary first, on its own: the rest is made from it and the telemetry.
+    let written = dir.write_summary(&summary).and_then(|()| {
+        dir.telemetry(plan, None)?.finish()?;
+        tcpf_report::report::write(&dir.path)
+    });
+    if let Err(unwritten) = written {
+        tracing::warn!("the run directory could not be written whole: {unwritten:#}");
+    }
+    if interrupted {
+        return e;
+    }
+    RunFailed {
+        why: format!("{e:#}"),
+        dir: dir.path.clone(),
+    }
+    .into()
+}
+
 /// A child as the summary lists it, with what its exit report said if it sent one.
 fn child_summary(c: &Process, report: Option<&Report>) -> ChildSummary {
     ChildSummary {
@@ -423,56 +463,40 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     ];
     let session = match connect(&configs.client, &mut children[0], dir, startup_timeout, &mut shutdown).await {
         Ok(session) => session,
-        Err(e) => {
-            stop(&mut children).await;
-            let interrupted = e.downcast_ref::<Interrupted>().is_some();
-            // The run directory is whole even so: a summary that says what stopped the run, with
-            // the telemetry's headers and the report, as a run that did start leaves.
-            let summary = Summary::before_the_first_tick(
-                mission,
-                plan.t_f,
-                interrupted,
-                (!interrupted).then(|| format!("{e:#}")),
-                begun.elapsed().as_secs_f64(),
-                children.iter().map(|c| child_summary(c, None)).collect(),
+        Err(e) => return Err(unstarted(mission, plan, dir, &mut children, begun, e).await),
+    };
+    let ready = async {
+        crate::access::announce(&dir.path, &endpoint)?;
+        if recorders > 0 {
+            eprintln!(
+                "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
+                startup_timeout.as_secs_f64(),
+                dir.path.join("mission.toml").display(),
+                configs.client.display()
             );
-            // The summary first, on its own: the rest is made from it and the telemetry.
-            let written = dir.write_summary(&summary).and_then(|()| {
-                dir.telemetry(plan, None)?.finish()?;
-                tcpf_report::report::write(&dir.path)
-            });
-            if let Err(unwritten) = written {
-                tracing::warn!("the run directory could not be written whole: {unwritten:#}");
-            }
-            if interrupted {
-                return Err(e);
-            }
-            return Err(RunFailed {
-                why: format!("{e:#}"),
-                dir: dir.path.clone(),
-            }
-            .into());
+        }
+        Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await
+    };
+    let mut recording = match ready.await {
+        Ok(recording) => recording,
+        Err(e) => {
+            let _ = session.close().await;
+            return Err(unstarted(mission, plan, dir, &mut children, begun, e).await);
         }
     };
-    crate::access::announce(&dir.path, &endpoint)?;
-    if recorders > 0 {
-        eprintln!(
-            "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
-            startup_timeout.as_secs_f64(),
-            dir.path.join("mission.toml").display(),
-            configs.client.display()
-        );
+    // From here a failure is the recording's to close, as one in the run is.
+    let spawned = async {
+        // The recorder's subscriptions reach the world before its token, on the same link: the
+        // world cannot start a tick the recorder would miss.
+        recording.declare().await?;
+        // Listed as before the world routed: the planner, the world, the agents.
+        children.swap(0, 1);
+        for v in &mission.vehicles {
+            children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common, lockstep)?);
+        }
+        anyhow::Ok(())
     }
-    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await?;
-    // The recorder's subscriptions reach the world before its token, on the same link: the world
-    // cannot start a tick the recorder would miss.
-    recording.declare().await?;
-
-    // Listed as before the world routed: the planner, the world, the agents.
-    children.swap(0, 1);
-    for v in &mission.vehicles {
-        children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common, lockstep)?);
-    }
+    .await;
     let progress = Ticks::new(mission);
     let started = Instant::now();
     let mut check = tokio::time::interval(Duration::from_millis(100));
@@ -480,58 +504,65 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     // Agents that died and were started again: their exits are part of the run's record.
     let mut retired: Vec<Process> = Vec::new();
 
-    let outcome = loop {
-        if recording.complete() {
-            break Outcome::Completed;
-        }
-        tokio::select! {
-            r = recording.step() => {
-                if let Err(e) = r {
-                    break Outcome::Failed(format!("the recorder failed: {e:#}"));
-                }
-                progress.set(recording.ticks());
+    let outcome = if let Err(e) = spawned {
+        Outcome::Failed(format!("{e:#}"))
+    } else {
+        'run: loop {
+            if recording.complete() {
+                break Outcome::Completed;
             }
-            _ = shutdown.recv() => break Outcome::Interrupted,
-            _ = check.tick() => {
-                let dead = children.iter_mut().find_map(|c| {
-                    c.poll()?;
-                    matches!(c.role, Role::World | Role::Planner).then(|| died(dir, c, "before the end"))
-                });
-                if let Some(why) = dead {
-                    if recording.end.is_none() {
-                        break Outcome::Failed(why);
+            tokio::select! {
+                r = recording.step() => {
+                    if let Err(e) = r {
+                        break Outcome::Failed(format!("the recorder failed: {e:#}"));
                     }
+                    progress.set(recording.ticks());
                 }
-                if restart && recording.end.is_none() {
-                    let lost = recording.lost();
-                    for c in children.iter_mut() {
-                        if c.role != Role::Agent || c.poll().is_none_or(|code| code == Some(0)) {
-                            continue;
+                _ = shutdown.recv() => break Outcome::Interrupted,
+                _ = check.tick() => {
+                    let dead = children.iter_mut().find_map(|c| {
+                        c.poll()?;
+                        matches!(c.role, Role::World | Role::Planner).then(|| died(dir, c, "before the end"))
+                    });
+                    if let Some(why) = dead {
+                        if recording.end.is_none() {
+                            break Outcome::Failed(why);
                         }
-                        // A new agent of a lost vehicle is told so by the world, and stops.
-                        if lost.contains(&c.id) {
-                            continue;
+                    }
+                    if restart && recording.end.is_none() {
+                        let lost = recording.lost();
+                        for c in children.iter_mut() {
+                            if c.role != Role::Agent || c.poll().is_none_or(|code| code == Some(0)) {
+                                continue;
+                            }
+                            // A new agent of a lost vehicle is told so by the world, and stops.
+                            if lost.contains(&c.id) {
+                                continue;
+                            }
+                            let how = c.how_it_ended();
+                            tracing::warn!("agent {} died ({how}); starting it again", c.id);
+                            let again = match spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep) {
+                                Ok(again) => again,
+                                Err(e) => break 'run Outcome::Failed(format!("agent {} died ({how}) and {e:#}", c.id)),
+                            };
+                            match restarts.iter_mut().find(|r| r.id == again.id) {
+                                Some(r) => r.restarts += 1,
+                                None => restarts.push(Restarts { id: again.id, restarts: 1 }),
+                            }
+                            retired.push(std::mem::replace(c, again));
                         }
-                        let how = c.how_it_ended();
-                        tracing::warn!("agent {} died ({how}); starting it again", c.id);
-                        let again = spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep)?;
-                        match restarts.iter_mut().find(|r| r.id == again.id) {
-                            Some(r) => r.restarts += 1,
-                            None => restarts.push(Restarts { id: again.id, restarts: 1 }),
+                    }
+                    let waited = recording.progress.elapsed();
+                    match recording.ticks() {
+                        0 if waited > startup_timeout + START_MARGIN => {
+                            break Outcome::Failed(format!("the run did not start within {} s; see logs/world.log", waited.as_secs()));
                         }
-                        retired.push(std::mem::replace(c, again));
+                        0 => {}
+                        ticks if waited > stall => {
+                            break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {ticks})", stall.as_secs()));
+                        }
+                        _ => {}
                     }
-                }
-                let waited = recording.progress.elapsed();
-                match recording.ticks() {
-                    0 if waited > startup_timeout + START_MARGIN => {
-                        break Outcome::Failed(format!("the run did not start within {} s; see logs/world.log", waited.as_secs()));
-                    }
-                    0 => {}
-                    ticks if waited > stall => {
-                        break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {ticks})", stall.as_secs()));
-                    }
-                    _ => {}
                 }
             }
         }
