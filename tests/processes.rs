@@ -291,7 +291,7 @@ fn agents_that_cannot_be_started_fail_the_run_with_its_run_directory_written() {
     let mut stderr = String::new();
     std::io::Read::read_to_string(&mut launch.child.stderr.take().unwrap(), &mut stderr).unwrap();
     assert_eq!(status.code(), Some(1), "{stderr}");
-    let why = format!("cannot start {} agent", exe.display());
+    let why = format!("cannot start {} agent 1", exe.display());
     assert!(stderr.contains(&why), "{stderr}");
     let s = launch.summary();
     assert!(failure(&s).starts_with(&why), "{s}");
@@ -303,6 +303,9 @@ fn agents_that_cannot_be_started_fail_the_run_with_its_run_directory_written() {
             &serde_json::json!(0)
         )
     );
+    // From the launch, while strace held the world 2 s; and no tick to time.
+    assert!(s["wall_time_s"].as_f64().unwrap() > 1.0, "{s}");
+    assert_eq!(s["tick_wall_time_us"], 0.0, "{s}");
     assert!(s["children"]
         .as_array()
         .unwrap()

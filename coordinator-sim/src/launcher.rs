@@ -178,7 +178,11 @@ pub(crate) fn dies_with_this_process(command: &mut Command) {
 
 fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String], lockstep: bool) -> Result<Process> {
     let logs = dir.path.join("logs");
-    std::fs::create_dir_all(&logs)?;
+    let who = match id {
+        Some(id) => format!("{role} {id}"),
+        None => role.to_string(),
+    };
+    std::fs::create_dir_all(&logs).with_context(|| format!("cannot start {who}: cannot create {}", logs.display()))?;
     let name = match id {
         Some(id) => format!("{role}-{id}.log"),
         None => format!("{role}.log"),
@@ -188,7 +192,10 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
         .create(true)
         .append(true)
         .open(logs.join(&name))
-        .with_context(|| format!("cannot create logs/{name}"))?;
+        .with_context(|| format!("cannot start {who}: cannot create logs/{name}"))?;
+    let output = log
+        .try_clone()
+        .with_context(|| format!("cannot start {who}: cannot share logs/{name}"))?;
     let mut command = Command::new(exe);
     command.arg(role.as_str()).args(args);
     if lockstep {
@@ -224,11 +231,11 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
     dies_with_this_process(&mut command);
     let child = command
         .stdin(Stdio::null())
-        .stdout(Stdio::from(log.try_clone()?))
+        .stdout(Stdio::from(output))
         .stderr(Stdio::from(log))
         .kill_on_drop(true)
         .spawn()
-        .with_context(|| format!("cannot start {} {role}", exe.display()))?;
+        .with_context(|| format!("cannot start {} {who}", exe.display()))?;
     let pid = child.id().ok_or_else(|| anyhow!("{role} exited at once"))?;
     Ok(Process {
         role,
@@ -457,10 +464,13 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     // planner plans while the world starts (a client, it waits for the world to listen): the
     // world cannot start before the recorder below is there, so nothing is missed, and the plan
     // is not on the path to the first tick.
-    let mut children = vec![
-        spawn(exe, dir, Role::World, None, &world_args, lockstep)?,
-        spawn(exe, dir, Role::Planner, None, &common, lockstep)?,
-    ];
+    let mut children = Vec::with_capacity(mission.vehicles.len() + 2);
+    for (role, args) in [(Role::World, &world_args), (Role::Planner, &common)] {
+        match spawn(exe, dir, role, None, args, lockstep) {
+            Ok(child) => children.push(child),
+            Err(e) => return Err(unstarted(mission, plan, dir, &mut children, begun, e).await),
+        }
+    }
     let session = match connect(&configs.client, &mut children[0], dir, startup_timeout, &mut shutdown).await {
         Ok(session) => session,
         Err(e) => return Err(unstarted(mission, plan, dir, &mut children, begun, e).await),
@@ -498,7 +508,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     }
     .await;
     let progress = Ticks::new(mission);
-    let started = Instant::now();
+    // A run whose agents could not all start lasted from the launch, as one stopped earlier does.
+    let started = if spawned.is_ok() { Instant::now() } else { begun };
     let mut check = tokio::time::interval(Duration::from_millis(100));
     let mut restarts: Vec<Restarts> = Vec::new();
     // Agents that died and were started again: their exits are part of the run's record.

@@ -466,7 +466,8 @@ impl Recording {
             tracing::warn!(
                 "recorder: no exit report from {role} {id}: its refusals, timing and γ counts are not in the summary"
             );
-            if role == Role::Agent && !realtime {
+            // Before the first tick there is nothing it could have done otherwise.
+            if role == Role::Agent && !realtime && self.ticks() > 0 {
                 reproducible_reasons.push(format!(
                     "agent {id} sent no exit report: whether it went on without a silent neighbour's γ is unknown"
                 ));
@@ -503,7 +504,10 @@ impl Recording {
             reproducible: reproducible_reasons.is_empty(),
             reproducible_reasons,
             sim_time_s: results.ticks as f64 * mission.mission.control_period,
-            tick_wall_time_us: 1e6 * self.tick_wall_time().unwrap_or(wall_time_s),
+            tick_wall_time_us: 1e6
+                * self
+                    .tick_wall_time()
+                    .unwrap_or(if self.ticks() > 0 { wall_time_s } else { 0.0 }),
             results,
             wall_time_s,
             rejected_messages: rejections.total(),
@@ -515,8 +519,10 @@ impl Recording {
             unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
             coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         };
-        self.telemetry.finish()?;
+        // The summary first: a run directory whose telemetry could not be finished still says
+        // how the run went.
         dir.write_summary(&summary)?;
+        self.telemetry.finish()?;
         tcpf_report::report::write(&dir.path)?;
         Ok(summary)
     }
