@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 mod common;
 use common::{
     alive, assert_none_left, assert_same_run, child_of, config, descendants, exited, failure, kill, lanes, listening,
-    paper, processes, run_in_process, scratch, summary, wait_for_text, Launch, Reaper,
+    paper, processes, run_in_process, scratch, summary, wait_for_text, wait_until_simulated, Launch, Reaper,
 };
 
 #[test]
@@ -695,8 +695,10 @@ fn world_pid(root: u32) -> u32 {
 #[test]
 fn a_run_whose_world_is_killed_says_so_in_its_summary_and_report() {
     let dir = scratch("world-killed");
-    let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
-    launch.wait_for("logs/world.log", "starting");
+    // Killed mid-run: past its first ticks (a run killed before any has nothing it could have done
+    // otherwise, and stays reproducible), well before its end (about 1.7 s of ticks).
+    let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.005"]);
+    wait_until_simulated(&dir, 1.0);
     kill("-9", world_pid(launch.child.id()));
     let status = launch.wait(Duration::from_secs(60));
     assert_eq!(status.code(), Some(1));

@@ -236,7 +236,9 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
         .kill_on_drop(true)
         .spawn()
         .with_context(|| format!("cannot start {} {who}", exe.display()))?;
-    let pid = child.id().ok_or_else(|| anyhow!("{role} exited at once"))?;
+    let pid = child
+        .id()
+        .ok_or_else(|| anyhow!("cannot start {who}: it exited at once"))?;
     Ok(Process {
         role,
         id: id.unwrap_or(0),

@@ -135,10 +135,10 @@ pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, 
                     bar.finish_and_clear();
                     return Ok(true);
                 }
-                // A fleet that failed (its world killed, its agents not started) is named in the
-                // summary, and the sweep goes on: the runs after it are as good as ever. Any other
-                // error (no world could start, the disk is full) would fail them all: it ends
-                // the sweep.
+                // A fleet that failed (its world killed, a role that could not be started) is
+                // named in the summary, and the sweep goes on: the runs after it are as good as
+                // ever, and three failures in a row end it. Any other error (the run directory
+                // cannot be written, no port is free) would fail them all: it ends the sweep.
                 Err(e) if e.downcast_ref::<RunFailed>().is_some() => {
                     let failed = e.downcast::<RunFailed>().expect("checked above");
                     let run = FailedRun {
