@@ -178,15 +178,11 @@ pub(crate) fn dies_with_this_process(command: &mut Command) {
 
 fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String], lockstep: bool) -> Result<Process> {
     let logs = dir.path.join("logs");
-    let who = match id {
-        Some(id) => format!("{role} {id}"),
-        None => role.to_string(),
+    let (who, name) = match id {
+        Some(id) => (format!("{role} {id}"), format!("{role}-{id}.log")),
+        None => (role.to_string(), format!("{role}.log")),
     };
     std::fs::create_dir_all(&logs).with_context(|| format!("cannot start {who}: cannot create {}", logs.display()))?;
-    let name = match id {
-        Some(id) => format!("{role}-{id}.log"),
-        None => format!("{role}.log"),
-    };
     // Appended to: an agent started again writes on in the same log.
     let log = File::options()
         .create(true)
@@ -310,7 +306,6 @@ enum Outcome {
 /// the agents' stale timeout (3 s), so that a neighbour given up on is not also lost at once.
 pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
 
-/// How `tcpf run` runs its children.
 /// A run that failed (its world or recorder stopped short), its run directory written: what
 /// `failure` in its summary.json says.
 #[derive(Debug)]
@@ -327,6 +322,7 @@ impl std::fmt::Display for RunFailed {
 
 impl std::error::Error for RunFailed {}
 
+/// How `tcpf run` runs its children.
 #[derive(Debug, Clone)]
 pub struct Options {
     /// Serve the run to Foxglove live.

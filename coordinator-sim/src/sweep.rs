@@ -139,26 +139,25 @@ pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, 
                 // named in the summary, and the sweep goes on: the runs after it are as good as
                 // ever, and three failures in a row end it. Any other error (the run directory
                 // cannot be written, no port is free) would fail them all: it ends the sweep.
-                Err(e) if e.downcast_ref::<RunFailed>().is_some() => {
-                    let failed = e.downcast::<RunFailed>().expect("checked above");
+                Err(e) => {
+                    let failed = e.downcast::<RunFailed>()?;
+                    let said = format!("run {name} failed: {failed}");
                     let run = FailedRun {
                         value: value.clone(),
                         seed,
-                        run_dir: failed.dir.clone(),
-                        failure: failed.why.clone(),
+                        run_dir: failed.dir,
+                        failure: failed.why,
                     };
                     if sweep.fail(run) {
                         bar.finish_and_clear();
-                        tracing::error!(
-                            "run {name} failed: {failed}; {GIVE_UP} runs in a row failed, and the sweep gives up"
-                        );
+                        tracing::error!("{said}; {GIVE_UP} runs in a row failed, and the sweep gives up");
                         return Ok(false);
                     }
-                    bar.suspend(|| tracing::error!("run {name} failed: {failed}; the sweep goes on"));
+                    bar.suspend(|| tracing::error!("{said}; the sweep goes on"));
                     bar.inc(1);
                     continue;
                 }
-                run => run?,
+                Ok(summary) => summary,
             };
         if summary.interrupted {
             bar.finish_and_clear();
