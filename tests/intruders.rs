@@ -67,6 +67,7 @@ fn samples() -> (State, Command, Gamma) {
         sideslip: 0.0,
         sideslip_rate: 0.0,
         current: [0.0, 0.0],
+        dynamics: None,
     };
     let command = Command {
         version: PROTOCOL_VERSION,
@@ -74,6 +75,7 @@ fn samples() -> (State, Command, Gamma) {
         id: 1,
         v: 0.0,
         r: 1.0,
+        accel: 0.0,
         hold: false,
         gamma: 40.0,
         gamma_dot: 3.0,

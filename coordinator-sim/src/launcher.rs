@@ -396,7 +396,7 @@ async fn unstarted(
     );
     // The summary first, on its own: the rest is made from it and the telemetry.
     let written = dir.write_summary(&summary).and_then(|()| {
-        dir.telemetry(plan, None)?.finish()?;
+        dir.telemetry(mission, plan, None)?.finish()?;
         tcpf_report::report::write(&dir.path)
     });
     if let Err(unwritten) = written {
@@ -483,7 +483,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 configs.client.display()
             );
         }
-        Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?).await
+        Recording::start(&session, mission, plan.t_f, dir.telemetry(mission, plan, live)?).await
     };
     let mut recording = match ready.await {
         Ok(recording) => recording,

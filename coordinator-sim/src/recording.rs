@@ -543,7 +543,7 @@ pub async fn record(
     dir.write_plan(plan)?;
     let unrecorded = |e: anyhow::Error| e.context(NothingRecorded);
     let session = zenoh.open_unless(&mut shutdown).await.map_err(unrecorded)?;
-    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(plan, live)?)
+    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(mission, plan, live)?)
         .await
         .map_err(unrecorded)?;
     let keys = Keys::new(&mission.mission.name);

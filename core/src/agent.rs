@@ -7,7 +7,7 @@ use std::collections::VecDeque;
 use crate::coord;
 use crate::follow::{self, Gains};
 use crate::links::{Link, LinkSpec};
-use crate::mission::{Mission, PostArrival, Trigger};
+use crate::mission::{BetaDot, Mission, PostArrival, Trigger, VehicleModelConfig};
 use crate::msg::{Command, Gamma, Reception, Sample, State, PROTOCOL_VERSION};
 use crate::path::{GeneralizedPath, Vec2};
 
@@ -75,6 +75,9 @@ pub struct Agent {
     /// the next (D12, D19); `None` when none was heard.
     sum: Option<f64>,
     stopped: bool,
+    /// The model of a dynamic vehicle, whose law takes its measured speed (D22c); `None` for a
+    /// kinematic one.
+    dynamic: Option<VehicleModelConfig>,
     /// The tick of the last `step`: a realtime agent may skip periods, a lockstep one never does.
     last_tick: Option<u64>,
 }
@@ -198,6 +201,7 @@ impl Agent {
             sent: None,
             sum: None,
             stopped: false,
+            dynamic: Some(*mission.vehicle_model(id)).filter(VehicleModelConfig::is_dynamic),
             last_tick: None,
         }
     }
@@ -318,13 +322,33 @@ impl Agent {
         if !self.stopped && self.post_arrival == PostArrival::Stop && gamma >= self.path.t_f() {
             self.stopped = true;
         }
-        let (v, r, gamma_dot) = if self.stopped {
-            (0.0, 0.0, 0.0)
+        let (v, r, gamma_dot, accel) = if self.stopped {
+            (0.0, 0.0, 0.0, 0.0)
         } else {
             let v = coord::speed(point.speed, errors.cos_psi_e(), self.kc, self.sum); // eq. 25
             let current = t_frame.of(Vec2::from(state.current));
-            let law = follow::control(&self.gains, &point, &errors, v, current, state.sideslip_rate);
-            (law.v, law.r, law.gamma_dot)
+            match &self.dynamic {
+                None => {
+                    let law = follow::control(&self.gains, &point, &errors, v, v, current, state.sideslip_rate);
+                    (law.v, law.r, law.gamma_dot, 0.0)
+                }
+                Some(model) => {
+                    // D22c: the measured U wherever the vehicle's speed appears, β̇ := 0 unless
+                    // the diagnostic asks for the model's.
+                    let speed = state.dynamics.map_or(v, |d| d.surge.hypot(d.sway));
+                    let beta_dot = match model.beta_dot {
+                        BetaDot::Zero => 0.0,
+                        BetaDot::Model => state.sideslip_rate,
+                    };
+                    let law = follow::control(&self.gains, &point, &errors, v, speed, current, beta_dot);
+                    let accel = if model.accel_ff {
+                        self.path.speed_rate(gamma) * law.gamma_dot
+                    } else {
+                        0.0
+                    };
+                    (law.v, law.r, law.gamma_dot, accel)
+                }
+            }
         };
         self.gamma += self.dt * gamma_dot;
         self.gamma_dot = gamma_dot;
@@ -335,6 +359,7 @@ impl Agent {
             id: self.id,
             v,
             r,
+            accel,
             hold: self.stopped,
             gamma,
             gamma_dot,

@@ -22,6 +22,7 @@ pub fn command_at(id: u32, tick: u64, gamma: f64) -> Command {
         id,
         v: 1.0,
         r: 0.0,
+        accel: 0.0,
         hold: false,
         gamma,
         gamma_dot: 1.0,

@@ -129,19 +129,29 @@ pub fn error_rates(
     ]
 }
 
-/// eqs. 22b and 23 for a speed command `v` already set by eq. 22a/25.
-pub fn control(g: &Gains, point: &PathPoint, e: &Errors, v: f64, current: Vec2, beta_dot: f64) -> Law {
+/// eqs. 22b and 23 for a speed command `v` already set by eq. 22a/25, on a vehicle whose speed
+/// through the water is `speed`: `v` itself on a kinematic vehicle, the measured U on a dynamic
+/// one, whose speed only follows the command (D22c).
+pub fn control(
+    g: &Gains,
+    point: &PathPoint,
+    e: &Errors,
+    v: f64,
+    speed: f64,
+    current: Vec2,
+    beta_dot: f64,
+) -> Law {
     let v_d = point.speed;
     // eq. 23, with 1 + ṽ_d/v_d = v/v_d
-    let gamma_dot = v / v_d * e.cos_psi_e + g.k1 / v_d * sat(e.x_e);
+    let gamma_dot = speed / v_d * e.cos_psi_e + g.k1 / v_d * sat(e.x_e);
     // D7: ζ̇ from the measured ẏ_e of eq. 21
-    let y_e_dot = error_rates(point, e, v, 0.0, gamma_dot, current, 0.0)[1];
+    let y_e_dot = error_rates(point, e, speed, 0.0, gamma_dot, current, 0.0)[1];
     let z = zeta(g, e.y_e);
     let z_dot = dzeta(g, e.y_e) * y_e_dot;
     // eq. 22b
     let r = point.curvature * v_d * gamma_dot + z_dot
         - g.k3 * (e.psi_e - z)
-        - g.k3 * e.y_e * v * sigma(e.psi_e, z)
+        - g.k3 * e.y_e * speed * sigma(e.psi_e, z)
         - beta_dot;
     Law { v, r, gamma_dot }
 }
@@ -249,7 +259,7 @@ mod tests {
             let current = Vec2::new(uniform(&mut rng, -0.3, 0.3), uniform(&mut rng, -0.3, 0.3));
             let v = uniform(&mut rng, 0.05, 3.0);
             let beta_dot = uniform(&mut rng, -0.5, 0.5);
-            let law = control(&g, &point, &e, v, current, beta_dot);
+            let law = control(&g, &point, &e, v, v, current, beta_dot);
             let [xd, yd, pd] = error_rates(&point, &e, law.v, law.r, law.gamma_dot, current, beta_dot);
             // Chain rule on V with eq. 21's rates, against the closed form.
             let z = zeta(&g, e.y_e);
@@ -297,7 +307,7 @@ mod tests {
             speed: 0.6,
         };
         let e = Errors::new(0.0, 0.0, 0.0);
-        let law = control(&G, &point, &e, 0.6, Vec2::zeros(), 0.0);
+        let law = control(&G, &point, &e, 0.6, 0.6, Vec2::zeros(), 0.0);
         assert!((law.gamma_dot - 1.0).abs() < 1e-15);
         assert!((law.r - 0.2 * 0.6).abs() < 1e-15, "turns at c_c v_d");
     }

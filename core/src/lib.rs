@@ -3,6 +3,7 @@
 
 pub mod agent;
 pub mod coord;
+pub mod dynamics;
 #[cfg(test)]
 mod fixtures;
 pub mod follow;

@@ -284,6 +284,7 @@ mod tests {
             sideslip: 0.0,
             sideslip_rate: 0.0,
             current: [0.0, 0.0],
+            dynamics: None,
         };
         let command = |id, tick, gamma| Some(crate::fixtures::command_at(id, tick, gamma));
         let mut m = Metrics::new(&[1, 2], 1.0, dt);

@@ -10,8 +10,9 @@ use crate::path::GeneralizedPath;
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
 /// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`. 5: the γ a realtime
 /// agent received but saw overtaken (`PeriodTiming::overtaken`). 6: the lockstep world's
-/// `TickRecord`, which recorders take instead of every state and command.
-pub const PROTOCOL_VERSION: u16 = 7;
+/// `TickRecord`, which recorders take instead of every state and command. 8: a dynamic vehicle's
+/// velocity and thrusters in `State::dynamics`, the fed-forward acceleration in `Command::accel`.
+pub const PROTOCOL_VERSION: u16 = 8;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -28,6 +29,43 @@ pub struct State {
     pub sideslip_rate: f64,
     /// Water current at the vehicle, inertial frame, m/s.
     pub current: [f64; 2],
+    /// A dynamic vehicle's velocity through the water and its thrusters (MODEL D22); `None` for a
+    /// kinematic one.
+    pub dynamics: Option<Dynamics>,
+}
+
+/// What a dynamic vehicle's navigation and thrusters report at tick k (MODEL D22).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Dynamics {
+    /// u, m/s: body-frame velocity relative to the water, forward.
+    pub surge: f64,
+    /// v, m/s: to the left (y_b at ψ + 90°).
+    pub sway: f64,
+    /// r = ψ̇, rad/s.
+    pub yaw_rate: f64,
+    /// The thruster commands of the last tick, % (clipped to ±100, before the dead zone);
+    /// thruster 1 at y_b = −l (starboard), thruster 2 at +l.
+    pub command: [f64; 2],
+    /// The motors' states n, %.
+    pub motor: [f64; 2],
+    /// The thrusters' forces, N.
+    pub thrust: [f64; 2],
+}
+
+impl Dynamics {
+    fn numbers(&self) -> [f64; 9] {
+        [
+            self.surge,
+            self.sway,
+            self.yaw_rate,
+            self.command[0],
+            self.command[1],
+            self.motor[0],
+            self.motor[1],
+            self.thrust[0],
+            self.thrust[1],
+        ]
+    }
 }
 
 /// One receiver-side decision on a γ message (MODEL D12).
@@ -47,6 +85,9 @@ pub struct Command {
     pub v: f64,
     /// Yaw rate, rad/s.
     pub r: f64,
+    /// m/s²: the acceleration a dynamic vehicle's surge loop feeds forward (MODEL D22c); 0 for a
+    /// kinematic vehicle.
+    pub accel: f64,
     /// Freeze the vehicle where it is (post_arrival = "stop").
     pub hold: bool,
     /// γ_i(t_k), before this tick's update.
@@ -160,7 +201,7 @@ impl Checked for State {
             self.sideslip_rate,
             self.current[0],
             self.current[1],
-        ])
+        ]) && self.dynamics.is_none_or(|d| all_finite(d.numbers()))
     }
 }
 
@@ -172,6 +213,7 @@ impl Checked for Command {
         all_finite([
             self.v,
             self.r,
+            self.accel,
             self.gamma,
             self.gamma_dot,
             self.v_d,

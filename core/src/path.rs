@@ -245,6 +245,19 @@ impl GeneralizedPath {
         }
     }
 
+    /// dv_d/dγ = η (η′|p′| + η p′·p″/|p′|) at τ(γ), and 0 on the straight extensions (D11): the
+    /// acceleration along the path per unit of γ̇, which a dynamic vehicle feeds forward (D22c).
+    pub fn speed_rate(&self, gamma: f64) -> f64 {
+        if !(0.0..=self.profile.t_f).contains(&gamma) {
+            return 0.0;
+        }
+        let tau = self.profile.tau(gamma);
+        let eta = self.profile.eta(tau);
+        let [_, d1, d2] = self.quintic.eval(tau);
+        let norm = d1.norm();
+        eta * (self.profile.deta() * norm + eta * d1.dot(&d2) / norm)
+    }
+
     /// The γ in [0, t_f] of the path point nearest to `position`: the best of a scan at 1000
     /// points, refined by golden-section search between its neighbours (the distance is
     /// unimodal there for any path a vehicle can follow).
@@ -367,6 +380,18 @@ mod tests {
             assert!(((b.position - a.position) / (2.0 * h) - mid.tangent).norm() < 1e-7);
             assert!(((b.tangent - a.tangent) / (2.0 * h) - mid.second).norm() < 1e-7);
         }
+    }
+
+    #[test]
+    fn speed_rate_is_the_derivative_of_the_desired_speed() {
+        let path = paper_vehicle_1(45.689);
+        for gamma in [0.5, 7.0, 22.8, 40.1, 45.0] {
+            let h = 1e-5;
+            let numeric = (path.at(gamma + h).speed - path.at(gamma - h).speed) / (2.0 * h);
+            let rate = path.speed_rate(gamma);
+            assert!((numeric - rate).abs() < 1e-8, "γ {gamma}: {numeric} against {rate}");
+        }
+        assert_eq!((path.speed_rate(-1.0), path.speed_rate(50.0)), (0.0, 0.0));
     }
 
     #[test]

@@ -683,6 +683,7 @@ mod tests {
             sideslip: 0.0,
             sideslip_rate: 0.0,
             current: [0.0, 0.0],
+            dynamics: None,
         }
     }
 

@@ -234,7 +234,7 @@ mod tests {
         let mut csv = String::new();
         let results = Fleet::new(&m, &plan).run(|states, commands| {
             for (s, c) in states.iter().zip(commands) {
-                telemetry::row(&mut csv, s, c.as_ref());
+                telemetry::row(&mut csv, s, c.as_ref(), false);
                 messages.push((*s, c.clone().unwrap()));
             }
         });
@@ -260,7 +260,7 @@ mod tests {
                 recorder.drain(|s, c| {
                     s.iter()
                         .zip(c)
-                        .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref()))
+                        .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref(), false))
                 });
             }
         }
@@ -313,7 +313,7 @@ mod tests {
             recorder.drain(|s, c| {
                 s.iter()
                     .zip(c)
-                    .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref()))
+                    .for_each(|(s, c)| telemetry::row(&mut out, s, c.as_ref(), false))
             });
             assert_eq!(recorder.on_tick(record), Err(Reject::Past), "tick {k} is written");
         }

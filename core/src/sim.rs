@@ -140,6 +140,7 @@ pub fn world_alone(mission: &Mission, plan: &Plan, ticks: u64) -> World {
                 id,
                 v: 0.6,
                 r: 0.01,
+                accel: 0.0,
                 hold: false,
                 gamma: 0.0,
                 gamma_dot: 1.0,

@@ -8,11 +8,25 @@ use crate::msg::{Command, State};
 
 pub const HEADER: &str = "tick,t,id,x,y,heading,gamma,v,r,v_d,x_e,y_e,psi_e\n";
 
+/// The columns a fleet with a dynamic vehicle adds (MODEL D22): body velocity, side-slip, and per
+/// thruster the command, the motor and the force.
+pub const DYNAMIC_COLUMNS: &str =
+    "surge,sway,yaw_rate,beta,command_1,command_2,motor_1,motor_2,thrust_1,thrust_2";
+
 pub const MESSAGES_HEADER: &str = "tick,t,from,to,delivered\n";
 
+/// The header of a fleet's telemetry: with the dynamic columns when any vehicle is dynamic.
+pub fn header(dynamic: bool) -> String {
+    if dynamic {
+        format!("{},{DYNAMIC_COLUMNS}\n", HEADER.trim_end())
+    } else {
+        HEADER.to_string()
+    }
+}
+
 /// Appends the row of one vehicle at one tick; a vehicle without a command (lost) has its
-/// command columns empty.
-pub fn row(out: &mut String, s: &State, c: Option<&Command>) {
+/// command columns empty, and with `dynamic` columns a kinematic vehicle has those empty.
+pub fn row(out: &mut String, s: &State, c: Option<&Command>, dynamic: bool) {
     let _ = write!(
         out,
         "{},{},{},{},{},{}",
@@ -20,14 +34,35 @@ pub fn row(out: &mut String, s: &State, c: Option<&Command>) {
     );
     match c {
         Some(c) => {
-            let _ = writeln!(
+            let _ = write!(
                 out,
                 ",{},{},{},{},{},{},{}",
                 c.gamma, c.v, c.r, c.v_d, c.x_e, c.y_e, c.psi_e
             );
         }
-        None => out.push_str(",,,,,,,\n"),
+        None => out.push_str(",,,,,,,"),
     }
+    match (dynamic, &s.dynamics) {
+        (false, _) => {}
+        (true, None) => out.push_str(",,,,,,,,,,"),
+        (true, Some(d)) => {
+            let _ = write!(
+                out,
+                ",{},{},{},{},{},{},{},{},{},{}",
+                d.surge,
+                d.sway,
+                d.yaw_rate,
+                s.sideslip,
+                d.command[0],
+                d.command[1],
+                d.motor[0],
+                d.motor[1],
+                d.thrust[0],
+                d.thrust[1]
+            );
+        }
+    }
+    out.push('\n');
 }
 
 /// Appends one row per γ message that reached vehicle `c.id`'s links at this tick: sent by

@@ -1,9 +1,11 @@
-//! The world as a state machine: every vehicle's kinematics in the shared current (MODEL §2),
-//! integrated by RK4 over one control period with the commands held.
+//! The world as a state machine: every vehicle in the shared current, integrated by RK4 over one
+//! control period with the commands held: the kinematic vehicle of MODEL §2, or a dynamic one with
+//! its thrusters and inner loops (MODEL D22).
 
+use crate::dynamics::{Medusa, Reference};
 use crate::follow;
-use crate::mission::Mission;
-use crate::msg::{Command, State, PROTOCOL_VERSION};
+use crate::mission::{Mission, VehicleKind};
+use crate::msg::{Command, Dynamics, State, PROTOCOL_VERSION};
 use crate::path::{GeneralizedPath, Vec2};
 
 #[derive(Debug, Clone)]
@@ -12,6 +14,8 @@ struct Body {
     position: Vec2,
     heading: f64,
     lost: bool,
+    /// The dynamic vehicle, whose plant holds the position and heading; `None` for a kinematic one.
+    medusa: Option<Box<Medusa>>,
 }
 
 #[derive(Debug, Clone)]
@@ -45,12 +49,25 @@ impl World {
             let p0 = path.at(0.0);
             let (s, c) = p0.heading.sin_cos();
             let position = p0.position + Vec2::new(c * offset[0] - s * offset[1], s * offset[0] + c * offset[1]);
+            let model = mission.vehicle_model(*id);
+            let medusa = match model.kind {
+                VehicleKind::Kinematic => None,
+                // D22e: ψ along v₀ (no side-slip at rest in sway), u = |v₀|.
+                VehicleKind::Medusa => Some(Box::new(Medusa::new(
+                    model,
+                    position,
+                    follow::wrap(p0.heading + offset[2]),
+                    p0.speed,
+                    world.dt,
+                ))),
+            };
             let heading = follow::wrap(p0.heading + offset[2] - world.sideslip(0.0).0);
             world.bodies.push(Body {
                 id: *id,
                 position,
                 heading,
                 lost: false,
+                medusa,
             });
         }
         world
@@ -94,16 +111,41 @@ impl World {
         let t = self.time();
         let (beta, beta_dot) = self.sideslip(t);
         out.clear();
-        out.extend(self.bodies.iter().map(|b| State {
-            version: PROTOCOL_VERSION,
-            tick: self.tick,
-            id: b.id,
-            t,
-            position: b.position.into(),
-            heading: b.heading,
-            sideslip: beta,
-            sideslip_rate: beta_dot,
-            current: self.current.into(),
+        out.extend(self.bodies.iter().map(|b| match &b.medusa {
+            None => State {
+                version: PROTOCOL_VERSION,
+                tick: self.tick,
+                id: b.id,
+                t,
+                position: b.position.into(),
+                heading: b.heading,
+                sideslip: beta,
+                sideslip_rate: beta_dot,
+                current: self.current.into(),
+                dynamics: None,
+            },
+            Some(m) => {
+                let s = &m.plant;
+                State {
+                    version: PROTOCOL_VERSION,
+                    tick: self.tick,
+                    id: b.id,
+                    t,
+                    position: s.position.into(),
+                    heading: follow::wrap(s.heading),
+                    sideslip: s.sideslip(),
+                    sideslip_rate: s.sideslip_rate(),
+                    current: self.current.into(),
+                    dynamics: Some(Dynamics {
+                        surge: s.u,
+                        sway: s.v,
+                        yaw_rate: s.r,
+                        command: m.last.c,
+                        motor: s.motor,
+                        thrust: s.motor.map(crate::dynamics::thrust),
+                    }),
+                }
+            }
         }));
     }
 
@@ -121,6 +163,15 @@ impl World {
         for (n, b) in self.bodies.iter_mut().enumerate() {
             let command = commands.get(n).and_then(Option::as_ref).filter(|_| !b.lost);
             if command.is_some_and(|c| c.hold) {
+                continue;
+            }
+            if let Some(m) = &mut b.medusa {
+                let reference = command.map(|c| Reference {
+                    speed: c.v,
+                    yaw_rate: c.r,
+                    accel: c.accel,
+                });
+                m.step(reference.as_ref(), current, dt);
                 continue;
             }
             let (v, r) = command.map_or((0.0, 0.0), |c| (c.v, c.r));

@@ -149,7 +149,7 @@ fn telemetry(m: &Mission) -> String {
     let mut out = String::new();
     Fleet::new(m, &planner::plan(m).unwrap()).run(|states, commands| {
         for (s, c) in states.iter().zip(commands) {
-            tcpf_core::telemetry::row(&mut out, s, c.as_ref());
+            tcpf_core::telemetry::row(&mut out, s, c.as_ref(), false);
         }
     });
     out

@@ -208,7 +208,7 @@ fn same_seed_same_bits() {
         let mut out = String::new();
         Fleet::new(&m, &plan).run(|states, commands| {
             for (s, c) in states.iter().zip(commands) {
-                tcpf_core::telemetry::row(&mut out, s, c.as_ref());
+                tcpf_core::telemetry::row(&mut out, s, c.as_ref(), false);
             }
         });
         out

@@ -141,8 +141,9 @@ impl RunDir {
 
     /// The files written tick by tick: `telemetry.csv`, `messages.csv` and `run.mcap`; with
     /// `live`, the same channels are served to Foxglove there while the run goes on.
-    pub fn telemetry(&self, plan: &Plan, live: Option<SocketAddr>) -> Result<Telemetry> {
+    pub fn telemetry(&self, mission: &Mission, plan: &Plan, live: Option<SocketAddr>) -> Result<Telemetry> {
         let paths = plan.paths();
+        let dynamic = mission.has_dynamic_vehicles();
         let create = |name: &str, header: &str| -> Result<BufWriter<File>> {
             let cannot = || cannot_write(&self.path, name);
             let mut out = BufWriter::new(File::create(self.path.join(name)).with_context(cannot)?);
@@ -164,7 +165,8 @@ impl RunDir {
             })
             .context("cannot start the thread that writes run.mcap")?;
         Ok(Telemetry {
-            out: create("telemetry.csv", telemetry::HEADER)?,
+            out: create("telemetry.csv", &telemetry::header(dynamic))?,
+            dynamic,
             messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
             viewer: Some((batches, thread)),
             batch: Vec::with_capacity(VIEWER_BATCH),
@@ -199,6 +201,8 @@ pub struct Telemetry {
     batch: Vec<Tick>,
     since: Instant,
     line: String,
+    /// Whether the rows have the dynamic columns (a fleet with a dynamic vehicle).
+    dynamic: bool,
     /// The run directory, for errors to name the file they failed on (a full disk, say).
     dir: PathBuf,
 }
@@ -207,7 +211,7 @@ impl Telemetry {
     pub fn tick(&mut self, states: &[State], commands: &[Option<Command>]) -> Result<()> {
         self.line.clear();
         for (s, c) in states.iter().zip(commands) {
-            telemetry::row(&mut self.line, s, c.as_ref());
+            telemetry::row(&mut self.line, s, c.as_ref(), self.dynamic);
         }
         self.out
             .write_all(self.line.as_bytes())

@@ -33,6 +33,9 @@ pub struct Mission {
     pub sideslip: SideslipConfig,
     #[serde(default)]
     pub comms: CommsConfig,
+    /// The vehicle every `[[vehicle]]` is unless it says otherwise (MODEL D22).
+    #[serde(default, skip_serializing_if = "VehicleModelConfig::is_kinematic_default")]
+    pub vehicle_model: VehicleModelConfig,
     #[serde(rename = "vehicle")]
     pub vehicles: Vec<VehicleConfig>,
 }
@@ -317,6 +320,72 @@ impl Default for CommsConfig {
     }
 }
 
+/// What the world integrates for a vehicle (MODEL D22).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VehicleKind {
+    /// Speed and yaw rate change the instant the law asks (MODEL §2).
+    #[default]
+    Kinematic,
+    /// Mass, damping, thrusters and inner loops (D22).
+    Medusa,
+}
+
+/// The β̇ that eq. 22b cancels on a dynamic vehicle (D22c).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BetaDot {
+    /// β̇ := 0: the side-slip enters as a disturbance.
+    #[default]
+    Zero,
+    /// β̇ from the model: Lemma 2's exact cancellation, which ends in a limit cycle (diagnostic).
+    Model,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VehicleModelConfig {
+    pub kind: VehicleKind,
+    /// 1/s: the surge-speed loop (D22d).
+    pub surge_kp: f64,
+    /// 1/s²
+    pub surge_ki: f64,
+    /// 1/s: the yaw-rate loop.
+    pub yaw_rate_kp: f64,
+    /// 1/s²
+    pub yaw_rate_ki: f64,
+    /// Feed (dv_d/dγ)·γ̇ forward in the surge loop (D22c).
+    pub accel_ff: bool,
+    pub beta_dot: BetaDot,
+}
+
+impl Default for VehicleModelConfig {
+    fn default() -> Self {
+        // D22d's gains.
+        VehicleModelConfig {
+            kind: VehicleKind::Kinematic,
+            surge_kp: 1.0,
+            surge_ki: 0.1,
+            yaw_rate_kp: 1.0,
+            yaw_rate_ki: 0.1,
+            accel_ff: true,
+            beta_dot: BetaDot::Zero,
+        }
+    }
+}
+
+impl VehicleModelConfig {
+    /// A mission that says nothing of its vehicles writes nothing of them: its resolved file and
+    /// digest stay those of a mission from before dynamic vehicles existed.
+    fn is_kinematic_default(&self) -> bool {
+        *self == VehicleModelConfig::default()
+    }
+
+    pub fn is_dynamic(&self) -> bool {
+        self.kind != VehicleKind::Kinematic
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VehicleConfig {
@@ -338,6 +407,10 @@ pub struct VehicleConfig {
     /// (x_e, y_e, ψ_e) at t = 0, in the path frame at the start (MODEL D15).
     #[serde(default, deserialize_with = "exact")]
     pub initial_offset: [f64; 3],
+    /// This vehicle's own model, whole: keys it leaves out take MODEL D22's defaults, not the
+    /// mission's `[vehicle_model]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vehicle_model: Option<VehicleModelConfig>,
 }
 
 /// A fixed-size array that refuses a longer or shorter one in the file (serde's own arrays stop
@@ -405,6 +478,20 @@ impl Mission {
     /// The tick at which a run stops whether or not every vehicle arrived.
     pub fn max_ticks(&self) -> u64 {
         (self.mission.max_duration / self.mission.control_period).round() as u64
+    }
+
+    /// The model of vehicle `id`: its own, or the mission's.
+    pub fn vehicle_model(&self, id: u32) -> &VehicleModelConfig {
+        self.vehicles
+            .iter()
+            .find(|v| v.id == id)
+            .and_then(|v| v.vehicle_model.as_ref())
+            .unwrap_or(&self.vehicle_model)
+    }
+
+    /// Whether any vehicle of the fleet is dynamic: then telemetry has the dynamic columns.
+    pub fn has_dynamic_vehicles(&self) -> bool {
+        self.vehicles.iter().any(|v| self.vehicle_model(v.id).is_dynamic())
     }
 
     /// The undirected communication graph: each vehicle's neighbours in ascending id order.

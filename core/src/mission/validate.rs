@@ -1,7 +1,7 @@
 //! Every value of a mission checked before anything uses it, with the key that holds it.
 
 use super::diagnostics::Seg;
-use super::{Endpoint, Mission};
+use super::{Endpoint, Mission, VehicleModelConfig};
 
 /// The planner evaluates every t_f of [tf_min, tf_max] on a 0.01 s grid (D6): this many at most,
 /// a 200 s window, so that a plan takes a fraction of a second and tens of MB.
@@ -325,6 +325,12 @@ impl Mission {
                 )?;
             }
         }
+        self.validate_vehicle_model(vec![Seg::Key("vehicle_model".into())], &self.vehicle_model)?;
+        for (i, v) in self.vehicles.iter().enumerate() {
+            if let Some(model) = &v.vehicle_model {
+                self.validate_vehicle_model(vkey(i, "vehicle_model"), model)?;
+            }
+        }
         self.validate_graph()?;
         // Fleet-wide link keys first, so that a bad one is not blamed on a link that inherits it.
         // Both come after the edges, since link overrides are checked against the graph.
@@ -334,7 +340,46 @@ impl Mission {
     }
 }
 
+/// The longest control period a dynamic vehicle is integrated with: its fastest mode, the motor
+/// pole, wants h p well inside RK4's stability region, and its dead time whole periods.
+const MAX_DYNAMIC_PERIOD: f64 = 0.05;
+
 impl Mission {
+    /// A `[vehicle_model]` table at `path`: gains that are numbers ≥ 0, and a dynamic vehicle only
+    /// where it can be integrated and where no side-slip is prescribed (its β is an output).
+    fn validate_vehicle_model(&self, path: Vec<Seg>, model: &VehicleModelConfig) -> Result<(), Invalid> {
+        let at = |k: &str| {
+            let mut p = path.clone();
+            p.push(Seg::Key(k.into()));
+            p
+        };
+        for (k, gain) in [
+            ("surge_kp", model.surge_kp),
+            ("surge_ki", model.surge_ki),
+            ("yaw_rate_kp", model.yaw_rate_kp),
+            ("yaw_rate_ki", model.yaw_rate_ki),
+        ] {
+            check(gain >= 0.0 && gain.is_finite(), at(k), "must be a finite number ≥ 0")?;
+        }
+        if !model.is_dynamic() {
+            return Ok(());
+        }
+        let h = self.mission.control_period;
+        check(
+            h <= MAX_DYNAMIC_PERIOD,
+            at("kind"),
+            format!(
+                "a dynamic vehicle needs mission.control_period ≤ {MAX_DYNAMIC_PERIOD} s (it is {} s): its motors and inner loops run at that period",
+                num(h)
+            ),
+        )?;
+        check(
+            self.sideslip.amplitude == 0.0,
+            at("kind"),
+            "a dynamic vehicle's side-slip comes from its model: [sideslip] prescribes it for kinematic vehicles only (set its amplitude to 0)",
+        )
+    }
+
     /// Coordination needs every vehicle to hear, at least indirectly, every other: a graph in
     /// pieces would let the pieces drift apart while the run says "coordinated".
     fn validate_graph(&self) -> Result<(), Invalid> {

@@ -1,0 +1,146 @@
+//! docs/MODEL.md D22: the paper's cases on a MEDUSA-class vehicle, in-process, against the figures
+//! an independent implementation gets (within 0.005 s and 0.005 m), each beside the kinematic run.
+
+use tcpf_core::metrics::Results;
+use tcpf_core::mission::{self, Mission};
+use tcpf_core::planner;
+use tcpf_core::sim::Fleet;
+
+fn load(file: &str, overrides: &[&str]) -> Mission {
+    let file = format!("{}/../configs/{file}.toml", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&file).unwrap();
+    let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    mission::parse(&file, &text, &overrides).unwrap()
+}
+
+/// What the table of D22 lists of a run: arrivals, en-route coordination error and clearance, and
+/// the largest en-route |y_e| of the fleet.
+#[derive(Debug)]
+struct Figures {
+    arrivals: Vec<f64>,
+    error: f64,
+    clearance: f64,
+    y_e: f64,
+}
+
+/// Also hands every tick's states and commands to `observe`.
+fn simulate_with(m: &Mission, mut observe: impl FnMut(&[tcpf_core::msg::State], &[Option<tcpf_core::msg::Command>])) -> (Figures, Results) {
+    let plan = planner::plan(m).unwrap();
+    let mut y_e: Vec<(f64, f64)> = Vec::new();
+    let r = Fleet::new(m, &plan).run(|states, commands| {
+        let worst = commands.iter().flatten().map(|c| c.y_e.abs()).fold(0.0, f64::max);
+        y_e.push((states[0].t, worst));
+        observe(states, commands);
+    });
+    let arrivals: Vec<f64> = r.vehicles.iter().map(|v| v.arrival_time.expect("arrives")).collect();
+    let first = arrivals.iter().copied().fold(f64::INFINITY, f64::min);
+    let figures = Figures {
+        arrivals,
+        error: r.max_coordination_error,
+        clearance: r.min_clearance,
+        y_e: y_e.iter().filter(|(t, _)| *t <= first).map(|p| p.1).fold(0.0, f64::max),
+    };
+    (figures, r)
+}
+
+fn simulate(m: &Mission) -> Figures {
+    simulate_with(m, |_, _| {}).0
+}
+
+/// Every figure within 0.005 of the table's `[arrival 1, arrival 2, error, clearance, |y_e|]`.
+fn assert_figures(case: &str, f: &Figures, table: [f64; 5]) {
+    let got = [f.arrivals[0], f.arrivals[1], f.error, f.clearance, f.y_e];
+    eprintln!("{case}: {got:.3?} (table {table:?})");
+    for (g, t) in got.iter().zip(table) {
+        assert!((g - t).abs() <= 0.005, "{case}: {got:.4?} against the table's {table:?}");
+    }
+}
+
+const CASES: [(&str, &str, &[&str], [f64; 5], [f64; 5]); 5] = [
+    (
+        "(a) no current",
+        "paper/a-nominal",
+        &[],
+        [45.692, 45.692, 0.001, 3.536, 0.000],
+        [46.127, 46.129, 0.050, 3.530, 0.104],
+    ),
+    (
+        "(b) current",
+        "paper/b-current",
+        &[],
+        [55.467, 55.466, 0.362, 3.527, 0.348],
+        [55.817, 55.820, 0.379, 3.510, 0.417],
+    ),
+    (
+        "(c) no coordination",
+        "paper/c-uncoordinated",
+        &[],
+        [52.149, 59.943, 6.615, 0.606, 0.405],
+        [52.580, 60.279, 6.514, 0.648, 0.462],
+    ),
+    (
+        "(b) delay 1 s, D19 + cap",
+        "paper/b-current",
+        &["comms.delay=1.0"],
+        [55.454, 55.453, 0.356, 3.526, 0.351],
+        [55.805, 55.801, 0.355, 3.512, 0.419],
+    ),
+    (
+        "(b) delay 1 s, uncompensated",
+        "paper/b-current",
+        &["comms.delay=1.0", "control.delay_compensation=false"],
+        [82.853, 82.853, 0.384, 3.628, 0.597],
+        [82.870, 82.872, 0.378, 3.623, 0.616],
+    ),
+];
+
+fn case(n: usize) {
+    let (name, file, overrides, kinematic, medusa) = CASES[n];
+    let mut dynamic = overrides.to_vec();
+    dynamic.push("vehicle_model.kind=\"medusa\"");
+    assert_figures(&format!("{name}, kinematic"), &simulate(&load(file, overrides)), kinematic);
+    assert_figures(&format!("{name}, MEDUSA"), &simulate(&load(file, &dynamic)), medusa);
+}
+
+#[test]
+fn case_a_on_medusa() {
+    case(0);
+}
+
+#[test]
+fn case_b_on_medusa() {
+    case(1);
+}
+
+#[test]
+fn case_c_on_medusa() {
+    case(2);
+}
+
+#[test]
+fn case_b_with_compensated_delay_on_medusa() {
+    case(3);
+}
+
+#[test]
+fn case_b_with_uncompensated_delay_on_medusa() {
+    case(4);
+}
+
+/// Which messages a loss of 0.6 drops is each implementation's own random stream (as case (d) of
+/// §5 is compared over seeds, not seed by seed), so tcpf's seed 1 is not the table's: the figures
+/// are tcpf's own (docs/MODEL.md prints them), and what the dynamics change, seed for seed, is
+/// the table's to within the spread of a single realisation.
+#[test]
+fn case_b_with_loss_on_medusa() {
+    let kinematic = simulate(&load("paper/b-current", &["comms.loss=0.6"]));
+    let medusa = simulate(&load("paper/b-current", &["comms.loss=0.6", "vehicle_model.kind=\"medusa\""]));
+    assert_figures("(b) loss 0.6, kinematic", &kinematic, [55.834, 55.822, 0.973, 3.437, 0.358]);
+    assert_figures("(b) loss 0.6, MEDUSA", &medusa, [56.450, 56.448, 1.047, 3.460, 0.421]);
+    // The table: arrivals 0.564 / 0.568 s later on MEDUSA, |y_e| 0.072 m larger.
+    for (n, shift) in [0.564, 0.568].into_iter().enumerate() {
+        let ours = medusa.arrivals[n] - kinematic.arrivals[n];
+        assert!((ours - shift).abs() < 0.1, "vehicle {}: {ours} s later, the table {shift} s", n + 1);
+    }
+    assert!(((medusa.y_e - kinematic.y_e) - 0.072).abs() < 0.02);
+}
