@@ -337,7 +337,8 @@ mod tests {
         ((k - 1) as f64 + (level - a) / (b - a)) * H
     }
 
-    const RISE: f64 = 0.632;
+    /// 63.2 %: 1 − 1/e, one time constant of a first-order lag.
+    const RISE: f64 = 1.0 - 1.0 / std::f64::consts::E;
 
     #[test]
     fn full_thrust_gives_the_steady_surge_and_its_rise_times() {
@@ -366,6 +367,46 @@ mod tests {
         assert_eq!((end.u, end.v), (0.0, 0.0));
         let turn = crossing(&run, |s| s.r, RISE * 1.025657);
         assert!((turn - 0.9315).abs() < 5e-4, "yaw rate 63.2 % at {turn}");
+    }
+
+    /// From steady 0.5 m/s, the inner loops given a step of `reference` at t = 0: the 63 % time of
+    /// `f` from its start to `target`, and its overshoot past the target, relative to the step.
+    fn step_response(reference: Reference, f: impl Fn(&Plant) -> f64, target: f64) -> (f64, f64) {
+        let config = VehicleModelConfig::default();
+        let mut vehicle = Medusa::new(&config, Vec2::zeros(), 0.0, 0.5, H);
+        let start = f(&vehicle.plant);
+        let mut run = vec![vehicle.plant];
+        for _ in 0..2000 {
+            vehicle.step(Some(&reference), Vec2::zeros(), H);
+            run.push(vehicle.plant);
+        }
+        let sign = (target - start).signum();
+        let rise = crossing(&run, |s| sign * f(s), sign * (start + RISE * (target - start)));
+        let peak = run.iter().map(|s| sign * (f(s) - target)).fold(0.0, f64::max);
+        (rise, peak / (target - start).abs())
+    }
+
+    #[test]
+    fn the_inner_loops_answer_a_step_as_d22d_says() {
+        let surge = |s: &Plant| s.u;
+        let turn = |s: &Plant| s.r;
+        for (reference, f, target, rise, overshoot) in [
+            ((0.7, 0.0), &surge as &dyn Fn(&Plant) -> f64, 0.7, 0.941, 0.112),
+            ((0.3, 0.0), &surge, 0.3, 1.022, 0.120),
+            ((0.5, 0.1), &turn, 0.1, 0.830, 0.181),
+            ((0.5, 0.3), &turn, 0.3, 0.853, 0.151),
+        ] {
+            let reference = Reference {
+                speed: reference.0,
+                yaw_rate: reference.1,
+                accel: 0.0,
+            };
+            let (t, o) = step_response(reference, f, target);
+            assert!(
+                (t - rise).abs() <= 5e-4 && (o - overshoot).abs() <= 5e-4,
+                "{reference:?}: 63 % at {t} s, overshoot {o}"
+            );
+        }
     }
 
     #[test]
@@ -443,6 +484,10 @@ mod tests {
         let ahead = s.step(h, s.motor, Vec2::zeros());
         let behind = s.step(-h, s.motor, Vec2::zeros());
         let numeric = (ahead.sideslip() - behind.sideslip()) / (2.0 * h);
-        assert!((numeric - s.sideslip_rate()).abs() < 1e-8, "{numeric} {}", s.sideslip_rate());
+        assert!(
+            (numeric - s.sideslip_rate()).abs() < 1e-8,
+            "{numeric} {}",
+            s.sideslip_rate()
+        );
     }
 }

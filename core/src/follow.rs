@@ -132,15 +132,7 @@ pub fn error_rates(
 /// eqs. 22b and 23 for a speed command `v` already set by eq. 22a/25, on a vehicle whose speed
 /// through the water is `speed`: `v` itself on a kinematic vehicle, the measured U on a dynamic
 /// one, whose speed only follows the command (D22c).
-pub fn control(
-    g: &Gains,
-    point: &PathPoint,
-    e: &Errors,
-    v: f64,
-    speed: f64,
-    current: Vec2,
-    beta_dot: f64,
-) -> Law {
+pub fn control(g: &Gains, point: &PathPoint, e: &Errors, v: f64, speed: f64, current: Vec2, beta_dot: f64) -> Law {
     let v_d = point.speed;
     // eq. 23, with 1 + ṽ_d/v_d = v/v_d
     let gamma_dot = speed / v_d * e.cos_psi_e + g.k1 / v_d * sat(e.x_e);
@@ -268,6 +260,40 @@ mod tests {
             assert!(
                 (chain - closed).abs() < 1e-9 * (1.0 + closed.abs()),
                 "{e:?} {chain} vs {closed}"
+            );
+        }
+    }
+
+    #[test]
+    fn on_a_dynamic_vehicle_the_measured_speed_cancels_in_lemma_2() {
+        // D22c: the law takes the speed the vehicle has, not the one it was asked for; with eq. 21
+        // driven by that speed, V̇ is Lemma 2's at that speed, whatever the command.
+        let mut rng = ChaCha8Rng::seed_from_u64(22);
+        for _ in 0..5_000 {
+            let point = PathPoint {
+                position: Vec2::zeros(),
+                tangent: Vec2::zeros(),
+                second: Vec2::zeros(),
+                heading: uniform(&mut rng, -3.0, 3.0),
+                curvature: uniform(&mut rng, -2.0, 2.0),
+                speed: uniform(&mut rng, 0.05, 1.5),
+            };
+            let e = Errors::new(
+                uniform(&mut rng, -5.0, 5.0),
+                uniform(&mut rng, -5.0, 5.0),
+                uniform(&mut rng, -3.1, 3.1),
+            );
+            let current = Vec2::new(uniform(&mut rng, -0.3, 0.3), uniform(&mut rng, -0.3, 0.3));
+            let (asked, measured) = (uniform(&mut rng, 0.05, 3.0), uniform(&mut rng, 0.05, 3.0));
+            let law = control(&G, &point, &e, asked, measured, current, 0.0);
+            assert_eq!(law.v, asked, "the command is the reference");
+            let [xd, yd, pd] = error_rates(&point, &e, measured, law.r, law.gamma_dot, current, 0.0);
+            let z = zeta(&G, e.y_e);
+            let chain = e.x_e * xd + e.y_e * yd + (e.psi_e - z) * (pd - dzeta(&G, e.y_e) * yd) / G.k3;
+            let closed = lyapunov_rate(&G, &e, measured, current);
+            assert!(
+                (chain - closed).abs() < 1e-9 * (1.0 + closed.abs()),
+                "{chain} vs {closed}"
             );
         }
     }

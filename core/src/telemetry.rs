@@ -10,8 +10,7 @@ pub const HEADER: &str = "tick,t,id,x,y,heading,gamma,v,r,v_d,x_e,y_e,psi_e\n";
 
 /// The columns a fleet with a dynamic vehicle adds (MODEL D22): body velocity, side-slip, and per
 /// thruster the command, the motor and the force.
-pub const DYNAMIC_COLUMNS: &str =
-    "surge,sway,yaw_rate,beta,command_1,command_2,motor_1,motor_2,thrust_1,thrust_2";
+pub const DYNAMIC_COLUMNS: &str = "surge,sway,yaw_rate,beta,command_1,command_2,motor_1,motor_2,thrust_1,thrust_2";
 
 pub const MESSAGES_HEADER: &str = "tick,t,from,to,delivered\n";
 

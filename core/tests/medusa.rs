@@ -24,7 +24,10 @@ struct Figures {
 }
 
 /// Also hands every tick's states and commands to `observe`.
-fn simulate_with(m: &Mission, mut observe: impl FnMut(&[tcpf_core::msg::State], &[Option<tcpf_core::msg::Command>])) -> (Figures, Results) {
+fn simulate_with(
+    m: &Mission,
+    mut observe: impl FnMut(&[tcpf_core::msg::State], &[Option<tcpf_core::msg::Command>]),
+) -> (Figures, Results) {
     let plan = planner::plan(m).unwrap();
     let mut y_e: Vec<(f64, f64)> = Vec::new();
     let r = Fleet::new(m, &plan).run(|states, commands| {
@@ -52,7 +55,10 @@ fn assert_figures(case: &str, f: &Figures, table: [f64; 5]) {
     let got = [f.arrivals[0], f.arrivals[1], f.error, f.clearance, f.y_e];
     eprintln!("{case}: {got:.3?} (table {table:?})");
     for (g, t) in got.iter().zip(table) {
-        assert!((g - t).abs() <= 0.005, "{case}: {got:.4?} against the table's {table:?}");
+        assert!(
+            (g - t).abs() <= 0.005,
+            "{case}: {got:.4?} against the table's {table:?}"
+        );
     }
 }
 
@@ -98,7 +104,11 @@ fn case(n: usize) {
     let (name, file, overrides, kinematic, medusa) = CASES[n];
     let mut dynamic = overrides.to_vec();
     dynamic.push("vehicle_model.kind=\"medusa\"");
-    assert_figures(&format!("{name}, kinematic"), &simulate(&load(file, overrides)), kinematic);
+    assert_figures(
+        &format!("{name}, kinematic"),
+        &simulate(&load(file, overrides)),
+        kinematic,
+    );
     assert_figures(&format!("{name}, MEDUSA"), &simulate(&load(file, &dynamic)), medusa);
 }
 
@@ -134,13 +144,121 @@ fn case_b_with_uncompensated_delay_on_medusa() {
 #[test]
 fn case_b_with_loss_on_medusa() {
     let kinematic = simulate(&load("paper/b-current", &["comms.loss=0.6"]));
-    let medusa = simulate(&load("paper/b-current", &["comms.loss=0.6", "vehicle_model.kind=\"medusa\""]));
-    assert_figures("(b) loss 0.6, kinematic", &kinematic, [55.834, 55.822, 0.973, 3.437, 0.358]);
+    let medusa = simulate(&load(
+        "paper/b-current",
+        &["comms.loss=0.6", "vehicle_model.kind=\"medusa\""],
+    ));
+    assert_figures(
+        "(b) loss 0.6, kinematic",
+        &kinematic,
+        [55.834, 55.822, 0.973, 3.437, 0.358],
+    );
     assert_figures("(b) loss 0.6, MEDUSA", &medusa, [56.450, 56.448, 1.047, 3.460, 0.421]);
     // The table: arrivals 0.564 / 0.568 s later on MEDUSA, |y_e| 0.072 m larger.
     for (n, shift) in [0.564, 0.568].into_iter().enumerate() {
         let ours = medusa.arrivals[n] - kinematic.arrivals[n];
-        assert!((ours - shift).abs() < 0.1, "vehicle {}: {ours} s later, the table {shift} s", n + 1);
+        assert!(
+            (ours - shift).abs() < 0.1,
+            "vehicle {}: {ours} s later, the table {shift} s",
+            n + 1
+        );
     }
     assert!(((medusa.y_e - kinematic.y_e) - 0.072).abs() < 0.02);
+}
+
+/// D22's variants of case (b): the exact cancellation of β̇ ends in a limit cycle at full thrust;
+/// without the fed-forward acceleration, with stiffer loops or half the step, the figures move
+/// as the table says.
+#[test]
+fn variants_of_case_b_on_medusa() {
+    let medusa = |extra: &[&str]| {
+        let mut overrides = vec!["vehicle_model.kind=\"medusa\""];
+        overrides.extend_from_slice(extra);
+        simulate(&load("paper/b-current", &overrides))
+    };
+    let model = medusa(&["vehicle_model.beta_dot=\"model\""]);
+    assert!(
+        (model.arrivals[0] - 57.538).abs() <= 0.005 && (model.arrivals[1] - 57.667).abs() <= 0.005,
+        "β̇ from the model: {:?}",
+        model.arrivals
+    );
+    let no_ff = medusa(&["vehicle_model.accel_ff=false"]);
+    assert!(
+        (no_ff.arrivals[0] - 56.380).abs() <= 0.005
+            && (no_ff.arrivals[1] - 56.377).abs() <= 0.005
+            && (no_ff.error - 0.389).abs() <= 0.005,
+        "no a_ff: {no_ff:?}"
+    );
+    let stiff = medusa(&[
+        "vehicle_model.surge_kp=1.5",
+        "vehicle_model.yaw_rate_kp=1.5",
+        "vehicle_model.surge_ki=0.5",
+        "vehicle_model.yaw_rate_ki=0.5",
+    ]);
+    assert!(
+        (stiff.arrivals[0] - 55.652).abs() <= 0.005
+            && (stiff.arrivals[1] - 55.653).abs() <= 0.005
+            && (stiff.error - 0.344).abs() <= 0.005,
+        "gains 1.5 / 0.5: {stiff:?}"
+    );
+    let fine = medusa(&["mission.control_period=0.005", "comms.period=0.1"]);
+    assert!(
+        (fine.arrivals[0] - 55.814).abs() <= 0.005
+            && (fine.arrivals[1] - 55.817).abs() <= 0.005
+            && (fine.error - 0.380).abs() <= 0.005,
+        "h = 0.005 s: {fine:?}"
+    );
+}
+
+/// What D22 says a MEDUSA does in case (b): speeds, side-slip, turn rates and thrusters in range,
+/// never clipped, and in the dead zone through the slow, turning middle of the path.
+#[test]
+fn case_b_on_medusa_stays_inside_its_thrusters() {
+    let m = load("paper/b-current", &["vehicle_model.kind=\"medusa\""]);
+    let (mut speed, mut beta, mut r, mut command) = ((f64::INFINITY, 0.0f64), 0.0f64, 0.0f64, 0.0f64);
+    let mut dead = [0u32; 2];
+    let mut ticks = 0;
+    let (figures, _) = simulate_with(&m, |states, _| {
+        ticks += 1;
+        for (n, s) in states.iter().enumerate() {
+            let d = s.dynamics.expect("a MEDUSA reports its dynamics");
+            let u = d.surge.hypot(d.sway);
+            speed = (speed.0.min(u), speed.1.max(u));
+            beta = beta.max(s.sideslip.abs());
+            r = r.max(d.yaw_rate.abs());
+            command = command.max(d.command[0].abs()).max(d.command[1].abs());
+            dead[n] += u32::from(d.command.iter().any(|c| c.abs() < tcpf_core::dynamics::DEAD_ZONE));
+        }
+    });
+    eprintln!("speed {speed:?}, |β| {beta}, |r| {r}, commands {command} %, dead zone {dead:?} of {ticks} ticks");
+    assert!(
+        (speed.0 - 0.243).abs() < 0.0005 && (speed.1 - 0.755).abs() < 0.0005,
+        "{speed:?}"
+    );
+    assert!(
+        (beta - 0.110).abs() < 0.0005 && (r - 0.138).abs() < 0.0005,
+        "{beta} {r}"
+    );
+    assert!((command - 52.2).abs() < 0.05, "{command}");
+    assert!(figures.arrivals.iter().all(|a| (a - 55.8).abs() < 0.05));
+    // D22: "a thruster sits in the dead zone on 993 / 610 of ~5580 ticks" (counted by command).
+    assert_eq!(dead, [993, 610]);
+}
+
+/// The law's outputs feed the world in both vehicles of a mixed fleet: one kinematic, one MEDUSA.
+#[test]
+fn a_mixed_fleet_runs_each_vehicle_on_its_own_model() {
+    let m = load("paper/b-current", &["vehicle.2.vehicle_model={ kind = \"medusa\" }"]);
+    let (figures, _) = simulate_with(&m, |states, commands| {
+        assert!(states[0].dynamics.is_none() && states[1].dynamics.is_some());
+        assert_eq!(
+            commands[0].as_ref().unwrap().accel,
+            0.0,
+            "a kinematic vehicle is fed nothing forward"
+        );
+    });
+    eprintln!("mixed fleet: {figures:?}");
+    // Coordination holds the two together although one lags its commands.
+    assert!(figures.error < 0.5, "{figures:?}");
+    assert!((figures.arrivals[0] - figures.arrivals[1]).abs() < 0.05, "{figures:?}");
 }
