@@ -67,6 +67,39 @@ fn each_link_model_runs_the_same_as_processes() {
 }
 
 #[test]
+fn a_medusa_fleet_and_a_mixed_fleet_run_the_same_as_processes() {
+    for (name, mission, extra) in [
+        ("medusa", config("medusa/b-current"), &[][..]),
+        (
+            "mixed",
+            paper("b-current"),
+            &["--set", "vehicle.2.vehicle_model={ kind = \"medusa\" }"][..],
+        ),
+    ] {
+        let dir = scratch(&format!("dynamics-{name}"));
+        let mut launch = Launch::start(&mission, &dir.join("p"), extra);
+        assert!(launch.wait(Duration::from_secs(180)).success(), "{name}");
+        run_in_process(&mission, &dir.join("i"), extra);
+        assert_same_run(&dir.join("p"), &dir.join("i"));
+        let telemetry = std::fs::read_to_string(dir.join("p/telemetry.csv")).unwrap();
+        let header = telemetry.lines().next().unwrap();
+        assert!(
+            header.ends_with(",surge,sway,yaw_rate,beta,command_1,command_2,motor_1,motor_2,thrust_1,thrust_2"),
+            "{header}"
+        );
+        let s = launch.summary();
+        let arrivals: Vec<f64> = s["vehicles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v["arrival_time"].as_f64().unwrap())
+            .collect();
+        eprintln!("{name}: arrivals {arrivals:?}, error {}", s["max_coordination_error"]);
+        assert_none_left(&s);
+    }
+}
+
+#[test]
 fn every_role_runs_in_its_own_process() {
     let dir = scratch("pids");
     let mut launch = Launch::start(&paper("b-current"), &dir, &[]);

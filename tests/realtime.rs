@@ -9,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    assert_none_left, descendants, failure, kill, listening, paper, run_in_process, scratch, summary, timing,
+    assert_none_left, config, descendants, failure, kill, listening, paper, run_in_process, scratch, summary, timing,
     wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
@@ -101,6 +101,34 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
     }
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(report.contains("<table id=\"timing\">"), "the report shows the timing");
+    assert_none_left(&realtime);
+}
+
+#[test]
+fn a_medusa_fleet_in_realtime_arrives_as_in_lockstep() {
+    let dir = scratch("medusa-realtime");
+    let mission = config("medusa/b-current");
+    run_in_process(&mission, &dir.join("lockstep"), &[]);
+    let out = dir.join("realtime");
+    let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["run", &mission, "--clock", "realtime", "--time-scale", "10"])
+        .args(["--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (lockstep, realtime) = (summary(&dir.join("lockstep")), summary(&out));
+    eprintln!(
+        "MEDUSA at ×10: arrivals {:?} against lockstep's {:?}",
+        arrivals(&realtime),
+        arrivals(&lockstep)
+    );
+    for (l, r) in arrivals(&lockstep).iter().zip(arrivals(&realtime)) {
+        assert!((l - r).abs() < 0.3, "arrival {r:.3} s against lockstep's {l:.3} s");
+    }
+    let error = |s: &Value| s["max_coordination_error"].as_f64().unwrap();
+    assert!((error(&lockstep) - error(&realtime)).abs() < 0.15);
+    let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
+    assert!(telemetry.lines().next().unwrap().contains(",surge,sway,yaw_rate,beta,"));
     assert_none_left(&realtime);
 }
 

@@ -1,5 +1,6 @@
-//! docs/MODEL.md D22: the paper's cases on a MEDUSA-class vehicle, in-process, against the figures
-//! an independent implementation gets (within 0.005 s and 0.005 m), each beside the kinematic run.
+//! docs/MODEL.md D22: the paper's cases on a MEDUSA-class vehicle (configs/medusa/), in-process,
+//! against the figures an independent implementation gets (within 0.005 s and 0.005 m), each
+//! beside the same mission on the kinematic vehicle.
 
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{self, Mission};
@@ -65,51 +66,50 @@ fn assert_figures(case: &str, f: &Figures, table: [f64; 5]) {
 const CASES: [(&str, &str, &[&str], [f64; 5], [f64; 5]); 5] = [
     (
         "(a) no current",
-        "paper/a-nominal",
+        "medusa/a-nominal",
         &[],
         [45.692, 45.692, 0.001, 3.536, 0.000],
         [46.127, 46.129, 0.050, 3.530, 0.104],
     ),
     (
         "(b) current",
-        "paper/b-current",
+        "medusa/b-current",
         &[],
         [55.467, 55.466, 0.362, 3.527, 0.348],
         [55.817, 55.820, 0.379, 3.510, 0.417],
     ),
     (
         "(c) no coordination",
-        "paper/c-uncoordinated",
+        "medusa/c-uncoordinated",
         &[],
         [52.149, 59.943, 6.615, 0.606, 0.405],
         [52.580, 60.279, 6.514, 0.648, 0.462],
     ),
     (
         "(b) delay 1 s, D19 + cap",
-        "paper/b-current",
-        &["comms.delay=1.0"],
+        "medusa/b-delay",
+        &[],
         [55.454, 55.453, 0.356, 3.526, 0.351],
         [55.805, 55.801, 0.355, 3.512, 0.419],
     ),
     (
         "(b) delay 1 s, uncompensated",
-        "paper/b-current",
-        &["comms.delay=1.0", "control.delay_compensation=false"],
+        "medusa/b-delay",
+        &["control.delay_compensation=false"],
         [82.853, 82.853, 0.384, 3.628, 0.597],
         [82.870, 82.872, 0.378, 3.623, 0.616],
     ),
 ];
 
+/// The same mission on the vehicle of MODEL §2.
+const KINEMATIC: &str = "vehicle_model.kind=\"kinematic\"";
+
 fn case(n: usize) {
     let (name, file, overrides, kinematic, medusa) = CASES[n];
-    let mut dynamic = overrides.to_vec();
-    dynamic.push("vehicle_model.kind=\"medusa\"");
-    assert_figures(
-        &format!("{name}, kinematic"),
-        &simulate(&load(file, overrides)),
-        kinematic,
-    );
-    assert_figures(&format!("{name}, MEDUSA"), &simulate(&load(file, &dynamic)), medusa);
+    let mut plain = overrides.to_vec();
+    plain.push(KINEMATIC);
+    assert_figures(&format!("{name}, kinematic"), &simulate(&load(file, &plain)), kinematic);
+    assert_figures(&format!("{name}, MEDUSA"), &simulate(&load(file, overrides)), medusa);
 }
 
 #[test]
@@ -143,11 +143,8 @@ fn case_b_with_uncompensated_delay_on_medusa() {
 /// the table's to within the spread of a single realisation.
 #[test]
 fn case_b_with_loss_on_medusa() {
-    let kinematic = simulate(&load("paper/b-current", &["comms.loss=0.6"]));
-    let medusa = simulate(&load(
-        "paper/b-current",
-        &["comms.loss=0.6", "vehicle_model.kind=\"medusa\""],
-    ));
+    let kinematic = simulate(&load("medusa/b-loss", &[KINEMATIC]));
+    let medusa = simulate(&load("medusa/b-loss", &[]));
     assert_figures(
         "(b) loss 0.6, kinematic",
         &kinematic,
@@ -171,11 +168,7 @@ fn case_b_with_loss_on_medusa() {
 /// as the table says.
 #[test]
 fn variants_of_case_b_on_medusa() {
-    let medusa = |extra: &[&str]| {
-        let mut overrides = vec!["vehicle_model.kind=\"medusa\""];
-        overrides.extend_from_slice(extra);
-        simulate(&load("paper/b-current", &overrides))
-    };
+    let medusa = |extra: &[&str]| simulate(&load("medusa/b-current", extra));
     let model = medusa(&["vehicle_model.beta_dot=\"model\""]);
     assert!(
         (model.arrivals[0] - 57.538).abs() <= 0.005 && (model.arrivals[1] - 57.667).abs() <= 0.005,
@@ -214,7 +207,7 @@ fn variants_of_case_b_on_medusa() {
 /// never clipped, and in the dead zone through the slow, turning middle of the path.
 #[test]
 fn case_b_on_medusa_stays_inside_its_thrusters() {
-    let m = load("paper/b-current", &["vehicle_model.kind=\"medusa\""]);
+    let m = load("medusa/b-current", &[]);
     let (mut speed, mut beta, mut r, mut command) = ((f64::INFINITY, 0.0f64), 0.0f64, 0.0f64, 0.0f64);
     let mut dead = [0u32; 2];
     let mut ticks = 0;

@@ -21,7 +21,7 @@ import threading
 import time
 import tomllib
 
-VERSION = 7
+VERSION = 8
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
 # The longest a vehicle holds its agent's last command, in simulated seconds (the world's
@@ -40,9 +40,10 @@ def record(*fields):
     return ("record", fields)
 
 
+DYNAMICS = record(("surge", F), ("sway", F), ("yaw_rate", F), ("command", XY), ("motor", XY), ("thrust", XY))
 STATE = record(("version", U16), ("tick", U64), ("id", U32), ("t", F), ("position", XY), ("heading", F),
-               ("sideslip", F), ("sideslip_rate", F), ("current", XY))
-COMMAND = record(("version", U16), ("tick", U64), ("id", U32), ("v", F), ("r", F), ("hold", BOOL),
+               ("sideslip", F), ("sideslip_rate", F), ("current", XY), ("dynamics", ("option", DYNAMICS)))
+COMMAND = record(("version", U16), ("tick", U64), ("id", U32), ("v", F), ("r", F), ("accel", F), ("hold", BOOL),
                  ("gamma", F), ("gamma_dot", F), ("v_d", F), ("x_e", F), ("y_e", F), ("psi_e", F),
                  ("receptions", ("vec", record(("from", U32), ("delivered", BOOL)))))
 LOST = record(("id", U32), ("tick", U64), ("reason", ("enum", ("gone", "silent"))))
@@ -292,6 +293,12 @@ def load_mission(path, vid):
             fail(2, f"{path}: [sideslip] amplitude is {amplitude}: this vehicle does not model side-slip")
         if vehicle is None:
             fail(2, f"{path}: the mission has no vehicle {vid}")
+        # This vehicle is the kinematic one of MODEL.md §2: a mission that makes it dynamic (D22)
+        # expects thrusters and inner loops that this script does not have.
+        model = vehicle.get("vehicle_model", m.get("vehicle_model", {}))
+        if model.get("kind", "kinematic") != "kinematic":
+            fail(2, f"{path}: vehicle {vid} is a {model['kind']} vehicle ([vehicle_model] kind): "
+                    "this script plays a kinematic vehicle only")
         if not (dt > 0 and math.isfinite(dt)):
             fail(2, f"{path}: control_period must be a positive number")
         (x, y), (vx, vy) = vehicle["start"], vehicle["start_velocity"]
@@ -380,7 +387,8 @@ def drive(ship, publisher, clock, dt, log):
         ship.advance(k * dt, dt)
         publisher.put(encode(STATE, {
             "version": VERSION, "tick": k, "id": ship.id, "t": k * dt, "position": ship.position,
-            "heading": ship.heading, "sideslip": 0.0, "sideslip_rate": 0.0, "current": ship.current}))
+            "heading": ship.heading, "sideslip": 0.0, "sideslip_rate": 0.0, "current": ship.current,
+            "dynamics": None}))
         ship.published += 1
         k += 1
 
@@ -434,21 +442,21 @@ def self_test():
     gamma = {"version": VERSION, "tick": 300, "from": 2,
              "sample": {"t": 3.0, "gamma": 1.5, "gamma_dot": 1.0, "position": [2.0, -0.5]}}
     state = {"version": VERSION, "tick": 42, "id": 2, "t": 0.42, "position": [1.0, -2.5], "heading": 0.1,
-             "sideslip": 0.0, "sideslip_rate": 0.0, "current": [-0.1, 0.0]}
-    command = {"version": VERSION, "tick": 7, "id": 2, "v": 0.5, "r": -0.1, "hold": False, "gamma": 1.0,
+             "sideslip": 0.0, "sideslip_rate": 0.0, "current": [-0.1, 0.0], "dynamics": None}
+    command = {"version": VERSION, "tick": 7, "id": 2, "v": 0.5, "r": -0.1, "accel": 0.0, "hold": False, "gamma": 1.0,
                "gamma_dot": 1.1, "v_d": 0.5, "x_e": 0.01, "y_e": -0.2, "psi_e": 0.03,
                "receptions": [{"from": 1, "delivered": True}, {"from": 3, "delivered": False}]}
     end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}]}
     clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12,
              "mission": 0x72b3548f8bc2f98c}
-    gamma_bytes = ("07ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+    gamma_bytes = ("08ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
                    "0000000000000040" "000000000000e0bf")
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("07ac020200"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("08ac020200"),
         "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300, mission=5))
-        == bytes.fromhex("0701" "0000000000002440" "000000000000f83f" "ac02" "05"),
+        == bytes.fromhex("0801" "0000000000002440" "000000000000f83f" "ac02" "05"),
         "u32 overflow refused": refused_as(version_id, varint(VERSION) + varint(2**32)) == "undecodable",
         "trailing byte refused": refused_as(COMMAND, encode(COMMAND, command) + b"\0") == "undecodable",
         "version 3 refused": refused_as(STATE, encode(STATE, dict(state, version=3))) == "wrong_version",
