@@ -75,6 +75,43 @@ fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
     assert_eq!(channels["/links"]["count"], sent, "one link event per γ message");
 }
 
+/// A mixed fleet: the dynamic vehicle's velocity and thrusters on a channel of its own, a tick
+/// each, and none for the kinematic one.
+#[test]
+fn run_mcap_holds_a_dynamic_vehicles_thrusters() {
+    let dir = scratch("mcap-dynamic");
+    let status = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args([
+            "run",
+            &paper("b-current"),
+            "--in-process",
+            "--out",
+            dir.to_str().unwrap(),
+        ])
+        .args(["--set", "vehicle.2.vehicle_model={ kind = \"medusa\" }"])
+        .stdout(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = Command::new("python3")
+        .args(["-c", READ_MCAP, dir.join("run.mcap").to_str().unwrap()])
+        .output()
+        .expect("python3 runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let channels: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let dynamics = &channels["/vehicle/2/dynamics"];
+    assert_eq!(dynamics["count"], summary["ticks"], "{channels}");
+    assert_eq!(dynamics["schema"], "tcpf.Dynamics");
+    assert!(
+        channels.get("/vehicle/1/dynamics").is_none(),
+        "vehicle 1 is kinematic: {channels}"
+    );
+    let thrusters = &summary["vehicles"][1]["thrusters"];
+    assert!(thrusters["max_command"].as_f64().unwrap() > 30.0, "{summary}");
+    assert!(summary["vehicles"][0].get("thrusters").is_none(), "{summary}");
+}
+
 /// A port nobody listens on now.
 fn free_port() -> u16 {
     TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()

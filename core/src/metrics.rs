@@ -20,6 +20,34 @@ pub struct VehicleSummary {
     pub lost_reason: Option<LossReason>,
     /// γ messages this vehicle broadcast (one per instant, whatever the number of neighbours).
     pub gamma_sent: u64,
+    /// A dynamic vehicle's thrusters over the run (MODEL D22); absent for a kinematic vehicle.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thrusters: Option<Thrusters>,
+}
+
+/// How hard a dynamic vehicle's thrusters worked, from the commands its states report: per
+/// thruster (1 at starboard, 2 at port), the time its command sat in the dead zone, where it
+/// turns no motor, and at ±100 %, where the inner loops were clipped; and the largest |command|.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Thrusters {
+    pub dead_zone_s: [f64; 2],
+    pub saturated_s: [f64; 2],
+    pub max_command: f64,
+}
+
+impl Thrusters {
+    /// One row of `span` seconds whose state reports `command` (%).
+    fn add(&mut self, command: [f64; 2], span: f64) {
+        for (k, c) in command.iter().enumerate() {
+            if c.abs() < crate::dynamics::DEAD_ZONE {
+                self.dead_zone_s[k] += span;
+            }
+            if c.abs() >= crate::dynamics::FULL {
+                self.saturated_s[k] += span;
+            }
+            self.max_command = self.max_command.max(c.abs());
+        }
+    }
 }
 
 /// What a run measured. `summary.json` is this plus how it ran.
@@ -57,6 +85,8 @@ pub struct Metrics {
     gamma_sent: Vec<u64>,
     /// Per vehicle, the last tick at which a broadcast of it was counted.
     sent_at: Vec<Option<u64>>,
+    /// Per vehicle, its thrusters once a state has reported them.
+    thrusters: Vec<Option<Thrusters>>,
     /// Vehicles by x, for the closest pair: a run allocates it once.
     order: Vec<usize>,
 }
@@ -120,6 +150,7 @@ impl Metrics {
             links: BTreeMap::new(),
             gamma_sent: vec![0; ids.len()],
             sent_at: vec![None; ids.len()],
+            thrusters: vec![None; ids.len()],
             order: Vec::with_capacity(ids.len()),
         }
     }
@@ -160,6 +191,11 @@ impl Metrics {
                     Some(p) if g > p => t - span + span * (self.t_f - p) / (g - p),
                     _ => t,
                 });
+            }
+        }
+        for (thrusters, s) in self.thrusters.iter_mut().zip(states) {
+            if let Some(d) = &s.dynamics {
+                thrusters.get_or_insert_default().add(d.command, span);
             }
         }
         let live = |n: usize| commands[n].is_some();
@@ -231,13 +267,17 @@ impl Metrics {
                 .zip(&self.arrivals)
                 .zip(&self.lost)
                 .zip(&self.gamma_sent)
-                .map(|(((&id, &arrival_time), &lost), &gamma_sent)| VehicleSummary {
-                    id,
-                    arrival_time,
-                    lost: lost.is_some(),
-                    lost_reason: lost,
-                    gamma_sent,
-                })
+                .zip(&self.thrusters)
+                .map(
+                    |((((&id, &arrival_time), &lost), &gamma_sent), &thrusters)| VehicleSummary {
+                        id,
+                        arrival_time,
+                        lost: lost.is_some(),
+                        lost_reason: lost,
+                        gamma_sent,
+                        thrusters,
+                    },
+                )
                 .collect(),
             max_coordination_error: self.en_route.0,
             min_clearance: self.en_route.1,

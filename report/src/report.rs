@@ -7,6 +7,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
 use serde_json::Value;
+use tcpf_core::dynamics::{DEAD_ZONE, FULL};
 use tcpf_core::mission::{self, Mission};
 
 use crate::plots::{bars, Chart, Series};
@@ -23,6 +24,32 @@ struct Track {
     gamma: Vec<f64>,
     v: Vec<f64>,
     y_e: Vec<f64>,
+    /// A dynamic vehicle's columns (MODEL D22), in the order of `DYNAMIC`; empty for a file
+    /// without them, NaN in the rows of a kinematic vehicle of a mixed fleet.
+    dynamics: [Vec<f64>; DYNAMIC.len()],
+}
+
+/// The dynamic columns the report plots, in `Track::dynamics`' order.
+const DYNAMIC: [&str; 8] = [
+    "surge",
+    "sway",
+    "yaw_rate",
+    "beta",
+    "command_1",
+    "command_2",
+    "thrust_1",
+    "thrust_2",
+];
+
+impl Track {
+    /// Whether this vehicle is dynamic: its rows have the dynamic columns filled.
+    fn is_dynamic(&self) -> bool {
+        self.dynamics[0].iter().any(|x| !x.is_nan())
+    }
+
+    fn column(&self, name: &str) -> &[f64] {
+        &self.dynamics[DYNAMIC.iter().position(|c| *c == name).expect("a dynamic column")]
+    }
 }
 
 fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
@@ -51,6 +78,8 @@ fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
         col("v")?,
         col("y_e")?,
     );
+    // Present only where a fleet has a dynamic vehicle.
+    let dynamic: Option<Vec<usize>> = DYNAMIC.iter().map(|c| col(c).ok()).collect();
     let mut tracks: BTreeMap<u32, Track> = BTreeMap::new();
     for (n, line) in lines.enumerate() {
         let line = line.with_context(|| format!("cannot read {}", file.display()))?;
@@ -72,6 +101,9 @@ fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
         tr.gamma.push(g);
         tr.v.push(v);
         tr.y_e.push(ye);
+        for (values, &c) in tr.dynamics.iter_mut().zip(dynamic.iter().flatten()) {
+            values.push(num(c).unwrap_or(f64::NAN));
+        }
     }
     Ok(tracks)
 }
@@ -220,6 +252,77 @@ fn pairs(mission: &Mission, ids: &[u32]) -> (Pairs, Pairs) {
         .filter(|(a, b)| graph.get(a).is_some_and(|n| n.contains(b)))
         .collect();
     (all, linked)
+}
+
+/// What a dynamic vehicle did (MODEL D22): its velocity through the water, side-slip and turn
+/// rate, and its thrusters' commands against the dead zone and full thrust, and their forces.
+fn dynamic_figures(tracks: &BTreeMap<u32, Track>, figures: &mut Vec<(&str, String, String)>) {
+    let dynamic: Vec<(&u32, &Track)> = tracks.iter().filter(|(_, t)| t.is_dynamic()).collect();
+    if dynamic.is_empty() {
+        return;
+    }
+    let per_vehicle = |title: &'static str, y: &'static str, columns: &[(&str, &str)]| {
+        let mut chart = Chart::new(title, "t (s)", y);
+        for (id, tr) in &dynamic {
+            for (column, name) in columns {
+                chart.series.push(Series {
+                    name: format!("vehicle {id}{name}"),
+                    points: thin(&tr.t, tr.column(column)),
+                });
+            }
+        }
+        chart
+    };
+    let velocity = per_vehicle(
+        "Velocity through the water, body frame",
+        "m/s",
+        &[("surge", ": surge u"), ("sway", ": sway v")],
+    );
+    figures.push((
+        "body-velocity",
+        "Surge u and sway v of each dynamic vehicle, relative to the water.".into(),
+        velocity.svg(900, 400),
+    ));
+    let turn = per_vehicle(
+        "Yaw rate and side-slip",
+        "rad/s, rad",
+        &[("yaw_rate", ": yaw rate r"), ("beta", ": side-slip β")],
+    );
+    figures.push((
+        "yaw-rate",
+        "Yaw rate r and side-slip β = atan2(v, u) of each dynamic vehicle.".into(),
+        turn.svg(900, 400),
+    ));
+    let mut commands = per_vehicle(
+        "Thruster commands",
+        "command (%)",
+        &[("command_1", ": thruster 1"), ("command_2", ": thruster 2")],
+    );
+    for (level, name) in [
+        (DEAD_ZONE, "dead zone"),
+        (-DEAD_ZONE, "dead zone"),
+        (FULL, "full thrust"),
+        (-FULL, "full thrust"),
+    ] {
+        commands.levels.push((level, format!("{name} {level} %")));
+    }
+    figures.push((
+        "thruster-commands",
+        format!(
+            "Thruster commands of the inner loops: inside ±{DEAD_ZONE} % a motor does not turn, at ±{FULL} % the loops are clipped."
+        ),
+        commands.svg(900, 400),
+    ));
+    let forces = per_vehicle(
+        "Thruster forces",
+        "F (N)",
+        &[("thrust_1", ": thruster 1"), ("thrust_2", ": thruster 2")],
+    );
+    figures.push((
+        "thrust",
+        "Force of each thruster, after the dead time and the motor's lag.".into(),
+        forces.svg(900, 400),
+    ));
 }
 
 /// Broadcasts per vehicle over time, and every message of every link, delivered or lost.
@@ -419,6 +522,8 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         cross.svg(900, 400),
     ));
 
+    dynamic_figures(tracks, &mut figures);
+
     let links = summary["links"].as_array().cloned().unwrap_or_default();
     let names: Vec<String> = links.iter().map(|l| format!("{}→{}", l["from"], l["to"])).collect();
     let count = |k: &str| links.iter().map(|l| l[k].as_f64().unwrap_or(0.0)).collect::<Vec<f64>>();
@@ -482,6 +587,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         );
     }
     html.push_str("</table>\n");
+    thrusters_table(&mut html, summary);
     timing_table(&mut html, summary);
     for (id, caption, svg) in figures {
         let _ = writeln!(
@@ -492,6 +598,32 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     }
     html.push_str("</body></html>\n");
     html
+}
+
+/// Dynamic vehicles: how hard their thrusters worked (`vehicles[].thrusters` in summary.json).
+fn thrusters_table(html: &mut String, summary: &Value) {
+    let vehicles = summary["vehicles"].as_array().cloned().unwrap_or_default();
+    let dynamic: Vec<&Value> = vehicles.iter().filter(|v| v["thrusters"].is_object()).collect();
+    if dynamic.is_empty() {
+        return;
+    }
+    html.push_str(
+        "<table id=\"thrusters\"><tr><th>vehicle</th><th>dead zone 1 (s)</th><th>dead zone 2 (s)</th><th>saturated 1 (s)</th><th>saturated 2 (s)</th><th>largest command (%)</th></tr>",
+    );
+    for v in dynamic {
+        let t = &v["thrusters"];
+        let _ = write!(
+            html,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            v["id"],
+            number(&t["dead_zone_s"][0], 2),
+            number(&t["dead_zone_s"][1], 2),
+            number(&t["saturated_s"][0], 2),
+            number(&t["saturated_s"][1], 2),
+            number(&t["max_command"], 1)
+        );
+    }
+    html.push_str("</table>\n");
 }
 
 /// Realtime runs: how each role kept its period (`timing` in summary.json).

@@ -108,6 +108,15 @@ pub fn summary(summary: &Summary) -> String {
         let arrival = v.arrival_time.map_or("-".to_string(), |a| format!("{a:.3}"));
         let _ = writeln!(s, "{:>4} {:>12} {:>6}", v.id, arrival, v.lost);
     }
+    for v in &r.vehicles {
+        if let Some(t) = &v.thrusters {
+            let _ = writeln!(
+                s,
+                "thrusters of vehicle {}: in the dead zone {:.2} / {:.2} s, saturated {:.2} / {:.2} s, largest command {:.1} %",
+                v.id, t.dead_zone_s[0], t.dead_zone_s[1], t.saturated_s[0], t.saturated_s[1], t.max_command
+            );
+        }
+    }
     let _ = writeln!(s, "t_f {:.3} s, {} ticks", r.t_f, r.ticks);
     if let Some(g) = summary.coordination_gain.filter(|g| g.effective != g.kc) {
         let _ = writeln!(

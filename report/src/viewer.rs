@@ -6,6 +6,8 @@
 //! - `/vehicle/<id>/pose` (`foxglove.PoseInFrame`, frame `world`): position and heading, every tick;
 //! - `/vehicle/<id>/path` (`foxglove.PosesInFrame`): the planned path, once at t = 0;
 //! - `/vehicle/<id>/coordination` (JSON): γ, γ̇ and the command with the errors behind it;
+//! - `/vehicle/<id>/dynamics` (JSON), for a dynamic vehicle (MODEL D22): its body velocity,
+//!   side-slip, and per thruster the command, motor and force;
 //!
 //! and `/links` (JSON): every γ message a link decided on, delivered or lost.
 
@@ -31,6 +33,7 @@ const FRAME: &str = "world";
 const PATH_STEP: f64 = 0.5;
 
 const COORDINATION_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"gamma":{"type":"number"},"gamma_dot":{"type":"number"},"v":{"type":"number"},"r":{"type":"number"},"v_d":{"type":"number"},"x_e":{"type":"number"},"y_e":{"type":"number"},"psi_e":{"type":"number"}}}"#;
+const DYNAMICS_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"surge":{"type":"number"},"sway":{"type":"number"},"yaw_rate":{"type":"number"},"beta":{"type":"number"},"command_1":{"type":"number"},"command_2":{"type":"number"},"motor_1":{"type":"number"},"motor_2":{"type":"number"},"thrust_1":{"type":"number"},"thrust_2":{"type":"number"}}}"#;
 const LINK_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"from":{"type":"integer"},"to":{"type":"integer"},"delivered":{"type":"boolean"}}}"#;
 
 /// One channel, in the file and, when live, on the server.
@@ -42,8 +45,11 @@ struct Topic {
 }
 
 struct Vehicle {
+    id: u32,
     pose: Topic,
     coordination: Topic,
+    /// Opened at the first state that reports a dynamic vehicle's velocity and thrusters.
+    dynamics: Option<Topic>,
 }
 
 pub struct Viewer {
@@ -70,6 +76,22 @@ struct Coordination {
     v_d: f64,
     x_e: f64,
     y_e: f64,
+}
+
+/// A message of `/vehicle/<id>/dynamics`, fields in the order of their names.
+#[derive(Serialize)]
+struct Dynamics {
+    beta: f64,
+    command_1: f64,
+    command_2: f64,
+    motor_1: f64,
+    motor_2: f64,
+    surge: f64,
+    sway: f64,
+    t: f64,
+    thrust_1: f64,
+    thrust_2: f64,
+    yaw_rate: f64,
 }
 
 /// A message of `/links`, fields in the order of their names.
@@ -144,6 +166,8 @@ impl Viewer {
             };
             viewer.log_encoded(&drawn, &message, 0.0);
             let vehicle = Vehicle {
+                id: *id,
+                dynamics: None,
                 pose: viewer.topic::<PoseInFrame>(&format!("/vehicle/{id}/pose"))?,
                 coordination: topic(
                     &viewer.context,
@@ -185,15 +209,41 @@ impl Viewer {
 
     /// One tick: every vehicle's state, and the commands of those that are not lost.
     pub fn tick(&mut self, states: &[State], commands: &[Option<Command>]) {
-        let vehicles = std::mem::take(&mut self.vehicles);
+        let mut vehicles = std::mem::take(&mut self.vehicles);
         let mut json = std::mem::take(&mut self.json);
-        for ((vehicle, s), c) in vehicles.iter().zip(states).zip(commands) {
+        for ((vehicle, s), c) in vehicles.iter_mut().zip(states).zip(commands) {
             let message = PoseInFrame {
                 timestamp: Some(stamp(s.t)),
                 frame_id: FRAME.into(),
                 pose: Some(pose(s.position[0], s.position[1], s.heading + s.sideslip)),
             };
             self.log_encoded(&vehicle.pose, &message, s.t);
+            if let Some(d) = &s.dynamics {
+                if vehicle.dynamics.is_none() {
+                    let name = format!("/vehicle/{}/dynamics", vehicle.id);
+                    let schema = json_schema("tcpf.Dynamics", DYNAMICS_SCHEMA);
+                    // A channel that cannot be opened leaves the others as they are.
+                    vehicle.dynamics = topic(&self.context, &self.live, &name, schema)
+                        .map_err(|e| tracing::warn!("run.mcap: {e}: the vehicle's dynamics are not recorded there"))
+                        .ok();
+                }
+                if let Some(topic) = &vehicle.dynamics {
+                    let dynamics = Dynamics {
+                        beta: s.sideslip,
+                        command_1: d.command[0],
+                        command_2: d.command[1],
+                        motor_1: d.motor[0],
+                        motor_2: d.motor[1],
+                        surge: d.surge,
+                        sway: d.sway,
+                        t: s.t,
+                        thrust_1: d.thrust[0],
+                        thrust_2: d.thrust[1],
+                        yaw_rate: d.yaw_rate,
+                    };
+                    self.log_json(&mut json, topic, &dynamics, s.t);
+                }
+            }
             let Some(c) = c else { continue };
             let coordination = Coordination {
                 gamma: c.gamma,
