@@ -750,6 +750,14 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
         rate(took.laws),
         rate(took.fleet) / rate(took.laws)
     );
+    let [(_, kinematic), (_, medusa)] = bench::vehicle_models(&mission, &plan, 3);
+    let per_second = |t: &bench::InProcess| t.steps as f64 / seconds(t.fleet) / 1e6;
+    sayln!(
+        "in-process on MEDUSA (every vehicle): {:.2} M vehicle-steps/s; kinematic (baseline) {:.2} M/s: {:.2}x",
+        per_second(&medusa),
+        per_second(&kinematic),
+        per_second(&medusa) / per_second(&kinematic)
+    );
 
     let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
     // This process's own scratch directory: one a killed bench of the same pid left is stale.

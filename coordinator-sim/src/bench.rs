@@ -12,7 +12,7 @@ use anyhow::{anyhow, Context, Result};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::typed::{presence, subscribe, subscribe_with, Outlet, Rejected};
-use tcpf_core::mission::Mission;
+use tcpf_core::mission::{Mission, VehicleKind};
 use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::{world_alone, world_and_laws, Fleet};
@@ -173,6 +173,18 @@ pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> InProcess {
         world,
         laws,
     }
+}
+
+/// The mission's fleet in-process with every vehicle kinematic, then with every vehicle a
+/// MEDUSA (MODEL D22), each the best of `repeat`: what the plant, thrusters and inner loops cost
+/// beside the kinematic vehicle.
+pub fn vehicle_models(mission: &Mission, plan: &Plan, repeat: usize) -> [(VehicleKind, InProcess); 2] {
+    [VehicleKind::Kinematic, VehicleKind::Medusa].map(|kind| {
+        let mut every = mission.clone();
+        every.vehicle_model.kind = kind;
+        every.vehicles.iter_mut().for_each(|v| v.vehicle_model = None);
+        (kind, in_process(&every, plan, repeat))
+    })
 }
 
 /// A router listening on `endpoint`, with nothing else.
