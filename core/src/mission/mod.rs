@@ -658,6 +658,8 @@ goal_velocity = [0.75, 0.0]
             include_str!("../../../configs/acoustic.toml"),
             include_str!("../../../configs/outage.toml"),
             include_str!("../../../configs/long3.toml"),
+            include_str!("../../../configs/medusa/b-current.toml"),
+            include_str!("../../../configs/medusa/b-delay.toml"),
         ];
         let extra = "\n[[comms.link]]\nfrom = 1\nto = 2\ndelay = 0.5\n[[comms.outage]]\nfrom = \"*\"\nto = 2\nstart = 1.0\nend = 2.0\n";
         let mut missions: Vec<Mission> = configs.iter().map(|t| parse("c.toml", t, &[]).unwrap()).collect();
@@ -937,6 +939,40 @@ goal_velocity = [0.75, 0.0]
         let e = parse("e.toml", &text, &[]).unwrap_err();
         assert_eq!(e.key.as_deref(), Some("comms.edges"), "{e}");
         assert!(e.to_string().contains("names vehicle 9"), "{e}");
+    }
+
+    #[test]
+    fn a_vehicles_own_model_replaces_the_missions_whole() {
+        let m = parse("m.toml", PAPER, &[]).unwrap();
+        assert!(!m.has_dynamic_vehicles());
+        assert!(
+            !toml::to_string(&m).unwrap().contains("vehicle_model"),
+            "a kinematic mission's resolved file says nothing of its vehicles"
+        );
+        let sets = [
+            "vehicle_model.kind=\"medusa\"".to_string(),
+            "vehicle_model.surge_kp=2.0".into(),
+            "vehicle.2.vehicle_model={ kind = \"medusa\", yaw_rate_ki = 0.3 }".into(),
+        ];
+        let m = parse("m.toml", PAPER, &sets).unwrap();
+        assert_eq!(m.vehicle_model(1).surge_kp, 2.0);
+        let own = m.vehicle_model(2);
+        assert_eq!(
+            (own.kind, own.surge_kp, own.yaw_rate_ki),
+            (VehicleKind::Medusa, 1.0, 0.3)
+        );
+        assert!(m.has_dynamic_vehicles());
+        let again = parse("mission.toml", &toml::to_string(&m).unwrap(), &[]).unwrap();
+        assert_eq!(again, m, "round trip");
+        let mixed = parse("m.toml", PAPER, &sets[2..]).unwrap();
+        assert!(!mixed.vehicle_model(1).is_dynamic() && mixed.vehicle_model(2).is_dynamic());
+        let e = parse(
+            "m.toml",
+            PAPER,
+            &["vehicle.2.vehicle_model={ kind = \"medusa\", surge_kp = -1.0 }".into()],
+        )
+        .unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("vehicle.2.vehicle_model.surge_kp"), "{e}");
     }
 
     #[test]

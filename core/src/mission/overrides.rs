@@ -11,7 +11,8 @@ pub(super) fn touches(o: &str, path: &[Seg], mission: &Mission) -> bool {
     };
     let parts: Vec<&str> = key.trim().split('.').collect();
     match (parts.as_slice(), path) {
-        (["vehicle", id, k], [Seg::Key(v), Seg::Index(i), Seg::Key(pk)]) if v == "vehicle" => {
+        // A vehicle's key, or a key below it when the override set a table whole.
+        (["vehicle", id, k], [Seg::Key(v), Seg::Index(i), Seg::Key(pk), ..]) if v == "vehicle" => {
             mission.vehicles.get(*i).is_some_and(|veh| id.parse() == Ok(veh.id)) && k == pk
         }
         (["vehicle", ..], _) => false,
