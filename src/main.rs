@@ -92,11 +92,21 @@ enum Generated {
 
 /// A time scale on the command line, within the mission's bound.
 fn time_scale(text: &str) -> Result<f64, String> {
-    let max = mission::MAX_TIME_SCALE;
+    let (min, max) = (mission::MIN_TIME_SCALE, mission::MAX_TIME_SCALE);
     match text.parse::<f64>() {
-        Ok(x) if x > 0.0 && x <= max => Ok(x),
-        _ => Err(format!("{text}: give simulated seconds per wall second, in (0, {max}]")),
+        Ok(x) if (min..=max).contains(&x) => Ok(x),
+        _ => Err(format!(
+            "{text}: give simulated seconds per wall second, in [{min}, {max}]"
+        )),
     }
+}
+
+/// The most recorders a run waits for: each is a process on the bus, and a count beyond any
+/// fleet's is a typo (18446744073709551615, plus the launcher's own, wrapped to none at all).
+const MAX_RECORDERS: u64 = 64;
+
+fn recorders() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_RECORDERS)
 }
 
 /// A probability on the command line: a number in [0, 1].
@@ -136,7 +146,7 @@ enum Command {
         command_timeout: Option<Duration>,
         /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
         /// own, with the run directory's `zenoh.json5` (-c).
-        #[arg(long, value_name = "N", default_value_t = 0)]
+        #[arg(long, value_name = "N", default_value_t = 0, value_parser = recorders())]
         recorders: usize,
         /// Seconds the world waits for every agent and recorder before it gives up and says who
         /// is missing. [default: 60]
@@ -235,7 +245,7 @@ enum Command {
         #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
         rejoin_timeout: Option<Duration>,
         /// Recorders to wait for before the first tick.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, value_parser = recorders())]
         recorders: usize,
         /// Seconds to wait, from the start, for the plan, the agents and the recorders.
         #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]

@@ -515,6 +515,22 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             vec!["run", &mission, "--in-process", "--time-scale", "5"],
             "(from --time-scale 5)",
         ),
+        // 2^64 − 1 recorders, plus the launcher's own, wrapped to none: the run started at once.
+        (
+            vec!["run", &mission, "--recorders", "18446744073709551615"],
+            "is not in 0..=64",
+        ),
+        (vec!["world", &mission, "--recorders", "65"], "is not in 0..=64"),
+        // Every role took 1e-22 and panicked on a wall-clock period no computer can wait.
+        (
+            vec!["run", &mission, "--clock", "realtime", "--time-scale", "1e-22"],
+            "in [0.001, 1000]",
+        ),
+        // What followed the newline was parsed as part of the file, then dropped in silence.
+        (
+            vec!["plan", &mission, "--set", "mission.seed=5\n[planner]\ntf_min=40"],
+            "a value is one line",
+        ),
         (
             vec!["run", &mission, "--in-process", "--recorders", "1"],
             "no bus for other recorders to join",

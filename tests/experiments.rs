@@ -245,7 +245,7 @@ fn chromium(args: &[&str]) -> Output {
     let exe = ["chromium", "/usr/bin/chromium"]
         .into_iter()
         .find(|c| Command::new(c).arg("--version").output().is_ok());
-    let exe = exe.expect("this test needs Debian's chromium: apt-get install chromium (.ci/run installs it)");
+    let exe = exe.expect("this test needs Debian's chromium: apt-get install chromium (scripts/test installs it)");
     Command::new(exe)
         .args([
             "--headless",

@@ -43,7 +43,7 @@ fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
         .expect("python3 runs");
     assert!(
         out.status.success(),
-        "reading run.mcap with Python's mcap package (pip install mcap; .ci/run installs it): {}",
+        "reading run.mcap with Python's mcap package (pip install mcap; scripts/test installs it): {}",
         String::from_utf8_lossy(&out.stderr)
     );
     let channels: Value = serde_json::from_slice(&out.stdout).unwrap();

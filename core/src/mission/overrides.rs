@@ -42,6 +42,11 @@ pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Miss
             message: format!("--set {o}: {message}"),
         };
         let (key, raw) = o.split_once('=').ok_or_else(|| bad("expected KEY=VALUE".into()))?;
+        // A value is one line: what a newline would add (a table header, another key) would be
+        // parsed as part of the file and then dropped.
+        if raw.contains(['\n', '\r']) {
+            return Err(bad("a value is one line: set each key with a --set of its own".into()));
+        }
         // A bare word that is no TOML value is taken as a string, so `--set mission.name=x` works.
         let value = toml::from_str::<toml::Table>(&format!("v = {}", raw.trim()))
             .ok()

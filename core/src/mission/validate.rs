@@ -19,6 +19,9 @@ const MAX_NAME: usize = 64;
 const MIN_WALL_PERIOD: f64 = 0.000_5;
 /// Simulated seconds per wall second, at most.
 pub const MAX_TIME_SCALE: f64 = 1000.0;
+/// Simulated seconds per wall second, at least: a thousandfold slow motion. Below it a wall-clock
+/// period is no duration a computer can wait (5e-324 made it infinite).
+pub const MIN_TIME_SCALE: f64 = 0.001;
 
 pub(super) type Invalid = (Vec<Seg>, String);
 
@@ -75,9 +78,9 @@ impl Mission {
             "must be a finite number > 0",
         )?;
         check(
-            m.time_scale > 0.0 && m.time_scale <= MAX_TIME_SCALE,
+            (MIN_TIME_SCALE..=MAX_TIME_SCALE).contains(&m.time_scale),
             key("mission", "time_scale"),
-            format!("must be in (0, {MAX_TIME_SCALE}]"),
+            format!("must be in [{MIN_TIME_SCALE}, {MAX_TIME_SCALE}] (simulated seconds per wall second)"),
         )?;
         check(
             m.clock == super::ClockKind::Realtime || m.time_scale == 1.0,
@@ -212,9 +215,12 @@ impl Mission {
             "must be below π/2 in magnitude",
         )?;
         check(
-            self.sideslip.period > 0.0 && self.sideslip.period.is_finite(),
+            self.sideslip.period.is_finite() && self.sideslip.period >= 2.0 * m.control_period,
             key("sideslip", "period"),
-            "must be > 0",
+            format!(
+                "must be a finite number ≥ 2 × mission.control_period ({} s): a side-slip faster than that is no signal the control period can sample",
+                num(2.0 * m.control_period)
+            ),
         )?;
         let k = &self.comms;
         check(
@@ -614,6 +620,18 @@ impl Mission {
                 path("sound_speed"),
                 "needs a `range`: the largest propagation delay, range / sound_speed, caps the coordination gain (D19)",
             )?;
+            if let Some(r) = range {
+                let delay = r / c;
+                check(
+                    delay < self.mission.max_duration,
+                    path("sound_speed"),
+                    format!(
+                        "with range {} m gives a propagation delay of up to {delay:.3e} s, not below mission.max_duration ({} s): no message would ever arrive",
+                        num(r),
+                        self.mission.max_duration
+                    ),
+                )?;
+            }
         }
         Ok(())
     }
