@@ -762,6 +762,82 @@ fn a_run_whose_world_is_killed_says_so_in_its_summary_and_report() {
     );
 }
 
+/// The t of the last row of `telemetry.csv` as it stands.
+fn simulated(dir: &Path) -> f64 {
+    let text = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
+    let row = text.lines().rev().nth(1).unwrap();
+    row.split(',').nth(1).unwrap().parse().unwrap()
+}
+
+/// A world or an agent stopped by a signal mid-run fails the run, and its summary says which
+/// role and how, besides what the run left undone (it said `completed: false` and nothing else,
+/// or, for an agent stopped near the end, `completed`). An agent told to stop steers no more:
+/// it went on commanding for half a second of wall time (25 s of this run's simulated time).
+#[test]
+fn a_role_stopped_by_a_signal_mid_run_is_named_in_the_summary() {
+    for (role, signal) in [("world", "-TERM"), ("agent", "-INT")] {
+        let dir = scratch(&format!("stopped-{role}"));
+        let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.005"]);
+        wait_until_simulated(&dir, 1.0);
+        let pid = match role {
+            "world" => world_pid(launch.child.id()),
+            _ => agent_pid(&launch, 2),
+        };
+        kill(signal, pid);
+        let signalled = simulated(&dir);
+        let status = launch.wait(Duration::from_secs(60));
+        assert_eq!(status.code(), Some(1), "{role}");
+        let s = launch.summary();
+        assert_eq!(s["completed"], false, "{s}");
+        let why = failure(&s);
+        eprintln!("{role} stopped at t ≈ {signalled} s: {why}");
+        match role {
+            "world" => assert!(why.starts_with("the world exited") && why.contains("130"), "{why}"),
+            _ => {
+                assert!(
+                    why.starts_with("agent 2 exited with code 130 (stopped by a signal); see logs/agent-2.log"),
+                    "{why}"
+                );
+                assert!(why.contains("vehicle 2 lost"), "{why}");
+                let telemetry = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
+                let last_command = telemetry
+                    .lines()
+                    .skip(1)
+                    .map(|l| l.split(',').collect::<Vec<_>>())
+                    .filter(|r| r[2] == "2" && !r[6].is_empty())
+                    .map(|r| r[1].parse::<f64>().unwrap())
+                    .fold(0.0, f64::max);
+                assert!(
+                    last_command < signalled + 1.0,
+                    "agent 2 steered to t = {last_command} s, signalled at t ≈ {signalled} s"
+                );
+            }
+        }
+        assert_none_left(&s);
+    }
+}
+
+/// An agent gone before the first tick fails the run at once, in its own words: the world would
+/// wait for it to its startup timeout (60 s), and the run say only that it did not start. The run
+/// waits for a recorder that never comes, so no tick can come before the agent is killed.
+#[test]
+fn an_agent_gone_before_the_first_tick_fails_the_run_at_once() {
+    let dir = scratch("agent-gone-early");
+    let mut launch = Launch::start(&paper("b-current"), &dir, &["--recorders", "1"]);
+    launch.wait_for("logs/agent-1.log", "path with t_f");
+    kill("-9", agent_pid(&launch, 1));
+    let status = launch.wait(Duration::from_secs(60));
+    assert_eq!(status.code(), Some(1));
+    let s = launch.summary();
+    let why = failure(&s);
+    assert!(
+        why.starts_with("agent 1 exited (killed by signal 9) before the first tick"),
+        "{why}"
+    );
+    assert_eq!(s["ticks"], 0);
+    assert_none_left(&s);
+}
+
 /// Processes whose parent is gone, killed when the test ends however it ends.
 struct Orphans(Vec<u32>);
 

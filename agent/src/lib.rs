@@ -126,6 +126,9 @@ struct Fed {
     held: Option<Vec<(String, Input)>>,
     /// Since when the node has been waiting for a neighbour's γ.
     waiting_since: Option<Instant>,
+    /// The loop has ended: what still comes is not answered, so that an agent that was told to
+    /// stop steers its vehicle no more while it reports and leaves.
+    stopped: bool,
 }
 
 enum Input {
@@ -140,6 +143,9 @@ impl Feed {
 
     fn take(&self, key: &str, input: Input) {
         let mut fed = self.lock();
+        if fed.stopped {
+            return;
+        }
         match &mut fed.held {
             Some(held) => {
                 if matches!(input, Input::State(_)) {
@@ -257,6 +263,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 node: AgentNode::new(agent),
                 held: Some(Vec::new()),
                 waiting_since: None,
+                stopped: false,
             }),
             commands: Outlet::for_clock(&session, keys.cmd(id), false).await?,
             gamma_out: Outlet::gamma(&session, keys.gamma(id), false).await?,
@@ -397,9 +404,11 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                     }
                 }
             }
-            shell
+            let exit = shell
                 .lockstep(mission, under_way.is_none(), &feed, &mut faults, options)
-                .await?
+                .await;
+            feed.lock().stopped = true;
+            exit?
         }
     };
     // The recorders wait for this agent's report, and leave once they have every one. Otherwise

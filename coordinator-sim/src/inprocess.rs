@@ -43,7 +43,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
     telemetry.finish()?;
     let ticks = results.ticks;
     let interrupted = interrupted.load(Ordering::Relaxed);
-    let summary = Summary {
+    let mut summary = Summary {
         mission: mission.mission.name.clone(),
         seed: mission.mission.seed,
         mode: Mode::InProcess,
@@ -68,6 +68,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         unreported: Vec::new(),
         coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
     };
+    summary.name_the_shortfall();
     dir.write_summary(&summary)?;
     tcpf_report::report::write(&dir.path)?;
     Ok(summary)

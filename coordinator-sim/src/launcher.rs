@@ -145,14 +145,18 @@ fn last_error(log: &Path) -> Option<String> {
     Some(line["error: ".len()..].to_string())
 }
 
-/// Why the run fails: `process` (the world or the planner) exited `when`, with its code or the
-/// signal that killed it, in its own last words where its log has them.
+/// Why the run fails: `process` (the world, the planner, or an agent before the first tick)
+/// exited `when`, with its code or the signal that killed it, in its own last words where its
+/// log has them.
 fn died(dir: &RunDir, process: &Process, when: &str) -> String {
-    let role = process.role;
+    let (who, log) = match process.role {
+        Role::Agent => (format!("agent {}", process.id), format!("agent-{}.log", process.id)),
+        role => (format!("the {role}"), format!("{role}.log")),
+    };
     let code = process.how_it_ended();
-    match last_error(&dir.path.join("logs").join(format!("{role}.log"))) {
-        Some(why) => format!("the {role} exited ({code}) {when}: {why} (logs/{role}.log)"),
-        None => format!("the {role} exited ({code}) {when}; see logs/{role}.log"),
+    match last_error(&dir.path.join("logs").join(&log)) {
+        Some(why) => format!("{who} exited ({code}) {when}: {why} (logs/{log})"),
+        None => format!("{who} exited ({code}) {when}; see logs/{log}"),
     }
 }
 
@@ -529,9 +533,16 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 }
                 _ = shutdown.recv() => break Outcome::Interrupted,
                 _ = check.tick() => {
+                    // An agent gone before the first tick, and not to be started again, would
+                    // keep the world waiting for it to its startup timeout.
+                    let unstarted = recording.ticks() == 0 && !restart;
                     let dead = children.iter_mut().find_map(|c| {
                         c.poll()?;
-                        matches!(c.role, Role::World | Role::Planner).then(|| died(dir, c, "before the end"))
+                        match c.role {
+                            Role::World | Role::Planner => Some(died(dir, c, "before the end")),
+                            Role::Agent if unstarted => Some(died(dir, c, "before the first tick")),
+                            _ => None,
+                        }
                     });
                     if let Some(why) = dead {
                         if recording.end.is_none() {
@@ -666,8 +677,13 @@ mod tests {
         let b = mission(&[]);
         assert_eq!(secs(stall_limit(&b, COMMAND_TIMEOUT, false)), 60.0);
         assert_eq!(secs(stall_limit(&b, Duration::from_secs(120), false)), 130.0);
-        // A wall period of 100 s: a tick every 100 s is no stall.
-        let slow = mission(&["mission.clock=\"realtime\"", "mission.time_scale=0.0001"]);
-        assert_eq!(secs(stall_limit(&slow, COMMAND_TIMEOUT, false)), 210.0);
+        // A wall period of 50 s (a control period of 0.05 s at the slowest time scale): a tick
+        // every 50 s is no stall.
+        let slow = mission(&[
+            "mission.clock=\"realtime\"",
+            "mission.time_scale=0.001",
+            "mission.control_period=0.05",
+        ]);
+        assert_eq!(secs(stall_limit(&slow, COMMAND_TIMEOUT, false)), 110.0);
     }
 }

@@ -491,9 +491,15 @@ impl Recording {
                 .iter()
                 .map(|r| format!("agent {} was started again {} time(s)", r.id, r.restarts)),
         );
+        // A role that ended badly while the run went on to its end (stopped by a signal, or an
+        // error) leaves a run that did not go as it should: named, it is the run's failure.
+        if failure.is_none() && !cut_short {
+            let badly = ended_badly(&children, &self.lost(), Summary::all_arrived(&results));
+            failure = (!badly.is_empty()).then(|| badly.join("; "));
+        }
         let mut rejections = self.rejected.totals();
         self.exit_reports.iter().for_each(|r| rejections.add(&r.rejected));
-        let summary = Summary {
+        let mut summary = Summary {
             mission: mission.mission.name.clone(),
             seed: mission.mission.seed,
             mode: Mode::Processes,
@@ -519,6 +525,7 @@ impl Recording {
             unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
             coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         };
+        summary.name_the_shortfall();
         // The summary first: a run directory whose telemetry could not be finished still says
         // how the run went.
         dir.write_summary(&summary)?;
@@ -699,6 +706,39 @@ fn keep_report(reports: &mut Vec<Report>, keys: &Keys, key: &str, report: Report
 
 /// After `tcpf run` was interrupted: the world and every agent not lost whose last life sent no
 /// exit report (an earlier life of an agent started again died, and sends none).
+/// The roles whose last life ended otherwise than with code 0, in words ("agent 2 exited with
+/// code 130 (stopped by a signal)"), but for processes killed outright (SIGKILL: what `tcpf run`
+/// does to a role that would not stop; a killed world fails the run and a killed agent loses its
+/// vehicle already) and the agents of lost vehicles that exited as told (the world gave up on
+/// them: their loss says it), unless a signal stopped them; nor the world's code 1 when not every
+/// vehicle `arrived`, which is how it says so (the summary says which did not).
+fn ended_badly(children: &[ChildSummary], lost: &[u32], arrived: bool) -> Vec<String> {
+    let by_signal = |c: &ChildSummary| c.exit_code == Some(130) || c.exit_code.is_none();
+    let world = Role::World.as_str();
+    children
+        .iter()
+        .enumerate()
+        .filter(|(k, c)| children[k + 1..].iter().all(|o| (&o.role, o.id) != (&c.role, c.id)))
+        .map(|(_, c)| c)
+        .filter(|c| c.exit_code != Some(0) && c.signal != Some(libc::SIGKILL))
+        .filter(|c| !(c.role == Role::Agent.as_str() && lost.contains(&c.id)) || by_signal(c))
+        .filter(|c| !(c.role == world && c.exit_code == Some(1) && !arrived))
+        .map(|c| {
+            let (who, log) = match Role::parse(&c.role) {
+                Some(Role::Agent) => (format!("agent {}", c.id), format!("agent-{}", c.id)),
+                _ => (format!("the {}", c.role), c.role.clone()),
+            };
+            let how = match (c.exit_code, c.signal) {
+                (Some(130), _) => "with code 130 (stopped by a signal)".to_string(),
+                (Some(code), _) => format!("with code {code}"),
+                (None, Some(signal)) => format!("killed by signal {signal}"),
+                (None, None) => "without an exit code".to_string(),
+            };
+            format!("{who} exited {how}; see logs/{log}.log")
+        })
+        .collect()
+}
+
 fn silent_children(children: &[ChildSummary], lost: &[u32]) -> Vec<(Role, u32)> {
     children
         .iter()

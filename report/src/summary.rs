@@ -1,7 +1,7 @@
 //! `summary.json` (the README, "Reading the results").
 
 use serde::{Deserialize, Serialize};
-use tcpf_core::metrics::{Metrics, Results};
+use tcpf_core::metrics::{Metrics, Results, VehicleSummary};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{PeriodTiming, Rejections, Report};
 
@@ -120,6 +120,9 @@ pub struct Summary {
     pub coordination_gain: Option<tcpf_core::agent::CoordinationGain>,
 }
 
+/// Why a run that stopped for no reason it knows did not complete.
+pub const NEVER_ENDED: &str = "the world never said the run was over";
+
 /// Why a realtime run is never reproducible.
 pub const REALTIME: &str = "the realtime clock: what happens depends on timing";
 
@@ -209,6 +212,41 @@ impl Summary {
     }
 
     /// Every vehicle arrived and none was lost.
+    /// Why a run did not complete, in words: what stopped it (`failure`), then what it left
+    /// undone, its lost vehicles and those that did not arrive.
+    pub fn reasons(&self) -> Vec<String> {
+        let ids = |pick: &dyn Fn(&VehicleSummary) -> bool| -> Vec<u32> {
+            self.results.vehicles.iter().filter(|v| pick(v)).map(|v| v.id).collect()
+        };
+        let lost = ids(&|v| v.lost);
+        let away = ids(&|v| !v.lost && v.arrival_time.is_none());
+        let mut why: Vec<String> = self.failure.iter().cloned().collect();
+        let undone = [
+            (!lost.is_empty()).then(|| format!("{} lost", crate::table::vehicles(&lost))),
+            (!away.is_empty()).then(|| format!("{} not arrived by the run's last tick", crate::table::vehicles(&away))),
+        ];
+        for undone in undone.into_iter().flatten() {
+            if !why.iter().any(|w| w.contains(&undone)) {
+                why.push(undone);
+            }
+        }
+        why
+    }
+
+    /// A run that did not complete says why in `failure`, unless a signal stopped it
+    /// (`interrupted` says so).
+    pub fn name_the_shortfall(&mut self) {
+        if self.completed || self.interrupted {
+            return;
+        }
+        let why = self.reasons();
+        self.failure = Some(if why.is_empty() {
+            NEVER_ENDED.into()
+        } else {
+            why.join("; ")
+        });
+    }
+
     pub fn all_arrived(results: &Results) -> bool {
         results.vehicles.iter().all(|v| v.arrival_time.is_some() && !v.lost)
     }

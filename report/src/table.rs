@@ -2,7 +2,6 @@
 
 use std::fmt::Write;
 
-use tcpf_core::metrics::VehicleSummary;
 use tcpf_core::planner::Plan;
 
 use crate::summary::Summary;
@@ -54,32 +53,16 @@ pub fn vehicles(ids: &[u32]) -> String {
 
 /// What kept a run from completing, in the words of its summary.
 fn why_not_completed(summary: &Summary) -> String {
-    // "vehicle 2", "vehicles 1, 3"
-    let vehicles = |pick: &dyn Fn(&VehicleSummary) -> bool| -> Option<String> {
-        let ids: Vec<u32> = summary
-            .results
-            .vehicles
-            .iter()
-            .filter(|v| pick(v))
-            .map(|v| v.id)
-            .collect();
-        (!ids.is_empty()).then(|| vehicles(&ids))
-    };
-    let mut why = Vec::new();
-    if summary.interrupted {
-        why.push("interrupted".to_string());
-    }
+    let mut why: Vec<String> = summary
+        .interrupted
+        .then(|| "interrupted".to_string())
+        .into_iter()
+        .collect();
     // What stopped the run comes before what it left undone: its vehicles did not arrive
     // because of it.
-    why.extend(summary.failure.clone());
-    if let Some(lost) = vehicles(&|v| v.lost) {
-        why.push(format!("{lost} lost"));
-    }
-    if let Some(away) = vehicles(&|v| !v.lost && v.arrival_time.is_none()) {
-        why.push(format!("{away} not arrived by the run's last tick"));
-    }
+    why.extend(summary.reasons());
     if why.is_empty() {
-        why.push("the world never said the run was over".into());
+        why.push(crate::summary::NEVER_ENDED.into());
     }
     why.join("; ")
 }

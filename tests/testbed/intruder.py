@@ -30,7 +30,7 @@ def forged(key, rng):
     if kind == "cmd":
         return vehicle.encode(vehicle.COMMAND, {
             "version": vehicle.VERSION, "tick": tick, "id": int(ident), "v": 1.0, "r": 0.5,
-            "hold": False, "gamma": 50.0, "gamma_dot": 1.0, "v_d": 1.0, "x_e": 0.0, "y_e": 0.0,
+            "accel": 0.0, "hold": False, "gamma": 50.0, "gamma_dot": 1.0, "v_d": 1.0, "x_e": 0.0, "y_e": 0.0,
             "psi_e": 0.0, "receptions": []})
     return vehicle.encode(vehicle.GAMMA, {
         "version": vehicle.VERSION, "tick": tick, "from": int(ident),
