@@ -355,8 +355,21 @@ fn role_failure(e: anyhow::Error) -> Failure {
 
 fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
     let name = args.file.display().to_string();
-    let text = std::fs::read_to_string(&args.file)
-        .map_err(|e| Failure::Input(anyhow!("{name}: cannot read the mission file: {e}")))?;
+    let cannot = |e: std::io::Error| Failure::Input(anyhow!("{name}: cannot read the mission file: {e}"));
+    // Read no more than a mission may hold: an 80 MB file (valid, padded) took 3.8 GB to plan.
+    let mut text = String::new();
+    let limit = mission::MAX_FILE_BYTES;
+    std::io::Read::read_to_string(
+        &mut std::io::Read::take(std::fs::File::open(&args.file).map_err(cannot)?, limit + 1),
+        &mut text,
+    )
+    .map_err(cannot)?;
+    if text.len() as u64 > limit {
+        return Err(Failure::Input(anyhow!(
+            "{name}: a mission file is at most {} MiB; this one is longer",
+            limit >> 20
+        )));
+    }
     let mut sets = args.set.clone();
     // `--seed` is one more `--set` that stands for a flag.
     let seed = seed.map(|seed| (format!("mission.seed={seed}"), format!("--seed {seed}")));

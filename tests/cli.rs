@@ -991,6 +991,55 @@ fn a_report_of_a_cut_telemetry_says_so() {
     assert!(text(&o).contains("the file was cut short"), "{}", text(&o));
 }
 
+/// `tcpf report` of a crafted run directory: what summary.json says is escaped on the page
+/// (a seed or an id that was markup reached report.html as markup), and a telemetry row of a
+/// vehicle the mission does not have is refused (50 000 ids drew every pair of them: 6.5 GB).
+#[test]
+fn a_report_of_a_crafted_run_directory_writes_no_markup_and_no_stranger() {
+    let out = a_run_to_report("report-crafted");
+    let summary = out.join("summary.json");
+    let mut s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    s["seed"] = "<script>alert(1)</script>".into();
+    s["vehicles"][0]["id"] = "<img src=x onerror=alert(2)>".into();
+    std::fs::write(&summary, s.to_string()).unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        !html.contains("<script>") && !html.contains("<img"),
+        "markup on the page"
+    );
+    assert!(html.contains("&lt;script&gt;alert(1)&lt;/script&gt;"));
+    let telemetry = out.join("telemetry.csv");
+    let mut rows = std::fs::read_to_string(&telemetry).unwrap();
+    rows.push_str("5,0.05,50000,0,0,0,0,0.5,0,0.5,0,0,0\n");
+    std::fs::write(&telemetry, rows).unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("vehicle 50000 is not one of the mission's (mission.toml)"),
+        "{}",
+        text(&o)
+    );
+}
+
+/// A mission file far longer than any mission: refused before it is read whole (an 80 MB file,
+/// valid but padded, took 3.8 GB to plan).
+#[test]
+fn a_mission_file_beyond_any_missions_size_is_refused() {
+    let dir = scratch("huge-mission");
+    let file = dir.join("huge.toml");
+    let mut body = std::fs::read_to_string(paper("b-current")).unwrap();
+    let padding = format!("# {}\n", "x".repeat(1000));
+    while body.len() <= 5 << 20 {
+        body.push_str(&padding);
+    }
+    std::fs::write(&file, body).unwrap();
+    let o = tcpf(&["plan", file.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("a mission file is at most 4 MiB"), "{}", text(&o));
+}
+
 /// `tcpf report` of a run directory missing its messages, with a summary cut short, another JSON
 /// document in its place, or none.
 #[test]

@@ -52,7 +52,9 @@ impl Track {
     }
 }
 
-fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
+/// The tracks of `telemetry.csv`, of the vehicles `ids` alone: a row of another is refused, as a
+/// crafted file of 50 000 ids drew every pair of them (6.5 GB).
+fn read_telemetry(file: &Path, ids: &[u32]) -> Result<BTreeMap<u32, Track>> {
     use std::io::BufRead;
     // Line by line: a fleet's telemetry runs to hundreds of megabytes.
     let reader =
@@ -87,6 +89,13 @@ fn read_telemetry(file: &Path) -> Result<BTreeMap<u32, Track>> {
         let num = |c: usize| f.get(c).and_then(|s| s.parse::<f64>().ok());
         let bad = || anyhow!("{}:{}: malformed row", file.display(), n + 2);
         let id: u32 = f.get(cid).and_then(|s| s.parse().ok()).ok_or_else(bad)?;
+        if !ids.contains(&id) {
+            return Err(anyhow!(
+                "{}:{}: vehicle {id} is not one of the mission's (mission.toml)",
+                file.display(),
+                n + 2
+            ));
+        }
         let tr = tracks.entry(id).or_default();
         tr.t.push(num(ct).ok_or_else(bad)?);
         tr.x.push(num(cx).ok_or_else(bad)?);
@@ -155,6 +164,15 @@ fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
+/// A field of summary.json as the page shows it: a string without its quotes, anything else as
+/// JSON, and either escaped: a crafted summary.json must not write into the page.
+fn field(v: &Value) -> String {
+    match v {
+        Value::String(s) => escape(s),
+        other => escape(&other.to_string()),
+    }
+}
+
 fn number(v: &Value, digits: usize) -> String {
     v.as_f64().map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
 }
@@ -185,7 +203,8 @@ pub fn write(dir: &Path) -> Result<()> {
             "{summary_file}: not the summary a run writes: `{key}` is not {what}"
         ));
     }
-    let tracks = read_telemetry(&dir.join("telemetry.csv"))?;
+    let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+    let tracks = read_telemetry(&dir.join("telemetry.csv"), &ids)?;
     // A lockstep recording has a row per vehicle and tick (a realtime one, a row per period the
     // recorder sampled): fewer, and the file was cut short.
     let ticks = summary["ticks"].as_u64().unwrap_or(0);
@@ -525,7 +544,10 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     dynamic_figures(tracks, &mut figures);
 
     let links = summary["links"].as_array().cloned().unwrap_or_default();
-    let names: Vec<String> = links.iter().map(|l| format!("{}→{}", l["from"], l["to"])).collect();
+    let names: Vec<String> = links
+        .iter()
+        .map(|l| format!("{}→{}", field(&l["from"]), field(&l["to"])))
+        .collect();
     let count = |k: &str| links.iter().map(|l| l[k].as_f64().unwrap_or(0.0)).collect::<Vec<f64>>();
     let link_chart = bars(
         "Messages per directed link",
@@ -554,12 +576,12 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     let _ = writeln!(
         html,
         "<table id=\"summary\"><tr><th>seed</th><th>mode</th><th>clock</th><th>t_f (s)</th><th>ticks</th><th>completed</th><th>coordination error (s)</th><th>clearance (m)</th><th>wall time (s)</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table>",
-        summary["seed"],
+        field(&summary["seed"]),
         escape(summary["mode"].as_str().unwrap_or("")),
         escape(summary["clock"].as_str().unwrap_or("")),
         number(&summary["t_f"], 3),
-        summary["ticks"],
-        summary["completed"],
+        field(&summary["ticks"]),
+        field(&summary["completed"]),
         number(&summary["max_coordination_error"], 3),
         number(&summary["min_clearance"], 3),
         number(&summary["wall_time_s"], 3),
@@ -581,9 +603,9 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         let _ = write!(
             html,
             "<tr><td>{}</td><td>{}</td><td>{late}</td><td>{}</td></tr>",
-            v["id"],
+            field(&v["id"]),
             number(&v["arrival_time"], 3),
-            v["lost"]
+            field(&v["lost"])
         );
     }
     html.push_str("</table>\n");
@@ -615,7 +637,7 @@ fn thrusters_table(html: &mut String, summary: &Value) {
         let _ = write!(
             html,
             "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            v["id"],
+            field(&v["id"]),
             number(&t["dead_zone_s"][0], 2),
             number(&t["dead_zone_s"][1], 2),
             number(&t["saturated_s"][0], 2),
@@ -634,7 +656,7 @@ fn timing_table(html: &mut String, summary: &Value) {
     let _ = write!(
         html,
         "<p>Realtime at time scale {}: how late each role's control periods started (wall ms).</p>\n<table id=\"timing\"><tr><th>role</th><th>periods</th><th>p50</th><th>p99</th><th>max</th><th>overruns</th><th>skipped</th><th>late commands</th><th>stale states</th><th>periods without a command</th></tr>",
-        summary["time_scale"]
+        field(&summary["time_scale"])
     );
     for t in roles {
         let without: Vec<String> = t["without_command"]
@@ -648,15 +670,15 @@ fn timing_table(html: &mut String, summary: &Value) {
             html,
             "<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             escape(t["role"].as_str().unwrap_or("")),
-            t["id"],
-            t["periods"],
+            field(&t["id"]),
+            field(&t["periods"]),
             number(&t["lateness_p50_ms"], 3),
             number(&t["lateness_p99_ms"], 3),
             number(&t["lateness_max_ms"], 3),
-            t["overruns"],
-            t["skipped"],
-            t["late_commands"],
-            t["stale_states"],
+            field(&t["overruns"]),
+            field(&t["skipped"]),
+            field(&t["late_commands"]),
+            field(&t["stale_states"]),
             escape(&without.join(", "))
         );
     }
@@ -681,7 +703,12 @@ mod tests {
              2,0.02,1,0,0,0,0.02,0.5,0,0.5,0,0,0\n2,0.02,2,0,5,0,,,,,,,\n",
         )
         .unwrap();
-        let tracks = read_telemetry(&file).unwrap();
+        let tracks = read_telemetry(&file, &[1, 2]).unwrap();
+        let e = read_telemetry(&file, &[1]).err().unwrap().to_string();
+        assert!(
+            e.ends_with("telemetry.csv:3: vehicle 2 is not one of the mission's (mission.toml)"),
+            "{e}"
+        );
         let _ = std::fs::remove_dir_all(&dir);
         assert_eq!(tracks[&2].gamma[..2], [0.0, 0.01]);
         assert!(tracks[&2].gamma[2].is_nan(), "no γ once lost: {:?}", tracks[&2].gamma);

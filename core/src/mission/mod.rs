@@ -16,6 +16,10 @@ pub use diagnostics::MissionError;
 use diagnostics::{key_at, line_of, line_of_key, path_below, path_string};
 pub use graph::{neighbour_lists, Graph};
 
+/// The longest mission file: ten times what the largest fleet (1000 vehicles) needs. Anything
+/// longer is padding or a mistake, and parsing it costs memory far beyond its size.
+pub const MAX_FILE_BYTES: u64 = 4 << 20;
+
 /// The tables a mission file must have, with their headers.
 const REQUIRED_TABLES: [(&str, &str); 2] = [("mission", "[mission]"), ("vehicle", "[[vehicle]]")];
 
