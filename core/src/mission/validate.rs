@@ -12,6 +12,10 @@ const MAX_TICKS: f64 = 2_000_000.0;
 const MIN_TF: f64 = 1.0;
 /// A fleet larger than this is a typo, not a mission.
 const MAX_VEHICLES: usize = 1000;
+/// Directed links of a communication graph, at most: the complete graph of 141 vehicles.
+const MAX_LINKS: usize = 20_000;
+/// γ messages a run may decide and write to messages.csv (about 1.5 GB of it).
+const MAX_LINK_MESSAGES: f64 = 5e7;
 /// A mission name is part of every key expression and file name.
 const MAX_NAME: usize = 64;
 /// The shortest wall-clock control period a realtime role keeps on an ordinary computer: the
@@ -410,6 +414,34 @@ impl Mission {
             key("comms", "edges"),
             format!(
                 "the communication graph is in pieces: vehicles {unreached:?} never hear from vehicle {first}, so they would not coordinate (control.coordination = false runs a fleet uncoordinated on purpose)"
+            ),
+        )?;
+        // The work the links ask for: each directed link keeps a random stream and a queue, and
+        // each of its messages is decided and recorded (1 000 vehicles on a complete graph took
+        // 3.1 GB and 11 s a tick).
+        let graph_key = key(
+            "comms",
+            if self.comms.edges.is_some() {
+                "edges"
+            } else {
+                "topology"
+            },
+        );
+        let links: usize = graph.values().map(Vec::len).sum();
+        check(
+            links <= MAX_LINKS,
+            graph_key.clone(),
+            format!(
+                "gives {links} directed links; a mission has at most {MAX_LINKS}: a sparser graph (ring, line, star, or edges) scales with the fleet"
+            ),
+        )?;
+        let messages = links as f64 * (self.mission.max_duration / self.comms.period).floor();
+        check(
+            messages <= MAX_LINK_MESSAGES,
+            graph_key,
+            format!(
+                "asks for up to {messages:.3e} γ messages ({links} directed links, one every comms.period = {} s for mission.max_duration = {} s); a run decides and records at most {MAX_LINK_MESSAGES:e}: a sparser graph, a longer comms.period or a shorter run",
+                self.comms.period, self.mission.max_duration
             ),
         )
     }
