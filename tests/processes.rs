@@ -838,6 +838,29 @@ fn an_agent_gone_before_the_first_tick_fails_the_run_at_once() {
     assert_none_left(&s);
 }
 
+/// In lockstep too the planner serves agents as they start: gone once the fleet runs, the run
+/// goes on, says so, and is still the in-process run.
+#[test]
+fn a_lockstep_run_goes_on_without_its_planner_once_it_runs() {
+    let dir = scratch("planner-gone-lockstep");
+    let slow = ["--set", "mission.control_period=0.002", "--set", "comms.period=0.1"];
+    let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &slow);
+    wait_until_simulated(&dir.join("p"), 2.0);
+    kill(
+        "-TERM",
+        pid_of(launch.child.id(), "the planner", |args| args.get(1) == Some(&&b"planner"[..])),
+    );
+    let status = launch.wait(Duration::from_secs(120));
+    let s = launch.summary();
+    assert!(status.success(), "{s}");
+    assert_eq!(s["completed"], true, "{s}");
+    let warning = s["warnings"][0].as_str().unwrap_or_default();
+    assert!(warning.starts_with("the planner exited (code 130) after serving the paths"), "{s}");
+    run_in_process(&paper("b-current"), &dir.join("i"), &slow);
+    assert_same_run(&dir.join("p"), &dir.join("i"));
+    assert_none_left(&s);
+}
+
 /// Processes whose parent is gone, killed when the test ends however it ends.
 struct Orphans(Vec<u32>);
 

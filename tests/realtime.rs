@@ -295,6 +295,58 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
     }
 }
 
+/// The pid of the planner under `root`.
+fn planner_pid(root: u32) -> u32 {
+    descendants(root)
+        .into_iter()
+        .find(|pid| {
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            cmdline.split(|&b| b == 0).nth(1) == Some(&b"planner"[..])
+        })
+        .expect("the planner runs")
+}
+
+/// A testbed's shore planner is no vehicle: stopped once the fleet runs, the run goes on to its
+/// end and says so (it failed, "the planner exited"). A new agent that then needs its path is
+/// told why it cannot have one.
+#[test]
+fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why() {
+    let dir = scratch("planner-gone");
+    let out = dir.join("run");
+    let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
+    wait_until_simulated(&out, 5.0);
+    kill("-TERM", planner_pid(launch.child.id()));
+    launch.wait_for(
+        "logs/agent-1.log",
+        "the planner is gone; going on with the path it served",
+    );
+    let again = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .arg("agent")
+        .arg(out.join("mission.toml"))
+        .args(["--id", "2", "--startup-timeout", "2", "-c"])
+        .arg(out.join("zenoh.json5"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&again.stderr);
+    assert!(!again.status.success(), "{said}");
+    assert!(
+        said.contains("no path for vehicle(s) [2]: no planner of this mission is on the bus"),
+        "{said}"
+    );
+    let status = launch.wait(Duration::from_secs(60));
+    let s = launch.summary();
+    assert!(status.success(), "{s}");
+    assert_eq!(s["completed"], true, "{s}");
+    let warning = s["warnings"][0].as_str().unwrap_or_default();
+    assert!(
+        warning.starts_with("the planner exited (code 130) after serving the paths"),
+        "{s}"
+    );
+    let a = arrivals(&s);
+    assert!((a[0] - a[1]).abs() < 0.5, "arrivals {a:?}");
+    assert_none_left(&s);
+}
+
 #[test]
 fn lockstep_restart_on_failure_brings_a_killed_agent_back() {
     let dir = scratch("restart-lockstep");

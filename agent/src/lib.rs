@@ -455,15 +455,15 @@ impl Shell {
         }
     }
 
-    /// An `End` from the world, or the world or planner gone: whether to stop, and why.
-    async fn world_gone(&mut self, role: Role, accept: impl Fn(&End) -> bool) -> Exit {
-        // At the end the planner may leave before the world's end message reaches us.
+    /// The world's token gone: an `End` on its way means the run is over, else the world is.
+    async fn world_gone(&mut self, accept: impl Fn(&End) -> bool) -> Exit {
+        // The world's end message may come after its token has gone.
         if let Ok(Some(e)) = tokio::time::timeout(END_GRACE, self.ends.recv()).await {
             if accept(&e.message) {
                 return Exit::Ended;
             }
         }
-        tracing::warn!("agent {}: the {role} is gone; stopping", self.id);
+        tracing::warn!("agent {}: the world is gone; stopping", self.id);
         Exit::Orphaned
     }
 
@@ -505,8 +505,12 @@ impl Shell {
                     }
                 }
                 Some(p) = self.presence.recv() => match p.role {
-                    Role::World | Role::Planner if !p.alive => {
-                        break self.world_gone(p.role, |e| feed.with(|node| node.on_end(e).is_ok())).await;
+                    Role::World if !p.alive => {
+                        break self.world_gone(|e| feed.with(|node| node.on_end(e).is_ok())).await;
+                    }
+                    // This agent has its path: the planner serves only agents that start.
+                    Role::Planner if !p.alive => {
+                        tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
                     }
                     Role::Agent if self.neighbours.contains(&p.id) => feed.with(|node| node.set_gone(p.id, !p.alive)),
                     _ => {}
@@ -615,6 +619,8 @@ impl Shell {
                         away = Some(tokio::time::Instant::now() + options.startup_timeout);
                     } else if p.role == Role::World && p.alive && away.take().is_some() {
                         tracing::info!("agent {id}: the world is back");
+                    } else if p.role == Role::Planner && !p.alive {
+                        tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
                     }
                 }
                 _ = tokio::time::sleep_until(away.unwrap_or_else(tokio::time::Instant::now)), if away.is_some() => {

@@ -307,10 +307,21 @@ pub struct Presence {
 
 /// Who of the mission is present now, by their liveliness tokens.
 pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>> {
+    present_within(session, keys, Duration::from_millis(500)).await
+}
+
+/// How long a claim of a role waits for the router's list of tokens. The query ends when the
+/// router has answered, at once on a calm machine; its timeout only bounds a router that does not.
+/// At 500 ms, under a loaded machine's delays, a second agent of a running vehicle found the list
+/// empty and joined the fleet.
+const CLAIM_QUERY: Duration = Duration::from_secs(10);
+
+/// `present`, waiting up to `timeout` for the answer.
+async fn present_within(session: &Session, keys: &Keys, timeout: Duration) -> Result<Vec<(Role, u32)>> {
     let replies = session
         .liveliness()
         .get(keys.alive_all())
-        .timeout(Duration::from_millis(500))
+        .timeout(timeout)
         .await
         .map_err(|e| anyhow!("cannot ask who is present: {e}"))?;
     let mut present = Vec::new();
@@ -354,7 +365,7 @@ const TOKEN_SETTLE: Duration = Duration::from_secs(2);
 /// lets go of it within `TOKEN_SETTLE` (an agent started again at once after it died).
 pub async fn alone(session: &Session, keys: &Keys, role: Role, id: u32, mission: &str) -> Result<()> {
     let deadline = tokio::time::Instant::now() + TOKEN_SETTLE;
-    while present(session, keys).await?.contains(&(role, id)) {
+    while present_within(session, keys, CLAIM_QUERY).await?.contains(&(role, id)) {
         if tokio::time::Instant::now() >= deadline {
             return Err(AlreadyRunning {
                 role,
@@ -528,8 +539,21 @@ pub async fn fetch_paths(
             return Ok(ids.iter().map(|i| (*i, found[i])).collect());
         }
         if Instant::now() >= deadline {
+            // Why: no planner at all (one that served a running fleet and left, say), or one
+            // this identity may not ask.
+            let planner = session
+                .liveliness()
+                .get(keys.alive(Role::Planner, 0))
+                .timeout(Duration::from_secs(1))
+                .await
+                .map_err(|e| anyhow!("cannot query liveliness: {e}"))?;
+            if planner.recv_async().await.is_err() {
+                return Err(anyhow!(
+                    "no path for vehicle(s) {missing:?}: no planner of this mission is on the bus (one that served the fleet may have left once it ran); start `tcpf planner` for this mission again"
+                ));
+            }
             return Err(anyhow!(
-                "no path from the planner for vehicle(s) {missing:?} within {:.0} s (is `tcpf planner` running for this mission, and does the router's access control let this identity ask for it?)",
+                "no path from the planner for vehicle(s) {missing:?} within {:.0} s (does the router's access control let this identity ask for it?)",
                 timeout.as_secs_f64()
             ));
         }

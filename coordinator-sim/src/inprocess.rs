@@ -67,6 +67,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         restarts: Vec::new(),
         unreported: Vec::new(),
         coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
+        warnings: Vec::new(),
     };
     summary.name_the_shortfall();
     dir.write_summary(&summary)?;

@@ -516,6 +516,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let mut restarts: Vec<Restarts> = Vec::new();
     // Agents that died and were started again: their exits are part of the run's record.
     let mut retired: Vec<Process> = Vec::new();
+    // What went wrong without failing the run.
+    let mut warnings: Vec<String> = Vec::new();
 
     let outcome = if let Err(e) = spawned {
         Outcome::Failed(format!("{e:#}"))
@@ -534,13 +536,27 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 _ = shutdown.recv() => break Outcome::Interrupted,
                 _ = check.tick() => {
                     // An agent gone before the first tick, and not to be started again, would
-                    // keep the world waiting for it to its startup timeout.
-                    let unstarted = recording.ticks() == 0 && !restart;
+                    // keep the world waiting for it to its startup timeout. The planner serves
+                    // agents as they start: once the fleet runs it may go (a testbed's shore
+                    // planner is no vehicle), and the run says so.
+                    let ticks = recording.ticks();
                     let dead = children.iter_mut().find_map(|c| {
                         c.poll()?;
                         match c.role {
-                            Role::World | Role::Planner => Some(died(dir, c, "before the end")),
-                            Role::Agent if unstarted => Some(died(dir, c, "before the first tick")),
+                            Role::World => Some(died(dir, c, "before the end")),
+                            Role::Planner if ticks == 0 => Some(died(dir, c, "before the first tick")),
+                            Role::Planner => {
+                                if warnings.is_empty() {
+                                    let gone = format!(
+                                        "{} (at tick {ticks}); the run went on without it, but an agent started again could not have fetched its path",
+                                        died(dir, c, "after serving the paths")
+                                    );
+                                    tracing::warn!("{gone}");
+                                    warnings.push(gone);
+                                }
+                                None
+                            }
+                            Role::Agent if ticks == 0 && !restart => Some(died(dir, c, "before the first tick")),
                             _ => None,
                         }
                     });
@@ -649,6 +665,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             wall_time_s,
             children,
             restarts,
+            warnings,
         },
     )?;
     match outcome {

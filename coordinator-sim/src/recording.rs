@@ -94,6 +94,8 @@ pub struct Closing {
     pub wall_time_s: f64,
     pub children: Vec<ChildSummary>,
     pub restarts: Vec<Restarts>,
+    /// What went wrong without failing the run (the planner gone once the fleet ran).
+    pub warnings: Vec<String>,
 }
 
 pub struct Recording {
@@ -378,6 +380,7 @@ impl Recording {
             wall_time_s,
             children,
             restarts,
+            warnings,
         } = how;
         // Cut short by a signal or by what stopped it: its roles may not have reported.
         let cut_short = interrupted || failure.is_some();
@@ -524,6 +527,7 @@ impl Recording {
             restarts,
             unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
             coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
+            warnings,
         };
         summary.name_the_shortfall();
         // The summary first: a run directory whose telemetry could not be finished still says
@@ -670,6 +674,7 @@ pub async fn record(
             wall_time_s,
             children: Vec::new(),
             restarts: Vec::new(),
+            warnings: Vec::new(),
         },
     )
 }
@@ -723,6 +728,8 @@ fn ended_badly(children: &[ChildSummary], lost: &[u32], arrived: bool) -> Vec<St
         .filter(|c| c.exit_code != Some(0) && c.signal != Some(libc::SIGKILL))
         .filter(|c| !(c.role == Role::Agent.as_str() && lost.contains(&c.id)) || by_signal(c))
         .filter(|c| !(c.role == world && c.exit_code == Some(1) && !arrived))
+        // Gone once the fleet ran, the planner is a warning (`Closing::warnings`), not a failure.
+        .filter(|c| c.role != Role::Planner.as_str())
         .map(|c| {
             let (who, log) = match Role::parse(&c.role) {
                 Some(Role::Agent) => (format!("agent {}", c.id), format!("agent-{}", c.id)),

@@ -586,6 +586,13 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
         number(&summary["min_clearance"], 3),
         number(&summary["wall_time_s"], 3),
     );
+    for warning in summary["warnings"].as_array().into_iter().flatten() {
+        let _ = writeln!(
+            html,
+            "<p class=\"warning\"><strong>Warning:</strong> {}</p>",
+            field(warning)
+        );
+    }
     if let Some(failure) = summary["failure"].as_str() {
         let _ = writeln!(
             html,

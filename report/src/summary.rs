@@ -118,6 +118,9 @@ pub struct Summary {
     /// The coordination gain the agents used: k_c, capped by the largest delay (D19).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coordination_gain: Option<tcpf_core::agent::CoordinationGain>,
+    /// What went wrong without failing the run: the planner gone once the fleet ran.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Why a run that stopped for no reason it knows did not complete.
@@ -166,6 +169,7 @@ impl Summary {
                 .collect(),
             children,
             coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
+            warnings: Vec::new(),
         }
     }
 

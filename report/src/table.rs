@@ -86,6 +86,9 @@ pub fn summary(summary: &Summary) -> String {
     for reason in &summary.reproducible_reasons {
         let _ = writeln!(s, "NOT reproducible: {reason}");
     }
+    for warning in &summary.warnings {
+        let _ = writeln!(s, "warning: {warning}");
+    }
     let _ = writeln!(s, "{:>4} {:>12} {:>6}", "id", "arrival s", "lost");
     for v in &r.vehicles {
         let arrival = v.arrival_time.map_or("-".to_string(), |a| format!("{a:.3}"));
