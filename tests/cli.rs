@@ -954,6 +954,41 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
     }
 }
 
+/// A role pointed at a router that never answers says where it tries and gives up at its own
+/// startup timeout, not at the config file's connect timeout (a minute in vehicle.json5).
+#[test]
+fn a_role_whose_router_never_answers_says_where_and_gives_up_at_its_startup_timeout() {
+    // A port that takes connections and never speaks Zenoh.
+    let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let endpoint = format!("tcp/{}", silent.local_addr().unwrap());
+    let vehicle = format!("{}/configs/zenoh/vehicle.json5", env!("CARGO_MANIFEST_DIR"));
+    let o = tcpf(&[
+        "agent",
+        &paper("b-current"),
+        "--id",
+        "1",
+        "-c",
+        &vehicle,
+        "-e",
+        &endpoint,
+        "--startup-timeout",
+        "2",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(
+        text(&o).contains(&format!("connecting to [\"{endpoint}\"]")),
+        "{}",
+        text(&o)
+    );
+    assert!(
+        text(&o).contains(&format!(
+            "nothing answered at [\"{endpoint}\"] within 2 s (--startup-timeout)"
+        )),
+        "{}",
+        text(&o)
+    );
+}
+
 /// Case (a) run in-process into a scratch directory `name`, for `tcpf report` to read again.
 fn a_run_to_report(name: &str) -> std::path::PathBuf {
     let out = scratch(name);

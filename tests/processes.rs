@@ -848,14 +848,19 @@ fn a_lockstep_run_goes_on_without_its_planner_once_it_runs() {
     wait_until_simulated(&dir.join("p"), 2.0);
     kill(
         "-TERM",
-        pid_of(launch.child.id(), "the planner", |args| args.get(1) == Some(&&b"planner"[..])),
+        pid_of(launch.child.id(), "the planner", |args| {
+            args.get(1) == Some(&&b"planner"[..])
+        }),
     );
     let status = launch.wait(Duration::from_secs(120));
     let s = launch.summary();
     assert!(status.success(), "{s}");
     assert_eq!(s["completed"], true, "{s}");
     let warning = s["warnings"][0].as_str().unwrap_or_default();
-    assert!(warning.starts_with("the planner exited (code 130) after serving the paths"), "{s}");
+    assert!(
+        warning.starts_with("the planner exited (code 130) after serving the paths"),
+        "{s}"
+    );
     run_in_process(&paper("b-current"), &dir.join("i"), &slow);
     assert_same_run(&dir.join("p"), &dir.join("i"));
     assert_none_left(&s);
@@ -1155,12 +1160,13 @@ fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
     let (router, endpoint) = listening(|e| role(&["router", "-l", e], Stdio::null()));
     let _router = Reaper(router);
     let client = |args: &[&str], stderr: Stdio| role(&[args, &["-e", &endpoint, "--mode", "client"]].concat(), stderr);
-    let world_log = std::fs::File::create(dir.join("world.log")).unwrap();
+    // Each role's log in the scratch directory, for a failure to be read.
+    let log = |name: &str| Stdio::from(std::fs::File::create(dir.join(name)).unwrap());
     let _fleet = Fleet(vec![
-        client(&["planner", &mission], Stdio::null()),
-        client(&["world", &mission, "--recorders", "1"], Stdio::from(world_log)),
-        client(&["agent", &mission, "--id", "1"], Stdio::null()),
-        client(&["agent", &mission, "--id", "2"], Stdio::null()),
+        client(&["planner", &mission], log("planner.log")),
+        client(&["world", &mission, "--recorders", "1"], log("world.log")),
+        client(&["agent", &mission, "--id", "1"], log("agent-1.log")),
+        client(&["agent", &mission, "--id", "2"], log("agent-2.log")),
     ]);
     // The world waits for its recorder: everyone else is there, nothing runs yet.
     wait_for_text(&dir.join("world.log"), "(2 of 2)", Duration::from_secs(30));

@@ -330,7 +330,7 @@ fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why()
     let said = String::from_utf8_lossy(&again.stderr);
     assert!(!again.status.success(), "{said}");
     assert!(
-        said.contains("no path for vehicle(s) [2]: no planner of this mission is on the bus"),
+        said.contains("no path from the planner for vehicle(s) [2]: no planner of this mission is on the bus"),
         "{said}"
     );
     let status = launch.wait(Duration::from_secs(60));

@@ -227,7 +227,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let realtime = mission.mission.clock == ClockKind::Realtime;
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown).await?;
+    let session = zenoh.open_unless(&mut shutdown, options.startup_timeout).await?;
     let rejected = Rejected::default();
     let (presence_subscriber, mut presence) = presence(&session, &keys).await?;
     let ids = [id];

@@ -1,6 +1,7 @@
 //! A Zenoh session from the options every role takes, as Zenoh's own tools spell them.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
 use anyhow::{anyhow, Context, Result};
 use zenoh::{Config, Session};
@@ -268,11 +269,27 @@ impl ZenohArgs {
     /// configs/zenoh/) for a router that is not up, and Ctrl-C must not wait with it.
     /// Zenoh's open blocks the thread that polls it while it waits, so it opens on a task of
     /// its own.
-    pub async fn open_unless(&self, shutdown: &mut Shutdown) -> Result<Session> {
+    /// Opens the session unless a signal comes first, and gives up after `within` (a role's
+    /// startup timeout): a role pointed at a router that does not answer says where it tries,
+    /// and stops waiting when its timeout says so, not when a config file's connect timeout does.
+    pub async fn open_unless(&self, shutdown: &mut Shutdown, within: Duration) -> Result<Session> {
+        let endpoints = self.config()?.get_json("connect/endpoints").unwrap_or_default();
+        let trying = !matches!(endpoints.as_str(), "" | "[]" | "{}");
+        if trying {
+            tracing::info!("connecting to {endpoints}");
+        }
         let args = self.clone();
-        let opening = tokio::spawn(async move { args.open().await });
+        let opening = tokio::time::timeout(within, tokio::spawn(async move { args.open().await }));
         match shutdown.unless(opening).await {
-            Some(opened) => opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
+            Some(Ok(opened)) => opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
+            Some(Err(_)) if trying => Err(anyhow!(
+                "cannot open the Zenoh session: nothing answered at {endpoints} within {} s (--startup-timeout); is the router up, and reachable from this host?",
+                within.as_secs_f64()
+            )),
+            Some(Err(_)) => Err(anyhow!(
+                "cannot open the Zenoh session within {} s (--startup-timeout)",
+                within.as_secs_f64()
+            )),
             None => Err(Interrupted("while the Zenoh session was opening").into()),
         }
     }

@@ -549,7 +549,7 @@ pub async fn fetch_paths(
                 .map_err(|e| anyhow!("cannot query liveliness: {e}"))?;
             if planner.recv_async().await.is_err() {
                 return Err(anyhow!(
-                    "no path for vehicle(s) {missing:?}: no planner of this mission is on the bus (one that served the fleet may have left once it ran); start `tcpf planner` for this mission again"
+                    "no path from the planner for vehicle(s) {missing:?}: no planner of this mission is on the bus, or none this identity may see (one that served the fleet may have left once it ran: start `tcpf planner` for this mission again; or the router's access control hides it)"
                 ));
             }
             return Err(anyhow!(

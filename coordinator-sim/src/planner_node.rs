@@ -32,11 +32,15 @@ impl std::fmt::Display for Exit {
     }
 }
 
+/// How long the planner waits for its router to answer: as long as the other roles do by
+/// default (their --startup-timeout).
+const ROUTER_WAIT: Duration = Duration::from_secs(60);
+
 /// Serves `plan` until the world goes away (having announced the end, or not), or a signal.
 pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown).await?;
+    let session = zenoh.open_unless(&mut shutdown, ROUTER_WAIT).await?;
     let rejected = Rejected::default();
     let paths: Vec<(KeyExpr<'static>, Vec<u8>)> = plan
         .vehicles

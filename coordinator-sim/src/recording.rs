@@ -553,7 +553,10 @@ pub async fn record(
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
     let unrecorded = |e: anyhow::Error| e.context(NothingRecorded);
-    let session = zenoh.open_unless(&mut shutdown).await.map_err(unrecorded)?;
+    let session = zenoh
+        .open_unless(&mut shutdown, startup_timeout)
+        .await
+        .map_err(unrecorded)?;
     let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(mission, plan, live)?)
         .await
         .map_err(unrecorded)?;

@@ -822,7 +822,8 @@ mod tests {
         };
         sampler.on_end(end).unwrap();
         sampler.finish(|_, _| {});
-        let kept = world.timing().kept() && agents.iter().all(|a| a.timing().kept());
+        let vehicles = agents.len() as u64;
+        let kept = world.timing().kept(vehicles) && agents.iter().all(|a| a.timing().kept(1));
         (sampler.results(), kept)
     }
 

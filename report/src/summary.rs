@@ -212,10 +212,24 @@ impl Summary {
 
     /// Whether the run's clock was kept: every realtime role on time.
     pub fn timing_kept(&self) -> bool {
-        self.timing.iter().all(|t| t.timing.kept())
+        self.timing_violations().is_empty()
     }
 
-    /// Every vehicle arrived and none was lost.
+    /// Each role whose timing went wrong beyond the tolerance, in words: "world 0: 7.3 % of its
+    /// periods overran".
+    pub fn timing_violations(&self) -> Vec<String> {
+        let vehicles = self.results.vehicles.len() as u64;
+        self.timing
+            .iter()
+            .flat_map(|t| {
+                let per_period = if t.role == "world" { vehicles } else { 1 };
+                t.timing.violations(per_period).into_iter().map(move |(what, share)| {
+                    format!("{} {}: {:.1} % of its periods {what}", t.role, t.id, 100.0 * share)
+                })
+            })
+            .collect()
+    }
+
     /// Why a run did not complete, in words: what stopped it (`failure`), then what it left
     /// undone, its lost vehicles and those that did not arrive.
     pub fn reasons(&self) -> Vec<String> {
@@ -251,6 +265,7 @@ impl Summary {
         });
     }
 
+    /// Every vehicle arrived and none was lost.
     pub fn all_arrived(results: &Results) -> bool {
         results.vehicles.iter().all(|v| v.arrival_time.is_some() && !v.lost)
     }

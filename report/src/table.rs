@@ -197,17 +197,13 @@ pub fn summary(summary: &Summary) -> String {
             "NO REPORT from {role}: its refusals, timing and γ counts are missing above"
         );
     }
-    if !summary.timing_kept() {
-        let by: Vec<String> = summary
-            .timing
-            .iter()
-            .filter(|t| !t.timing.kept())
-            .map(|t| format!("{} {}", t.role, t.id))
-            .collect();
+    let violations = summary.timing_violations();
+    if !violations.is_empty() {
         let _ = writeln!(
             s,
-            "TIMING VIOLATED by {}: overruns, skipped periods, late commands or stale states (see above, against each role's periods)",
-            by.join(", ")
+            "TIMING VIOLATED: {} (tolerance {} % of the periods each)",
+            violations.join("; "),
+            100.0 * tcpf_core::msg::TIMING_TOLERANCE
         );
     }
     match summary.time_scale {

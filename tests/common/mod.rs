@@ -354,7 +354,16 @@ pub fn exited(child: &mut Child, limit: Duration, what: &str) -> (Option<i32>, S
         if let Some(status) = child.try_wait().unwrap() {
             break status;
         }
-        assert!(started.elapsed() < limit, "{what}");
+        if started.elapsed() >= limit {
+            // What it said, for the failure to show why it is still running.
+            let _ = child.kill();
+            let _ = child.wait();
+            let mut stderr = String::new();
+            if let Some(mut e) = child.stderr.take() {
+                let _ = e.read_to_string(&mut stderr);
+            }
+            panic!("{what}: still running after {limit:?}; it said:\n{stderr}");
+        }
         std::thread::sleep(Duration::from_millis(50));
     };
     let mut stderr = String::new();

@@ -201,7 +201,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let keys = Keys::new(&mission.mission.name);
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown).await?;
+    let session = zenoh.open_unless(&mut shutdown, options.startup_timeout).await?;
     let rejected = Rejected::default();
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once they have passed through it.
