@@ -243,6 +243,18 @@ fn a_run_on_a_full_disk_names_the_file_it_could_not_write() {
         .iter()
         .any(|f| said.contains(&format!("error: cannot write {}", out.join(f).display())));
     assert!(named && said.contains("No space left on device"), "{said}");
+    // A summary nonetheless, whole, that says the run did not finish (it was left empty, or
+    // missing in-process).
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["completed"], false);
+    assert!(
+        summary["failure"]
+            .as_str()
+            .unwrap()
+            .starts_with("the run stopped before tcpf wrote its summary"),
+        "{summary}"
+    );
 }
 
 #[test]

@@ -20,7 +20,7 @@ use tokio::process::{Child, Command};
 use crate::progress::Ticks;
 use crate::recording::{Closing, Recording};
 use tcpf_report::rundir::RunDir;
-use tcpf_report::summary::{ChildSummary, Restarts, Summary};
+use tcpf_report::summary::{ChildSummary, Mode, Restarts, Summary};
 
 /// Zenoh's threads in a lockstep agent or planner (unless the user set ZENOH_RUNTIME): one,
 /// instead of six that hand every message to each other. Such a child is a client and routes
@@ -400,7 +400,7 @@ async fn unstarted(
     );
     // The summary first, on its own: the rest is made from it and the telemetry.
     let written = dir.write_summary(&summary).and_then(|()| {
-        dir.telemetry(mission, plan, None)?.finish()?;
+        dir.telemetry(mission, plan, Mode::Processes, None)?.finish()?;
         tcpf_report::report::write(&dir.path)
     });
     if let Err(unwritten) = written {
@@ -487,7 +487,13 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 configs.client.display()
             );
         }
-        Recording::start(&session, mission, plan.t_f, dir.telemetry(mission, plan, live)?).await
+        Recording::start(
+            &session,
+            mission,
+            plan.t_f,
+            dir.telemetry(mission, plan, Mode::Processes, live)?,
+        )
+        .await
     };
     let mut recording = match ready.await {
         Ok(recording) => recording,

@@ -557,9 +557,14 @@ pub async fn record(
         .open_unless(&mut shutdown, startup_timeout)
         .await
         .map_err(unrecorded)?;
-    let mut recording = Recording::start(&session, mission, plan.t_f, dir.telemetry(mission, plan, live)?)
-        .await
-        .map_err(unrecorded)?;
+    let mut recording = Recording::start(
+        &session,
+        mission,
+        plan.t_f,
+        dir.telemetry(mission, plan, Mode::Processes, live)?,
+    )
+    .await
+    .map_err(unrecorded)?;
     let keys = Keys::new(&mission.mission.name);
     let (_presence, mut presence) = presence(&session, &keys).await.map_err(unrecorded)?;
     recording.declare().await.map_err(unrecorded)?;

@@ -14,7 +14,7 @@ use tcpf_core::msg::{Command, State};
 use tcpf_core::planner::Plan;
 use tcpf_core::telemetry;
 
-use crate::summary::Summary;
+use crate::summary::{Mode, Summary};
 use crate::viewer::Viewer;
 
 pub struct RunDir {
@@ -114,7 +114,14 @@ impl RunDir {
     /// Removes the files a recording writes, and the directories `create` made for them: what
     /// a recording refused before its first tick leaves.
     pub fn discard(&self) {
-        for name in ["mission.toml", "plan.json", "telemetry.csv", "messages.csv", "run.mcap"] {
+        for name in [
+            "mission.toml",
+            "plan.json",
+            "telemetry.csv",
+            "messages.csv",
+            "run.mcap",
+            "summary.json",
+        ] {
             let _ = fs::remove_file(self.path.join(name));
         }
         // Only empty directories go: anything else put there meanwhile stays.
@@ -135,13 +142,29 @@ impl RunDir {
         self.write("plan.json", &(serde_json::to_string_pretty(plan)? + "\n"))
     }
 
+    /// Replaces summary.json whole or not at all: written beside it, then renamed over it, so a
+    /// disk that fills leaves the one there (the provisional one of `telemetry`), never a
+    /// summary cut short or empty.
     pub fn write_summary(&self, summary: &Summary) -> Result<()> {
-        self.write("summary.json", &(serde_json::to_string_pretty(summary)? + "\n"))
+        let text = serde_json::to_string_pretty(summary)? + "\n";
+        let (next, name) = (self.path.join("summary.json.next"), "summary.json");
+        let written = fs::write(&next, text).and_then(|()| fs::rename(&next, self.path.join(name)));
+        if written.is_err() {
+            let _ = fs::remove_file(&next);
+        }
+        written.with_context(|| cannot_write(&self.path, name))
     }
 
     /// The files written tick by tick: `telemetry.csv`, `messages.csv` and `run.mcap`; with
     /// `live`, the same channels are served to Foxglove there while the run goes on.
-    pub fn telemetry(&self, mission: &Mission, plan: &Plan, live: Option<SocketAddr>) -> Result<Telemetry> {
+    ///
+    /// Before them it writes a provisional summary.json, which the run's own replaces at its end:
+    /// a run stopped on the way (a full disk, a killed launcher) leaves one that says so.
+    pub fn telemetry(&self, mission: &Mission, plan: &Plan, mode: Mode, live: Option<SocketAddr>) -> Result<Telemetry> {
+        let mut provisional =
+            Summary::before_the_first_tick(mission, plan.t_f, false, Some(UNFINISHED.into()), 0.0, Vec::new());
+        provisional.mode = mode;
+        self.write_summary(&provisional)?;
         let paths = plan.paths();
         let dynamic = mission.has_dynamic_vehicles();
         let create = |name: &str, header: &str| -> Result<BufWriter<File>> {
@@ -176,6 +199,10 @@ impl RunDir {
         })
     }
 }
+
+/// What the provisional summary.json says until the run's own replaces it.
+pub const UNFINISHED: &str =
+    "the run stopped before tcpf wrote its summary: what tcpf printed as it stopped says why (a full disk, say)";
 
 /// A tick's states and commands, on their way to the thread writing run.mcap.
 type Tick = (Vec<State>, Vec<Option<Command>>);
