@@ -14,7 +14,7 @@ use tokio_tungstenite::tungstenite::Message;
 mod common;
 use common::{paper, scratch, Reaper};
 
-const READ_MCAP: &str = r#"
+const READ_MCAP: &str = r##"
 import json, sys
 from collections import Counter
 from mcap.reader import make_reader
@@ -25,17 +25,30 @@ with open(sys.argv[1], "rb") as f:
         counts[channel.topic] += 1
         schemas[channel.topic] = schema.name if schema else None
         times.setdefault(channel.topic, []).append(message.log_time)
-print(json.dumps({t: {"count": counts[t], "schema": schemas[t], "first": times[t][0], "last": times[t][-1]} for t in counts}))
-"#;
+out = {t: {"count": counts[t], "schema": schemas[t], "first": times[t][0], "last": times[t][-1]} for t in counts}
+with open(sys.argv[1], "rb") as f:
+    reader = make_reader(f)
+    out["#metadata"] = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+    out["#attachments"] = {a.name: a.data.decode() for a in reader.iter_attachments()}
+print(json.dumps(out))
+"##;
 
 #[test]
 fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
     let dir = scratch("mcap");
+    let unix = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+    };
+    let started = unix();
     let status = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
         .stdout(Stdio::null())
         .status()
         .unwrap();
+    let finished = unix();
     assert!(status.success());
     let out = Command::new("python3")
         .args(["-c", READ_MCAP, dir.join("run.mcap").to_str().unwrap()])
@@ -54,10 +67,15 @@ fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
         let pose = &channels[format!("/vehicle/{id}/pose")];
         assert_eq!(pose["count"], ticks, "one pose per tick: {channels}");
         assert_eq!(pose["schema"], "foxglove.PoseInFrame");
-        assert_eq!(pose["first"], 0, "stamped with simulated time, from 0");
+        // Stamped with the fleet's time: the run's start on the wall clock, plus simulated time.
+        let first = pose["first"].as_u64().unwrap() as f64 * 1e-9;
+        assert!(
+            (started..finished).contains(&first),
+            "t = 0 at {first}, not in the run's [{started}, {finished})"
+        );
         let last = pose["last"].as_u64().unwrap() as f64 * 1e-9;
         assert!(
-            (last - (ticks - 1) as f64 * dt).abs() < 1e-6,
+            (last - first - (ticks - 1) as f64 * dt).abs() < 1e-6,
             "the last tick's time, {last} s"
         );
         assert_eq!(
@@ -73,6 +91,15 @@ fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
         .map(|l| l["sent"].as_u64().unwrap())
         .sum();
     assert_eq!(channels["/links"]["count"], sent, "one link event per γ message");
+    let metadata = &channels["#metadata"]["tcpf"];
+    assert!(
+        metadata["frames"].as_str().unwrap().starts_with("ENU (x east, y north"),
+        "{metadata}"
+    );
+    let epoch: f64 = metadata["epoch_unix_s"].as_str().unwrap().parse().unwrap();
+    assert!((epoch - started).abs() < finished - started + 1.0, "{metadata}");
+    let mission = channels["#attachments"]["mission.toml"].as_str().unwrap();
+    assert_eq!(mission, std::fs::read_to_string(dir.join("mission.toml")).unwrap());
 }
 
 /// A mixed fleet: the dynamic vehicle's velocity and thrusters on a channel of its own, a tick
@@ -165,6 +192,7 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
     let mut subscribed = false;
     let (mut poses, mut paths) = (0, 0);
     // The path was sent once, before any client: it comes as the subscription is made.
+    let (mut first_pose, mut path_time) = (u64::MAX, None);
     while poses < 10 || paths == 0 {
         let message = tokio::time::timeout(Duration::from_secs(30), socket.next())
             .await
@@ -190,14 +218,14 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
             }
             // Message data: opcode 1, u32 subscription id, u64 log time, payload.
             Message::Binary(data) if data.first() == Some(&1) => {
+                let log_time = u64::from_le_bytes(data[5..13].try_into().unwrap());
                 match u32::from_le_bytes(data[1..5].try_into().unwrap()) {
-                    7 => poses += 1,
+                    7 => {
+                        poses += 1;
+                        first_pose = first_pose.min(log_time);
+                    }
                     8 => {
-                        assert_eq!(
-                            u64::from_le_bytes(data[5..13].try_into().unwrap()),
-                            0,
-                            "the path is of t = 0"
-                        );
+                        path_time = Some(log_time);
                         assert!(data.len() > 1000, "a path of many poses: {} bytes", data.len());
                         paths += 1;
                     }
@@ -208,6 +236,21 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
         }
     }
     assert!(server_info, "serverInfo first");
+    // The path is of the fleet's t = 0, its epoch on the wall clock: no later than any pose, and
+    // of today (not 1970).
+    let path_time = path_time.unwrap();
+    assert!(
+        path_time <= first_pose,
+        "the path at {path_time} ns, a pose at {first_pose} ns"
+    );
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    assert!(
+        (path_time as f64 * 1e-9 - now).abs() < 3600.0,
+        "the path at {path_time} ns"
+    );
     let topics: Vec<&str> = channels.iter().map(|c| c["topic"].as_str().unwrap()).collect();
     for topic in [
         "/vehicle/1/pose",
@@ -245,10 +288,12 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
         .last()
         .map(|row| row[1].parse().unwrap())
         .expect("vehicle 1 recorded");
+    // Counted from the path's time, the fleet's t = 0 (nanoseconds of Unix time: 1 µs apart at
+    // most from rounding each).
+    let t = (last - path_time) as f64 * 1e-9;
     assert!(
-        (last as f64 * 1e-9 - end).abs() < 1e-6,
-        "the last pose sent is of t = {} s, vehicle 1's last row of t = {end} s",
-        last as f64 * 1e-9
+        (t - end).abs() < 2e-6,
+        "the last pose sent is of t = {t} s, vehicle 1's last row of t = {end} s"
     );
 }
 

@@ -272,6 +272,7 @@ impl Recording {
                     self.clock = None;
                     let clock = answer?;
                     check_clock("recorder", &self.expected, &clock)?;
+                    self.telemetry.set_epoch(clock.epoch);
                     let fleet = FleetClock::new(&clock, *control_period);
                     *beats = Some((fleet, metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64)));
                 }

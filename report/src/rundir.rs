@@ -173,16 +173,18 @@ impl RunDir {
             out.write_all(header.as_bytes()).with_context(cannot)?;
             Ok(out)
         };
-        let viewer = Viewer::create(&self.path.join("run.mcap"), &paths, live)?;
+        let viewer = Viewer::create(&self.path.join("run.mcap"), mission, &paths, live)?;
         // run.mcap is written on a thread of its own: encoding and compressing it costs more than
         // the two CSV files, and a fleet's run would otherwise wait for all three in turn.
-        let (batches, to_viewer) = mpsc::sync_channel::<Vec<Tick>>(VIEWER_QUEUE / VIEWER_BATCH);
+        let (batches, to_viewer) = mpsc::sync_channel::<(f64, Vec<Tick>)>(VIEWER_QUEUE / VIEWER_BATCH);
         let thread = std::thread::Builder::new()
             .name("run.mcap".into())
             .spawn(move || {
                 let mut viewer = viewer;
-                for (states, commands) in to_viewer.into_iter().flatten() {
-                    viewer.tick(&states, &commands);
+                for (epoch, batch) in to_viewer {
+                    for (states, commands) in batch {
+                        viewer.tick(epoch, &states, &commands);
+                    }
                 }
                 viewer.finish()
             })
@@ -192,6 +194,7 @@ impl RunDir {
             dynamic,
             messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
             viewer: Some((batches, thread)),
+            epoch: unix_now(),
             batch: Vec::with_capacity(VIEWER_BATCH),
             since: Instant::now(),
             line: String::new(),
@@ -206,8 +209,15 @@ pub const UNFINISHED: &str =
 
 /// A tick's states and commands, on their way to the thread writing run.mcap.
 type Tick = (Vec<State>, Vec<Option<Command>>);
-/// Where batches of ticks go to that thread.
-type Batches = SyncSender<Vec<Tick>>;
+/// Where batches of ticks go to that thread, each with the fleet's epoch.
+type Batches = SyncSender<(f64, Vec<Tick>)>;
+
+/// The wall clock as Unix time, s.
+fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
 
 /// Ticks that may wait for the thread writing run.mcap before the run waits for it.
 const VIEWER_QUEUE: usize = 256;
@@ -224,6 +234,9 @@ pub struct Telemetry {
     /// The ticks' way to the thread writing run.mcap, and the thread; taken by `finish`, or by
     /// `drop` on a run that failed.
     viewer: Option<(Batches, JoinHandle<Result<()>>)>,
+    /// Unix time, s, of the run's t = 0, which run.mcap's times count from: the wall clock as
+    /// the run started, or the realtime fleet's own epoch (`set_epoch`).
+    epoch: f64,
     /// Ticks not yet handed to it, and since when the first of them waits.
     batch: Vec<Tick>,
     since: Instant,
@@ -263,12 +276,17 @@ impl Telemetry {
     }
 
     /// Hands the ticks batched so far to the thread writing run.mcap.
+    /// A realtime fleet's epoch (its clock's), for run.mcap's times; before the first tick.
+    pub fn set_epoch(&mut self, epoch: f64) {
+        self.epoch = epoch;
+    }
+
     fn hand_over(&mut self) -> Result<()> {
         let batch = std::mem::replace(&mut self.batch, Vec::with_capacity(VIEWER_BATCH));
         match &self.viewer {
             // The thread stops on a write that failed, and says why as it is joined.
             Some((batches, _)) => batches
-                .send(batch)
+                .send((self.epoch, batch))
                 .map_err(|_| anyhow!("{}: the thread writing it stopped", cannot_write(&self.dir, "run.mcap"))),
             None => Err(anyhow!("run.mcap is closed")),
         }

@@ -1,6 +1,9 @@
 //! What Foxglove (or any MCAP reader) sees of a run: `run.mcap`, and the same channels served
-//! live (`live`) while the run goes on. Every message is encoded once and stamped with
-//! simulated time, so a recorded run replays at its own pace and a live one shows its clock.
+//! live (`live`) while the run goes on. Every message is encoded once and stamped with the
+//! fleet's time: its epoch (the wall clock as a lockstep run started, a realtime fleet's clock's
+//! epoch) plus simulated time, so a recorded run replays at its own pace, a live one shows its
+//! clock, and neither shows 1970. The file's `tcpf` metadata says so, with the frame convention,
+//! and the mission as run is attached to it (`mission.toml`).
 //!
 //! Channels, per vehicle `<id>`:
 //! - `/vehicle/<id>/pose` (`foxglove.PoseInFrame`, frame `world`): position and heading, every tick;
@@ -20,9 +23,11 @@ use std::sync::Arc;
 use anyhow::{anyhow, Context as _, Result};
 use foxglove::messages::{Pose, PoseInFrame, PosesInFrame, Quaternion, Timestamp, Vector3};
 use foxglove::{
-    Context, Encode, McapCompression, McapWriteOptions, McapWriterHandle, PartialMetadata, RawChannel, Schema,
+    Context, Encode, McapAttachment, McapCompression, McapWriteOptions, McapWriterHandle, PartialMetadata, RawChannel,
+    Schema,
 };
 use serde::Serialize;
+use tcpf_core::mission::Mission;
 use tcpf_core::msg::{Command, State};
 use tcpf_core::path::GeneralizedPath;
 
@@ -56,6 +61,12 @@ pub struct Viewer {
     /// Owns the file's channels: they close when it goes.
     context: Arc<Context>,
     vehicles: Vec<Vehicle>,
+    /// Unix time, s, of the run's t = 0: known at the first tick.
+    epoch: Option<f64>,
+    /// What goes out at the first tick, once the epoch is known: each planned path, and the
+    /// file's metadata with the mission.
+    paths: Vec<(Topic, Vec<Pose>)>,
+    mission: String,
     links: Topic,
     mcap: Option<McapWriterHandle<BufWriter<File>>>,
     live: Option<Live>,
@@ -103,9 +114,13 @@ struct Link {
     to: u32,
 }
 
+/// Nanoseconds of Unix time `t` (s).
 fn nanos(t: f64) -> u64 {
     (t.max(0.0) * 1e9).round() as u64
 }
+
+/// What `run.mcap` says of its times and frames (its `tcpf` metadata).
+const FRAMES: &str = "ENU (x east, y north, metres), as ROS's REP 103; headings and yaw counter-clockwise from x, in radians; the current's direction is where the water flows to";
 
 fn stamp(t: f64) -> Timestamp {
     let ns = nanos(t);
@@ -129,7 +144,12 @@ fn pose(x: f64, y: f64, heading: f64) -> Pose {
 impl Viewer {
     /// Opens `file` for writing and, with `live`, serves the channels there. `paths` are the
     /// vehicles' planned paths, in the order of the states the ticks will give.
-    pub fn create(file: &Path, paths: &[(u32, GeneralizedPath)], live: Option<SocketAddr>) -> Result<Viewer> {
+    pub fn create(
+        file: &Path,
+        mission: &Mission,
+        paths: &[(u32, GeneralizedPath)],
+        live: Option<SocketAddr>,
+    ) -> Result<Viewer> {
         let context = Context::new();
         // lz4 is a few kilobytes of C; zstd would compress better at the cost of a slow build.
         let options = McapWriteOptions::new().compression(Some(McapCompression::Lz4));
@@ -140,6 +160,9 @@ impl Viewer {
         let live = live.map(Live::start).transpose()?;
         let mut viewer = Viewer {
             vehicles: Vec::with_capacity(paths.len()),
+            epoch: None,
+            paths: Vec::with_capacity(paths.len()),
+            mission: toml::to_string(mission).context("the mission as TOML")?,
             links: topic(&context, &live, "/links", json_schema("tcpf.Link", LINK_SCHEMA))?,
             context,
             mcap: Some(mcap),
@@ -159,12 +182,7 @@ impl Viewer {
                     pose(p.position.x, p.position.y, p.heading)
                 })
                 .collect();
-            let message = PosesInFrame {
-                timestamp: Some(stamp(0.0)),
-                frame_id: FRAME.into(),
-                poses,
-            };
-            viewer.log_encoded(&drawn, &message, 0.0);
+            viewer.paths.push((drawn, poses));
             let vehicle = Vehicle {
                 id: *id,
                 dynamics: None,
@@ -207,17 +225,58 @@ impl Viewer {
         self.buffer = buffer;
     }
 
-    /// One tick: every vehicle's state, and the commands of those that are not lost.
-    pub fn tick(&mut self, states: &[State], commands: &[Option<Command>]) {
+    /// The first tick's work: the epoch, the planned paths at t = 0, and the file's metadata.
+    fn start(&mut self, epoch: f64) {
+        self.epoch = Some(epoch);
+        for (drawn, poses) in std::mem::take(&mut self.paths) {
+            let message = PosesInFrame {
+                timestamp: Some(stamp(epoch)),
+                frame_id: FRAME.into(),
+                poses,
+            };
+            self.log_encoded(&drawn, &message, epoch);
+        }
+        let Some(mcap) = &self.mcap else { return };
+        let metadata = [
+            ("frames", FRAMES.to_string()),
+            (
+                "time",
+                "log times are Unix time: the fleet's epoch plus simulated time (the wall clock as a lockstep run started; a realtime fleet's clock)".to_string(),
+            ),
+            ("epoch_unix_s", format!("{epoch}")),
+        ];
+        let attachment = McapAttachment {
+            log_time: nanos(epoch),
+            create_time: nanos(epoch),
+            name: "mission.toml".into(),
+            media_type: "application/toml".into(),
+            data: std::borrow::Cow::Borrowed(self.mission.as_bytes()),
+        };
+        let written = mcap
+            .write_metadata("tcpf", metadata.into_iter().map(|(k, v)| (k.to_string(), v)).collect())
+            .and_then(|()| mcap.attach(&attachment));
+        if let Err(e) = written {
+            tracing::warn!("run.mcap: {e}: its metadata and mission are not in it");
+        }
+    }
+
+    /// One tick: every vehicle's state, and the commands of those that are not lost; `epoch` is
+    /// the Unix time of the run's t = 0.
+    pub fn tick(&mut self, epoch: f64, states: &[State], commands: &[Option<Command>]) {
+        if self.epoch.is_none() {
+            self.start(epoch);
+        }
         let mut vehicles = std::mem::take(&mut self.vehicles);
         let mut json = std::mem::take(&mut self.json);
         for ((vehicle, s), c) in vehicles.iter_mut().zip(states).zip(commands) {
+            // What every message of this vehicle at this tick is stamped with.
+            let at = epoch + s.t;
             let message = PoseInFrame {
-                timestamp: Some(stamp(s.t)),
+                timestamp: Some(stamp(at)),
                 frame_id: FRAME.into(),
                 pose: Some(pose(s.position[0], s.position[1], s.heading + s.sideslip)),
             };
-            self.log_encoded(&vehicle.pose, &message, s.t);
+            self.log_encoded(&vehicle.pose, &message, at);
             if let Some(d) = &s.dynamics {
                 if vehicle.dynamics.is_none() {
                     let name = format!("/vehicle/{}/dynamics", vehicle.id);
@@ -241,7 +300,7 @@ impl Viewer {
                         thrust_2: d.thrust[1],
                         yaw_rate: d.yaw_rate,
                     };
-                    self.log_json(&mut json, topic, &dynamics, s.t);
+                    self.log_json(&mut json, topic, &dynamics, at);
                 }
             }
             let Some(c) = c else { continue };
@@ -256,7 +315,7 @@ impl Viewer {
                 x_e: c.x_e,
                 y_e: c.y_e,
             };
-            self.log_json(&mut json, &vehicle.coordination, &coordination, s.t);
+            self.log_json(&mut json, &vehicle.coordination, &coordination, at);
             for r in &c.receptions {
                 let link = Link {
                     delivered: r.delivered,
@@ -264,7 +323,7 @@ impl Viewer {
                     t: s.t,
                     to: c.id,
                 };
-                self.log_json(&mut json, &self.links, &link, s.t);
+                self.log_json(&mut json, &self.links, &link, at);
             }
         }
         self.json = json;
