@@ -459,6 +459,10 @@ impl Recording {
             }
         }
         let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
+        let conflicts = self.rejected.totals().conflict;
+        if conflicts > 0 {
+            reproducible_reasons.push(tcpf_report::summary::conflicting("the recorder", conflicts));
+        }
         let unreported = match (cut_short, children.is_empty()) {
             (false, _) => self.unreported(),
             // `tcpf record` interrupted: the fleet goes on, and its reports are yet to come.

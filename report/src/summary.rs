@@ -126,6 +126,15 @@ pub struct Summary {
 /// Why a run that stopped for no reason it knows did not complete.
 pub const NEVER_ENDED: &str = "the world never said the run was over";
 
+/// Why a lockstep run whose `who` (a role, or the recorder) refused `n` conflicting messages is
+/// not reproducible: a genuine fleet sends one message per sender and tick, so another process
+/// spoke for a role, and which of the two came first decided what was used.
+pub fn conflicting(who: &str, n: u64) -> String {
+    format!(
+        "{who}: {n} message(s) for a sender and tick it already had, with other contents: another process speaks for a role on the bus, and which came first decided what was used"
+    )
+}
+
 /// Why a realtime run is never reproducible.
 pub const REALTIME: &str = "the realtime clock: what happens depends on timing";
 
@@ -182,6 +191,9 @@ impl Summary {
                     "{} {}: went on without a silent neighbour's γ {} time(s) (--stale-timeout)",
                     r.role, r.id, r.stale_timeouts
                 ));
+            }
+            if r.rejected.conflict > 0 {
+                reasons.push(conflicting(&format!("{} {}", r.role, r.id), r.rejected.conflict));
             }
             let late: u64 = r.late_gammas.iter().map(|l| l.1).sum();
             if late > 0 {
