@@ -369,7 +369,11 @@ async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
     );
     eprintln!("peak RSS kB without the flood {baseline:?}, with it {flooded:?}");
     // Completed, but not reproducible (below): exit 1, as every lockstep run that is not.
-    assert_eq!((status.code(), &s["completed"]), (Some(1), &serde_json::json!(true)), "{s}");
+    assert_eq!(
+        (status.code(), &s["completed"]),
+        (Some(1), &serde_json::json!(true)),
+        "{s}"
+    );
     assert!(sent >= FLOOD, "the whole flood was sent while the run lasted ({sent})");
     run_in_process(&paper("b-current"), &dir.join("i"), &SLOWER);
     assert_same_run(&dir.join("p"), &dir.join("i"));

@@ -69,10 +69,11 @@ impl Reject {
 
 pub struct WorldNode {
     world: World,
-    t_f: f64,
-    /// Per vehicle: γ_i has reached t_f (the run ends when every live vehicle's has). The
-    /// metrics are the recorder's; the world needs only this.
+    /// Per vehicle: γ_i has reached t_f where the vehicle is (the run ends when every live
+    /// vehicle has). The metrics are the recorder's; the world needs only this.
     arrived: Vec<bool>,
+    /// Each vehicle's path, in roster order: where its γ says it should be.
+    paths: Vec<GeneralizedPath>,
     max_ticks: u64,
     ids: Roster,
     states: Vec<State>,
@@ -83,15 +84,15 @@ pub struct WorldNode {
 }
 
 impl WorldNode {
-    pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)], t_f: f64) -> WorldNode {
+    pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)]) -> WorldNode {
         let world = World::new(mission, paths);
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         let mut states = Vec::with_capacity(ids.len());
         world.states(&mut states);
         WorldNode {
             states,
-            t_f,
             arrived: vec![false; ids.len()],
+            paths: paths.iter().map(|p| p.1).collect(),
             max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
             neighbours: neighbour_lists(&mission.graph(), &ids),
@@ -182,8 +183,11 @@ impl WorldNode {
     pub fn advance(&mut self, observe: impl FnOnce(TickRecord<'_>)) -> Option<End> {
         let tick = self.tick();
         // A lost vehicle's pending command was dropped when it was lost: what is pending is held.
-        for (arrived, c) in self.arrived.iter_mut().zip(&self.pending) {
-            *arrived |= c.as_ref().is_some_and(|c| c.gamma >= self.t_f);
+        for (n, arrived) in self.arrived.iter_mut().enumerate() {
+            let position = self.states[n].position;
+            *arrived |= self.pending[n]
+                .as_ref()
+                .is_some_and(|c| self.paths[n].arrived(c.gamma, position));
         }
         observe(TickRecord {
             version: PROTOCOL_VERSION,
@@ -448,11 +452,12 @@ mod tests {
     use super::*;
     use crate::fixtures::case_b;
     use crate::msg::{Reception, Sample};
+    use crate::path::ARRIVAL_RADIUS;
 
     #[test]
     fn an_agent_waits_for_its_live_neighbours_at_communication_instants_only() {
-        let (m, paths, t_f) = case_b();
-        let world = WorldNode::new(&m, &paths, t_f);
+        let (m, paths, _) = case_b();
+        let world = WorldNode::new(&m, &paths);
         let mut node = AgentNode::new(Agent::new(&m, 1, paths[0].1));
         let gamma = node
             .on_state(world.states()[0])
@@ -529,8 +534,8 @@ mod tests {
 
     #[test]
     fn a_gone_neighbour_is_not_waited_for() {
-        let (m, paths, t_f) = case_b();
-        let world = WorldNode::new(&m, &paths, t_f);
+        let (m, paths, _) = case_b();
+        let world = WorldNode::new(&m, &paths);
         let mut node = AgentNode::new(Agent::new(&m, 2, paths[1].1));
         node.on_state(world.states()[1]).unwrap();
         assert_eq!(node.waiting_for(), vec![1]);
@@ -543,8 +548,8 @@ mod tests {
 
     #[test]
     fn a_command_that_heard_from_a_stranger_or_twice_is_refused() {
-        let (m, paths, t_f) = case_b();
-        let mut world = WorldNode::new(&m, &paths, t_f);
+        let (m, paths, _) = case_b();
+        let mut world = WorldNode::new(&m, &paths);
         let mut node = AgentNode::new(Agent::new(&m, 1, paths[0].1));
         let gamma = node.on_state(world.states()[0]).unwrap().expect("tick 0 is an instant");
         node.on_gamma(Gamma { from: 2, ..gamma }).unwrap();
@@ -568,8 +573,8 @@ mod tests {
 
     #[test]
     fn a_lost_neighbour_is_never_waited_for_again_and_a_lost_vehicles_agent_stops() {
-        let (m, paths, t_f) = case_b();
-        let mut world = WorldNode::new(&m, &paths, t_f);
+        let (m, paths, _) = case_b();
+        let mut world = WorldNode::new(&m, &paths);
         let mut node = AgentNode::new(Agent::new(&m, 2, paths[1].1));
         let gamma = node.on_state(world.states()[1]).unwrap().expect("tick 0 is an instant");
         let lost = world.on_lost(1, LossReason::Gone).expect("lost the first time");
@@ -595,8 +600,8 @@ mod tests {
 
     #[test]
     fn a_stale_neighbour_is_waited_for_again_once_it_speaks_and_the_rule_is_counted() {
-        let (m, paths, t_f) = case_b();
-        let world = WorldNode::new(&m, &paths, t_f);
+        let (m, paths, _) = case_b();
+        let world = WorldNode::new(&m, &paths);
         let mut node = AgentNode::new(Agent::new(&m, 1, paths[0].1));
         let gamma = node.on_state(world.states()[0]).unwrap().unwrap();
         assert_eq!(node.waiting_for(), vec![2]);
@@ -638,10 +643,41 @@ mod tests {
         assert_eq!(node.on_end(&end), Err(Reject::Past), "the run went past tick 3");
     }
 
+    /// The world decides arrival from where its vehicles are: one command per vehicle claiming
+    /// γ = 1000 at the start does not end the run (it ended one with the fleet 100 m short); a
+    /// genuine arrival does.
+    #[test]
+    fn a_claimed_arrival_far_from_the_vehicle_ends_nothing() {
+        let (m, paths, t_f) = case_b();
+        let mut world = WorldNode::new(&m, &paths);
+        let mut agents: Vec<Agent> = paths.iter().map(|&(id, p)| Agent::new(&m, id, p)).collect();
+        let states = world.states().to_vec();
+        for (a, s) in agents.iter_mut().zip(&states) {
+            let genuine = a.step(s.tick, s, &[]);
+            world
+                .on_command(Command {
+                    gamma: 1000.0,
+                    ..genuine
+                })
+                .unwrap();
+        }
+        assert!(
+            world.advance(|_| {}).is_none(),
+            "γ = 1000 with the vehicles at their starts"
+        );
+        // At t_f + 0.5 s on the path, where γ says: arrived.
+        let (id, path) = paths[0];
+        let there = path.at(t_f + 0.5).position;
+        assert!(path.arrived(t_f + 0.5, there.into()));
+        assert!(!path.arrived(t_f - 0.5, there.into()), "γ short of t_f");
+        let far = [there.x + ARRIVAL_RADIUS + 0.1, there.y];
+        assert!(!path.arrived(t_f + 0.5, far), "vehicle {id} 10.1 m from where γ says");
+    }
+
     #[test]
     fn the_world_waits_for_every_live_command_of_the_tick() {
-        let (m, paths, t_f) = case_b();
-        let mut world = WorldNode::new(&m, &paths, t_f);
+        let (m, paths, _) = case_b();
+        let mut world = WorldNode::new(&m, &paths);
         let mut agents: Vec<Agent> = paths.iter().map(|&(id, p)| Agent::new(&m, id, p)).collect();
         let states = world.states().to_vec();
         let commands: Vec<Command> = agents

@@ -170,6 +170,11 @@ pub struct PathPoint {
     pub speed: f64,
 }
 
+/// How far from p_d(γ) a vehicle may be and have arrived, m. A vehicle that follows its path is
+/// within a metre of it (the paper's cases: 0.6 m at most, with 90 % loss); ten leaves room for
+/// a disturbed one, and none for a claim from elsewhere.
+pub const ARRIVAL_RADIUS: f64 = 10.0;
+
 /// A vehicle's generalized path, parameterised by virtual time γ ∈ ℝ (D11 outside [0, t_f]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct GeneralizedPath {
@@ -243,6 +248,14 @@ impl GeneralizedPath {
             let [p, d1, d2] = self.quintic.eval(tau);
             [p, eta * d1, eta * self.profile.deta() * d1 + eta * eta * d2]
         }
+    }
+
+    /// Whether a vehicle at `position` whose agent reports `gamma` has arrived: γ ≥ t_f (D16),
+    /// and the vehicle within `ARRIVAL_RADIUS` of p_d(γ). The world ends a run on it, from its
+    /// own knowledge of where the vehicle is: a γ that says "arrived" far from the vehicle (one
+    /// forged command of γ = 1000 ended a run with the fleet 100 m short) is not an arrival.
+    pub fn arrived(&self, gamma: f64, position: [f64; 2]) -> bool {
+        gamma >= self.t_f() && (self.derivatives(gamma)[0] - Vec2::from(position)).norm() <= ARRIVAL_RADIUS
     }
 
     /// dv_d/dγ = η (η′|p′| + η p′·p″/|p′|) at τ(γ), and 0 on the straight extensions (D11): the

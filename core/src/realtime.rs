@@ -265,6 +265,8 @@ pub struct RealtimeWorld {
     neighbours: Vec<Vec<u32>>,
     /// Per simulated body, its index in `ids`.
     bodies: Vec<usize>,
+    /// Per simulated body, its path.
+    paths: Vec<GeneralizedPath>,
     held: Vec<Option<Command>>,
     gone: Vec<bool>,
     /// Per vehicle, whether its agent was ever gone (for `End`).
@@ -300,6 +302,7 @@ impl RealtimeWorld {
             neighbours: neighbour_lists(&mission.graph(), &ids),
             world,
             bodies,
+            paths: ours.iter().map(|p| p.1).collect(),
             held: vec![None; n],
             gone: vec![false; n],
             ever_gone: vec![None; n],
@@ -340,7 +343,13 @@ impl RealtimeWorld {
         if let Some(held) = &self.held[n] {
             older(held.tick, command.tick, held, &command)?;
         }
-        self.arrived[n] |= command.gamma >= self.t_f;
+        // Where the world simulates the vehicle, it checks the arrival against where it is; a
+        // vehicle another program plays is taken at its γ.
+        let arrived = match self.bodies.iter().position(|&b| b == n) {
+            Some(b) => self.paths[b].arrived(command.gamma, self.states[b].position),
+            None => command.gamma >= self.t_f,
+        };
+        self.arrived[n] |= arrived;
         self.held[n] = Some(command);
         Ok(())
     }

@@ -40,7 +40,7 @@ impl Fleet {
             })
             .collect();
         Fleet {
-            world: WorldNode::new(mission, &paths, plan.t_f),
+            world: WorldNode::new(mission, &paths),
             recorder: Recorder::new(&ids, plan.t_f, mission.mission.control_period),
             live: vec![true; agents.len()],
             agents,

@@ -272,7 +272,7 @@ async fn serve(
         let (ends_tx, ends) = mpsc::unbounded_channel();
         let stepper = Arc::new(Stepper {
             stepped: Mutex::new(Stepped {
-                node: WorldNode::new(mission, &paths, paths[0].1.t_f()),
+                node: WorldNode::new(mission, &paths),
                 held: Some(Vec::new()),
                 clock: Clock {
                     version: PROTOCOL_VERSION,
