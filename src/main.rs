@@ -810,7 +810,8 @@ fn bench(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
             let sampling = tokio::spawn(async {
                 let mut busiest = bench::Footprint::default();
                 loop {
-                    tokio::time::sleep(Duration::from_millis(500)).await;
+                    // Often enough to see a fleet of a second at least once.
+                    tokio::time::sleep(Duration::from_millis(100)).await;
                     let now = tokio::task::spawn_blocking(|| bench::Footprint::of_children("agent"))
                         .await
                         .unwrap_or_default();

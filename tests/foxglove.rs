@@ -139,6 +139,82 @@ fn run_mcap_holds_a_dynamic_vehicles_thrusters() {
     assert!(summary["vehicles"][0].get("thrusters").is_none(), "{summary}");
 }
 
+/// The live view serves at most 8 clients and closes the connection of one that sends more
+/// than 64 KiB at once (30 clients each holding a 64 MB partial message took the launcher to
+/// 2.3 GB, and 38 under a 4 GB limit aborted it mid-run without a summary).
+#[tokio::test(flavor = "multi_thread")]
+async fn the_live_view_bounds_its_clients_and_what_they_send() {
+    let dir = scratch("live-bounds");
+    let port = free_port();
+    let mut run = Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
+            .args(["--live", &format!("127.0.0.1:{port}")])
+            // 55 s of simulated time in about 11 s: long enough for every client below.
+            .args(["--clock", "realtime", "--time-scale", "5"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let mut request = format!("ws://127.0.0.1:{port}").into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.websocket.v1".parse().unwrap());
+    let connect = || async {
+        let stream = tokio::net::TcpStream::connect(("127.0.0.1", port))
+            .await
+            .map_err(|e| e.to_string())?;
+        tokio_tungstenite::client_async(request.clone(), stream)
+            .await
+            .map(|(socket, _)| socket)
+            .map_err(|e| e.to_string())
+    };
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let mut served = vec![loop {
+        match connect().await {
+            Ok(socket) => break socket,
+            Err(e) => {
+                assert!(Instant::now() < deadline, "no live server on port {port}: {e}");
+                assert!(
+                    run.0.try_wait().unwrap().is_none(),
+                    "the run ended before a client joined"
+                );
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        }
+    }];
+    for _ in 1..8 {
+        served.push(connect().await.expect("up to 8 clients are served"));
+    }
+    assert!(connect().await.is_err(), "a ninth client is refused");
+    // One of them sends a message of a megabyte: its connection is closed.
+    let big = "x".repeat(1 << 20);
+    let mut greedy = served.pop().unwrap();
+    let _ = greedy.send(Message::text(big)).await;
+    let closed = tokio::time::timeout(Duration::from_secs(30), async {
+        loop {
+            match greedy.next().await {
+                None | Some(Err(_)) | Some(Ok(Message::Close(_))) => return true,
+                Some(Ok(_)) => {}
+            }
+        }
+    })
+    .await;
+    assert_eq!(closed, Ok(true), "the connection of a client sending 1 MB is closed");
+    // Its place is free again.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while connect().await.is_err() {
+        assert!(Instant::now() < deadline, "the closed client's place is not freed");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    drop(served);
+    let status = tokio::task::spawn_blocking(move || run.0.wait().unwrap())
+        .await
+        .unwrap();
+    assert!(status.success(), "the run completes beside them");
+}
+
 /// A port nobody listens on now.
 fn free_port() -> u16 {
     TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()

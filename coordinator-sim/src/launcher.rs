@@ -398,11 +398,13 @@ async fn unstarted(
         begun.elapsed().as_secs_f64(),
         children.iter().map(|c| child_summary(c, None)).collect(),
     );
-    // The summary first, on its own: the rest is made from it and the telemetry.
-    let written = dir.write_summary(&summary).and_then(|()| {
-        dir.telemetry(mission, plan, Mode::Processes, None)?.finish()?;
-        tcpf_report::report::write(&dir.path)
-    });
+    // The (empty) telemetry, whose start writes a provisional summary; then, whatever became of
+    // it, the summary that replaces that one; then the report made of both.
+    let telemetry = dir.telemetry(mission, plan, Mode::Processes, None).and_then(|t| t.finish());
+    let written = dir
+        .write_summary(&summary)
+        .and(telemetry)
+        .and_then(|()| tcpf_report::report::write(&dir.path));
     if let Err(unwritten) = written {
         tracing::warn!("the run directory could not be written whole: {unwritten:#}");
     }

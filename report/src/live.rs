@@ -167,9 +167,21 @@ impl Drop for Live {
     }
 }
 
+/// Clients served at once: a viewer or two is the use, and each costs a task and its buffers
+/// (30 clients each holding a 64 MB partial message took the launcher to 2.3 GB).
+const MAX_CLIENTS: usize = 8;
+/// The largest message or frame a client may send: what a viewer sends is a few lines of JSON
+/// (subscriptions); anything larger is refused and its connection closed.
+const MAX_CLIENT_MESSAGE: usize = 64 << 10;
+
 async fn accept(listener: TcpListener, shared: Arc<Shared>) {
     while let Ok((stream, peer)) = listener.accept().await {
         let shared = shared.clone();
+        if shared.clients.load(std::sync::atomic::Ordering::SeqCst) >= MAX_CLIENTS {
+            tracing::warn!("live view: {peer} refused: {MAX_CLIENTS} clients are served already");
+            drop(stream);
+            continue;
+        }
         shared.clients.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         tokio::spawn(async move {
             let _counted = Connected(&shared);
@@ -237,7 +249,10 @@ fn frame(subscription: u32, m: &Data) -> Vec<u8> {
 
 /// One client: handshake, server info and advertisements, then its subscriptions' messages.
 async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
-    let mut socket = tokio_tungstenite::accept_hdr_async(stream, negotiate).await?;
+    let limits = tokio_tungstenite::tungstenite::protocol::WebSocketConfig::default()
+        .max_message_size(Some(MAX_CLIENT_MESSAGE))
+        .max_frame_size(Some(MAX_CLIENT_MESSAGE));
+    let mut socket = tokio_tungstenite::accept_hdr_async_with_config(stream, negotiate, Some(limits)).await?;
     let mut data = shared.data.subscribe();
     let info = json!({
         "op": "serverInfo", "name": "tcpf", "capabilities": [], "supportedEncodings": [], "metadata": {},
