@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 mod common;
-use common::{config, kill, scratch, tcpf, Reaper};
+use common::{arrivals, config, kill, scratch, tcpf, Reaper};
 
 fn ok(o: Output) -> Output {
     assert!(
@@ -86,12 +86,7 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
             s["max_coordination_error"].as_f64().unwrap()
         );
         assert_eq!(row[3].parse::<f64>().unwrap(), s["min_clearance"].as_f64().unwrap());
-        let arrivals: Vec<f64> = s["vehicles"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v["arrival_time"].as_f64().unwrap())
-            .collect();
+        let arrivals = arrivals(&s);
         assert_eq!(
             row[4].parse::<f64>().unwrap(),
             arrivals.iter().copied().fold(f64::MIN, f64::max) - arrivals.iter().copied().fold(f64::MAX, f64::min)

@@ -139,6 +139,63 @@ fn run_mcap_holds_a_dynamic_vehicles_thrusters() {
     assert!(summary["vehicles"][0].get("thrusters").is_none(), "{summary}");
 }
 
+/// Case (b) on the wall clock at `scale` into `dir`, served live on `port`: a lockstep run can
+/// end before a client has subscribed.
+fn live_run(dir: &std::path::Path, port: u16, scale: &str) -> Reaper {
+    Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
+            .args(["--live", &format!("127.0.0.1:{port}")])
+            .args(["--clock", "realtime", "--time-scale", scale])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// A client's opening request to the live view on `port`, as Foxglove's older clients make it.
+fn foxglove_request(port: u16) -> tokio_tungstenite::tungstenite::handshake::client::Request {
+    let mut request = format!("ws://127.0.0.1:{port}").into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.websocket.v1".parse().unwrap());
+    request
+}
+
+type Socket = tokio_tungstenite::WebSocketStream<tokio::net::TcpStream>;
+
+/// One client of the live view on `port`: its socket and the server's response, or what failed.
+async fn join(port: u16) -> Result<(Socket, tokio_tungstenite::tungstenite::handshake::client::Response), String> {
+    let stream = tokio::net::TcpStream::connect(("127.0.0.1", port))
+        .await
+        .map_err(|e| e.to_string())?;
+    tokio_tungstenite::client_async(foxglove_request(port), stream)
+        .await
+        .map_err(|e| e.to_string())
+}
+
+/// The first client of the live view of `run`, once it serves (a minute at most).
+async fn first_client(
+    run: &mut Reaper,
+    port: u16,
+) -> (Socket, tokio_tungstenite::tungstenite::handshake::client::Response) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        match join(port).await {
+            Ok(joined) => return joined,
+            Err(e) => {
+                assert!(Instant::now() < deadline, "no live server on port {port}: {e}");
+                assert!(
+                    run.0.try_wait().unwrap().is_none(),
+                    "the run ended before a client could join"
+                );
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        }
+    }
+}
+
 /// The live view serves at most 8 clients and closes the connection of one that sends more
 /// than 64 KiB at once (30 clients each holding a 64 MB partial message took the launcher to
 /// 2.3 GB, and 38 under a 4 GB limit aborted it mid-run without a summary).
@@ -146,44 +203,10 @@ fn run_mcap_holds_a_dynamic_vehicles_thrusters() {
 async fn the_live_view_bounds_its_clients_and_what_they_send() {
     let dir = scratch("live-bounds");
     let port = free_port();
-    let mut run = Reaper(
-        Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
-            .args(["--live", &format!("127.0.0.1:{port}")])
-            // 55 s of simulated time in about 11 s: long enough for every client below.
-            .args(["--clock", "realtime", "--time-scale", "5"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    let mut request = format!("ws://127.0.0.1:{port}").into_client_request().unwrap();
-    request
-        .headers_mut()
-        .insert("Sec-WebSocket-Protocol", "foxglove.websocket.v1".parse().unwrap());
-    let connect = || async {
-        let stream = tokio::net::TcpStream::connect(("127.0.0.1", port))
-            .await
-            .map_err(|e| e.to_string())?;
-        tokio_tungstenite::client_async(request.clone(), stream)
-            .await
-            .map(|(socket, _)| socket)
-            .map_err(|e| e.to_string())
-    };
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let mut served = vec![loop {
-        match connect().await {
-            Ok(socket) => break socket,
-            Err(e) => {
-                assert!(Instant::now() < deadline, "no live server on port {port}: {e}");
-                assert!(
-                    run.0.try_wait().unwrap().is_none(),
-                    "the run ended before a client joined"
-                );
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-        }
-    }];
+    // 55 s of simulated time in about 11 s: long enough for every client below.
+    let mut run = live_run(&dir, port, "5");
+    let connect = || async { join(port).await.map(|(socket, _)| socket) };
+    let mut served = vec![first_client(&mut run, port).await.0];
     for _ in 1..8 {
         served.push(connect().await.expect("up to 8 clients are served"));
     }
@@ -224,43 +247,9 @@ fn free_port() -> u16 {
 async fn live_serves_the_fleet_over_foxglove_websocket() {
     let dir = scratch("live");
     let port = free_port();
-    let mut run = Reaper(
-        Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(["run", &paper("b-current"), "--out", dir.to_str().unwrap()])
-            .args(["--live", &format!("127.0.0.1:{port}")])
-            // The wall clock, for a run as long on any machine (its 55 s of simulated time in
-            // about 3 s): a lockstep run can end before a client has subscribed.
-            .args(["--clock", "realtime", "--time-scale", "20"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let mut request = format!("ws://127.0.0.1:{port}").into_client_request().unwrap();
-    request
-        .headers_mut()
-        .insert("Sec-WebSocket-Protocol", "foxglove.websocket.v1".parse().unwrap());
-    let (mut socket, response) = loop {
-        let connected = match tokio::net::TcpStream::connect(("127.0.0.1", port)).await {
-            Ok(stream) => tokio_tungstenite::client_async(request.clone(), stream)
-                .await
-                .map_err(|e| e.to_string()),
-            Err(e) => Err(e.to_string()),
-        };
-        match connected {
-            Ok(connected) => break connected,
-            Err(e) => {
-                assert!(Instant::now() < deadline, "no live server on port {port}: {e}");
-                assert!(
-                    run.0.try_wait().unwrap().is_none(),
-                    "the run ended before a client could join"
-                );
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-        }
-    };
+    // Its 55 s of simulated time in about 3 s, on any machine.
+    let mut run = live_run(&dir, port, "20");
+    let (mut socket, response) = first_client(&mut run, port).await;
     assert_eq!(response.headers()["Sec-WebSocket-Protocol"], "foxglove.websocket.v1");
 
     let mut channels: Vec<Value> = Vec::new();

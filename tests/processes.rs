@@ -8,8 +8,9 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, assert_none_left, assert_same_run, child_of, config, descendants, exited, failure, kill, lanes, listening,
-    paper, processes, run_in_process, scratch, summary, wait_for_text, wait_until_simulated, Launch, Reaper,
+    alive, arrivals, assert_none_left, assert_same_run, child_of, config, descendants, exited, failure, kill, lanes,
+    listening, paper, pid_of, processes, run_in_process, scratch, stop_the_planner, summary, wait_for_text,
+    wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
 };
 
 #[test]
@@ -88,12 +89,7 @@ fn a_medusa_fleet_and_a_mixed_fleet_run_the_same_as_processes() {
             "{header}"
         );
         let s = launch.summary();
-        let arrivals: Vec<f64> = s["vehicles"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v["arrival_time"].as_f64().unwrap())
-            .collect();
+        let arrivals = arrivals(&s);
         eprintln!("{name}: arrivals {arrivals:?}, error {}", s["max_coordination_error"]);
         assert_none_left(&s);
     }
@@ -701,17 +697,6 @@ fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicl
     assert_none_left(&s);
 }
 
-/// The pid of the process under `root` whose arguments `matches` (`what` it is, for the panic).
-fn pid_of(root: u32, what: &str, matches: impl Fn(&[&[u8]]) -> bool) -> u32 {
-    descendants(root)
-        .into_iter()
-        .find(|pid| {
-            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-            matches(&cmdline.split(|b| *b == 0).collect::<Vec<_>>())
-        })
-        .unwrap_or_else(|| panic!("{what} runs"))
-}
-
 /// The pid of `tcpf agent --id <id>` under a launch.
 fn agent_pid(launch: &Launch, id: u32) -> u32 {
     let id = id.to_string();
@@ -846,21 +831,8 @@ fn a_lockstep_run_goes_on_without_its_planner_once_it_runs() {
     let slow = ["--set", "mission.control_period=0.002", "--set", "comms.period=0.1"];
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &slow);
     wait_until_simulated(&dir.join("p"), 2.0);
-    kill(
-        "-TERM",
-        pid_of(launch.child.id(), "the planner", |args| {
-            args.get(1) == Some(&&b"planner"[..])
-        }),
-    );
-    let status = launch.wait(Duration::from_secs(120));
-    let s = launch.summary();
-    assert!(status.success(), "{s}");
-    assert_eq!(s["completed"], true, "{s}");
-    let warning = s["warnings"][0].as_str().unwrap_or_default();
-    assert!(
-        warning.starts_with("the planner exited (code 130) after serving the paths"),
-        "{s}"
-    );
+    stop_the_planner(&launch);
+    let s = went_on_without_its_planner(&mut launch, Duration::from_secs(120));
     run_in_process(&paper("b-current"), &dir.join("i"), &slow);
     assert_same_run(&dir.join("p"), &dir.join("i"));
     assert_none_left(&s);

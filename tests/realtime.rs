@@ -9,25 +9,13 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    assert_none_left, config, descendants, failure, kill, listening, paper, run_in_process, scratch, summary, timing,
-    wait_until_simulated, without_command, Launch, Reaper,
+    arrivals, assert_none_left, config, descendants, failure, kill, listening, paper, run_in_process, scratch,
+    stop_the_planner, summary, timing, wait_until_simulated, went_on_without_its_planner, without_command, Launch,
+    Reaper,
 };
 use serde_json::Value;
 
 /// The arrival times of a run's vehicles, in id order.
-fn arrivals(s: &Value) -> Vec<f64> {
-    s["vehicles"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| {
-            v["arrival_time"]
-                .as_f64()
-                .unwrap_or_else(|| panic!("vehicle {} did not arrive", v["id"]))
-        })
-        .collect()
-}
-
 /// The pid of the agent of vehicle `id` under `root`.
 fn agent_pid(root: u32, id: u32) -> u32 {
     let deadline = Instant::now() + Duration::from_secs(20);
@@ -47,20 +35,26 @@ fn agent_pid(root: u32, id: u32) -> u32 {
     }
 }
 
-#[test]
-fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_timing() {
-    let dir = scratch("scale-10");
-    let mission = paper("b-current");
-    run_in_process(&mission, &dir.join("lockstep"), &[]);
+/// `mission` in-process into `dir/lockstep`, then as processes in realtime at ×10 into
+/// `dir/realtime`: both summaries, and what the realtime run printed.
+fn beside_lockstep(mission: &str, dir: &Path) -> (Value, Value, String) {
+    run_in_process(mission, &dir.join("lockstep"), &[]);
     let out = dir.join("realtime");
     let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(["run", &mission, "--clock", "realtime", "--time-scale", "10"])
+        .args(["run", mission, "--clock", "realtime", "--time-scale", "10"])
         .args(["--out", out.to_str().unwrap()])
         .output()
         .unwrap();
-    let printed = String::from_utf8_lossy(&o.stdout);
+    let printed = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(o.status.success(), "{printed}{}", String::from_utf8_lossy(&o.stderr));
-    let (lockstep, realtime) = (summary(&dir.join("lockstep")), summary(&out));
+    (summary(&dir.join("lockstep")), summary(&out), printed)
+}
+
+#[test]
+fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_timing() {
+    let dir = scratch("scale-10");
+    let (lockstep, realtime, printed) = beside_lockstep(&paper("b-current"), &dir);
+    let out = dir.join("realtime");
     assert_eq!(realtime["clock"], "realtime");
     assert_eq!(realtime["time_scale"], 10.0);
     assert_eq!(
@@ -107,16 +101,8 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
 #[test]
 fn a_medusa_fleet_in_realtime_arrives_as_in_lockstep() {
     let dir = scratch("medusa-realtime");
-    let mission = config("medusa/b-current");
-    run_in_process(&mission, &dir.join("lockstep"), &[]);
+    let (lockstep, realtime, _) = beside_lockstep(&config("medusa/b-current"), &dir);
     let out = dir.join("realtime");
-    let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(["run", &mission, "--clock", "realtime", "--time-scale", "10"])
-        .args(["--out", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (lockstep, realtime) = (summary(&dir.join("lockstep")), summary(&out));
     eprintln!(
         "MEDUSA at ×10: arrivals {:?} against lockstep's {:?}",
         arrivals(&realtime),
@@ -295,17 +281,6 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
     }
 }
 
-/// The pid of the planner under `root`.
-fn planner_pid(root: u32) -> u32 {
-    descendants(root)
-        .into_iter()
-        .find(|pid| {
-            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-            cmdline.split(|&b| b == 0).nth(1) == Some(&b"planner"[..])
-        })
-        .expect("the planner runs")
-}
-
 /// A testbed's shore planner is no vehicle: stopped once the fleet runs, the run goes on to its
 /// end and says so (it failed, "the planner exited"). A new agent that then needs its path is
 /// told why it cannot have one.
@@ -315,7 +290,7 @@ fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why()
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
     wait_until_simulated(&out, 5.0);
-    kill("-TERM", planner_pid(launch.child.id()));
+    stop_the_planner(&launch);
     launch.wait_for(
         "logs/agent-1.log",
         "the planner is gone; going on with the path it served",
@@ -333,15 +308,7 @@ fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why()
         said.contains("no path from the planner for vehicle(s) [2]: no planner of this mission is on the bus"),
         "{said}"
     );
-    let status = launch.wait(Duration::from_secs(60));
-    let s = launch.summary();
-    assert!(status.success(), "{s}");
-    assert_eq!(s["completed"], true, "{s}");
-    let warning = s["warnings"][0].as_str().unwrap_or_default();
-    assert!(
-        warning.starts_with("the planner exited (code 130) after serving the paths"),
-        "{s}"
-    );
+    let s = went_on_without_its_planner(&mut launch, Duration::from_secs(60));
     let a = arrivals(&s);
     assert!((a[0] - a[1]).abs() < 0.5, "arrivals {a:?}");
     assert_none_left(&s);

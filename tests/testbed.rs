@@ -9,7 +9,9 @@ use std::process::Command;
 use std::time::Duration;
 
 use common::testbed::Testbed;
-use common::{assert_same_run, paper, run_in_process, scratch, summary, timing, wait_until_simulated, without_command};
+use common::{
+    arrivals, assert_same_run, paper, run_in_process, scratch, summary, timing, wait_until_simulated, without_command,
+};
 
 const TCPF: &str = env!("CARGO_BIN_EXE_tcpf");
 const PORT: u16 = 7447;
@@ -334,12 +336,7 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
     let out = finish(&mut bed, &dir, recorder);
     let s = summary(&out);
     assert_eq!(s["completed"], true, "both arrive: {}", s["vehicles"]);
-    let arrivals: Vec<f64> = s["vehicles"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v["arrival_time"].as_f64().unwrap())
-        .collect();
+    let arrivals = arrivals(&s);
     assert!(
         (arrivals[0] - arrivals[1]).abs() < 0.5,
         "coordination recovers after the outage: arrivals {arrivals:?}"

@@ -400,7 +400,9 @@ async fn unstarted(
     );
     // The (empty) telemetry, whose start writes a provisional summary; then, whatever became of
     // it, the summary that replaces that one; then the report made of both.
-    let telemetry = dir.telemetry(mission, plan, Mode::Processes, None).and_then(|t| t.finish());
+    let telemetry = dir
+        .telemetry(mission, plan, Mode::Processes, None)
+        .and_then(|t| t.finish());
     let written = dir
         .write_summary(&summary)
         .and(telemetry)

@@ -227,36 +227,46 @@ mod tests {
         }
     }
 
+    /// A path point, errors and a current at random, for the property tests of Lemma 2.
+    fn random_state(rng: &mut ChaCha8Rng) -> (PathPoint, Errors, Vec2) {
+        let point = PathPoint {
+            position: Vec2::zeros(),
+            tangent: Vec2::zeros(),
+            second: Vec2::zeros(),
+            heading: uniform(rng, -3.0, 3.0),
+            curvature: uniform(rng, -2.0, 2.0),
+            speed: uniform(rng, 0.05, 1.5),
+        };
+        let e = Errors::new(
+            uniform(rng, -5.0, 5.0),
+            uniform(rng, -5.0, 5.0),
+            uniform(rng, -3.1, 3.1),
+        );
+        let current = Vec2::new(uniform(rng, -0.3, 0.3), uniform(rng, -0.3, 0.3));
+        (point, e, current)
+    }
+
+    /// V̇ by the chain rule, from eq. 21's rates.
+    fn chain_rule(g: &Gains, e: &Errors, [xd, yd, pd]: [f64; 3]) -> f64 {
+        let z = zeta(g, e.y_e);
+        e.x_e * xd + e.y_e * yd + (e.psi_e - z) * (pd - dzeta(g, e.y_e) * yd) / g.k3
+    }
+
     #[test]
     fn lyapunov_derivative_matches_lemma_2_at_random_states() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         for _ in 0..20_000 {
-            let point = PathPoint {
-                position: Vec2::zeros(),
-                tangent: Vec2::zeros(),
-                second: Vec2::zeros(),
-                heading: uniform(&mut rng, -3.0, 3.0),
-                curvature: uniform(&mut rng, -2.0, 2.0),
-                speed: uniform(&mut rng, 0.05, 1.5),
-            };
-            let e = Errors::new(
-                uniform(&mut rng, -5.0, 5.0),
-                uniform(&mut rng, -5.0, 5.0),
-                uniform(&mut rng, -3.1, 3.1),
-            );
+            let (point, e, current) = random_state(&mut rng);
             let g = Gains {
                 k2: uniform(&mut rng, 0.1, 1.0),
                 ..G
             };
-            let current = Vec2::new(uniform(&mut rng, -0.3, 0.3), uniform(&mut rng, -0.3, 0.3));
             let v = uniform(&mut rng, 0.05, 3.0);
             let beta_dot = uniform(&mut rng, -0.5, 0.5);
             let law = control(&g, &point, &e, v, v, current, beta_dot);
-            let [xd, yd, pd] = error_rates(&point, &e, law.v, law.r, law.gamma_dot, current, beta_dot);
-            // Chain rule on V with eq. 21's rates, against the closed form.
-            let z = zeta(&g, e.y_e);
-            let chain = e.x_e * xd + e.y_e * yd + (e.psi_e - z) * (pd - dzeta(&g, e.y_e) * yd) / g.k3;
-            let closed = lyapunov_rate(&g, &e, v, current);
+            let rates = error_rates(&point, &e, law.v, law.r, law.gamma_dot, current, beta_dot);
+            // The chain rule on V with eq. 21's rates, against the closed form.
+            let (chain, closed) = (chain_rule(&g, &e, rates), lyapunov_rate(&g, &e, v, current));
             assert!(
                 (chain - closed).abs() < 1e-9 * (1.0 + closed.abs()),
                 "{e:?} {chain} vs {closed}"
@@ -270,27 +280,12 @@ mod tests {
         // driven by that speed, V̇ is Lemma 2's at that speed, whatever the command.
         let mut rng = ChaCha8Rng::seed_from_u64(22);
         for _ in 0..5_000 {
-            let point = PathPoint {
-                position: Vec2::zeros(),
-                tangent: Vec2::zeros(),
-                second: Vec2::zeros(),
-                heading: uniform(&mut rng, -3.0, 3.0),
-                curvature: uniform(&mut rng, -2.0, 2.0),
-                speed: uniform(&mut rng, 0.05, 1.5),
-            };
-            let e = Errors::new(
-                uniform(&mut rng, -5.0, 5.0),
-                uniform(&mut rng, -5.0, 5.0),
-                uniform(&mut rng, -3.1, 3.1),
-            );
-            let current = Vec2::new(uniform(&mut rng, -0.3, 0.3), uniform(&mut rng, -0.3, 0.3));
+            let (point, e, current) = random_state(&mut rng);
             let (asked, measured) = (uniform(&mut rng, 0.05, 3.0), uniform(&mut rng, 0.05, 3.0));
             let law = control(&G, &point, &e, asked, measured, current, 0.0);
             assert_eq!(law.v, asked, "the command is the reference");
-            let [xd, yd, pd] = error_rates(&point, &e, measured, law.r, law.gamma_dot, current, 0.0);
-            let z = zeta(&G, e.y_e);
-            let chain = e.x_e * xd + e.y_e * yd + (e.psi_e - z) * (pd - dzeta(&G, e.y_e) * yd) / G.k3;
-            let closed = lyapunov_rate(&G, &e, measured, current);
+            let rates = error_rates(&point, &e, measured, law.r, law.gamma_dot, current, 0.0);
+            let (chain, closed) = (chain_rule(&G, &e, rates), lyapunov_rate(&G, &e, measured, current));
             assert!(
                 (chain - closed).abs() < 1e-9 * (1.0 + closed.abs()),
                 "{chain} vs {closed}"

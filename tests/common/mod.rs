@@ -231,6 +231,54 @@ pub fn assert_same_run(processes: &Path, in_process: &Path) {
     assert_eq!(sb["mode"], "in-process");
 }
 
+/// The pid of the process under `root` whose arguments `matches` (`what` it is, for the panic).
+pub fn pid_of(root: u32, what: &str, matches: impl Fn(&[&[u8]]) -> bool) -> u32 {
+    descendants(root)
+        .into_iter()
+        .find(|pid| {
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            matches(&cmdline.split(|b| *b == 0).collect::<Vec<_>>())
+        })
+        .unwrap_or_else(|| panic!("{what} runs"))
+}
+
+/// Stops the planner of a launch with SIGTERM.
+pub fn stop_the_planner(launch: &Launch) {
+    let planner = pid_of(launch.child.id(), "the planner", |args| {
+        args.get(1) == Some(&&b"planner"[..])
+    });
+    kill("-TERM", planner);
+}
+
+/// A launch whose planner was stopped once its fleet ran: it completes, and its summary warns
+/// that the planner exited. Returns the summary.
+pub fn went_on_without_its_planner(launch: &mut Launch, limit: Duration) -> Value {
+    let status = launch.wait(limit);
+    let s = launch.summary();
+    assert!(status.success(), "{s}");
+    assert_eq!(s["completed"], true, "{s}");
+    let warning = s["warnings"][0].as_str().unwrap_or_default();
+    assert!(
+        warning.starts_with("the planner exited (code 130) after serving the paths"),
+        "{s}"
+    );
+    s
+}
+
+/// Every vehicle's arrival time in a summary, in order; a vehicle that did not arrive fails.
+pub fn arrivals(s: &Value) -> Vec<f64> {
+    s["vehicles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| {
+            v["arrival_time"]
+                .as_f64()
+                .unwrap_or_else(|| panic!("vehicle {} did not arrive", v["id"]))
+        })
+        .collect()
+}
+
 pub fn assert_none_left(summary: &Value) {
     for c in summary["children"].as_array().unwrap() {
         let pid = c["pid"].as_u64().unwrap() as u32;
