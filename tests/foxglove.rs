@@ -247,8 +247,9 @@ fn free_port() -> u16 {
 async fn live_serves_the_fleet_over_foxglove_websocket() {
     let dir = scratch("live");
     let port = free_port();
-    // Its 55 s of simulated time in about 3 s, on any machine.
-    let mut run = live_run(&dir, port, "20");
+    // Its 55 s of simulated time in about 11 s, on any machine: long enough for a client to
+    // join and subscribe on a loaded one (at 3 s the run once ended first).
+    let mut run = live_run(&dir, port, "5");
     let (mut socket, response) = first_client(&mut run, port).await;
     assert_eq!(response.headers()["Sec-WebSocket-Protocol"], "foxglove.websocket.v1");
 

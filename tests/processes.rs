@@ -1125,6 +1125,42 @@ fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
 /// A second agent of one vehicle, or a second world of one fleet, is refused (exit 2): both
 /// would steer the same vehicles. Every role a client of one router, as on a testbed: the router
 /// knows every token (peers that have not yet met every other peer may not).
+/// Waits (30 s at most) until the router at `endpoint` knows every liveliness token ending in
+/// one of `wanted`, asking it as a client.
+fn router_knows(endpoint: &str, wanted: &[&str]) {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    runtime.block_on(async {
+        let mut config = zenoh::Config::default();
+        for (key, value) in [
+            ("mode", "\"client\"".to_string()),
+            ("connect/endpoints", format!("[\"{endpoint}\"]")),
+            ("scouting/multicast/enabled", "false".to_string()),
+        ] {
+            config.insert_json5(key, &value).unwrap();
+        }
+        let session = zenoh::open(config).await.unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let replies = session
+                .liveliness()
+                .get("tcpf/paper-b-current/alive/**")
+                .timeout(Duration::from_secs(5))
+                .await
+                .unwrap();
+            let mut known = Vec::new();
+            while let Ok(reply) = replies.recv_async().await {
+                known.extend(reply.result().ok().map(|s| s.key_expr().to_string()));
+            }
+            if wanted.iter().all(|w| known.iter().any(|k| k.ends_with(w))) {
+                break;
+            }
+            assert!(Instant::now() < deadline, "the router knows only {known:?}");
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        session.close().await.unwrap();
+    });
+}
+
 #[test]
 fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
     let dir = scratch("second");
@@ -1140,8 +1176,12 @@ fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
         client(&["agent", &mission, "--id", "1"], log("agent-1.log")),
         client(&["agent", &mission, "--id", "2"], log("agent-2.log")),
     ]);
-    // The world waits for its recorder: everyone else is there, nothing runs yet.
+    // The world waits for its recorder: everyone else is there, nothing runs yet; and the router
+    // knows every role's token (the world logs that it saw its agents before the declaration of
+    // its own token has reached the router, and on a loaded machine a second world asked in
+    // between).
     wait_for_text(&dir.join("world.log"), "(2 of 2)", Duration::from_secs(30));
+    router_knows(&endpoint, &["alive/world/0", "alive/agent/1", "alive/agent/2"]);
     let mut second = Fleet(vec![
         client(&["agent", &mission, "--id", "2"], Stdio::piped()),
         client(&["world", &mission], Stdio::piped()),

@@ -229,6 +229,10 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let mut shutdown = Shutdown::new()?;
     let session = zenoh.open_unless(&mut shutdown, options.startup_timeout).await?;
     let rejected = Rejected::default();
+    // Before this session follows liveliness: a liveliness query from a session with a liveliness
+    // subscriber of its own at times answers nothing (Zenoh 1.10), and a second agent of a
+    // running vehicle then found nobody holding its id.
+    alone(&session, &keys, Role::Agent, id, &mission.mission.name).await?;
     let (presence_subscriber, mut presence) = presence(&session, &keys).await?;
     let ids = [id];
     let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
@@ -337,7 +341,6 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         check_clock(mission, clock)?;
         tracing::info!("agent {id}: the run is under way (tick {}); rejoining it", clock.tick);
     }
-    alone(&session, &keys, Role::Agent, id, &mission.mission.name).await?;
     let token = session
         .liveliness()
         .declare_token(keys.alive(Role::Agent, id))

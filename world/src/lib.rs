@@ -249,6 +249,10 @@ async fn serve(
     let digest = mission.digest();
     // What a role on another host whose mission is not this one is told to compare with.
     tracing::info!("world: mission {} (digest {digest:016x})", mission.mission.name);
+    // Before this session follows liveliness: a liveliness query from a session with a liveliness
+    // subscriber of its own at times answers nothing (Zenoh 1.10), and a second world then found
+    // no world running and drove the fleet.
+    alone(session, keys, Role::World, 0, &mission.mission.name).await?;
     let (_presence, mut presence) = presence(session, keys).await?;
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
@@ -305,7 +309,6 @@ async fn serve(
         }
         (subscribers, Inbound::Fed { stepper, ends })
     };
-    alone(session, keys, Role::World, 0, &mission.mission.name).await?;
     let token = session
         .liveliness()
         .declare_token(keys.alive(Role::World, 0))
