@@ -10,8 +10,7 @@ use std::time::{Duration, Instant};
 
 use common::{
     arrivals, assert_none_left, config, descendants, failure, kill, listening, paper, run_in_process, scratch,
-    stop_the_planner, summary, timing, wait_until_simulated, went_on_without_its_planner, without_command, Launch,
-    Reaper,
+    stop_the_planner, summary, timing, wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -282,19 +281,28 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
 }
 
 /// A testbed's shore planner is no vehicle: stopped once the fleet runs, the run goes on to its
-/// end and says so (it failed, "the planner exited"). A new agent that then needs its path is
-/// told why it cannot have one.
+/// end and says so (it failed, "the planner exited"). An agent started again afterwards is told
+/// why it cannot have its path, and only its vehicle is missing at the end.
 #[test]
 fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why() {
     let dir = scratch("planner-gone");
     let out = dir.join("run");
-    let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
+    let settings = [
+        "--clock",
+        "realtime",
+        "--time-scale",
+        "5",
+        "--set",
+        "mission.max_duration=70",
+    ];
+    let mut launch = Launch::start(&paper("b-current"), &out, &settings);
     wait_until_simulated(&out, 5.0);
     stop_the_planner(&launch);
     launch.wait_for(
         "logs/agent-1.log",
         "the planner is gone; going on with the path it served",
     );
+    kill("-9", agent_pid(launch.child.id(), 2));
     let again = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .arg("agent")
         .arg(out.join("mission.toml"))
@@ -308,9 +316,18 @@ fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why()
         said.contains("no path from the planner for vehicle(s) [2]: no planner of this mission is on the bus"),
         "{said}"
     );
-    let s = went_on_without_its_planner(&mut launch, Duration::from_secs(60));
-    let a = arrivals(&s);
-    assert!((a[0] - a[1]).abs() < 0.5, "arrivals {a:?}");
+    let status = launch.wait(Duration::from_secs(60));
+    let s = launch.summary();
+    assert_eq!(status.code(), Some(1), "{s}");
+    let warning = s["warnings"][0].as_str().unwrap_or_default();
+    assert!(
+        warning.starts_with("the planner exited (code 130) after serving the paths"),
+        "{s}"
+    );
+    // The run went on to its end: vehicle 1 arrived, and only vehicle 2, lost with its agent, is
+    // what the run failed for.
+    assert!(s["vehicles"][0]["arrival_time"].as_f64().is_some(), "{s}");
+    assert_eq!(failure(&s), "vehicle 2 lost", "{s}");
     assert_none_left(&s);
 }
 

@@ -305,6 +305,18 @@ async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
                         tracing::warn!("live view: a client fell behind and lost {n} messages (more are counted at its end)");
                     }
                     lost += n;
+                    // A latched message (a planned path, sent once) may have been among them: it
+                    // goes again to whoever is subscribed to it.
+                    let latched: Vec<(u32, Data)> = {
+                        let latched = shared.latched.lock().expect("no panic while held");
+                        subscriptions
+                            .iter()
+                            .filter_map(|(channel, &id)| latched.get(channel).map(|m| (id, m.clone())))
+                            .collect()
+                    };
+                    for (subscription, m) in latched {
+                        socket.send(Message::binary(frame(subscription, &m))).await?;
+                    }
                 }
                 Err(broadcast::error::RecvError::Closed) => break,
             },
