@@ -345,11 +345,12 @@ impl RealtimeWorld {
         }
         // Where the world simulates the vehicle, it checks the arrival against where it is; a
         // vehicle another program plays is taken at its γ.
-        let arrived = match self.bodies.iter().position(|&b| b == n) {
-            Some(b) => self.paths[b].arrived(command.gamma, self.states[b].position),
-            None => command.gamma >= self.t_f,
-        };
-        self.arrived[n] |= arrived;
+        self.arrived[n] |= command.gamma >= self.t_f
+            && self
+                .bodies
+                .iter()
+                .position(|&b| b == n)
+                .is_none_or(|b| self.paths[b].arrived(command.gamma, self.states[b].position));
         self.held[n] = Some(command);
         Ok(())
     }

@@ -11,11 +11,17 @@ use crate::path::{GeneralizedPath, Vec2};
 #[derive(Debug, Clone)]
 struct Body {
     id: u32,
-    position: Vec2,
-    heading: f64,
     lost: bool,
-    /// The dynamic vehicle, whose plant holds the position and heading; `None` for a kinematic one.
-    medusa: Option<Box<Medusa>>,
+    vehicle: Vehicle,
+}
+
+/// What the world integrates of a body.
+#[derive(Debug, Clone)]
+enum Vehicle {
+    /// MODEL §2: position and body heading ψ_B.
+    Kinematic { position: Vec2, heading: f64 },
+    /// MODEL D22: its plant holds the position and heading.
+    Medusa(Box<Medusa>),
 }
 
 #[derive(Debug, Clone)]
@@ -50,10 +56,13 @@ impl World {
             let (s, c) = p0.heading.sin_cos();
             let position = p0.position + Vec2::new(c * offset[0] - s * offset[1], s * offset[0] + c * offset[1]);
             let model = mission.vehicle_model(*id);
-            let medusa = match model.kind {
-                VehicleKind::Kinematic => None,
+            let vehicle = match model.kind {
+                VehicleKind::Kinematic => Vehicle::Kinematic {
+                    position,
+                    heading: follow::wrap(p0.heading + offset[2] - world.sideslip(0.0).0),
+                },
                 // D22e: ψ along v₀ (no side-slip at rest in sway), u = |v₀|.
-                VehicleKind::Medusa => Some(Box::new(Medusa::new(
+                VehicleKind::Medusa => Vehicle::Medusa(Box::new(Medusa::new(
                     model,
                     position,
                     follow::wrap(p0.heading + offset[2]),
@@ -61,13 +70,10 @@ impl World {
                     world.dt,
                 ))),
             };
-            let heading = follow::wrap(p0.heading + offset[2] - world.sideslip(0.0).0);
             world.bodies.push(Body {
                 id: *id,
-                position,
-                heading,
                 lost: false,
-                medusa,
+                vehicle,
             });
         }
         world
@@ -111,20 +117,20 @@ impl World {
         let t = self.time();
         let (beta, beta_dot) = self.sideslip(t);
         out.clear();
-        out.extend(self.bodies.iter().map(|b| match &b.medusa {
-            None => State {
+        out.extend(self.bodies.iter().map(|b| match &b.vehicle {
+            Vehicle::Kinematic { position, heading } => State {
                 version: PROTOCOL_VERSION,
                 tick: self.tick,
                 id: b.id,
                 t,
-                position: b.position.into(),
-                heading: b.heading,
+                position: (*position).into(),
+                heading: *heading,
                 sideslip: beta,
                 sideslip_rate: beta_dot,
                 current: self.current.into(),
                 dynamics: None,
             },
-            Some(m) => {
+            Vehicle::Medusa(m) => {
                 let s = &m.plant;
                 State {
                     version: PROTOCOL_VERSION,
@@ -165,29 +171,32 @@ impl World {
             if command.is_some_and(|c| c.hold) {
                 continue;
             }
-            if let Some(m) = &mut b.medusa {
-                let reference = command.map(|c| Reference {
-                    speed: c.v,
-                    yaw_rate: c.r,
-                    accel: c.accel,
-                });
-                m.step(reference.as_ref(), current, dt);
-                continue;
-            }
+            let (position, heading) = match &mut b.vehicle {
+                Vehicle::Kinematic { position, heading } => (position, heading),
+                Vehicle::Medusa(m) => {
+                    let reference = command.map(|c| Reference {
+                        speed: c.v,
+                        yaw_rate: c.r,
+                        accel: c.accel,
+                    });
+                    m.step(reference.as_ref(), current, dt);
+                    continue;
+                }
+            };
             let (v, r) = command.map_or((0.0, 0.0), |c| (c.v, c.r));
             // ṗ = v (cos ψ_F, sin ψ_F) + v_c (cos ψ_c, sin ψ_c), ψ_F = ψ_B + β(t), ψ̇_B = r.
             let f = |k: usize, heading: f64| {
                 let psi_f = beta.map_or(heading, |beta| heading + beta[k]);
                 Vec2::new(v * psi_f.cos(), v * psi_f.sin()) + current
             };
-            let h0 = b.heading;
+            let h0 = *heading;
             let k1 = f(0, h0);
             let k2 = f(1, h0 + 0.5 * dt * r);
             // The field depends on time and heading only, not on position, so k3 = k2.
             let k3 = k2;
             let k4 = f(2, h0 + dt * r);
-            b.position += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-            b.heading = follow::wrap(h0 + dt * r);
+            *position += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            *heading = follow::wrap(h0 + dt * r);
         }
         self.tick += 1;
     }

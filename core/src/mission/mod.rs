@@ -495,7 +495,9 @@ impl Mission {
 
     /// Whether any vehicle of the fleet is dynamic: then telemetry has the dynamic columns.
     pub fn has_dynamic_vehicles(&self) -> bool {
-        self.vehicles.iter().any(|v| self.vehicle_model(v.id).is_dynamic())
+        self.vehicles
+            .iter()
+            .any(|v| v.vehicle_model.as_ref().unwrap_or(&self.vehicle_model).is_dynamic())
     }
 
     /// The undirected communication graph: each vehicle's neighbours in ascending id order.
