@@ -5,7 +5,7 @@ use std::process::Output;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{config, exited, free_endpoint, kill, paper, scratch, tcpf, text, Reaper};
+use common::{config, exited, fleet, free_endpoint, kill, paper, scratch, tcpf, text, Reaper};
 
 #[test]
 fn plan_json_has_the_contract_fields() {
@@ -737,6 +737,7 @@ fn interrupt_an_in_process_run(signal: &str) {
 
 #[test]
 fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
+    let _fleet = fleet();
     for (args, signal) in [
         (vec!["agent", "--id", "1"], "-TERM"),
         (vec!["world"], "-TERM"),
@@ -774,6 +775,7 @@ fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
 /// is not this host's.
 #[test]
 fn a_role_that_cannot_listen_says_why() {
+    let _fleet = fleet();
     let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let busy = format!("tcp/{}", taken.local_addr().unwrap());
     for (endpoint, hint) in [
@@ -792,6 +794,7 @@ fn a_role_that_cannot_listen_says_why() {
 
 #[test]
 fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
+    let _fleet = fleet();
     let dir = scratch("no-world");
     let out = dir.join("runs").join("p");
     // Nobody listens there: the world of a mistyped endpoint, or of another mission.
@@ -842,6 +845,7 @@ fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
 /// invocation; the figures themselves vary with the machine, their presence and sense do not.
 #[test]
 fn bench_prints_every_figure_beside_its_baseline() {
+    let _fleet = fleet();
     let o = tcpf(&["bench", &paper("b-current"), "--count", "50"]);
     assert!(o.status.success(), "{}", text(&o));
     let out = String::from_utf8_lossy(&o.stdout).to_string();
@@ -914,6 +918,7 @@ fn catches_sigint(pid: u32) -> bool {
 /// role stops at Ctrl-C instead, exit 130, and says so.
 #[test]
 fn roles_waiting_for_their_router_stop_at_ctrl_c() {
+    let _fleet = fleet();
     let mission = paper("b-current");
     let client = format!("{}/configs/zenoh/shore.json5", env!("CARGO_MANIFEST_DIR"));
     // A listener that never accepts: connections wait in its backlog, Zenoh's handshake is never
@@ -970,6 +975,7 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
 /// startup timeout, not at the config file's connect timeout (a minute in vehicle.json5).
 #[test]
 fn a_role_whose_router_never_answers_says_where_and_gives_up_at_its_startup_timeout() {
+    let _fleet = fleet();
     // A port that takes connections and never speaks Zenoh.
     let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let endpoint = format!("tcp/{}", silent.local_addr().unwrap());
@@ -1131,6 +1137,7 @@ fn a_report_of_a_damaged_run_directory_says_what_is_wrong() {
 /// connect where the log says.
 #[test]
 fn a_bare_router_names_the_port_it_got() {
+    let _fleet = fleet();
     use std::io::{BufRead, BufReader};
     let mut router = Reaper(
         std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
@@ -1178,6 +1185,7 @@ fn a_bare_router_names_the_port_it_got() {
 /// and no scratch directory, whether it was timing round trips or running the fleet.
 #[test]
 fn an_interrupted_bench_prints_no_figures_and_leaves_nothing() {
+    let _fleet = fleet();
     use std::io::Read;
     let dir = scratch("bench-interrupted");
     let mission = common::lanes(&dir, 3);

@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 mod common;
-use common::{arrivals, config, kill, scratch, tcpf, Reaper};
+use common::{arrivals, config, fleet, kill, scratch, tcpf, Reaper};
 
 fn ok(o: Output) -> Output {
     assert!(
@@ -25,6 +25,7 @@ fn json(file: &Path) -> Value {
 
 #[test]
 fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
+    let _fleet = fleet();
     let dir = scratch("sweep");
     let out = dir.join("sweep");
     ok(tcpf(&[
@@ -96,6 +97,7 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
 
 #[test]
 fn a_huge_sweep_streams_its_rows_in_bounded_memory_and_keeps_them_when_interrupted() {
+    let _fleet = fleet();
     let out = scratch("sweep-huge").join("sweep");
     let mut sweep = Reaper(
         Command::new(env!("CARGO_BIN_EXE_tcpf"))
@@ -155,6 +157,7 @@ fn a_huge_sweep_streams_its_rows_in_bounded_memory_and_keeps_them_when_interrupt
 
 #[test]
 fn any_key_can_be_swept() {
+    let _fleet = fleet();
     let dir = scratch("param");
     let o = ok(tcpf(&[
         "sweep",
@@ -190,6 +193,7 @@ fn any_key_can_be_swept() {
 
 #[test]
 fn a_threshold_sweep_shows_messages_traded_for_coordination() {
+    let _fleet = fleet();
     let dir = scratch("threshold");
     let o = ok(tcpf(&[
         "sweep",
@@ -260,6 +264,7 @@ fn chromium(args: &[&str]) -> Output {
 
 #[test]
 fn the_report_renders_in_a_real_browser_with_every_plot() {
+    let _fleet = fleet();
     let dir = scratch("report");
     let run = dir.join("run");
     ok(tcpf(&[
@@ -313,6 +318,7 @@ fn the_report_renders_in_a_real_browser_with_every_plot() {
 
 #[test]
 fn contradictory_fault_settings_are_bad_input() {
+    let _fleet = fleet();
     let o = tcpf(&["plan", &config("outage"), "--set", "comms.delay=-1"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("comms.delay"));
@@ -324,6 +330,7 @@ fn contradictory_fault_settings_are_bad_input() {
 /// before anything is written.
 #[test]
 fn a_sweep_says_what_it_could_not_average() {
+    let _fleet = fleet();
     let dir = scratch("sweep-says");
     let short = dir.join("short");
     let o = ok(tcpf(&[
@@ -412,6 +419,7 @@ fn a_sweep_says_what_it_could_not_average() {
 /// other set, the table is whole only with both, in every run.
 #[test]
 fn a_table_absent_from_the_file_can_be_swept_key_by_key() {
+    let _fleet = fleet();
     let dir = scratch("sweep-burst");
     ok(tcpf(&[
         "sweep",
@@ -441,6 +449,7 @@ fn a_table_absent_from_the_file_can_be_swept_key_by_key() {
 /// One value is one point, and a line through one point draws nothing: it is marked.
 #[test]
 fn a_sweep_of_one_value_plots_its_point() {
+    let _fleet = fleet();
     let dir = scratch("sweep-one");
     ok(tcpf(&[
         "sweep",

@@ -12,7 +12,7 @@ use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::tungstenite::Message;
 
 mod common;
-use common::{paper, scratch, Reaper};
+use common::{fleet, paper, scratch, Reaper};
 
 const READ_MCAP: &str = r##"
 import json, sys
@@ -35,6 +35,7 @@ print(json.dumps(out))
 
 #[test]
 fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
+    let _fleet = fleet();
     let dir = scratch("mcap");
     let unix = || {
         std::time::SystemTime::now()
@@ -106,6 +107,7 @@ fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
 /// each, and none for the kinematic one.
 #[test]
 fn run_mcap_holds_a_dynamic_vehicles_thrusters() {
+    let _fleet = fleet();
     let dir = scratch("mcap-dynamic");
     let status = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args([
@@ -201,6 +203,7 @@ async fn first_client(
 /// 2.3 GB, and 38 under a 4 GB limit aborted it mid-run without a summary).
 #[tokio::test(flavor = "multi_thread")]
 async fn the_live_view_bounds_its_clients_and_what_they_send() {
+    let _fleet = fleet();
     let dir = scratch("live-bounds");
     let port = free_port();
     // 55 s of simulated time in about 11 s: long enough for every client below.
@@ -245,6 +248,7 @@ fn free_port() -> u16 {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn live_serves_the_fleet_over_foxglove_websocket() {
+    let _fleet = fleet();
     let dir = scratch("live");
     let port = free_port();
     // Its 55 s of simulated time in about 11 s, on any machine: long enough for a client to
@@ -366,6 +370,7 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
 /// `--live` on port 0 serves on a port of the system's choosing, and says which.
 #[test]
 fn the_live_view_says_where_it_serves() {
+    let _fleet = fleet();
     let dir = scratch("live-port");
     let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args([

@@ -12,8 +12,8 @@ use zenoh::qos::CongestionControl;
 
 mod common;
 use common::{
-    assert_none_left, assert_same_run, descendants, paper, run_in_process, scratch, summary, wait_until_simulated,
-    Launch,
+    assert_none_left, assert_same_run, descendants, fleet, paper, run_in_process, scratch, summary,
+    wait_until_simulated, Launch,
 };
 
 const MISSION: &str = "paper-b-current";
@@ -101,6 +101,7 @@ fn samples() -> (State, Command, Gamma) {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
+    let _fleet = fleet();
     let dir = scratch("outsider");
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &SLOWER);
     let endpoint = endpoint(&launch);
@@ -349,6 +350,7 @@ async fn flood(config: PathBuf, sent: Arc<Mutex<u64>>) {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
+    let _fleet = fleet();
     let dir = scratch("flood");
     let mut quiet = Launch::start(&paper("b-current"), &dir.join("quiet"), &SLOWER);
     let baseline = peaks(&mut quiet, || {});
@@ -419,6 +421,7 @@ async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
 /// `past`, and the vehicles never arrived.
 #[tokio::test(flavor = "multi_thread")]
 async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrives_on_time() {
+    let _fleet = fleet();
     let dir = scratch("ahead");
     let realtime = ["--clock", "realtime", "--time-scale", "10"];
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &realtime);

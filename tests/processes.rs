@@ -8,13 +8,14 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, arrivals, assert_none_left, assert_same_run, child_of, config, descendants, exited, failure, kill, lanes,
-    listening, paper, pid_of, processes, run_in_process, scratch, stop_the_planner, summary, wait_for_text,
+    alive, arrivals, assert_none_left, assert_same_run, child_of, config, descendants, exited, failure, fleet, kill,
+    lanes, listening, paper, pid_of, processes, run_in_process, scratch, stop_the_planner, summary, wait_for_text,
     wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
 };
 
 #[test]
 fn processes_and_in_process_are_bit_identical() {
+    let _fleet = fleet();
     for (case, seed) in [
         ("a-nominal", "1"),
         ("b-current", "1"),
@@ -40,6 +41,7 @@ fn processes_and_in_process_are_bit_identical() {
 
 #[test]
 fn each_link_model_runs_the_same_as_processes() {
+    let _fleet = fleet();
     let ring5 = config("ring5");
     for (name, mission, extra) in [
         ("delay", paper("b-current"), &["--set", "comms.delay=2"][..]),
@@ -69,6 +71,7 @@ fn each_link_model_runs_the_same_as_processes() {
 
 #[test]
 fn a_medusa_fleet_and_a_mixed_fleet_run_the_same_as_processes() {
+    let _fleet = fleet();
     for (name, mission, extra) in [
         ("medusa", config("medusa/b-current"), &[][..]),
         (
@@ -97,6 +100,7 @@ fn a_medusa_fleet_and_a_mixed_fleet_run_the_same_as_processes() {
 
 #[test]
 fn every_role_runs_in_its_own_process() {
+    let _fleet = fleet();
     let dir = scratch("pids");
     let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
     assert!(launch.wait(Duration::from_secs(180)).success());
@@ -127,6 +131,7 @@ fn every_role_runs_in_its_own_process() {
 
 #[test]
 fn a_ring_of_five_completes() {
+    let _fleet = fleet();
     let mission = config("ring5");
     let dir = scratch("ring5");
     let mut launch = Launch::start(&mission, &dir.join("p"), &[]);
@@ -146,6 +151,7 @@ fn a_ring_of_five_completes() {
 
 #[test]
 fn a_fleet_of_ten_is_routed_by_its_world_and_every_process_reports() {
+    let _fleet = fleet();
     let dir = scratch("routed-by-the-world");
     let mission = lanes(&dir, 10);
     let out = dir.join("p");
@@ -175,6 +181,7 @@ fn a_fleet_of_ten_is_routed_by_its_world_and_every_process_reports() {
 
 #[test]
 fn an_interrupted_fleet_of_ten_hears_from_every_process() {
+    let _fleet = fleet();
     let dir = scratch("interrupted-ten");
     let mission = lanes(&dir, 10);
     // An agent that closed its session as soon as it had reported lost the report now and then
@@ -199,6 +206,7 @@ fn an_interrupted_fleet_of_ten_hears_from_every_process() {
 
 #[test]
 fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
+    let _fleet = fleet();
     // The launcher finds a free port, which the world binds: another process can take it in
     // between. Widen that moment (strace delays the world's exec by 2 s) and take the port.
     let dir = scratch("port-taken");
@@ -290,6 +298,7 @@ fn traced(strace: u32) -> u32 {
 /// go, and the run directory says why, as for a world that could not start.
 #[test]
 fn agents_that_cannot_be_started_fail_the_run_with_its_run_directory_written() {
+    let _fleet = fleet();
     let dir = scratch("agents-unstarted");
     // A copy of tcpf, removed while the world it started is held at its start: the launcher
     // cannot start the agents from it.
@@ -351,6 +360,7 @@ fn agents_that_cannot_be_started_fail_the_run_with_its_run_directory_written() {
 
 #[test]
 fn ctrl_c_while_the_world_starts_leaves_a_run_directory_that_says_so() {
+    let _fleet = fleet();
     let dir = scratch("interrupted-start");
     let mut launch = run_with_a_slow_world(&dir);
     kill("-INT", traced(launch.child.id()));
@@ -396,6 +406,7 @@ fn sweep_of_fleets(mut command: Command, out: &Path, extra: &[&str]) -> Reaper {
 
 #[test]
 fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
+    let _fleet = fleet();
     let dir = scratch("sweep-interrupted-start");
     let out = dir.join("sweep");
     let mut sweep = sweep_of_fleets(strace_with_a_slow_world(), &out, &[]);
@@ -415,6 +426,7 @@ fn a_sweep_of_fleets_stopped_as_a_world_starts_is_an_interrupted_sweep() {
 /// of its statistics; the sweep goes on with the next run, and exits 1 at the end.
 #[test]
 fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
+    let _fleet = fleet();
     let dir = scratch("sweep-failed-run");
     let out = dir.join("sweep");
     // About 4 s of ticks: the first run's world is killed well before its end.
@@ -472,6 +484,7 @@ fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
 /// A fleet of a sweep whose world cannot listen fails as it starts: named, and the sweep goes on.
 #[test]
 fn a_sweep_of_fleets_goes_on_past_a_world_that_could_not_start() {
+    let _fleet = fleet();
     let dir = scratch("sweep-world-unstarted");
     let out = dir.join("sweep");
     let mut sweep = sweep_of_fleets(strace_with_a_slow_world(), &out, &[]);
@@ -499,6 +512,7 @@ fn a_sweep_of_fleets_goes_on_past_a_world_that_could_not_start() {
 
 #[test]
 fn a_killed_agent_is_lost_and_the_others_arrive() {
+    let _fleet = fleet();
     let dir = scratch("kill");
     let mut launch = Launch::start(&paper("b-current"), &dir, &[]);
     launch.wait_for("logs/world.log", "starting");
@@ -522,6 +536,7 @@ fn a_killed_agent_is_lost_and_the_others_arrive() {
 /// knows it in a fleet started by hand without a recorder, says so and exits 1.
 #[test]
 fn a_world_whose_vehicles_do_not_arrive_exits_1() {
+    let _fleet = fleet();
     let dir = scratch("short");
     let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.max_duration=20"]);
     assert_eq!(launch.wait(Duration::from_secs(120)).code(), Some(1));
@@ -537,6 +552,7 @@ fn a_world_whose_vehicles_do_not_arrive_exits_1() {
 
 #[test]
 fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run() {
+    let _fleet = fleet();
     let dir = scratch("sigstop");
     let comms = ["--set", "comms.period=0.01"];
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &comms);
@@ -591,6 +607,7 @@ fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run()
 
 #[test]
 fn an_agent_stopped_past_the_worlds_bound_is_lost_as_silent_and_nothing_hangs() {
+    let _fleet = fleet();
     let dir = scratch("sigstop-long");
     let bound = ["--command-timeout", "4"];
     let mut launch = Launch::start(&paper("b-current"), &dir, &bound);
@@ -625,6 +642,7 @@ fn an_agent_stopped_past_the_worlds_bound_is_lost_as_silent_and_nothing_hangs() 
 
 #[test]
 fn a_long_run_that_loses_an_agent_records_every_tick_and_counts_only_live_vehicles_after() {
+    let _fleet = fleet();
     let dir = scratch("long-loss");
     let mut launch = Launch::start(&config("long3"), &dir, &[]);
     launch.wait_for("logs/world.log", "starting");
@@ -712,6 +730,7 @@ fn world_pid(root: u32) -> u32 {
 
 #[test]
 fn a_run_whose_world_is_killed_says_so_in_its_summary_and_report() {
+    let _fleet = fleet();
     let dir = scratch("world-killed");
     // Killed mid-run: past its first ticks (a run killed before any has nothing it could have done
     // otherwise, and stays reproducible), well before its end (about 1.7 s of ticks).
@@ -760,6 +779,7 @@ fn simulated(dir: &Path) -> f64 {
 /// it went on commanding for half a second of wall time (25 s of this run's simulated time).
 #[test]
 fn a_role_stopped_by_a_signal_mid_run_is_named_in_the_summary() {
+    let _fleet = fleet();
     for (role, signal) in [("world", "-TERM"), ("agent", "-INT")] {
         let dir = scratch(&format!("stopped-{role}"));
         let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.005"]);
@@ -807,6 +827,7 @@ fn a_role_stopped_by_a_signal_mid_run_is_named_in_the_summary() {
 /// waits for a recorder that never comes, so no tick can come before the agent is killed.
 #[test]
 fn an_agent_gone_before_the_first_tick_fails_the_run_at_once() {
+    let _fleet = fleet();
     let dir = scratch("agent-gone-early");
     let mut launch = Launch::start(&paper("b-current"), &dir, &["--recorders", "1"]);
     launch.wait_for("logs/agent-1.log", "path with t_f");
@@ -827,6 +848,7 @@ fn an_agent_gone_before_the_first_tick_fails_the_run_at_once() {
 /// goes on, says so, and is still the in-process run.
 #[test]
 fn a_lockstep_run_goes_on_without_its_planner_once_it_runs() {
+    let _fleet = fleet();
     let dir = scratch("planner-gone-lockstep");
     let slow = ["--set", "mission.control_period=0.002", "--set", "comms.period=0.1"];
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &slow);
@@ -851,6 +873,7 @@ impl Drop for Orphans {
 
 #[test]
 fn no_child_outlives_a_launcher_killed_with_sigkill() {
+    let _fleet = fleet();
     let dir = scratch("orphans");
     let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.002"]);
     launch.wait_for("logs/world.log", "starting");
@@ -943,6 +966,7 @@ fn an_agents_functions_are_linked_side_by_side() {
 
 #[test]
 fn lockstep_agents_run_as_batch_jobs_and_realtime_agents_do_not() {
+    let _fleet = fleet();
     let lockstep = ["--set", "mission.control_period=0.002"];
     let realtime = ["--clock", "realtime", "--time-scale", "10"];
     for (clock, agent) in [(&lockstep[..], 3), (&realtime[..], 0)] {
@@ -967,6 +991,7 @@ fn lockstep_agents_run_as_batch_jobs_and_realtime_agents_do_not() {
 
 #[test]
 fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
+    let _fleet = fleet();
     let dir = scratch("sigint");
     // About 8 s of ticks, to be stopped 0.3 s in on any machine.
     let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.001"]);
@@ -1005,6 +1030,7 @@ fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
 
 #[test]
 fn a_run_whose_recorder_never_comes_says_who_is_missing() {
+    let _fleet = fleet();
     let dir = scratch("missing-recorder");
     let mut launch = Launch::start(
         &paper("b-current"),
@@ -1032,6 +1058,7 @@ fn process_group(pid: u32) -> u32 {
 
 #[test]
 fn a_terminals_ctrl_c_to_the_whole_job_is_an_interrupted_run() {
+    let _fleet = fleet();
     // Half of such runs ended as completed, not arrived (exit 1) while the children were in the
     // launcher's group: the world, stopped by the same signal, sent its end first.
     for attempt in 0..4 {
@@ -1101,6 +1128,7 @@ fn by_hand(mission: &str, ids: &[&str], clock: &[&str], dir: &Path) -> (Fleet, S
 
 #[test]
 fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
+    let _fleet = fleet();
     let dir = scratch("by-hand");
     let mission = paper("b-current");
     let (mut fleet, endpoint) = by_hand(&mission, &["2", "1"], &[], &dir);
@@ -1163,6 +1191,7 @@ fn router_knows(endpoint: &str, wanted: &[&str]) {
 
 #[test]
 fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
+    let _fleet = fleet();
     let dir = scratch("second");
     let mission = paper("b-current");
     let (router, endpoint) = listening(|e| role(&["router", "-l", e], Stdio::null()));
@@ -1204,6 +1233,7 @@ fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
 /// comes when the run is under way says it came too late; both leave `--out` free.
 #[test]
 fn a_recorder_of_another_mission_or_too_late_writes_nothing() {
+    let _fleet = fleet();
     let dir = scratch("recorder-refused");
     let mission = config("long3");
     let (_fleet, endpoint) = by_hand(&mission, &["1", "2", "3"], &[], &dir);
@@ -1259,6 +1289,7 @@ fn a_recorder_of_another_mission_or_too_late_writes_nothing() {
 /// its neighbours never wait for it again, and arrive.
 #[test]
 fn a_new_agent_of_a_lost_vehicle_is_told_and_the_others_arrive() {
+    let _fleet = fleet();
     let dir = scratch("lost-again");
     let mission = config("long3");
     let (mut fleet, endpoint) = by_hand(&mission, &["1", "2", "3"], &[], &dir);
@@ -1306,6 +1337,7 @@ fn a_new_agent_of_a_lost_vehicle_is_told_and_the_others_arrive() {
 /// come with it: they stop, exit 1, rather than wait for a tick that will never come.
 #[test]
 fn agents_stop_when_the_world_gives_up_before_the_start() {
+    let _fleet = fleet();
     let mission = paper("b-current");
     let (planner, endpoint) = listening(|e| role(&["planner", &mission, "-l", e], Stdio::null()));
     let mut fleet = Fleet(vec![planner]);
@@ -1338,6 +1370,7 @@ fn agents_stop_when_the_world_gives_up_before_the_start() {
 /// by a law the run was not planned with.
 #[test]
 fn an_agent_of_another_mission_steers_nothing_before_it_is_refused() {
+    let _fleet = fleet();
     let dir = scratch("other-mission");
     let mission = paper("b-current");
     let (planner, endpoint) = listening(|e| role(&["planner", &mission, "-l", e], Stdio::null()));
@@ -1379,6 +1412,7 @@ fn an_agent_of_another_mission_steers_nothing_before_it_is_refused() {
 /// directory's Zenoh configuration; that recorder then records the same run, tick for tick.
 #[test]
 fn a_run_waits_for_a_recorder_from_elsewhere_which_records_the_same_run() {
+    let _fleet = fleet();
     let dir = scratch("joined");
     let mission = paper("b-current");
     let mut launch = Launch::start(&mission, &dir.join("p"), &["--recorders", "1"]);
@@ -1464,11 +1498,13 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
 
 #[test]
 fn a_recorder_whose_world_dies_without_an_end_says_so_and_writes_the_run() {
+    let _fleet = fleet();
     a_recorder_outlives_a_dead_world("world-dies", &[]);
 }
 
 #[test]
 fn a_realtime_recorder_whose_world_dies_says_so_and_writes_the_run() {
+    let _fleet = fleet();
     // The realtime recorder asks for the clock every 50 ms while the world has not started:
     // that must not keep the world's absence from counting.
     a_recorder_outlives_a_dead_world("world-dies-realtime", &["--clock", "realtime", "--time-scale", "10"]);
@@ -1476,6 +1512,7 @@ fn a_realtime_recorder_whose_world_dies_says_so_and_writes_the_run() {
 
 #[test]
 fn roles_on_another_clock_than_the_worlds_refuse_to_run() {
+    let _fleet = fleet();
     let mission = paper("b-current");
     let realtime = ["--clock", "realtime", "--time-scale", "10"];
     // A realtime world; agent 2 and the recorder left on the default lockstep clock. The world
@@ -1528,6 +1565,7 @@ fn roles_on_another_clock_than_the_worlds_refuse_to_run() {
 
 #[test]
 fn a_sweep_of_real_fleets_matches_the_in_process_sweep() {
+    let _fleet = fleet();
     let dir = scratch("sweep-processes");
     let sweep = |extra: &[&str], out: &Path| {
         let mut args = vec![

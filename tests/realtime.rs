@@ -9,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    arrivals, assert_none_left, config, descendants, failure, kill, listening, paper, run_in_process, scratch,
+    arrivals, assert_none_left, config, descendants, failure, fleet, kill, listening, paper, run_in_process, scratch,
     stop_the_planner, summary, timing, wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
@@ -51,6 +51,7 @@ fn beside_lockstep(mission: &str, dir: &Path) -> (Value, Value, String) {
 
 #[test]
 fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_timing() {
+    let _fleet = fleet();
     let dir = scratch("scale-10");
     let (lockstep, realtime, printed) = beside_lockstep(&paper("b-current"), &dir);
     let out = dir.join("realtime");
@@ -99,6 +100,7 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
 
 #[test]
 fn a_medusa_fleet_in_realtime_arrives_as_in_lockstep() {
+    let _fleet = fleet();
     let dir = scratch("medusa-realtime");
     let (lockstep, realtime, _) = beside_lockstep(&config("medusa/b-current"), &dir);
     let out = dir.join("realtime");
@@ -155,6 +157,7 @@ fn fleet_without_vehicle_2(mission: &str, logs: &Path, settings: &[&str]) -> (Ve
 
 #[test]
 fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
+    let _fleet = fleet();
     let dir = scratch("python-vehicle");
     let mission = paper("b-current");
     let clock = ["--clock", "realtime", "--time-scale", "5"];
@@ -203,6 +206,7 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
 /// states never come (a row needs every vehicle's), and the summary says why it has no row.
 #[test]
 fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
+    let _fleet = fleet();
     let dir = scratch("unplayed-vehicle");
     let mission = paper("b-current");
     let settings = [
@@ -236,6 +240,7 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
 
 #[test]
 fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
+    let _fleet = fleet();
     let dir = scratch("rejoin-realtime");
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
@@ -285,6 +290,7 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
 /// why it cannot have its path, and only its vehicle is missing at the end.
 #[test]
 fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why() {
+    let _fleet = fleet();
     let dir = scratch("planner-gone");
     let out = dir.join("run");
     let settings = [
@@ -333,6 +339,7 @@ fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why()
 
 #[test]
 fn lockstep_restart_on_failure_brings_a_killed_agent_back() {
+    let _fleet = fleet();
     let dir = scratch("restart-lockstep");
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--restart", "on-failure"]);
@@ -367,6 +374,7 @@ fn lockstep_restart_on_failure_brings_a_killed_agent_back() {
 
 #[test]
 fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
+    let _fleet = fleet();
     let dir = scratch("network-lost");
     let out = dir.join("run");
     let mut launch = Launch::start(
@@ -414,6 +422,7 @@ fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
 /// measured, where the recorder that held the command for ever said 34 s.
 #[test]
 fn a_realtime_agent_killed_for_good_leaves_the_coordination_error() {
+    let _fleet = fleet();
     let dir = scratch("killed-realtime");
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
@@ -440,6 +449,7 @@ fn a_realtime_agent_killed_for_good_leaves_the_coordination_error() {
 
 #[test]
 fn the_python_vehicle_encodes_the_protocol_documents_examples() {
+    let _fleet = fleet();
     let script = format!("{}/examples/python/vehicle.py", env!("CARGO_MANIFEST_DIR"));
     let o = Command::new("python3").args([&script, "--self-test"]).output().unwrap();
     assert!(o.status.success(), "{}", common::text(&o));

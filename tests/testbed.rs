@@ -189,6 +189,7 @@ fn reference(dir: &Path) -> PathBuf {
 
 #[test]
 fn case_b_on_a_shore_host_and_two_vehicle_hosts_is_the_in_process_run() {
+    let _fleet = common::fleet();
     let dir = scratch("hosts");
     let mut bed = Testbed::new("plain", &["shore", "v1", "v2"]);
     let out = fleet(&mut bed, &dir, Security::Plain, |_| {});
@@ -198,6 +199,7 @@ fn case_b_on_a_shore_host_and_two_vehicle_hosts_is_the_in_process_run() {
 
 #[test]
 fn with_mutual_tls_the_fleet_runs_and_a_process_without_a_certificate_cannot_join() {
+    let _fleet = common::fleet();
     let dir = scratch("tls");
     let mut bed = Testbed::new("tls", &["shore", "v1", "v2", "outsider"]);
     make_pki(&dir, &bed);
@@ -245,6 +247,7 @@ fn with_mutual_tls_the_fleet_runs_and_a_process_without_a_certificate_cannot_joi
 /// timing and names nobody as unreported.
 #[test]
 fn over_mutual_tls_every_role_of_a_realtime_fleet_reports_as_it_exits() {
+    let _fleet = common::fleet();
     let dir = scratch("tls-reports");
     let mut bed = Testbed::new("tlsrep", &["shore", "v1", "v2"]);
     make_pki(&dir, &bed);
@@ -265,6 +268,7 @@ fn over_mutual_tls_every_role_of_a_realtime_fleet_reports_as_it_exits() {
 
 #[test]
 fn with_access_control_a_vehicle_can_steer_only_itself() {
+    let _fleet = common::fleet();
     let dir = scratch("acl");
     let mut bed = Testbed::new("acl", &["shore", "v1", "v2", "rogue"]);
     make_pki(&dir, &bed);
@@ -323,6 +327,7 @@ fn with_access_control_a_vehicle_can_steer_only_itself() {
 
 #[test]
 fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_up() {
+    let _fleet = common::fleet();
     let dir = scratch("link-down");
     let mut bed = Testbed::new("down", &["shore", "v1", "v2"]);
     let clock = ["--clock", "realtime", "--time-scale", "2"];
@@ -365,6 +370,7 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
 
 #[test]
 fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts() {
+    let _fleet = common::fleet();
     let dir = scratch("real-loss");
     let mut bed = Testbed::new("loss", &["shore", "v1", "v2"]);
     let clock = ["--clock", "realtime", "--time-scale", "5"];

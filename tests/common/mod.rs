@@ -18,7 +18,6 @@ pub fn tcpf(args: &[&str]) -> Output {
         .expect("tcpf runs")
 }
 
-/// `configs/<name>.toml`.
 /// `tcpf gen lanes --vehicles n`, written into `dir`: a fleet of any size.
 pub fn lanes(dir: &Path, n: u32) -> PathBuf {
     let o = tcpf(&["gen", "lanes", "--vehicles", &n.to_string()]);
@@ -28,6 +27,20 @@ pub fn lanes(dir: &Path, n: u32) -> PathBuf {
     file
 }
 
+/// The right to start a fleet, held until dropped: two cores run one fleet's processes, and two
+/// fleets side by side starve each other (realtime agents miss their periods, lockstep worlds
+/// wait past their timeouts), so a test that starts one takes this first, before its children,
+/// so that they are gone before the next fleet starts. A lock on a file, not in memory: it
+/// holds across test binaries and `cargo test` invocations run at once.
+pub struct FleetSlot(#[allow(dead_code)] std::fs::File);
+
+pub fn fleet() -> FleetSlot {
+    let file = std::fs::File::create(std::env::temp_dir().join("tcpf-tests-fleet.lock")).expect("the fleet lock file");
+    file.lock().expect("the fleet lock");
+    FleetSlot(file)
+}
+
+/// `configs/<name>.toml`.
 pub fn config(name: &str) -> String {
     format!("{}/configs/{name}.toml", env!("CARGO_MANIFEST_DIR"))
 }
