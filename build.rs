@@ -1,29 +1,37 @@
-//! Links `tcpf` for fleets of agent processes, on Linux with glibc: at a fixed address, and with
-//! the functions an agent runs side by side.
+//! Links `tcpf`. By default as any Rust binary: position-independent, so the image loads at a
+//! random address like everything else in a process that is, on a testbed, a Zenoh router, a
+//! QUIC/TLS endpoint and a WebSocket server.
 //!
-//! A position-independent executable is relocated by the loader in every process: its vtables
-//! and other relocated data (0.6 MB) become private copies in each agent, and a fleet of fifty
-//! agents on two cores runs through fifty copies. Linked at a fixed address they stay the
-//! binary's own pages, shared by every process: a 50-lane fleet's tick fell from 1.85–2.11 ms to
-//! 1.41–1.45 ms, and each agent's RSS by 2 MiB. The cost is that the image itself loads at a fixed
-//! address (libraries, heap and stacks keep their random ones).
+//! `TCPF_FLEET_LINK=1` (at build time, on Linux with glibc) links it for a host that runs dozens
+//! of agent processes, trading that randomisation for memory and speed:
+//! - at a fixed address (`-no-pie`): a position-independent executable is relocated by the
+//!   loader in every process, its vtables and other relocated data (0.6 MB) become private
+//!   copies in each agent, and a fleet of fifty agents on two cores runs through fifty copies.
+//!   Linked at a fixed address they stay the binary's own pages, shared by every process.
+//! - with the functions an agent runs side by side: an agent runs about 3 MiB of the binary's
+//!   17 MiB of code, scattered over all of it, and Linux maps a process's code by the 64 KiB
+//!   around each page it touches. `link-order.txt` lists those functions (`scripts/link-order`
+//!   makes it) and the linker puts them first, in one piece. The list holds mangled names, which
+//!   change with the compiler, the dependencies, their features and the profile: a stale list
+//!   costs memory, never correctness. It is passed only to a linker that takes it, for the
+//!   compiler it was made for, in a release build; otherwise this script says why not.
 //!
-//! An agent runs about 3 MiB of the binary's 17 MiB of code, scattered over all of it, and
-//! Linux maps a process's code by the 64 KiB around each page it touches: an agent held 11 MiB
-//! of it. `link-order.txt` lists those functions (`scripts/link-order` makes it) and the linker
-//! puts them first, in one piece. The list holds mangled names, which change with the compiler,
-//! the dependencies, their features and the profile: a stale list costs memory, never
-//! correctness. The list is passed only to a linker that takes it, for the compiler it was made
-//! for, in a release build; otherwise this script says why not, and so does
-//! `TCPF_LINK_ORDER`, which the tests read.
+//! The README's Benchmarks give what each is worth. `TCPF_LINK_ORDER`, which the tests read,
+//! says what was done.
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=link-order.txt");
+    println!("cargo:rerun-if-env-changed=TCPF_FLEET_LINK");
     let var = |name: &str| std::env::var(name).unwrap_or_default();
+    if var("TCPF_FLEET_LINK") != "1" {
+        println!("cargo:rustc-env=TCPF_LINK_ORDER=skipped: a default build (TCPF_FLEET_LINK=1 asks for it)");
+        return;
+    }
     if var("CARGO_CFG_TARGET_OS") != "linux" || var("CARGO_CFG_TARGET_ENV") != "gnu" {
+        println!("cargo:warning=TCPF_FLEET_LINK=1 ignored: it is for Linux with glibc");
         println!("cargo:rustc-env=TCPF_LINK_ORDER=skipped: not Linux with glibc");
         return;
     }
@@ -31,6 +39,7 @@ fn main() {
     let static_crt = var("CARGO_CFG_TARGET_FEATURE").split(',').any(|f| f == "crt-static");
     if !static_crt {
         println!("cargo:rustc-link-arg-bins=-no-pie");
+        println!("cargo:rustc-env=TCPF_FIXED_ADDRESS=1");
     }
     let order = match link_order(&var) {
         Ok(args) => {

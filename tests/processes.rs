@@ -899,12 +899,13 @@ fn policy(pid: u32) -> u32 {
     rest[41 - 3].parse().unwrap()
 }
 
-/// The binary is linked at a fixed address (build.rs), so that every process of a fleet shares
-/// its relocated data instead of holding a copy the loader wrote: ELF type 2 (an executable),
-/// not 3 (a shared object, as a position-independent executable is).
+/// The binary is position-independent (ELF type 3, a shared object), so that its image loads at
+/// a random address, unless it was built with `TCPF_FLEET_LINK=1` for a host of many agents:
+/// then it is linked at a fixed address (type 2, an executable), so that every process of a
+/// fleet shares its relocated data instead of holding a copy the loader wrote.
 #[test]
 #[cfg(all(target_os = "linux", target_env = "gnu", not(target_feature = "crt-static")))]
-fn the_binary_is_position_dependent_so_a_fleet_shares_its_pages() {
+fn the_binary_is_position_independent_unless_linked_for_a_fleet() {
     let header = std::fs::read(env!("CARGO_BIN_EXE_tcpf")).unwrap();
     assert_eq!(&header[..4], b"\x7fELF");
     // e_type in the file's byte order (EI_DATA: 1 little-endian, 2 big-endian).
@@ -913,13 +914,25 @@ fn the_binary_is_position_dependent_so_a_fleet_shares_its_pages() {
         1 => u16::from_le_bytes(e_type),
         _ => u16::from_be_bytes(e_type),
     };
-    assert_eq!(e_type, 2, "e_type");
+    let fixed = option_env!("TCPF_FIXED_ADDRESS").is_some();
+    assert_eq!(e_type, if fixed { 2 } else { 3 }, "e_type (fleet link: {fixed})");
+    let readelf = Command::new("readelf")
+        .args(["-h", env!("CARGO_BIN_EXE_tcpf")])
+        .output()
+        .expect("binutils' readelf reads the header");
+    let header = String::from_utf8_lossy(&readelf.stdout);
+    let kind = if fixed { "EXEC" } else { "DYN" };
+    assert!(
+        header.lines().any(|l| l.contains("Type:") && l.contains(kind)),
+        "{header}"
+    );
 }
 
-/// The functions an agent runs lie side by side (build.rs, link-order.txt), so that an agent
-/// maps about 3 MiB of the binary's code rather than 11: its functions are found in the binary,
-/// and they fill the span they take. Where build.rs did not pass the list (a debug build,
-/// another compiler, a linker that does not take it), it said why as it built.
+/// Built with `TCPF_FLEET_LINK=1`, the functions an agent runs lie side by side (build.rs,
+/// link-order.txt), so that an agent maps about 3 MiB of the binary's code rather than 11: its
+/// functions are found in the binary, and they fill the span they take. Where build.rs did not
+/// pass the list (a default build, a debug build, another compiler, a linker that does not take
+/// it), it said why as it built; `.ci/run` builds once with it.
 #[test]
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 fn an_agents_functions_are_linked_side_by_side() {
