@@ -135,7 +135,7 @@ impl RunDir {
     }
 
     pub fn write_mission(&self, mission: &Mission) -> Result<()> {
-        self.write("mission.toml", &toml::to_string(mission)?)
+        self.write("mission.toml", &mission.to_toml())
     }
 
     pub fn write_plan(&self, plan: &Plan) -> Result<()> {

@@ -162,7 +162,7 @@ impl Viewer {
             vehicles: Vec::with_capacity(paths.len()),
             epoch: None,
             paths: Vec::with_capacity(paths.len()),
-            mission: toml::to_string(mission).context("the mission as TOML")?,
+            mission: mission.to_toml(),
             links: topic(&context, &live, "/links", json_schema("tcpf.Link", LINK_SCHEMA))?,
             context,
             mcap: Some(mcap),

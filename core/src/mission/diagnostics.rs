@@ -95,28 +95,42 @@ pub(super) fn key_at(table: &DeTable<'_>, offset: usize) -> Vec<Seg> {
     path
 }
 
-/// The line of the key at `path`, if the file has it.
-pub(super) fn line_of_key(text: &str, table: &DeTable<'_>, path: &[Seg]) -> Option<usize> {
+/// Where the key at `path` is, or the nearest table above it that the file has.
+pub(super) fn line_of_key(text: &str, table: &DeTable<'_>, path: &[Seg]) -> Where {
     let mut value: Option<&DeValue<'_>> = None;
     let mut span = None;
     let mut current = table;
+    let mut whole = true;
     for seg in path {
-        match (seg, value) {
+        let found = match (seg, value) {
             (Seg::Key(k), None) | (Seg::Key(k), Some(DeValue::Table(_))) => {
                 if let Some(DeValue::Table(t)) = value {
                     current = t;
                 }
-                let (key, v) = current.iter().find(|(key, _)| key.get_ref() == k)?;
-                span = Some(key.span());
-                value = Some(v.get_ref());
+                current
+                    .iter()
+                    .find(|(key, _)| key.get_ref() == k)
+                    .map(|(key, v)| (key.span(), v.get_ref()))
             }
-            (Seg::Index(i), Some(DeValue::Array(a))) => {
-                let v = a.get(*i)?;
-                span = Some(v.span());
-                value = Some(v.get_ref());
-            }
-            _ => return None,
-        }
+            (Seg::Index(i), Some(DeValue::Array(a))) => a.get(*i).map(|v| (v.span(), v.get_ref())),
+            _ => None,
+        };
+        let Some((s, v)) = found else {
+            whole = false;
+            break;
+        };
+        span = Some(s);
+        value = Some(v);
     }
-    span.map(|s| line_of(text, s.start))
+    Where {
+        line: span.map(|s| line_of(text, s.start)),
+        defaulted: !whole,
+    }
+}
+
+/// Where a key is in the file: its line, or that of the nearest table above it that the file
+/// has when the key itself is not there (`defaulted`: its default is what was found wrong).
+pub(super) struct Where {
+    pub line: Option<usize>,
+    pub defaulted: bool,
 }

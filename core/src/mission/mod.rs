@@ -464,12 +464,16 @@ mod defaults {
 }
 
 impl Mission {
+    /// The mission as a TOML file that parses back to it (the run directory's `mission.toml`).
+    pub fn to_toml(&self) -> String {
+        readable_floats(&toml::to_string(self).expect("a parsed mission writes as TOML"))
+    }
+
     /// A fingerprint of the mission as parsed, overrides and seed included: roles on several
     /// hosts, each with its own copy of the file, compare it to find that they run one mission.
     /// FNV-1a of its TOML (the run directory's `mission.toml`), stable from process to process.
     pub fn digest(&self) -> u64 {
-        let text = toml::to_string(self).expect("a parsed mission writes as TOML");
-        text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        self.to_toml().bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
             (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
         })
     }
@@ -579,13 +583,65 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
             // --set planner.tf_min=70): say which are in effect.
             None if !overrides.is_empty() => {
                 let sets: Vec<String> = overrides.iter().map(|o| format!("--set {o}")).collect();
+                let at = line_of_key(text, table, &path);
                 let message = format!("{message} (with {})", sets.join(", "));
-                err(line_of_key(text, table, &path), Some(key), message)
+                err(at.line, Some(key), defaulted(message, &at))
             }
-            None => err(line_of_key(text, table, &path), Some(key), message),
+            None => {
+                let at = line_of_key(text, table, &path);
+                err(at.line, Some(key), defaulted(message, &at))
+            }
         }
     })?;
     Ok(mission)
+}
+
+/// `text` with every float that the TOML writer spelled out in more than 20 characters (it
+/// writes 1e308 as 309 digits, 5e-324 as 324) written in exponent form instead, which parses to
+/// the same number. Strings are left alone.
+fn readable_floats(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(at) = rest.find(|c: char| c == '"' || c == '\'' || c.is_ascii_digit() || c == '-') {
+        let (before, from) = rest.split_at(at);
+        out.push_str(before);
+        let quote = from.chars().next().filter(|&c| c == '"' || c == '\'');
+        let end = match quote {
+            // A basic string's escapes include \", which does not end it.
+            Some(q) => {
+                let mut escaped = false;
+                from.char_indices()
+                    .skip(1)
+                    .find(|&(_, c)| {
+                        let closes = c == q && !(q == '"' && escaped);
+                        escaped = q == '"' && c == '\\' && !escaped;
+                        closes
+                    })
+                    .map_or(from.len(), |(i, _)| i + 1)
+            }
+            None => from
+                .find(|c: char| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '+' | '_')))
+                .unwrap_or(from.len())
+                .max(1),
+        };
+        let token = &from[..end];
+        match token.parse::<f64>() {
+            Ok(x) if quote.is_none() && token.len() > 20 && token.contains('.') => out.push_str(&format!("{x:e}")),
+            _ => out.push_str(token),
+        }
+        rest = &from[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// A key the file does not set was found wrong: its default was, and the line is the table's.
+fn defaulted(message: String, at: &diagnostics::Where) -> String {
+    if at.defaulted {
+        format!("{message}; the file does not set it, so its default applies")
+    } else {
+        message
+    }
 }
 
 #[cfg(test)]
@@ -894,6 +950,25 @@ goal_velocity = [0.75, 0.0]
     }
 
     #[test]
+    fn the_mission_as_run_writes_extreme_numbers_as_a_person_reads_them() {
+        let sets = [
+            "sideslip.period=1e308".to_string(),
+            "mission.name=\"n-1234567890.123456789012345\"".to_string(),
+        ];
+        let m = parse("f.toml", PAPER, &sets).unwrap();
+        let text = m.to_toml();
+        assert!(text.contains("period = 1e308\n"), "{text}");
+        assert!(
+            text.contains("\"n-1234567890.123456789012345\""),
+            "strings stay: {text}"
+        );
+        assert_eq!(parse("mission.toml", &text, &[]).unwrap(), m, "round trip");
+        assert_eq!(readable_floats("x = [5e-324, 0.1]"), "x = [5e-324, 0.1]");
+        let tiny = toml::to_string(&toml::toml! { x = 5e-324 }).unwrap();
+        assert_eq!(readable_floats(&tiny), "x = 5e-324\n");
+    }
+
+    #[test]
     fn link_models_parse_and_bad_values_name_the_key() {
         let links = "[comms]\ntrigger = \"event\"\nrange = 500.0\nloss_at_range = 0.4\nsound_speed = 1500.0\ntdma_slot = 1.0\n[[comms.link]]\nfrom = 2\nto = 1\nrange = 200.0\n";
         let text = PAPER.replace("[[vehicle]]\nid = 1", &format!("{links}\n[[vehicle]]\nid = 1"));
@@ -919,6 +994,10 @@ goal_velocity = [0.75, 0.0]
             assert_eq!(e.key.as_deref(), Some(key), "{set}: {e}");
             assert!(e.to_string().contains(says), "{set}: {e}");
         }
+        // The heartbeat is the event trigger's: a periodic agent sends every period, whatever it
+        // says (a sweep over comms.trigger keeps one heartbeat for both).
+        let periodic = ["comms.trigger=periodic".to_string(), "comms.heartbeat=0.05".to_string()];
+        assert_eq!(parse("l.toml", &text, &periodic).unwrap().comms.heartbeat, 0.05);
         let no_range = text
             .replace("range = 500.0\n", "")
             .replace("range = 200.0\n", "delay = 0.5\n");

@@ -1,7 +1,7 @@
 //! Every value of a mission checked before anything uses it, with the key that holds it.
 
 use super::diagnostics::Seg;
-use super::{Endpoint, Mission, VehicleModelConfig};
+use super::{Endpoint, Mission, Trigger, VehicleModelConfig};
 
 /// The planner evaluates every t_f of [tf_min, tf_max] on a 0.01 s grid (D6): this many at most,
 /// a 200 s window, so that a plan takes a fraction of a second and tens of MB.
@@ -71,6 +71,13 @@ impl Mission {
             key("mission", "name"),
             format!("must be 1 to {MAX_NAME} letters, digits, '-', '_' or '.' (it is part of every key expression)"),
         )?;
+        // TOML's integers are signed: a larger seed could not be written back to mission.toml,
+        // nor given to --seed or --set.
+        check(
+            m.seed <= i64::MAX as u64,
+            key("mission", "seed"),
+            format!("must be an integer from 0 to {}", i64::MAX),
+        )?;
         check(
             m.control_period > 0.0 && m.control_period.is_finite(),
             key("mission", "control_period"),
@@ -97,7 +104,7 @@ impl Mission {
             format!(
                 "{} with mission.control_period = {} s gives a wall-clock period of {} ms; realtime keeps periods of {} ms or more",
                 num(m.time_scale),
-                m.control_period,
+                num(m.control_period),
                 num(1e3 * m.control_period / m.time_scale),
                 1e3 * MIN_WALL_PERIOD
             ),
@@ -107,10 +114,13 @@ impl Mission {
         let (culprit, other) = if m.max_duration > MAX_TICKS * 0.01 {
             (
                 "max_duration",
-                format!("mission.control_period = {} s", m.control_period),
+                format!("mission.control_period = {} s", num(m.control_period)),
             )
         } else {
-            ("control_period", format!("mission.max_duration = {} s", m.max_duration))
+            (
+                "control_period",
+                format!("mission.max_duration = {} s", num(m.max_duration)),
+            )
         };
         check(
             ticks <= MAX_TICKS,
@@ -143,7 +153,7 @@ impl Mission {
         check(
             p.tf_max >= p.tf_min,
             key("planner", "tf_max"),
-            format!("must be ≥ tf_min ({})", p.tf_min),
+            format!("must be ≥ tf_min ({})", num(p.tf_min)),
         )?;
         let candidates = (p.tf_max - p.tf_min) / 0.01;
         check(
@@ -164,7 +174,7 @@ impl Mission {
         check(
             p.v_max > p.v_min,
             key("planner", "v_max"),
-            format!("must be > v_min ({})", p.v_min),
+            format!("must be > v_min ({})", num(p.v_min)),
         )?;
         check(p.a_max > 0.0, key("planner", "a_max"), "must be > 0")?;
         let c = &self.control;
@@ -208,7 +218,7 @@ impl Mission {
             key("current", "speed"),
             format!(
                 "must be below planner.v_max ({} m/s): a vehicle slower than the current cannot hold its path",
-                p.v_max
+                num(p.v_max)
             ),
         )?;
         finite(key("current", "direction"), &[self.current.direction])?;
@@ -238,7 +248,7 @@ impl Mission {
             key("comms", "period"),
             format!(
                 "must be a whole multiple of mission.control_period ({})",
-                m.control_period
+                num(m.control_period)
             ),
         )?;
         check(
@@ -246,7 +256,7 @@ impl Mission {
             key("comms", "period"),
             format!(
                 "must be at most mission.max_duration ({} s): no γ would ever be exchanged",
-                m.max_duration
+                num(m.max_duration)
             ),
         )?;
         check(
@@ -441,7 +451,8 @@ impl Mission {
             graph_key,
             format!(
                 "asks for up to {messages:.3e} γ messages ({links} directed links, one every comms.period = {} s for mission.max_duration = {} s); a run decides and records at most {MAX_LINK_MESSAGES:e}: a sparser graph, a longer comms.period or a shorter run",
-                self.comms.period, self.mission.max_duration
+                num(self.comms.period),
+                num(self.mission.max_duration)
             ),
         )
     }
@@ -469,7 +480,10 @@ impl Mission {
         check(
             k.delay >= 0.0 && k.delay < max_delay,
             key("comms", "delay"),
-            format!("must be a number of seconds ≥ 0 and below mission.max_duration ({max_delay} s)"),
+            format!(
+                "must be a number of seconds ≥ 0 and below mission.max_duration ({} s)",
+                num(max_delay)
+            ),
         )?;
         if let Some(b) = &k.burst {
             for (name, p) in [
@@ -504,7 +518,7 @@ impl Mission {
             check(
                 o.end > o.start,
                 item("outage", i, "end"),
-                format!("must be after start ({})", o.start),
+                format!("must be after start ({})", num(o.start)),
             )?;
             // An outage that can never cut a message is a mistake, not an experiment.
             check(
@@ -512,7 +526,9 @@ impl Mission {
                 item("outage", i, "start"),
                 format!(
                     "[{}, {}) is outside the run's [0, {}) (max_duration)",
-                    o.start, o.end, self.mission.max_duration
+                    num(o.start),
+                    num(o.end),
+                    num(self.mission.max_duration)
                 ),
             )?;
         }
@@ -569,7 +585,10 @@ impl Mission {
                 check(
                     d >= 0.0 && d < max_delay,
                     item("link", i, "delay"),
-                    format!("must be a number of seconds ≥ 0 and below mission.max_duration ({max_delay} s)"),
+                    format!(
+                        "must be a number of seconds ≥ 0 and below mission.max_duration ({} s)",
+                        num(max_delay)
+                    ),
                 )?;
             }
             self.validate_acoustic(
@@ -590,12 +609,14 @@ impl Mission {
             key("comms", "threshold"),
             "must be a finite number ≥ 0 (s of γ)",
         )?;
+        // Only the event trigger has a heartbeat: the periodic one sends every period anyway.
         check(
-            k.heartbeat >= k.period && k.heartbeat <= self.mission.max_duration,
+            k.trigger != Trigger::Event || (k.heartbeat >= k.period && k.heartbeat <= self.mission.max_duration),
             key("comms", "heartbeat"),
             format!(
                 "must be between comms.period ({} s) and mission.max_duration ({} s)",
-                k.period, self.mission.max_duration
+                num(k.period),
+                num(self.mission.max_duration)
             ),
         )?;
         self.validate_acoustic(k.range, k.loss_at_range, k.sound_speed, |name| key("comms", name))?;
@@ -604,16 +625,17 @@ impl Mission {
             check(
                 slot.is_finite() && ratio >= 1.0 - 1e-9 && (ratio - ratio.round()).abs() < 1e-6,
                 key("comms", "tdma_slot"),
-                format!("must be a whole multiple of comms.period ({} s)", k.period),
+                format!("must be a whole multiple of comms.period ({} s)", num(k.period)),
             )?;
             let cycle = slot * self.vehicles.len() as f64;
             check(
                 cycle <= self.mission.max_duration,
                 key("comms", "tdma_slot"),
                 format!(
-                    "gives a cycle of {cycle} s for {} vehicles, longer than mission.max_duration ({} s)",
+                    "gives a cycle of {} s for {} vehicles, longer than mission.max_duration ({} s)",
+                    num(cycle),
                     self.vehicles.len(),
-                    self.mission.max_duration
+                    num(self.mission.max_duration)
                 ),
             )?;
         }
@@ -660,7 +682,7 @@ impl Mission {
                     format!(
                         "with range {} m gives a propagation delay of up to {delay:.3e} s, not below mission.max_duration ({} s): no message would ever arrive",
                         num(r),
-                        self.mission.max_duration
+                        num(self.mission.max_duration)
                     ),
                 )?;
             }
