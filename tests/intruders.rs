@@ -3,9 +3,11 @@
 //! a lockstep run's bits; what the insider sends is refused, counted by kind, and logged as counts.
 
 use std::collections::BTreeMap;
+use std::net::TcpStream;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use tcpf_core::msg::{Command, End, Gamma, State, PROTOCOL_VERSION};
 use zenoh::qos::CongestionControl;
@@ -474,4 +476,85 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
         );
     }
     assert_none_left(&s);
+}
+
+/// How many idle connections the flood below holds open at once.
+const IDLE: usize = 300;
+
+/// Holds `IDLE` TCP connections to `address` open, idle, opening a new one for each that the
+/// other side closes, until `stop` or 120 s; counts every one it opened in `opened`.
+fn hold_idle_connections(address: String, stop: Arc<AtomicBool>, opened: Arc<AtomicU64>) {
+    let mut held: Vec<TcpStream> = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !stop.load(Ordering::Relaxed) && Instant::now() < deadline {
+        held.retain(|s| {
+            let mut byte = [0u8; 1];
+            match s.peek(&mut byte) {
+                Ok(n) => n > 0,
+                Err(e) => e.kind() == std::io::ErrorKind::WouldBlock,
+            }
+        });
+        while held.len() < IDLE {
+            let Ok(s) = TcpStream::connect(&address) else {
+                break;
+            };
+            s.set_nonblocking(true).unwrap();
+            held.push(s);
+            opened.fetch_add(1, Ordering::Relaxed);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// A process with no credential that holds hundreds of idle connections to the run's port
+/// (opening another for each one closed) keeps nobody out: Zenoh refuses a new connection while
+/// as many as `transport/unicast/accept_pending` have not finished their handshake, and 300 such
+/// once kept a recorder out of a run waiting for it, and the launcher away from its own world.
+#[test]
+fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
+    let _fleet = fleet();
+    let dir = scratch("connection-flood");
+    let out = dir.join("p");
+    let mut launch = Launch::start(
+        &paper("b-current"),
+        &out,
+        &["--recorders", "1", "--startup-timeout", "30"],
+    );
+    let endpoint = endpoint(&launch);
+    let (stop, opened) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicU64::new(0)));
+    let address = endpoint.strip_prefix("tcp/").expect("a TCP endpoint").to_string();
+    let flood = {
+        let (stop, opened) = (stop.clone(), opened.clone());
+        std::thread::spawn(move || hold_idle_connections(address, stop, opened))
+    };
+    let until = Instant::now() + Duration::from_secs(30);
+    while opened.load(Ordering::Relaxed) < IDLE as u64 {
+        assert!(Instant::now() < until, "the flood could not open {IDLE} connections");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let recorded = dir.join("r");
+    let mut recorder = common::Reaper(
+        std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["record", &paper("b-current"), "-c"])
+            .arg(out.join("zenoh.json5"))
+            .arg("--out")
+            .arg(&recorded)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let status = launch.wait(Duration::from_secs(120));
+    let recorder_status = recorder.0.wait().unwrap();
+    stop.store(true, Ordering::Relaxed);
+    flood.join().unwrap();
+    let opened = opened.load(Ordering::Relaxed);
+    eprintln!("idle connections opened: {opened}");
+    assert!(status.success(), "{}", launch.summary());
+    assert!(recorder_status.success(), "the recorder joined and recorded");
+    assert_eq!(summary(&recorded)["completed"], true);
+    assert!(
+        opened >= IDLE as u64,
+        "the flood held {IDLE} connections ({opened} opened)"
+    );
 }

@@ -196,9 +196,18 @@ fn readable(file: &str) -> std::result::Result<(), String> {
     Err(format!("{why}{here}"))
 }
 
+/// How many connections may be in their handshake at once, and for how long (ms), on a role
+/// that listens. Zenoh closes every new connection while `transport/unicast/accept_pending` are
+/// (100 by default, each for up to 10 s): a few hundred idle connections from anyone who could
+/// reach the port kept every process of a fleet out. A pending connection costs a socket and a
+/// timer, so thousands are cheap; a handshake on a loaded testbed takes milliseconds.
+pub const ACCEPT_PENDING: usize = 4096;
+pub const ACCEPT_TIMEOUT_MS: u64 = 5000;
+
 impl ZenohArgs {
     /// Without a config file: peer mode on 127.0.0.1, no multicast scouting, an ephemeral port,
-    /// so that nothing needs installing and runs never meet by accident.
+    /// a handshake queue that idle connections do not fill (`ACCEPT_PENDING`), so that nothing
+    /// needs installing and runs never meet by accident.
     pub fn config(&self) -> Result<Config> {
         let mut config = match &self.config {
             Some(path) => Config::from_file(path)
@@ -212,6 +221,12 @@ impl ZenohArgs {
                 set(&mut c, "mode", "\"peer\"")?;
                 set(&mut c, "scouting/multicast/enabled", "false")?;
                 set(&mut c, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
+                set(&mut c, "transport/unicast/accept_pending", &ACCEPT_PENDING.to_string())?;
+                set(
+                    &mut c,
+                    "transport/unicast/accept_timeout",
+                    &ACCEPT_TIMEOUT_MS.to_string(),
+                )?;
                 c
             }
         };

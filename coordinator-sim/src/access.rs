@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use serde_json::json;
+use tcpf_bus::session::{ACCEPT_PENDING, ACCEPT_TIMEOUT_MS};
 
 /// The user every process of a run presents.
 const USER: &str = "tcpf";
@@ -83,7 +84,10 @@ pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
         "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false }, "delay": 0 },
         "listen": { "endpoints": [endpoint] },
         "connect": { "endpoints": [] },
-        "transport": { "auth": auth },
+        "transport": {
+            "auth": auth,
+            "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
+        },
     });
     let configs = Configs {
         client: dir.join("zenoh.json5"),
