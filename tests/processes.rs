@@ -550,6 +550,68 @@ fn a_world_whose_vehicles_do_not_arrive_exits_1() {
     );
 }
 
+/// Ctrl-Z on `tcpf run` (SIGTSTP), then `fg` (SIGCONT): the whole fleet stops with the launcher
+/// and goes on with it, and a stop longer than the world's command timeout (10 s) and the
+/// agents' stale timeout (3 s) costs no vehicle and no reproducibility. Once, the world cut the
+/// stopped launcher's recorder off and ended the run unrecorded, and the run blamed the
+/// planner.
+#[test]
+fn a_run_stopped_with_ctrl_z_goes_on_as_if_never_stopped() {
+    let _fleet = fleet();
+    let mission = config("long3");
+    let dir = scratch("ctrl-z");
+    let mut launch = Launch::start(&mission, &dir.join("p"), &[]);
+    wait_until_simulated(&dir.join("p"), 1.0);
+    kill("-TSTP", launch.child.id());
+    std::thread::sleep(Duration::from_secs(12));
+    kill("-CONT", launch.child.id());
+    let status = launch.wait(Duration::from_secs(120));
+    let s = launch.summary();
+    assert!(status.success(), "{s}");
+    assert_eq!(
+        (&s["completed"], &s["reproducible"]),
+        (&true.into(), &true.into()),
+        "{s}"
+    );
+    assert!(s["wall_time_s"].as_f64().unwrap() > 12.0, "{}", s["wall_time_s"]);
+    let world = std::fs::read_to_string(dir.join("p/logs/world.log")).unwrap();
+    assert!(
+        world.contains("world: resumed after"),
+        "the world was stopped too: {world}"
+    );
+    run_in_process(&mission, &dir.join("i"), &[]);
+    assert_same_run(&dir.join("p"), &dir.join("i"));
+    assert_none_left(&s);
+}
+
+/// The launcher stopped alone (SIGSTOP, which it cannot handle, unlike Ctrl-Z's SIGTSTP): its
+/// recorder reads nothing, the world cuts it off, and the recording has a hole. The run says
+/// that the recorder lost it, not that the planner or the world failed.
+#[test]
+fn a_launcher_stopped_alone_names_its_recorders_loss() {
+    let _fleet = fleet();
+    let dir = scratch("sigstop-launcher");
+    let mut launch = Launch::start(&config("long3"), &dir, &[]);
+    wait_until_simulated(&dir, 1.0);
+    kill("-STOP", launch.child.id());
+    std::thread::sleep(Duration::from_secs(6));
+    kill("-CONT", launch.child.id());
+    let status = launch.wait(Duration::from_secs(120));
+    let s = launch.summary();
+    // Stopped at a good moment, the recorder may catch up: then the run is whole.
+    if s["completed"] == true {
+        assert!(status.success(), "{s}");
+    } else {
+        assert_eq!(status.code(), Some(1), "{s}");
+        let why = failure(&s);
+        assert!(
+            why.starts_with("the recorder lost messages of tick") || why.starts_with("the recorder missed the end"),
+            "{why}"
+        );
+    }
+    assert_none_left(&s);
+}
+
 #[test]
 fn an_agent_stopped_past_the_stale_timeout_never_passes_for_a_reproducible_run() {
     let _fleet = fleet();

@@ -18,6 +18,7 @@ use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
+use tcpf_core::pause;
 use tcpf_core::realtime::RealtimeAgent;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
@@ -544,6 +545,13 @@ impl Shell {
                 _ = self.shutdown.recv() => break Exit::Interrupted,
                 _ = tokio::time::sleep_until(stale_at.into()) => {
                     let mut fed = feed.lock();
+                    if let Some(more) = pause::extension(stale_at.elapsed()) {
+                        tracing::info!("agent {id}: resumed after {:.1} s stopped or starved; the neighbours get that long more", more.as_secs_f64());
+                        if let Some(since) = fed.waiting_since.as_mut() {
+                            *since += more;
+                        }
+                        continue;
+                    }
                     if fed.waiting_since.is_some_and(|since| since.elapsed() >= options.stale_timeout) {
                         for j in fed.node.waiting_for() {
                             tracing::warn!(

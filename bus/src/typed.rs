@@ -392,6 +392,13 @@ pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
     linger_within(session, keys, roles, LINGER).await;
 }
 
+/// How long a world that has ended waits for its recorders to leave, which they do once they
+/// have every tick and report: their leaving is their acknowledgement. A recorder that lags (its
+/// machine busy) still has the end's messages in the world's queue, which a world that left
+/// would take with it; a recorder that died has no token, and is not waited for; one that lost
+/// ticks never leaves, and costs the end this long.
+pub const RECORDERS_PATIENCE: Duration = Duration::from_secs(10);
+
 /// `linger`, for at most `within`.
 pub async fn linger_within(session: &Session, keys: &Keys, roles: &[Role], within: Duration) {
     linger_until(session, keys, within, |present| {

@@ -16,6 +16,13 @@ const USER: &str = "tcpf";
 /// How long a client of the run waits for the world to listen.
 const CONNECT_TIMEOUT_MS: u64 = 60_000;
 
+/// How long a process of the run may be silent before its link is closed (Zenoh's default: 10
+/// s). Ctrl-Z stops the whole fleet (the launcher stops its children with it), and on `fg`
+/// every process resumes with a silent link behind it: closed, the recorder would lose the run.
+/// A killed process's connection closes at once anyway, and a hung one is the run's own
+/// timeouts' (the command and stale timeouts) to find.
+const LINK_PATIENCE_MS: u64 = 60_000;
+
 /// 128 bits from the kernel, in hex: a password nobody can guess in a run's lifetime.
 fn secret() -> Result<String> {
     let mut bytes = [0u8; 16];
@@ -66,6 +73,7 @@ pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
         "password": password,
         "dictionary_file": dictionary,
     } });
+    let patience = json!({ "tx": { "lease": LINK_PATIENCE_MS } });
     let client = json!({
         "mode": "client",
         "scouting": { "multicast": { "enabled": false } },
@@ -75,7 +83,7 @@ pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
             "timeout_ms": CONNECT_TIMEOUT_MS,
             "retry": { "period_init_ms": 50, "period_max_ms": 1000, "period_increase_factor": 2 },
         },
-        "transport": { "auth": auth },
+        "transport": { "auth": auth, "link": patience },
     });
     // A router's open sleeps the scouting delay (500 ms by default) for multicast to find its
     // peers; this one scouts for nothing, and every run's first tick waited on it.
@@ -86,6 +94,7 @@ pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
         "connect": { "endpoints": [] },
         "transport": {
             "auth": auth,
+            "link": patience,
             "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
         },
     });

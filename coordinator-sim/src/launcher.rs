@@ -74,6 +74,10 @@ const REPORT_SETTLE: Duration = Duration::from_millis(200);
 /// A run in which no tick completes for this long has stalled, unless the world waits longer
 /// on purpose (`stall_limit`).
 const STALL: Duration = Duration::from_secs(60);
+
+/// How long the recorder may go without a tick once the world has exited after ending the run:
+/// what the world sent last may still be on its way.
+const END_ON_ITS_WAY: Duration = Duration::from_secs(5);
 /// How long the world waits for every agent and recorder, unless told otherwise; then it gives up
 /// and says who is missing.
 pub const STARTUP: Duration = Duration::from_secs(60);
@@ -420,6 +424,27 @@ async fn unstarted(
     .into()
 }
 
+/// Ctrl-Z (SIGTSTP) as a shell's job control would have it, for a fleet whose children are in
+/// process groups of their own (so that the terminal's Ctrl-C reaches them only through this
+/// process): every child stops, then this process, and when `fg` continues it, every child
+/// continues. Stopped alone, the launcher's recorder read nothing while the world went on, and
+/// the world cut it off after a few seconds: the run finished unrecorded.
+fn suspend_with(children: &[Process]) {
+    let signal_all = |signal| {
+        for c in children.iter().filter(|c| c.exit_code.is_none()) {
+            // SAFETY: kill(2) on the process group of a child not yet reaped (its own group,
+            // `process_group(0)`), hence not reused.
+            unsafe { libc::kill(-(c.pid as libc::pid_t), signal) };
+        }
+    };
+    tracing::info!("stopped (Ctrl-Z): the fleet stops with this process, and goes on with it");
+    signal_all(libc::SIGSTOP);
+    // SAFETY: raise(3) stops this whole process, as SIGTSTP's default action would have; it
+    // returns once a SIGCONT (the shell's `fg` or `bg`) continues it.
+    unsafe { libc::raise(libc::SIGSTOP) };
+    signal_all(libc::SIGCONT);
+}
+
 /// A child as the summary lists it, with what its exit report said if it sent one.
 fn child_summary(c: &Process, report: Option<&Report>) -> ChildSummary {
     ChildSummary {
@@ -444,6 +469,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     } = options;
     let begun = Instant::now();
     let mut shutdown = Shutdown::new()?;
+    let mut suspend = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::from_raw(libc::SIGTSTP))
+        .context("cannot handle SIGTSTP (Ctrl-Z)")?;
     let stall = stall_limit(mission, command_timeout, restart);
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
@@ -544,6 +571,11 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                     progress.set(recording.ticks());
                 }
                 _ = shutdown.recv() => break Outcome::Interrupted,
+                _ = suspend.recv() => {
+                    suspend_with(&children);
+                    // The fleet was stopped too: no tick came because none could.
+                    recording.progress = Instant::now();
+                }
                 _ = check.tick() => {
                     // An agent gone before the first tick, and not to be started again, would
                     // keep the world waiting for it to its startup timeout. The planner serves
@@ -553,6 +585,14 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                     let dead = children.iter_mut().find_map(|c| {
                         c.poll()?;
                         match c.role {
+                            // A world that ended the run (exit 0) sent its end: still on its way
+                            // while the recorder reads what came before it.
+                            Role::World if c.exit_code == Some(Some(0)) => {
+                                (recording.progress.elapsed() > END_ON_ITS_WAY).then(|| format!(
+                                    "the recorder missed the end: the world ended the run (exit 0), but the recording stops at tick {ticks}, and no more came within {} s; its link to the world lost them (was this process stopped, by SIGSTOP, or starved?)",
+                                    END_ON_ITS_WAY.as_secs()
+                                ))
+                            }
                             Role::World => Some(died(dir, c, "before the end")),
                             Role::Planner if ticks == 0 => Some(died(dir, c, "before the first tick")),
                             Role::Planner => {
@@ -604,6 +644,17 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                             break Outcome::Failed(format!("the run did not start within {} s; see logs/world.log", waited.as_secs()));
                         }
                         0 => {}
+                        // Messages of ticks far ahead, and none of the next: the recorder's link
+                        // lost some (a lockstep fleet publishes a tick only once the one before is
+                        // whole), and waiting longer brings nothing.
+                        ticks if lockstep && waited > END_ON_ITS_WAY && recording.rejected.totals().future > 0 => {
+                            break Outcome::Failed(format!(
+                                "the recorder lost messages of tick {}: {} of later ticks came and were refused as too far ahead, none of it for {} s; its link to the world dropped them (was this process stopped, by SIGSTOP, or starved?). The fleet's own logs say how it ended",
+                                ticks + 1,
+                                recording.rejected.totals().future,
+                                END_ON_ITS_WAY.as_secs()
+                            ));
+                        }
                         ticks if waited > stall => {
                             break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {ticks})", stall.as_secs()));
                         }

@@ -13,6 +13,7 @@ pub mod metrics;
 pub mod mission;
 pub mod msg;
 pub mod path;
+pub mod pause;
 pub mod planner;
 pub mod realtime;
 pub mod record;

@@ -13,13 +13,14 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    alone, fetch_paths, linger, linger_for_reports, presence, report, say_now, subscribe, subscribe_with, Carried,
-    ClockServer, Outlet, Presence, Received, Rejected,
+    alone, fetch_paths, linger, linger_for_reports, linger_within, presence, report, say_now, subscribe,
+    subscribe_with, Carried, ClockServer, Outlet, Presence, Received, Rejected, RECORDERS_PATIENCE,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
+use tcpf_core::pause;
 use tcpf_core::realtime::RealtimeWorld;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
@@ -213,7 +214,8 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     tracing::info!("world: {exit}");
     // The end reaches the agents, and their reports the recorders, before the world leaves.
     if matches!(exit, Exit::Ended { .. }) {
-        linger(&session, &keys, &[Role::Agent, Role::Record]).await;
+        linger(&session, &keys, &[Role::Agent]).await;
+        linger_within(&session, &keys, &[Role::Record], RECORDERS_PATIENCE).await;
     }
     if let Some((_, carried)) = &carried {
         let agents: Vec<(Role, u32)> = ids.iter().map(|&id| (Role::Agent, id)).collect();
@@ -469,6 +471,11 @@ impl Shell {
                 }
                 _ = tokio::time::sleep_until(deadline) => {
                     let mut stepped = stepper.lock();
+                    if let Some(more) = pause::extension(deadline.elapsed()) {
+                        tracing::info!("world: resumed after {:.1} s stopped or starved; the agents' commands get that long more", more.as_secs_f64());
+                        stepped.since += more;
+                        continue;
+                    }
                     if stepped.over || stepped.since.elapsed() < options.command_timeout {
                         continue;
                     }
