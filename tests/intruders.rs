@@ -558,3 +558,46 @@ fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
         "the flood held {IDLE} connections ({opened} opened)"
     );
 }
+
+/// An insider's end for a tick the fleet is about to reach: the recorder takes it (nothing tells
+/// it from the world's), but the fleet runs on past it, and every message of a later tick
+/// contradicts it. The run says so: not completed, not reproducible, the contradicted end named
+/// as the failure. Once, the recording stopped there with no failure while the fleet ran on.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
+    let _fleet = fleet();
+    let dir = scratch("forged-end");
+    let out = dir.join("p");
+    let mut launch = Launch::start(&paper("b-current"), &out, &SLOWER);
+    endpoint(&launch);
+    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
+        .await
+        .unwrap();
+    tokio::task::block_in_place(|| wait_until_simulated(&out, 2.0));
+    let recorded = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
+    let last: u64 = recorded
+        .lines()
+        .rev()
+        .nth(1)
+        .and_then(|l| l.split(',').next()?.parse().ok())
+        .expect("a tick in telemetry.csv");
+    // Ahead of every agent (which refuses an end it has not reached), behind the world soon.
+    let forged = End {
+        version: PROTOCOL_VERSION,
+        ticks: last + 100,
+        lost: vec![],
+    };
+    put(&session, &key("end"), postcard::to_stdvec(&forged).unwrap()).await;
+    let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
+    session.close().await.unwrap();
+    let s = launch.summary();
+    assert_eq!(status.code(), Some(1), "{s}");
+    assert_eq!(s["reproducible"], false, "{s}");
+    assert_eq!(s["completed"], false, "{s}");
+    let why = s["failure"].as_str().unwrap_or_default();
+    assert!(
+        why.starts_with(&format!("the end announced after tick {} was contradicted", last + 99)),
+        "{s}"
+    );
+    assert!(s["rejections"]["conflict"].as_u64().unwrap() > 0, "{s}");
+}

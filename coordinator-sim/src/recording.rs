@@ -398,6 +398,14 @@ impl Recording {
                 ));
             }
         }
+        if let Machine::Lockstep(recorder) = &self.machine {
+            if let Some((ticks, _)) = recorder.contradicted_end() {
+                failure.get_or_insert(format!(
+                    "the end announced after tick {} was contradicted: the fleet's messages of later ticks kept coming (a process on the bus spoke for the world?); the recording stops there",
+                    ticks.saturating_sub(1)
+                ));
+            }
+        }
         let mut results = self.results();
         for r in self.exit_reports.iter().filter(|r| r.role == Role::Agent.as_str()) {
             for &(from, n) in &r.late_gammas {

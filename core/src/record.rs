@@ -30,6 +30,8 @@ pub struct Recorder {
     /// Emptied ticks, kept for the next ones: a run fills one or two at a time.
     spare: Vec<Tick>,
     states: Vec<State>,
+    /// The end's tick count, and how many states and commands for ticks past it came.
+    past_the_end: Option<(u64, u64)>,
 }
 
 impl Recorder {
@@ -43,6 +45,7 @@ impl Recorder {
             losses: Vec::new(),
             spare: Vec::new(),
             states: Vec::with_capacity(ids.len()),
+            past_the_end: None,
         }
     }
 
@@ -52,7 +55,17 @@ impl Recorder {
         if tick < self.next {
             return Err(Reject::Past);
         }
-        if tick >= self.next + WINDOW || self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+        // Nothing of a tick past the end is ever sent (the world publishes no state of it, so no
+        // agent commands it): a message for one contradicts the end, or is forged. The end's own
+        // tick may have begun when a world was interrupted: not written, not a contradiction.
+        if let Some(end) = self.end.as_ref().filter(|e| tick >= e.ticks) {
+            if tick == end.ticks {
+                return Err(Reject::Future);
+            }
+            self.past_the_end = Some(self.past_the_end.map_or((end.ticks, 1), |(at, n)| (at, n + 1)));
+            return Err(Reject::Conflict);
+        }
+        if tick >= self.next + WINDOW {
             return Err(Reject::Future);
         }
         let k = (tick - self.next) as usize;
@@ -201,6 +214,13 @@ impl Recorder {
     /// Every tick of the run has been handed on.
     pub fn complete(&self) -> bool {
         self.end.as_ref().is_some_and(|e| self.next >= e.ticks)
+    }
+
+    /// An end that the fleet contradicted: its tick count, and how many messages came for ticks
+    /// past it. A world that ended sends none; a forged end (a process on the bus that
+    /// speaks for the world) stops the recording while the fleet runs on, and this says so.
+    pub fn contradicted_end(&self) -> Option<(u64, u64)> {
+        self.past_the_end
     }
 
     pub fn ticks_recorded(&self) -> u64 {
@@ -424,5 +444,36 @@ mod tests {
             ..state
         };
         assert_eq!(recorder.on_state(near), Ok(()), "the edge of the window is in it");
+    }
+
+    #[test]
+    fn messages_past_the_end_contradict_it_and_are_counted() {
+        let (messages, ..) = recorded_run();
+        let mut recorder = Recorder::new(&[1, 2], 45.0, 0.01);
+        let (state, command) = messages[0].clone();
+        let end = End {
+            version: crate::msg::PROTOCOL_VERSION,
+            ticks: 3,
+            lost: vec![],
+        };
+        recorder.on_end(end).unwrap();
+        assert_eq!(recorder.contradicted_end(), None, "an end alone contradicts nothing");
+        assert_eq!(recorder.on_state(State { tick: 2, ..state }), Ok(()), "before the end");
+        assert_eq!(
+            recorder.on_state(State { tick: 3, ..state }),
+            Err(Reject::Future),
+            "the end's own tick, begun when a world is interrupted"
+        );
+        assert_eq!(recorder.contradicted_end(), None);
+        assert_eq!(recorder.on_state(State { tick: 4, ..state }), Err(Reject::Conflict));
+        assert_eq!(
+            recorder.on_command(Command {
+                tick: 400,
+                ..command.clone()
+            }),
+            Err(Reject::Conflict),
+            "past the end, however far"
+        );
+        assert_eq!(recorder.contradicted_end(), Some((3, 2)));
     }
 }

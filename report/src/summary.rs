@@ -131,7 +131,7 @@ pub const NEVER_ENDED: &str = "the world never said the run was over";
 /// spoke for a role, and which of the two came first decided what was used.
 pub fn conflicting(who: &str, n: u64) -> String {
     format!(
-        "{who}: {n} message(s) for a sender and tick it already had, with other contents: another process speaks for a role on the bus, and which came first decided what was used"
+        "{who}: {n} message(s) contradicting what it already had (for a sender and tick it had, with other contents, or for a tick past the announced end): another process speaks for a role on the bus, and which came first decided what was used"
     )
 }
 
