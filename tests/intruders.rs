@@ -601,3 +601,39 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
     );
     assert!(s["rejections"]["conflict"].as_u64().unwrap() > 0, "{s}");
 }
+
+/// An insider's loss of vehicle 2 at tick 1: its agent obeys and stops, and the world, no longer
+/// hearing from it, loses the vehicle itself a few seconds later. A genuine world loses a vehicle
+/// once: the second, different loss makes the run one that is not reproducible, and says that
+/// another process spoke for a role. Once, the summary blamed the command timeout alone.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
+    let _fleet = fleet();
+    let dir = scratch("forged-loss");
+    let out = dir.join("p");
+    let mut launch = Launch::start(&paper("b-current"), &out, &["--command-timeout", "4"]);
+    endpoint(&launch);
+    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
+        .await
+        .unwrap();
+    tokio::task::block_in_place(|| wait_until_simulated(&out, 1.0));
+    let forged = tcpf_core::msg::Loss::from(tcpf_core::msg::Lost {
+        id: 2,
+        tick: 1,
+        reason: tcpf_core::msg::LossReason::Silent,
+    });
+    put(&session, &key("lost/2"), postcard::to_stdvec(&forged).unwrap()).await;
+    let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
+    session.close().await.unwrap();
+    let s = launch.summary();
+    assert_eq!(status.code(), Some(1), "{s}");
+    assert_eq!(s["vehicles"][1]["lost"], true, "agent 2 obeyed the forged loss: {s}");
+    assert_eq!(s["reproducible"], false, "{s}");
+    assert!(
+        s["reproducible_reasons"]
+            .to_string()
+            .contains("another process speaks for a role"),
+        "{s}"
+    );
+    assert!(s["rejections"]["conflict"].as_u64().unwrap() >= 1, "{s}");
+}

@@ -148,6 +148,8 @@ impl Recorder {
         if end.ticks > self.next + WINDOW {
             return Err(Reject::Future);
         }
+        // The end repeats every loss, each announced on its own key, where one that contradicts
+        // another was counted.
         for &lost in &end.lost {
             let _ = self.on_lost(lost);
         }
@@ -165,8 +167,12 @@ impl Recorder {
         if lost.tick > self.next + WINDOW {
             return Err(Reject::Future);
         }
-        if !self.losses.iter().any(|l| l.id == lost.id) {
-            self.losses.push(lost);
+        // The world loses a vehicle once, and tells a new agent of it the same loss again:
+        // another loss of it is not the world's (or the world's is not the one kept).
+        match self.losses.iter().find(|l| l.id == lost.id) {
+            None => self.losses.push(lost),
+            Some(kept) if *kept != lost => return Err(Reject::Conflict),
+            Some(_) => {}
         }
         Ok(())
     }
@@ -444,6 +450,24 @@ mod tests {
             ..state
         };
         assert_eq!(recorder.on_state(near), Ok(()), "the edge of the window is in it");
+    }
+
+    #[test]
+    fn a_second_different_loss_of_a_vehicle_contradicts_the_first() {
+        let mut recorder = Recorder::new(&[1, 2], 45.0, 0.01);
+        let first = Lost {
+            id: 2,
+            tick: 1,
+            reason: crate::msg::LossReason::Silent,
+        };
+        recorder.on_lost(first).unwrap();
+        assert_eq!(recorder.on_lost(first), Ok(()), "told again to a new agent of it");
+        assert_eq!(
+            recorder.on_lost(Lost { tick: 200, ..first }),
+            Err(Reject::Conflict),
+            "a forged loss came first, or this one is forged"
+        );
+        assert_eq!(recorder.losses(), &[first]);
     }
 
     #[test]
