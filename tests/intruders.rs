@@ -637,3 +637,59 @@ async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
     );
     assert!(s["rejections"]["conflict"].as_u64().unwrap() >= 1, "{s}");
 }
+
+/// An insider commands vehicle 2 in a realtime run: for every command of its agent, one with
+/// another speed stamped 20 ticks ahead (0.04 s of wall time at ×5, well within the skew allowed
+/// between hosts' clocks). The world holds the freshest, so the forger steers the vehicle and its
+/// agent's commands are refused as older. The run fails and says so. Once, it arrived with every
+/// genuine command counted `past` and no word of why.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_vehicle_commanded_ahead_of_the_clock_by_another_process_fails_the_run_by_name() {
+    let _fleet = fleet();
+    let dir = scratch("hijack");
+    let out = dir.join("p");
+    let realtime = ["--clock", "realtime", "--time-scale", "5"];
+    let mut launch = Launch::start(&paper("b-current"), &out, &realtime);
+    endpoint(&launch);
+    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
+        .await
+        .unwrap();
+    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Vec<u8>>();
+    let _genuine = session
+        .declare_subscriber(key("cmd/2"))
+        .callback(move |s| {
+            let _ = tx.send(s.payload().to_bytes().to_vec());
+        })
+        .await
+        .unwrap();
+    let mut forged = 0u64;
+    let mut seen = 0u64;
+    while launch.child.try_wait().unwrap().is_none() {
+        let Ok(Some(bytes)) = tokio::time::timeout(Duration::from_millis(200), rx.recv()).await else {
+            continue;
+        };
+        let Ok(genuine) = postcard::from_bytes::<Command>(&bytes) else {
+            continue;
+        };
+        // Its own copies come back too; each genuine tick is answered once.
+        if genuine.tick <= seen {
+            continue;
+        }
+        seen = genuine.tick + 20;
+        let ahead = Command {
+            tick: genuine.tick + 20,
+            v: genuine.v * 0.5,
+            ..genuine
+        };
+        put(&session, &key("cmd/2"), postcard::to_stdvec(&ahead).unwrap()).await;
+        forged += 1;
+    }
+    let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
+    session.close().await.unwrap();
+    let s = launch.summary();
+    eprintln!("forged {forged} commands; the run: {}", s["failure"]);
+    assert!(forged > 10, "the forger answered its agent ({forged})");
+    assert_eq!(status.code(), Some(1), "{s}");
+    let why = s["failure"].as_str().unwrap_or_default();
+    assert!(why.contains("two processes commanded a vehicle"), "{s}");
+}

@@ -491,6 +491,21 @@ impl Recording {
         }
         if realtime {
             reproducible_reasons.push(REALTIME.into());
+            // An agent's commands are stamped by its clock, so each is fresher than the one
+            // before, and a restarted agent's by the same clock: none is ever older than the one
+            // the world holds. Some were: another process commanded a vehicle, ahead of the
+            // clock, and the vehicle followed it instead of its agent.
+            // Nor are two different ones stamped alike.
+            let (past, conflict) = self
+                .exit_reports
+                .iter()
+                .filter(|r| r.role == Role::World.as_str())
+                .fold((0, 0), |(p, c), r| (p + r.rejected.past, c + r.rejected.conflict));
+            if past + conflict > 0 {
+                failure.get_or_insert(format!(
+                    "the world refused {past} command(s) as older than one it held and {conflict} as another for a tick it had: two processes commanded a vehicle, and the one stamping ahead of the clock steered it (a process on the bus spoke for an agent?)"
+                ));
+            }
         } else {
             // When the world gives up on an agent is a matter of wall-clock time (its command
             // timeout, or when the agent's process died), which the in-process run knows nothing of.
