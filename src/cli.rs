@@ -1,0 +1,298 @@
+//! The command line: every subcommand and flag, and how a value is read from it.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+use tcpf_bus::session::ZenohArgs;
+use tcpf_core::mission;
+
+#[derive(Parser)]
+#[command(
+    name = "tcpf",
+    version,
+    about = "Time-coordinated path following for fleets of vehicles"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Args)]
+pub struct MissionArgs {
+    /// Mission file (TOML).
+    pub file: PathBuf,
+    /// Override a mission key: `section.key=value`, `section.table.key=value`, or
+    /// `vehicle.<id>.key=value`.
+    #[arg(long = "set", value_name = "K=V")]
+    pub set: Vec<String>,
+    /// The `set`s that stand for other flags, and those flags as typed: what an error names.
+    #[arg(skip)]
+    pub flags: Vec<(String, String)>,
+}
+
+/// Which clock the fleet runs on; on top of the mission's `[mission] clock` and `time_scale`.
+#[derive(Args, Clone)]
+pub struct ClockArgs {
+    /// lockstep (the world waits for every command: reproducible) or realtime (the wall clock).
+    #[arg(long, value_parser = ["lockstep", "realtime"])]
+    pub clock: Option<String>,
+    /// Realtime: simulated seconds per wall second (1: real time).
+    #[arg(long, value_name = "X", value_parser = time_scale, allow_hyphen_values = true)]
+    pub time_scale: Option<f64>,
+}
+
+impl ClockArgs {
+    /// The mission keys these flags stand for, each with its flag. `--clock lockstep` alone
+    /// also sets the time scale back to 1, which only the realtime clock may change.
+    pub fn sets(&self) -> Vec<(String, String)> {
+        let mut sets = Vec::new();
+        if let Some(c) = &self.clock {
+            sets.push((format!("mission.clock={c}"), format!("--clock {c}")));
+            if c == "lockstep" && self.time_scale.is_none() {
+                sets.push(("mission.time_scale=1.0".into(), format!("--clock {c}")));
+            }
+        }
+        if let Some(x) = self.time_scale {
+            sets.push((format!("mission.time_scale={x:?}"), format!("--time-scale {x}")));
+        }
+        sets
+    }
+}
+
+/// What `tcpf run` does when an agent dies.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Restart {
+    /// Its vehicle is lost and drifts.
+    Never,
+    /// The agent is started again and rejoins.
+    OnFailure,
+}
+
+#[derive(Subcommand)]
+pub enum Generated {
+    /// Vehicles in parallel lanes 4 m apart on a ring, against a cross current (ring5 grown).
+    Lanes {
+        /// How many vehicles (one lane each).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(2..=i64::from(mission::generate::MAX_VEHICLES)))]
+        vehicles: u32,
+        /// Loss probability of every link.
+        #[arg(long, default_value_t = 0.2, value_parser = probability)]
+        loss: f64,
+    },
+}
+
+/// A time scale on the command line, within the mission's bound.
+fn time_scale(text: &str) -> Result<f64, String> {
+    let (min, max) = (mission::MIN_TIME_SCALE, mission::MAX_TIME_SCALE);
+    match text.parse::<f64>() {
+        Ok(x) if (min..=max).contains(&x) => Ok(x),
+        _ => Err(format!(
+            "{text}: give simulated seconds per wall second, in [{min}, {max}]"
+        )),
+    }
+}
+
+/// The most recorders a run waits for: each is a process on the bus, and a count beyond any
+/// fleet's is a typo (18446744073709551615, plus the launcher's own, wrapped to none at all).
+const MAX_RECORDERS: u64 = 64;
+
+fn recorders() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_RECORDERS)
+}
+
+/// A probability on the command line: a number in [0, 1].
+fn probability(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(p) if (0.0..=1.0).contains(&p) => Ok(p),
+        _ => Err(format!("{text}: give a probability in [0, 1]")),
+    }
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Launch a mission, record it and write the run directory.
+    Run {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
+        /// Start a dead agent again (it rejoins the run), or never (its vehicle is lost).
+        #[arg(long, value_enum, default_value = "never")]
+        restart: Restart,
+        /// Run directory (default runs/<mission>-<timestamp>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Drive every machine in one loop instead of one process per role (the reference).
+        #[arg(long)]
+        in_process: bool,
+        /// Mission seed (overrides mission.seed); a TOML integer, so at most 2^63 − 1.
+        #[arg(long, value_parser = clap::value_parser!(u64).range(..=i64::MAX as u64))]
+        seed: Option<u64>,
+        /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
+        #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+        live: Option<SocketAddr>,
+        /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
+        /// More than the agents' stale timeout (3 s). [default: 10]
+        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
+        command_timeout: Option<Duration>,
+        /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
+        /// own, with the run directory's `zenoh.json5` (-c).
+        #[arg(long, value_name = "N", default_value_t = 0, value_parser = recorders())]
+        recorders: usize,
+        /// Seconds the world waits for every agent and recorder before it gives up and says who
+        /// is missing. [default: 60]
+        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Option<Duration>,
+    },
+    /// Solve the trajectory generation problem and print the plan.
+    Plan {
+        #[command(flatten)]
+        mission: MissionArgs,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Fault-injection experiment: every (value, seed) pair, summarised per value.
+    #[command(group(clap::ArgGroup::new("values").required(true).args(["loss", "param"])))]
+    Sweep {
+        #[command(flatten)]
+        mission: MissionArgs,
+        /// Loss probabilities to sweep (comms.loss), e.g. 0,0.3,0.6,0.9.
+        #[arg(long, value_delimiter = ',')]
+        loss: Vec<String>,
+        /// Any mission key instead: KEY=V1,V2,...
+        #[arg(long, value_name = "KEY=V1,V2,...")]
+        param: Option<String>,
+        /// Seeds 1..=N for every value (each a run's --seed).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..=i64::MAX as u64))]
+        seeds: u64,
+        /// Run each as a real fleet of processes (one after the other) instead of in-process.
+        #[arg(long)]
+        processes: bool,
+        /// Output directory (default runs/<mission>-sweep-<timestamp>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Print a generated mission file, for fleets of any size.
+    Gen {
+        #[command(subcommand)]
+        mission: Generated,
+    },
+    /// Write (again) a run directory's report.html from its recorded files.
+    Report {
+        /// The run directory.
+        dir: PathBuf,
+    },
+    /// Every speed figure beside its baseline: the plan, the in-process fleet, the lockstep tick
+    /// against a raw Zenoh round trip, the agents' memory and sockets.
+    Bench {
+        #[command(flatten)]
+        mission: MissionArgs,
+        /// Round trips to time.
+        #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..))]
+        count: u64,
+    },
+    /// The echo side of `tcpf bench`.
+    #[command(hide = true)]
+    Pong {
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        count: u64,
+        /// Names its liveliness token.
+        #[arg(long, default_value_t = 0)]
+        id: u32,
+    },
+    /// A Zenoh router for a testbed: every role connects to it (configs/zenoh/).
+    Router {
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+    },
+    /// Role: plan and serve every vehicle's path.
+    Planner {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        /// Accepted like every role's, so that one command line serves all: paths do not
+        /// depend on the clock.
+        #[command(flatten)]
+        clock: ClockArgs,
+    },
+    /// Role: the world, which integrates the vehicles and keeps the fleet's clock.
+    World {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
+        /// Realtime: simulate only these vehicles (ids, comma-separated); other processes play
+        /// the others by publishing their State and taking their Command.
+        #[arg(long, value_delimiter = ',', value_name = "IDS")]
+        vehicles: Option<Vec<u32>>,
+        /// Lockstep: seconds a tick waits for a gone agent to come back before its vehicle is
+        /// lost (default: lost at once).
+        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
+        rejoin_timeout: Option<Duration>,
+        /// Recorders to wait for before the first tick.
+        #[arg(long, default_value_t = 0, value_parser = recorders())]
+        recorders: usize,
+        /// Seconds to wait, from the start, for the plan, the agents and the recorders.
+        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Duration,
+        /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
+        #[arg(long, default_value = "10", value_parser = seconds, allow_hyphen_values = true)]
+        command_timeout: Duration,
+    },
+    /// Role: record a fleet started by hand (start its world with --recorders 1).
+    Record {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
+        /// Run directory (default runs/<mission>-<timestamp>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
+        #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+        live: Option<SocketAddr>,
+        /// Seconds to wait for the world.
+        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Duration,
+    },
+    /// Role: the agent of one vehicle.
+    Agent {
+        #[command(flatten)]
+        mission: MissionArgs,
+        #[command(flatten)]
+        zenoh: ZenohArgs,
+        #[command(flatten)]
+        clock: ClockArgs,
+        /// The vehicle's id.
+        #[arg(long)]
+        id: u32,
+        /// Seconds to wait for the planner, the world and the neighbours.
+        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        startup_timeout: Duration,
+        /// Seconds after which a silent neighbour stops being counted.
+        #[arg(long, default_value = "3", value_parser = seconds, allow_hyphen_values = true)]
+        stale_timeout: Duration,
+    },
+}
+
+/// A duration on the command line: seconds, finite, positive and at most a day.
+fn seconds(text: &str) -> Result<Duration, String> {
+    let s: f64 = text
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number of seconds"))?;
+    if s.is_finite() && s > 0.0 && s <= 86_400.0 {
+        Ok(Duration::from_secs_f64(s))
+    } else {
+        Err(format!("{text} s: give a number of seconds in (0, 86400]"))
+    }
+}

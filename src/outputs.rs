@@ -1,0 +1,65 @@
+//! Where a command writes: stdout, run directories, the live view's address.
+
+use std::net::SocketAddr;
+use std::path::Path;
+
+use anyhow::anyhow;
+use tcpf_core::mission::Mission;
+use tcpf_report::rundir::RunDir;
+
+use crate::Failure;
+
+/// The live view's address can be listened on: said before a run directory is made, which a
+/// run that cannot serve would leave half-written.
+pub fn live_free(live: Option<SocketAddr>) -> Result<(), Failure> {
+    match live.map(std::net::TcpListener::bind) {
+        Some(Err(e)) => Err(Failure::Input(anyhow!(
+            "--live {}: cannot serve the live view there: {e}",
+            live.expect("given")
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// A run directory to create: a new or empty directory, so that a run never mixes its files
+/// with another's.
+pub fn fresh_out(out: Option<&Path>) -> Result<(), Failure> {
+    let Some(out) = out.filter(|o| o.exists()) else {
+        return Ok(());
+    };
+    let empty = out.is_dir() && std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_none());
+    if empty {
+        Ok(())
+    } else if out.is_dir() {
+        Err(Failure::Input(anyhow!(
+            "--out {}: the directory already holds files; give a new or empty one",
+            out.display()
+        )))
+    } else {
+        Err(Failure::Input(anyhow!(
+            "--out {}: is a file, not a directory",
+            out.display()
+        )))
+    }
+}
+
+/// Makes the run directory.
+pub fn run_dir(out: Option<&Path>, mission: &Mission) -> Result<RunDir, Failure> {
+    RunDir::create(out, mission).map_err(|e| out_failure(e, out.is_some()))
+}
+
+/// An output directory that cannot be made. One the user named (`given`) on a path that cannot
+/// hold it (under a file or a directory that is not there or not theirs, a name too long) is
+/// theirs to change, exit 2; a failing disk, or the default directory, is not.
+pub fn out_failure(e: anyhow::Error, given: bool) -> Failure {
+    use std::io::ErrorKind::*;
+    let kind = e.root_cause().downcast_ref::<std::io::Error>().map(|io| io.kind());
+    match kind {
+        Some(NotFound | NotADirectory | PermissionDenied | ReadOnlyFilesystem | AlreadyExists | InvalidFilename)
+            if given =>
+        {
+            Failure::Input(e.context("--out"))
+        }
+        _ => Failure::Failed(e),
+    }
+}

@@ -1,0 +1,118 @@
+//! The roles started by hand: planner, world, agent and recorder, each a process on the bus.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::anyhow;
+use tcpf_bus::session::ZenohArgs;
+use tcpf_coordinator::planner_node;
+use tcpf_core::mission;
+use tcpf_report::table;
+
+use crate::cli::MissionArgs;
+use crate::outputs::{fresh_out, live_free, run_dir};
+use crate::{code, load, role, role_failure, solve, Failure};
+
+pub fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let plan = solve(&mission, &args.file)?;
+    let exit = role(planner_node::run(&mission, &plan, zenoh))?.map_err(role_failure)?;
+    Ok(code(
+        exit == planner_node::Exit::Ended,
+        exit == planner_node::Exit::Interrupted,
+    ))
+}
+
+pub fn world(args: &MissionArgs, zenoh: &ZenohArgs, options: tcpf_world::Options) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    if let Some(vehicles) = &options.vehicles {
+        if mission.mission.clock != mission::ClockKind::Realtime {
+            return Err(Failure::Input(anyhow!(
+                "--vehicles: other processes can play vehicles only in realtime (--clock realtime); lockstep waits for every state"
+            )));
+        }
+        if let Some(id) = vehicles
+            .iter()
+            .find(|&&id| !mission.vehicles.iter().any(|v| v.id == id))
+        {
+            return Err(Failure::Input(anyhow!(
+                "--vehicles: {} has no vehicle with id {id}",
+                args.file.display()
+            )));
+        }
+    }
+    let exit = role(tcpf_world::run(&mission, zenoh, &options))?.map_err(role_failure)?;
+    Ok(code(
+        matches!(exit, tcpf_world::Exit::Ended { lost: 0, short: 0, .. }),
+        exit == tcpf_world::Exit::Interrupted,
+    ))
+}
+
+pub fn agent(
+    args: &MissionArgs,
+    zenoh: &ZenohArgs,
+    id: u32,
+    startup_timeout: Duration,
+    stale_timeout: Duration,
+) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    if !mission.vehicles.iter().any(|v| v.id == id) {
+        return Err(Failure::Input(anyhow!(
+            "--id {id}: {} has no vehicle with that id",
+            args.file.display()
+        )));
+    }
+    let options = tcpf_agent::Options {
+        startup_timeout,
+        stale_timeout,
+    };
+    let exit = role(tcpf_agent::run(&mission, id, zenoh, &options))?.map_err(role_failure)?;
+    Ok(code(
+        exit == tcpf_agent::Exit::Ended,
+        exit == tcpf_agent::Exit::Interrupted,
+    ))
+}
+
+pub fn record(
+    args: &MissionArgs,
+    zenoh: &ZenohArgs,
+    out: Option<&Path>,
+    live: Option<SocketAddr>,
+    startup_timeout: Duration,
+) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let plan = solve(&mission, &args.file)?;
+    fresh_out(out)?;
+    live_free(live)?;
+    // Bad Zenoh options are bad input before the run directory is made, which they would
+    // leave behind half written.
+    zenoh.config().map_err(role_failure)?;
+    let dir = run_dir(out, &mission)?;
+    let summary = role(tcpf_coordinator::recording::record(
+        &mission,
+        &plan,
+        &dir,
+        zenoh,
+        live,
+        startup_timeout,
+    ))?
+    .map_err(|e| {
+        // Nothing recorded (no session, no world, refused by the world's clock): the
+        // corrected command may take the same --out.
+        if e.downcast_ref::<tcpf_coordinator::recording::NothingRecorded>()
+            .is_some()
+        {
+            dir.discard();
+        }
+        role_failure(e)
+    })?;
+    say!("{}", table::summary(&summary));
+    sayln!("run directory: {}", dir.path.display());
+    let realtime = mission.mission.clock == mission::ClockKind::Realtime;
+    Ok(code(
+        summary.completed && (summary.reproducible || realtime),
+        summary.interrupted,
+    ))
+}

@@ -1,0 +1,115 @@
+//! `tcpf run`, `plan` and `report`: a mission's plan, its run, and a run's report.
+
+use std::path::Path;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::anyhow;
+use tcpf_coordinator::{inprocess, launcher};
+use tcpf_core::mission;
+use tcpf_report::table;
+
+use crate::cli::MissionArgs;
+use crate::outputs::{fresh_out, live_free, run_dir};
+use crate::{code, load, role_failure, runtime, solve, Failure};
+
+pub fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    let plan = solve(&mission, &args.file)?;
+    if json {
+        sayln!(
+            "{}",
+            serde_json::to_string_pretty(&plan).map_err(|e| Failure::Failed(e.into()))?
+        );
+    } else {
+        say!("{}", table::plan(&plan));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+pub fn run(
+    args: &MissionArgs,
+    out: Option<&Path>,
+    in_process: bool,
+    seed: Option<u64>,
+    (command_timeout, startup_timeout): (Option<Duration>, Option<Duration>),
+    options: launcher::Options,
+) -> Result<ExitCode, Failure> {
+    let mission = load(args, seed)?;
+    let realtime = mission.mission.clock == mission::ClockKind::Realtime;
+    if in_process && realtime {
+        return Err(Failure::Input(anyhow!(
+            "--in-process runs lockstep only: the realtime clock is for fleets of processes"
+        )));
+    }
+    if in_process && options.restart {
+        return Err(Failure::Input(anyhow!(
+            "--restart: an in-process run has no agent processes to start again"
+        )));
+    }
+    if in_process && options.recorders > 0 {
+        return Err(Failure::Input(anyhow!(
+            "--recorders: an in-process run has no bus for other recorders to join"
+        )));
+    }
+    for (flag, given) in [
+        ("--command-timeout", command_timeout),
+        ("--startup-timeout", startup_timeout),
+    ] {
+        if in_process && given.is_some() {
+            return Err(Failure::Input(anyhow!(
+                "{flag}: an in-process run has no processes to wait for"
+            )));
+        }
+    }
+    // The agents' default stale timeout: a neighbour waiting for a silent agent gives up on it
+    // first, so that only the silent one is lost.
+    if options.command_timeout <= Duration::from_secs(3) {
+        return Err(Failure::Input(anyhow!(
+            "--command-timeout {:?}: must exceed the agents' stale timeout (3 s), or an agent waiting for a silent neighbour would be lost with it",
+            options.command_timeout
+        )));
+    }
+    if !in_process && !realtime {
+        launcher::launcher_runtime();
+    }
+    let plan = solve(&mission, &args.file)?;
+    fresh_out(out)?;
+    live_free(options.live)?;
+    let dir = run_dir(out, &mission)?;
+    let summary = if in_process {
+        inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::Failed)?
+    } else {
+        let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
+        runtime()?
+            .block_on(launcher::run(&mission, &plan, &dir, &exe, options))
+            .map_err(role_failure)?
+    };
+    say!("{}", table::summary(&summary));
+    sayln!("run directory: {}", dir.path.display());
+    // A realtime run is not meant to be reproducible: it succeeds by arriving.
+    Ok(code(
+        summary.completed && (summary.reproducible || realtime),
+        summary.interrupted,
+    ))
+}
+
+pub fn report(dir: &Path) -> Result<ExitCode, Failure> {
+    // A sweep's directory holds its runs' directories when it ran them as processes.
+    if dir.join("sweep.csv").is_file() && !dir.join("summary.json").exists() {
+        return Err(Failure::Input(anyhow!(
+            "{}: a sweep's directory (sweep.csv), which tcpf sweep wrote with its sweep.html; tcpf report reads one run's directory",
+            dir.display()
+        )));
+    }
+    if !dir.join("summary.json").is_file() {
+        return Err(Failure::Input(anyhow!(
+            "{}: no summary.json: not a run directory, or a run stopped before it wrote one (killed outright, say)",
+            dir.display()
+        )));
+    }
+    // What it cannot read or make sense of is the directory's fault: bad input.
+    tcpf_report::report::write(dir).map_err(Failure::Input)?;
+    sayln!("{}", dir.join("report.html").display());
+    Ok(ExitCode::SUCCESS)
+}
