@@ -771,6 +771,46 @@ fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
     }
 }
 
+/// A role whose Zenoh configuration demands no credential says, as it starts, that it runs open
+/// (any process that reaches it could speak for any role); one whose configuration demands a
+/// user and password does not.
+#[test]
+fn a_role_without_a_credential_says_that_it_runs_open() {
+    let _fleet = fleet();
+    let dir = scratch("open");
+    let dictionary = dir.join("credentials");
+    std::fs::write(&dictionary, "tcpf:a-secret\n").unwrap();
+    let closed = dir.join("closed.json5");
+    std::fs::write(
+        &closed,
+        format!(
+            r#"{{ mode: "peer", scouting: {{ multicast: {{ enabled: false }} }}, listen: {{ endpoints: ["tcp/127.0.0.1:0"] }},
+               transport: {{ auth: {{ usrpwd: {{ user: "tcpf", password: "a-secret", dictionary_file: "{}" }} }} }} }}"#,
+            dictionary.display()
+        ),
+    )
+    .unwrap();
+    for (config, open) in [(None, true), (Some(&closed), false)] {
+        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"));
+        command.args(["planner", &paper("b-current")]);
+        if let Some(config) = config {
+            command.arg("-c").arg(config);
+        }
+        let log = dir.join(format!("planner-open-{open}.log"));
+        let _planner = Reaper(
+            command
+                .stdout(std::process::Stdio::null())
+                .stderr(std::fs::File::create(&log).unwrap())
+                .spawn()
+                .unwrap(),
+        );
+        // Serving: it has opened its session, and said what it had to before.
+        common::wait_for_text(&log, "planner: t_f =", Duration::from_secs(30));
+        let said = std::fs::read_to_string(&log).unwrap();
+        assert_eq!(said.contains("this role runs open"), open, "{said}");
+    }
+}
+
 /// A role that cannot listen where it was told says why: the port is taken, or the address
 /// is not this host's.
 #[test]

@@ -204,6 +204,40 @@ fn readable(file: &str) -> std::result::Result<(), String> {
 pub const ACCEPT_PENDING: usize = 4096;
 pub const ACCEPT_TIMEOUT_MS: u64 = 5000;
 
+/// What `config` demands of the processes it meets, if anything: a user and password, or a
+/// certificate (mutual TLS).
+pub fn credential(config: &Config) -> Option<&'static str> {
+    let set = |key: &str| {
+        config
+            .get_json(key)
+            .is_ok_and(|v| !matches!(v.as_str(), "" | "null" | "false"))
+    };
+    if set("transport/auth/usrpwd/dictionary_file") || set("transport/auth/usrpwd/user") {
+        Some("a user and password")
+    } else if set("transport/link/tls/enable_mtls") {
+        Some("a certificate (mutual TLS)")
+    } else {
+        None
+    }
+}
+
+/// A role whose configuration demands no credential says so as it starts: any process that
+/// reaches it can join the fleet and speak for any role (`tcpf run` makes a credential for each
+/// run; a fleet started by hand has the one its configuration gives).
+pub fn warn_if_open(config: &Config) {
+    if credential(config).is_none() {
+        let at = ["listen/endpoints", "connect/endpoints"]
+            .iter()
+            .map(|k| config.get_json(k).unwrap_or_default())
+            .filter(|e| !matches!(e.as_str(), "" | "[]" | "{}"))
+            .collect::<Vec<_>>()
+            .join(" and ");
+        tracing::warn!(
+            "this role runs open: its Zenoh configuration demands no credential, so any process that reaches {at} can join this fleet and speak for any role; give -c a configuration that demands one (configs/zenoh/tls/ or configs/zenoh/acl/, docs/TESTBED.md), or use `tcpf run`, which makes one for each run"
+        );
+    }
+}
+
 impl ZenohArgs {
     /// Without a config file: peer mode on 127.0.0.1, no multicast scouting, an ephemeral port,
     /// a handshake queue that idle connections do not fill (`ACCEPT_PENDING`), so that nothing
@@ -288,6 +322,7 @@ impl ZenohArgs {
     /// startup timeout): a role pointed at a router that does not answer says where it tries,
     /// and stops waiting when its timeout says so, not when a config file's connect timeout does.
     pub async fn open_unless(&self, shutdown: &mut Shutdown, within: Duration) -> Result<Session> {
+        warn_if_open(&self.config()?);
         let endpoints = self.config()?.get_json("connect/endpoints").unwrap_or_default();
         let trying = !matches!(endpoints.as_str(), "" | "[]" | "{}");
         if trying {

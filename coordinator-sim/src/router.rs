@@ -12,7 +12,9 @@ pub async fn run(zenoh: &ZenohArgs) -> Result<()> {
         mode: zenoh.mode.clone().or_else(|| Some("router".into())),
         ..zenoh.clone()
     };
-    let session = zenoh::open(zenoh.config()?)
+    let config = zenoh.config()?;
+    tcpf_bus::session::warn_if_open(&config);
+    let session = zenoh::open(config)
         .await
         .map_err(|e| anyhow!("cannot open the Zenoh router: {}", tcpf_bus::session::zenoh_words(e)))?;
     // The locators it got, not the endpoints it was given: a port 0 becomes the one bound, an
