@@ -1091,9 +1091,12 @@ fn a_report_of_a_cut_telemetry_says_so() {
 fn a_report_of_a_crafted_run_directory_writes_no_markup_and_no_stranger() {
     let out = a_run_to_report("report-crafted");
     let summary = out.join("summary.json");
-    let mut s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    s["seed"] = "<script>alert(1)</script>".into();
-    s["vehicles"][0]["id"] = "<img src=x onerror=alert(2)>".into();
+    let whole_text = std::fs::read_to_string(&summary).unwrap();
+    let whole: serde_json::Value = serde_json::from_str(&whole_text).unwrap();
+    // Markup where the summary has text: written as text.
+    let mut s = whole.clone();
+    s["failure"] = "<script>alert(1)</script>".into();
+    s["warnings"] = serde_json::json!(["<img src=x onerror=alert(2)>"]);
     std::fs::write(&summary, s.to_string()).unwrap();
     let o = tcpf(&["report", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
@@ -1103,6 +1106,19 @@ fn a_report_of_a_crafted_run_directory_writes_no_markup_and_no_stranger() {
         "markup on the page"
     );
     assert!(html.contains("&lt;script&gt;alert(1)&lt;/script&gt;"));
+    // Markup where the summary has a number: not a run's summary.
+    let mut s = whole;
+    s["seed"] = "<script>alert(1)</script>".into();
+    s["vehicles"][0]["id"] = "<img src=x onerror=alert(2)>".into();
+    std::fs::write(&summary, s.to_string()).unwrap();
+    let o = tcpf(&["report", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("not the summary a run writes: invalid type: string"),
+        "{}",
+        text(&o)
+    );
+    std::fs::write(&summary, whole_text).unwrap();
     let telemetry = out.join("telemetry.csv");
     let mut rows = std::fs::read_to_string(&telemetry).unwrap();
     rows.push_str("5,0.05,50000,0,0,0,0,0.5,0,0.5,0,0,0\n");
@@ -1161,7 +1177,7 @@ fn a_report_of_a_damaged_run_directory_says_what_is_wrong() {
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(
         text(&o).contains(&format!(
-            "{}: not the summary a run writes: `mission` is not a string",
+            "{}: not the summary a run writes: missing field `mission`",
             summary.display()
         )),
         "{}",

@@ -50,6 +50,12 @@ impl Thrusters {
     }
 }
 
+/// JSON has no infinity: serde_json writes an infinite clearance (a fleet of one) as null, which
+/// reads back as infinity.
+fn infinite_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+}
+
 /// What a run measured. `summary.json` is this plus how it ran.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Results {
@@ -59,9 +65,11 @@ pub struct Results {
     /// On [0, first arrival] (the headline).
     pub max_coordination_error: f64,
     /// Infinite (null in JSON) for a fleet of one.
+    #[serde(deserialize_with = "infinite_if_null")]
     pub min_clearance: f64,
     /// On [0, last arrival].
     pub max_coordination_error_to_last_arrival: f64,
+    #[serde(deserialize_with = "infinite_if_null")]
     pub min_clearance_to_last_arrival: f64,
     pub links: Vec<LinkStats>,
 }

@@ -6,11 +6,13 @@ use std::fmt::Write;
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
-use serde_json::Value;
 use tcpf_core::dynamics::{DEAD_ZONE, FULL};
+use tcpf_core::links::LinkStats;
+use tcpf_core::metrics::Thrusters;
 use tcpf_core::mission::{self, Mission};
 
 use crate::plots::{bars, Chart, Series};
+use crate::summary::{Clock, RoleTiming, Summary};
 
 /// At most this many points per line: enough for the eye, small enough for the page.
 const POINTS: usize = 1500;
@@ -164,21 +166,13 @@ fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
-/// A field of summary.json as the page shows it: a string without its quotes, anything else as
-/// JSON, and either escaped: a crafted summary.json must not write into the page.
-fn field(v: &Value) -> String {
-    match v {
-        Value::String(s) => escape(s),
-        other => escape(&other.to_string()),
-    }
+/// A number as the page shows it: a dash for none, or for one that is not finite (the clearance
+/// of a fleet of one).
+fn number(x: impl Into<Option<f64>>, digits: usize) -> String {
+    x.into()
+        .filter(|x| x.is_finite())
+        .map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
 }
-
-fn number(v: &Value, digits: usize) -> String {
-    v.as_f64().map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
-}
-
-/// Whether a JSON value is of the kind a field needs.
-type Is = fn(&Value) -> bool;
 
 /// Writes `report.html` into `dir` from its mission.toml, summary.json and telemetry.csv.
 pub fn write(dir: &Path) -> Result<()> {
@@ -188,27 +182,17 @@ pub fn write(dir: &Path) -> Result<()> {
     let mission_file = dir.join("mission.toml").display().to_string();
     let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| anyhow!("{e}"))?;
     let summary_file = dir.join("summary.json").display().to_string();
-    let summary: Value = serde_json::from_str(&read("summary.json")?)
+    let json: serde_json::Value = serde_json::from_str(&read("summary.json")?)
         .with_context(|| format!("{summary_file}: not the JSON a run writes"))?;
-    // What the page is made of: JSON without it is another file than a run's summary.
-    let fields: [(&str, Is, &str); 5] = [
-        ("mission", Value::is_string, "a string"),
-        ("clock", Value::is_string, "a string"),
-        ("t_f", Value::is_number, "a number"),
-        ("ticks", Value::is_u64, "a count"),
-        ("vehicles", Value::is_array, "a list"),
-    ];
-    if let Some((key, _, what)) = fields.iter().find(|(key, is, _)| !is(&summary[key])) {
-        return Err(anyhow!(
-            "{summary_file}: not the summary a run writes: `{key}` is not {what}"
-        ));
-    }
+    // Read as what the run wrote, field by field: JSON of another shape is another file.
+    let summary: Summary =
+        serde_json::from_value(json).map_err(|e| anyhow!("{summary_file}: not the summary a run writes: {e}"))?;
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let tracks = read_telemetry(&dir.join("telemetry.csv"), &ids)?;
     // A lockstep recording has a row per vehicle and tick (a realtime one, a row per period the
     // recorder sampled): fewer, and the file was cut short.
-    let ticks = summary["ticks"].as_u64().unwrap_or(0);
-    if summary["clock"] == "lockstep" {
+    let ticks = summary.results.ticks;
+    if summary.clock == Clock::Lockstep {
         if let Some((id, track)) = tracks.iter().find(|(_, t)| (t.t.len() as u64) < ticks) {
             tracing::warn!(
                 "{}: vehicle {id} has {} rows of the {ticks} ticks summary.json counts: the file was cut short, and the report shows what is there",
@@ -416,10 +400,10 @@ fn message_figures(messages: &[Message], figures: &mut Vec<(&str, String, String
     ));
 }
 
-fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messages: &[Message]) -> String {
+fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, messages: &[Message]) -> String {
     let ids: Vec<u32> = tracks.keys().copied().collect();
     let (all, linked) = pairs(mission, &ids);
-    let t_f = summary["t_f"].as_f64().unwrap_or(0.0);
+    let t_f = summary.results.t_f;
     let mut figures: Vec<(&str, String, String)> = Vec::new();
 
     let mut paths = Chart::new("Paths, with time along them", "x (m)", "y (m)");
@@ -543,18 +527,15 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
 
     dynamic_figures(tracks, &mut figures);
 
-    let links = summary["links"].as_array().cloned().unwrap_or_default();
-    let names: Vec<String> = links
-        .iter()
-        .map(|l| format!("{}→{}", field(&l["from"]), field(&l["to"])))
-        .collect();
-    let count = |k: &str| links.iter().map(|l| l[k].as_f64().unwrap_or(0.0)).collect::<Vec<f64>>();
+    let links = &summary.results.links;
+    let names: Vec<String> = links.iter().map(|l| format!("{}→{}", l.from, l.to)).collect();
+    let count = |n: fn(&LinkStats) -> u64| links.iter().map(|l| n(l) as f64).collect::<Vec<f64>>();
     let link_chart = bars(
         "Messages per directed link",
         "directed link",
         "messages",
         &names,
-        &[("delivered", count("delivered")), ("dropped", count("dropped"))],
+        &[("delivered", count(|l| l.delivered)), ("dropped", count(|l| l.dropped))],
         900,
         350,
     );
@@ -566,7 +547,7 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     message_figures(messages, &mut figures);
 
     let mut html = String::new();
-    let title = format!("tcpf run: {}", summary["mission"].as_str().unwrap_or("?"));
+    let title = format!("tcpf run: {}", summary.mission);
     let _ = write!(
         html,
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\n<style>body{{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}}table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:.25em .6em;text-align:right}}th{{background:#f4f4f4}}figure{{margin:1.5em 0}}figcaption{{color:#555;margin-top:.3em}}</style></head><body>\n<h1>{}</h1>\n",
@@ -576,24 +557,24 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     let _ = writeln!(
         html,
         "<table id=\"summary\"><tr><th>seed</th><th>mode</th><th>clock</th><th>t_f (s)</th><th>ticks</th><th>completed</th><th>coordination error (s)</th><th>clearance (m)</th><th>wall time (s)</th></tr><tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr></table>",
-        field(&summary["seed"]),
-        escape(summary["mode"].as_str().unwrap_or("")),
-        escape(summary["clock"].as_str().unwrap_or("")),
-        number(&summary["t_f"], 3),
-        field(&summary["ticks"]),
-        field(&summary["completed"]),
-        number(&summary["max_coordination_error"], 3),
-        number(&summary["min_clearance"], 3),
-        number(&summary["wall_time_s"], 3),
+        summary.seed,
+        summary.mode,
+        summary.clock,
+        number(t_f, 3),
+        summary.results.ticks,
+        summary.completed,
+        number(summary.results.max_coordination_error, 3),
+        number(summary.results.min_clearance, 3),
+        number(summary.wall_time_s, 3),
     );
-    for warning in summary["warnings"].as_array().into_iter().flatten() {
+    for warning in &summary.warnings {
         let _ = writeln!(
             html,
             "<p class=\"warning\"><strong>Warning:</strong> {}</p>",
-            field(warning)
+            escape(warning)
         );
     }
-    if let Some(failure) = summary["failure"].as_str() {
+    if let Some(failure) = &summary.failure {
         let _ = writeln!(
             html,
             "<p id=\"failure\"><strong>Failed:</strong> {}</p>",
@@ -603,16 +584,14 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
     html.push_str(
         "<table id=\"vehicles\"><tr><th>vehicle</th><th>arrival (s)</th><th>arrival − t_f (s)</th><th>lost</th></tr>",
     );
-    for v in summary["vehicles"].as_array().cloned().unwrap_or_default() {
-        let late = v["arrival_time"]
-            .as_f64()
-            .map_or("–".to_string(), |a| format!("{:+.3}", a - t_f));
+    for v in &summary.results.vehicles {
+        let late = v.arrival_time.map_or("–".to_string(), |a| format!("{:+.3}", a - t_f));
         let _ = write!(
             html,
             "<tr><td>{}</td><td>{}</td><td>{late}</td><td>{}</td></tr>",
-            field(&v["id"]),
-            number(&v["arrival_time"], 3),
-            field(&v["lost"])
+            v.id,
+            number(v.arrival_time, 3),
+            v.lost
         );
     }
     html.push_str("</table>\n");
@@ -630,62 +609,62 @@ fn page(mission: &Mission, summary: &Value, tracks: &BTreeMap<u32, Track>, messa
 }
 
 /// Dynamic vehicles: how hard their thrusters worked (`vehicles[].thrusters` in summary.json).
-fn thrusters_table(html: &mut String, summary: &Value) {
-    let vehicles = summary["vehicles"].as_array().cloned().unwrap_or_default();
-    let dynamic: Vec<&Value> = vehicles.iter().filter(|v| v["thrusters"].is_object()).collect();
+fn thrusters_table(html: &mut String, summary: &Summary) {
+    let dynamic: Vec<(u32, Thrusters)> = summary
+        .results
+        .vehicles
+        .iter()
+        .filter_map(|v| Some((v.id, v.thrusters?)))
+        .collect();
     if dynamic.is_empty() {
         return;
     }
     html.push_str(
         "<table id=\"thrusters\"><tr><th>vehicle</th><th>dead zone 1 (s)</th><th>dead zone 2 (s)</th><th>saturated 1 (s)</th><th>saturated 2 (s)</th><th>largest command (%)</th></tr>",
     );
-    for v in dynamic {
-        let t = &v["thrusters"];
+    for (id, t) in dynamic {
         let _ = write!(
             html,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            field(&v["id"]),
-            number(&t["dead_zone_s"][0], 2),
-            number(&t["dead_zone_s"][1], 2),
-            number(&t["saturated_s"][0], 2),
-            number(&t["saturated_s"][1], 2),
-            number(&t["max_command"], 1)
+            "<tr><td>{id}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            number(t.dead_zone_s[0], 2),
+            number(t.dead_zone_s[1], 2),
+            number(t.saturated_s[0], 2),
+            number(t.saturated_s[1], 2),
+            number(t.max_command, 1)
         );
     }
     html.push_str("</table>\n");
 }
 
 /// Realtime runs: how each role kept its period (`timing` in summary.json).
-fn timing_table(html: &mut String, summary: &Value) {
-    let Some(roles) = summary["timing"].as_array().filter(|t| !t.is_empty()) else {
+fn timing_table(html: &mut String, summary: &Summary) {
+    if summary.timing.is_empty() {
         return;
-    };
+    }
     let _ = write!(
         html,
         "<p>Realtime at time scale {}: how late each role's control periods started (wall ms).</p>\n<table id=\"timing\"><tr><th>role</th><th>periods</th><th>p50</th><th>p99</th><th>max</th><th>overruns</th><th>skipped</th><th>late commands</th><th>stale states</th><th>periods without a command</th></tr>",
-        field(&summary["time_scale"])
+        summary.time_scale.map_or("–".to_string(), |x| x.to_string())
     );
-    for t in roles {
-        let without: Vec<String> = t["without_command"]
-            .as_array()
-            .cloned()
-            .unwrap_or_default()
+    for RoleTiming { role, id, timing: t } in &summary.timing {
+        let without: Vec<String> = t
+            .without_command
             .iter()
-            .map(|v| format!("vehicle {}: {}", v[0], v[1]))
+            .map(|(v, n)| format!("vehicle {v}: {n}"))
             .collect();
         let _ = write!(
             html,
             "<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            escape(t["role"].as_str().unwrap_or("")),
-            field(&t["id"]),
-            field(&t["periods"]),
-            number(&t["lateness_p50_ms"], 3),
-            number(&t["lateness_p99_ms"], 3),
-            number(&t["lateness_max_ms"], 3),
-            field(&t["overruns"]),
-            field(&t["skipped"]),
-            field(&t["late_commands"]),
-            field(&t["stale_states"]),
+            escape(role),
+            id,
+            t.periods,
+            number(t.lateness_p50_ms, 3),
+            number(t.lateness_p99_ms, 3),
+            number(t.lateness_max_ms, 3),
+            t.overruns,
+            t.skipped,
+            t.late_commands,
+            t.stale_states,
             escape(&without.join(", "))
         );
     }
