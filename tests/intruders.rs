@@ -48,6 +48,14 @@ fn outsider(endpoint: &str) -> zenoh::Config {
     config
 }
 
+/// An insider: a session with the run's own Zenoh configuration (`<run>/zenoh.json5`), as a
+/// process of the run's owner could open.
+async fn insider(run: &std::path::Path) -> zenoh::Session {
+    zenoh::open(zenoh::Config::from_file(run.join("zenoh.json5")).unwrap())
+        .await
+        .unwrap()
+}
+
 /// Publishes without dropping: every message of the test reaches whoever can hear it.
 async fn put(session: &zenoh::Session, key: &str, bytes: Vec<u8>) {
     session
@@ -428,9 +436,7 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
     let realtime = ["--clock", "realtime", "--time-scale", "10"];
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &realtime);
     endpoint(&launch);
-    let session = zenoh::open(zenoh::Config::from_file(dir.join("p/zenoh.json5")).unwrap())
-        .await
-        .unwrap();
+    let session = insider(&dir.join("p")).await;
     tokio::task::block_in_place(|| wait_until_simulated(&dir.join("p"), 2.0));
     let (state, command, gamma) = samples();
     let far = 1_000_000_000;
@@ -570,9 +576,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
     let out = dir.join("p");
     let mut launch = Launch::start(&paper("b-current"), &out, &SLOWER);
     endpoint(&launch);
-    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
-        .await
-        .unwrap();
+    let session = insider(&out).await;
     tokio::task::block_in_place(|| wait_until_simulated(&out, 2.0));
     let recorded = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
     let last: u64 = recorded
@@ -613,9 +617,7 @@ async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
     let out = dir.join("p");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--command-timeout", "4"]);
     endpoint(&launch);
-    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
-        .await
-        .unwrap();
+    let session = insider(&out).await;
     tokio::task::block_in_place(|| wait_until_simulated(&out, 1.0));
     let forged = tcpf_core::msg::Loss::from(tcpf_core::msg::Lost {
         id: 2,
@@ -651,9 +653,7 @@ async fn a_vehicle_commanded_ahead_of_the_clock_by_another_process_fails_the_run
     let realtime = ["--clock", "realtime", "--time-scale", "5"];
     let mut launch = Launch::start(&paper("b-current"), &out, &realtime);
     endpoint(&launch);
-    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
-        .await
-        .unwrap();
+    let session = insider(&out).await;
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Vec<u8>>();
     let _genuine = session
         .declare_subscriber(key("cmd/2"))
