@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
 use tcpf_bus::session::ZenohArgs;
+use tcpf_bus::waits;
 use tcpf_core::mission;
 
 #[derive(Parser)]
@@ -119,7 +120,7 @@ pub enum Command {
         #[command(flatten)]
         clock: ClockArgs,
         /// Start a dead agent again (it rejoins the run), or never (its vehicle is lost).
-        #[arg(long, value_enum, default_value = "never")]
+        #[arg(long, value_enum, default_value = "never", conflicts_with = "in_process")]
         restart: Restart,
         /// Run directory (default runs/<mission>-<timestamp>/).
         #[arg(long)]
@@ -134,17 +135,17 @@ pub enum Command {
         #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
         live: Option<SocketAddr>,
         /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
-        /// More than the agents' stale timeout (3 s). [default: 10]
-        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
-        command_timeout: Option<Duration>,
+        /// More than the agents' stale timeout.
+        #[arg(long, default_value = waits::COMMAND_S, value_parser = command_timeout, allow_hyphen_values = true, conflicts_with = "in_process")]
+        command_timeout: Duration,
         /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
         /// own, with the run directory's `zenoh.json5` (-c).
-        #[arg(long, value_name = "N", default_value_t = 0, value_parser = recorders())]
+        #[arg(long, value_name = "N", default_value_t = 0, value_parser = recorders(), conflicts_with = "in_process")]
         recorders: usize,
         /// Seconds the world waits for every agent and recorder before it gives up and says who
-        /// is missing. [default: 60]
-        #[arg(long, value_parser = seconds, allow_hyphen_values = true)]
-        startup_timeout: Option<Duration>,
+        /// is missing.
+        #[arg(long, default_value = waits::STARTUP_S, value_parser = seconds, allow_hyphen_values = true, conflicts_with = "in_process")]
+        startup_timeout: Duration,
     },
     /// Solve the trajectory generation problem and print the plan.
     Plan {
@@ -241,10 +242,10 @@ pub enum Command {
         #[arg(long, default_value_t = 0, value_parser = recorders())]
         recorders: usize,
         /// Seconds to wait, from the start, for the plan, the agents and the recorders.
-        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        #[arg(long, default_value = waits::STARTUP_S, value_parser = seconds, allow_hyphen_values = true)]
         startup_timeout: Duration,
         /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
-        #[arg(long, default_value = "10", value_parser = seconds, allow_hyphen_values = true)]
+        #[arg(long, default_value = waits::COMMAND_S, value_parser = seconds, allow_hyphen_values = true)]
         command_timeout: Duration,
     },
     /// Role: record a fleet started by hand (start its world with --recorders 1).
@@ -262,7 +263,7 @@ pub enum Command {
         #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
         live: Option<SocketAddr>,
         /// Seconds to wait for the world.
-        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        #[arg(long, default_value = waits::STARTUP_S, value_parser = seconds, allow_hyphen_values = true)]
         startup_timeout: Duration,
     },
     /// Role: the agent of one vehicle.
@@ -277,10 +278,10 @@ pub enum Command {
         #[arg(long)]
         id: u32,
         /// Seconds to wait for the planner, the world and the neighbours.
-        #[arg(long, default_value = "60", value_parser = seconds, allow_hyphen_values = true)]
+        #[arg(long, default_value = waits::STARTUP_S, value_parser = seconds, allow_hyphen_values = true)]
         startup_timeout: Duration,
         /// Seconds after which a silent neighbour stops being counted.
-        #[arg(long, default_value = "3", value_parser = seconds, allow_hyphen_values = true)]
+        #[arg(long, default_value = waits::STALE_S, value_parser = seconds, allow_hyphen_values = true)]
         stale_timeout: Duration,
     },
 }
@@ -294,5 +295,17 @@ fn seconds(text: &str) -> Result<Duration, String> {
         Ok(Duration::from_secs_f64(s))
     } else {
         Err(format!("{text} s: give a number of seconds in (0, 86400]"))
+    }
+}
+
+/// `tcpf run --command-timeout`: more than the agents' stale timeout, or an agent waiting for a
+/// silent neighbour would be lost with it.
+fn command_timeout(text: &str) -> Result<Duration, String> {
+    match seconds(text)? {
+        d if d <= waits::STALE => Err(format!(
+            "{text} s: must exceed the agents' stale timeout ({} s), or an agent waiting for a silent neighbour would be lost with it",
+            waits::STALE.as_secs()
+        )),
+        d => Ok(d),
     }
 }

@@ -144,11 +144,10 @@ fn main() -> ExitCode {
             out.as_deref(),
             in_process,
             seed,
-            (command_timeout, startup_timeout),
             launcher::Options {
                 live,
-                command_timeout: command_timeout.unwrap_or(launcher::COMMAND_TIMEOUT),
-                startup_timeout: startup_timeout.unwrap_or(launcher::STARTUP),
+                command_timeout,
+                startup_timeout,
                 restart: restart == Restart::OnFailure,
                 recorders,
             },

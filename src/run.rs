@@ -2,7 +2,6 @@
 
 use std::path::Path;
 use std::process::ExitCode;
-use std::time::Duration;
 
 use anyhow::anyhow;
 use tcpf_coordinator::{inprocess, launcher};
@@ -32,42 +31,14 @@ pub fn run(
     out: Option<&Path>,
     in_process: bool,
     seed: Option<u64>,
-    (command_timeout, startup_timeout): (Option<Duration>, Option<Duration>),
     options: launcher::Options,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
     let realtime = mission.mission.clock == mission::ClockKind::Realtime;
+    // The clock may come from the mission file: clap cannot see it.
     if in_process && realtime {
         return Err(Failure::Input(anyhow!(
             "--in-process runs lockstep only: the realtime clock is for fleets of processes"
-        )));
-    }
-    if in_process && options.restart {
-        return Err(Failure::Input(anyhow!(
-            "--restart: an in-process run has no agent processes to start again"
-        )));
-    }
-    if in_process && options.recorders > 0 {
-        return Err(Failure::Input(anyhow!(
-            "--recorders: an in-process run has no bus for other recorders to join"
-        )));
-    }
-    for (flag, given) in [
-        ("--command-timeout", command_timeout),
-        ("--startup-timeout", startup_timeout),
-    ] {
-        if in_process && given.is_some() {
-            return Err(Failure::Input(anyhow!(
-                "{flag}: an in-process run has no processes to wait for"
-            )));
-        }
-    }
-    // The agents' default stale timeout: a neighbour waiting for a silent agent gives up on it
-    // first, so that only the silent one is lost.
-    if options.command_timeout <= Duration::from_secs(3) {
-        return Err(Failure::Input(anyhow!(
-            "--command-timeout {:?}: must exceed the agents' stale timeout (3 s), or an agent waiting for a silent neighbour would be lost with it",
-            options.command_timeout
         )));
     }
     if !in_process && !realtime {

@@ -545,7 +545,11 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         ),
         (
             vec!["run", &mission, "--in-process", "--recorders", "1"],
-            "no bus for other recorders to join",
+            "the argument '--in-process' cannot be used with '--recorders <N>'",
+        ),
+        (
+            vec!["run", &mission, "--in-process", "--restart", "on-failure"],
+            "the argument '--in-process' cannot be used with '--restart <RESTART>'",
         ),
         (
             vec!["sweep", &mission, "--param", "mission.seed=1,2", "--seeds", "1"],
@@ -570,11 +574,11 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         ),
         (
             vec!["run", &mission, "--in-process", "--command-timeout", "5"],
-            "--command-timeout: an in-process run has no processes to wait for",
+            "the argument '--in-process' cannot be used with '--command-timeout <COMMAND_TIMEOUT>'",
         ),
         (
             vec!["run", &mission, "--in-process", "--startup-timeout", "5"],
-            "--startup-timeout: an in-process run has no processes to wait for",
+            "the argument '--in-process' cannot be used with '--startup-timeout <STARTUP_TIMEOUT>'",
         ),
         // Zenoh options that cannot work are bad input too, said without Zenoh's source paths.
         (

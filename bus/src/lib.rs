@@ -7,3 +7,4 @@ pub mod keys;
 pub mod session;
 pub mod signals;
 pub mod typed;
+pub mod waits;

@@ -12,6 +12,7 @@ use anyhow::{anyhow, Context, Result};
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::{Interrupted, Shutdown};
+use tcpf_bus::waits;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::Report;
 use tcpf_core::planner::Plan;
@@ -78,9 +79,6 @@ const STALL: Duration = Duration::from_secs(60);
 /// How long the recorder may go without a tick once the world has exited after ending the run:
 /// what the world sent last may still be on its way.
 const END_ON_ITS_WAY: Duration = Duration::from_secs(5);
-/// How long the world waits for every agent and recorder, unless told otherwise; then it gives up
-/// and says who is missing.
-pub const STARTUP: Duration = Duration::from_secs(60);
 /// The launcher waits this much longer for the first tick, so that the world says it first.
 const START_MARGIN: Duration = Duration::from_secs(10);
 /// With `--restart on-failure`, how long a lockstep tick waits for an agent started again.
@@ -310,10 +308,6 @@ enum Outcome {
     Failed(String),
 }
 
-/// How long the world waits for an agent's command of a tick, unless told otherwise: well past
-/// the agents' stale timeout (3 s), so that a neighbour given up on is not also lost at once.
-pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(10);
-
 /// A run that failed (its world or recorder stopped short), its run directory written: what
 /// `failure` in its summary.json says.
 #[derive(Debug)]
@@ -349,10 +343,10 @@ impl Default for Options {
     fn default() -> Options {
         Options {
             live: None,
-            command_timeout: COMMAND_TIMEOUT,
+            command_timeout: waits::COMMAND,
             restart: false,
             recorders: 0,
-            startup_timeout: STARTUP,
+            startup_timeout: waits::STARTUP,
         }
     }
 }
@@ -753,7 +747,7 @@ mod tests {
     fn a_run_stalls_only_after_what_the_world_waits_for_on_purpose() {
         let secs = |d: Duration| d.as_secs_f64();
         let b = mission(&[]);
-        assert_eq!(secs(stall_limit(&b, COMMAND_TIMEOUT, false)), 60.0);
+        assert_eq!(secs(stall_limit(&b, waits::COMMAND, false)), 60.0);
         assert_eq!(secs(stall_limit(&b, Duration::from_secs(120), false)), 130.0);
         // A wall period of 50 s (a control period of 0.05 s at the slowest time scale): a tick
         // every 50 s is no stall.
@@ -762,6 +756,6 @@ mod tests {
             "mission.time_scale=0.001",
             "mission.control_period=0.05",
         ]);
-        assert_eq!(secs(stall_limit(&slow, COMMAND_TIMEOUT, false)), 110.0);
+        assert_eq!(secs(stall_limit(&slow, waits::COMMAND, false)), 110.0);
     }
 }
