@@ -97,16 +97,21 @@ fn load(args: &MissionArgs, seed: Option<u64>) -> Result<Mission, Failure> {
             limit >> 20
         )));
     }
-    let mut sets = args.set.clone();
-    // `--seed` is one more `--set` that stands for a flag.
-    let seed = seed.map(|seed| (format!("mission.seed={seed}"), format!("--seed {seed}")));
-    sets.extend(seed.iter().map(|(set, _)| set.clone()));
-    mission::parse(&name, &text, &sets).map_err(|mut e| {
-        for (set, flag) in args.flags.iter().chain(&seed) {
-            e.message = e.message.replace(&format!("--set {set}"), flag);
-        }
-        Failure::Input(e.into())
-    })
+    // Each as the user gave it: a --set, or a flag that stands for one (--clock, --seed).
+    let flag = |set: &String| args.flags.iter().find(|(s, _)| s == set).map(|(_, said)| said.clone());
+    let mut overrides: Vec<mission::Override> = args
+        .set
+        .iter()
+        .map(|set| mission::Override {
+            said: flag(set).unwrap_or_else(|| format!("--set {set}")),
+            set: set.clone(),
+        })
+        .collect();
+    overrides.extend(seed.map(|seed| mission::Override {
+        set: format!("mission.seed={seed}"),
+        said: format!("--seed {seed}"),
+    }));
+    mission::parse_with(&name, &text, &overrides).map_err(|e| Failure::Input(e.into()))
 }
 
 fn solve(mission: &Mission, file: &Path) -> Result<Plan, Failure> {

@@ -510,9 +510,34 @@ impl Mission {
     }
 }
 
+/// An override of a mission key: `set` is `section.key=value` (`vehicle.<id>.key=value` for a
+/// vehicle); `said` is how the user gave it, what an error names: `--set section.key=value`, or
+/// a flag that stands for one (`--seed 5`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Override {
+    pub set: String,
+    pub said: String,
+}
+
+impl Override {
+    /// `--set o`.
+    pub fn set(o: &str) -> Override {
+        Override {
+            set: o.to_string(),
+            said: format!("--set {o}"),
+        }
+    }
+}
+
 /// Parses `text` (from `file`), applies `overrides` (`section.key=value`; `vehicle.<id>.key=value`
-/// for a vehicle) and validates the result.
+/// for a vehicle), each given as `--set`, and validates the result.
 pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, MissionError> {
+    let overrides: Vec<Override> = overrides.iter().map(|o| Override::set(o)).collect();
+    parse_with(file, text, &overrides)
+}
+
+/// `parse`, with overrides named in errors as the user gave them.
+pub fn parse_with(file: &str, text: &str, overrides: &[Override]) -> Result<Mission, MissionError> {
     let err = |line, key: Option<String>, message: String| MissionError {
         file: file.to_string(),
         line,
@@ -569,20 +594,24 @@ pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, Mi
     mission.validate().map_err(|(path, message)| {
         let key = path_string(&path);
         // The last override of a key is the one in effect.
-        match overrides.iter().rev().find(|o| overrides::touches(o, &path, &mission)) {
+        match overrides
+            .iter()
+            .rev()
+            .find(|o| overrides::touches(&o.set, &path, &mission))
+        {
             // Named as the override names it, `vehicle.2.weight` rather than the file's
             // `vehicle[1].weight`, and below it where a whole table or list was set:
             // `comms.link[0].loss`.
-            Some(o) => {
+            Some(Override { set: o, said }) => {
                 let set = o.split('=').next().unwrap_or(o).trim();
                 let below = &path[set.split('.').count().min(path.len())..];
                 let key = path_below(set.to_string(), below);
-                err(None, Some(key), format!("{message} (from --set {o})"))
+                err(None, Some(key), format!("{message} (from {said})"))
             }
             // A key of the file may be wrong only beside an override of another (tf_max against
             // --set planner.tf_min=70): say which are in effect.
             None if !overrides.is_empty() => {
-                let sets: Vec<String> = overrides.iter().map(|o| format!("--set {o}")).collect();
+                let sets: Vec<&str> = overrides.iter().map(|o| o.said.as_str()).collect();
                 let at = line_of_key(text, table, &path);
                 let message = format!("{message} (with {})", sets.join(", "));
                 err(at.line, Some(key), defaulted(message, &at))

@@ -31,15 +31,17 @@ const LISTS: [(&str, &str); 2] = [
     ("comms.outage", "[{ from = 1, to = \"*\", start = 10.0, end = 30.0 }]"),
 ];
 
-pub(super) fn apply(file: &str, text: &str, overrides: &[String]) -> Result<Mission, MissionError> {
+/// Applies each override, `set` (`key=value`), which an error names as the user gave it, `said`
+/// (`--set key=value`, or the flag that stands for it).
+pub(super) fn apply(file: &str, text: &str, overrides: &[super::Override]) -> Result<Mission, MissionError> {
     let mut root: toml::Table = toml::from_str(text).expect("the file parsed once already");
     let mut failing = None;
-    for o in overrides {
+    for super::Override { set: o, said } in overrides {
         let bad = |message: String| MissionError {
             file: file.to_string(),
             line: None,
             key: Some(o.split('=').next().unwrap_or(o).trim().to_string()),
-            message: format!("--set {o}: {message}"),
+            message: format!("{said}: {message}"),
         };
         let (key, raw) = o.split_once('=').ok_or_else(|| bad("expected KEY=VALUE".into()))?;
         // A value is one line: what a newline would add (a table header, another key) would be
