@@ -62,6 +62,19 @@ impl ClockArgs {
     }
 }
 
+/// What every role started by hand takes: its mission, the Zenoh options of its session, and
+/// the clock (the planner too, whose paths do not depend on it, so that one command line serves
+/// every role).
+#[derive(Args)]
+pub struct RoleArgs {
+    #[command(flatten)]
+    pub mission: MissionArgs,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    #[command(flatten)]
+    pub clock: ClockArgs,
+}
+
 /// What `tcpf run` does when an agent dies.
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Restart {
@@ -214,22 +227,12 @@ pub enum Command {
     /// Role: plan and serve every vehicle's path.
     Planner {
         #[command(flatten)]
-        mission: MissionArgs,
-        #[command(flatten)]
-        zenoh: ZenohArgs,
-        /// Accepted like every role's, so that one command line serves all: paths do not
-        /// depend on the clock.
-        #[command(flatten)]
-        clock: ClockArgs,
+        role: RoleArgs,
     },
     /// Role: the world, which integrates the vehicles and keeps the fleet's clock.
     World {
         #[command(flatten)]
-        mission: MissionArgs,
-        #[command(flatten)]
-        zenoh: ZenohArgs,
-        #[command(flatten)]
-        clock: ClockArgs,
+        role: RoleArgs,
         /// Realtime: simulate only these vehicles (ids, comma-separated); other processes play
         /// the others by publishing their State and taking their Command.
         #[arg(long, value_delimiter = ',', value_name = "IDS")]
@@ -251,11 +254,7 @@ pub enum Command {
     /// Role: record a fleet started by hand (start its world with --recorders 1).
     Record {
         #[command(flatten)]
-        mission: MissionArgs,
-        #[command(flatten)]
-        zenoh: ZenohArgs,
-        #[command(flatten)]
-        clock: ClockArgs,
+        role: RoleArgs,
         /// Run directory (default runs/<mission>-<timestamp>/).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -269,11 +268,7 @@ pub enum Command {
     /// Role: the agent of one vehicle.
     Agent {
         #[command(flatten)]
-        mission: MissionArgs,
-        #[command(flatten)]
-        zenoh: ZenohArgs,
-        #[command(flatten)]
-        clock: ClockArgs,
+        role: RoleArgs,
         /// The vehicle's id.
         #[arg(long)]
         id: u32,

@@ -176,36 +176,32 @@ fn main() -> ExitCode {
                     .map_err(role_failure)
             })
             .map(|_| ExitCode::SUCCESS),
-        Command::Planner { mission, zenoh, clock } => roles::planner(&clocked(&mission, &clock), &zenoh),
+        Command::Planner { role } => roles::planner(&clocked(&role.mission, &role.clock), &role.zenoh),
         Command::Router { zenoh } => runtime()
             .and_then(|rt| rt.block_on(tcpf_coordinator::router::run(&zenoh)).map_err(role_failure))
             .map(|_| ExitCode::SUCCESS),
         Command::Record {
-            mission,
-            zenoh,
-            clock,
+            role,
             out,
             live,
             startup_timeout,
         } => roles::record(
-            &clocked(&mission, &clock),
-            &zenoh,
+            &clocked(&role.mission, &role.clock),
+            &role.zenoh,
             out.as_deref(),
             live,
             startup_timeout,
         ),
         Command::World {
-            mission,
-            zenoh,
-            clock,
+            role,
             vehicles,
             rejoin_timeout,
             recorders,
             startup_timeout,
             command_timeout,
         } => roles::world(
-            &clocked(&mission, &clock),
-            &zenoh,
+            &clocked(&role.mission, &role.clock),
+            &role.zenoh,
             tcpf_world::Options {
                 startup_timeout,
                 recorders,
@@ -215,13 +211,17 @@ fn main() -> ExitCode {
             },
         ),
         Command::Agent {
-            mission,
-            zenoh,
-            clock,
+            role,
             id,
             startup_timeout,
             stale_timeout,
-        } => roles::agent(&clocked(&mission, &clock), &zenoh, id, startup_timeout, stale_timeout),
+        } => roles::agent(
+            &clocked(&role.mission, &role.clock),
+            &role.zenoh,
+            id,
+            startup_timeout,
+            stale_timeout,
+        ),
     };
     match outcome {
         Ok(code) => code,
