@@ -578,13 +578,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
     endpoint(&launch);
     let session = insider(&out).await;
     tokio::task::block_in_place(|| wait_until_simulated(&out, 2.0));
-    let recorded = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
-    let last: u64 = recorded
-        .lines()
-        .rev()
-        .nth(1)
-        .and_then(|l| l.split(',').next()?.parse().ok())
-        .expect("a tick in telemetry.csv");
+    let (last, _) = common::last_recorded(&out).expect("a tick in telemetry.csv");
     // Ahead of every agent (which refuses an end it has not reached), behind the world soon.
     let forged = End {
         version: PROTOCOL_VERSION,

@@ -322,14 +322,14 @@ impl ZenohArgs {
     /// startup timeout): a role pointed at a router that does not answer says where it tries,
     /// and stops waiting when its timeout says so, not when a config file's connect timeout does.
     pub async fn open_unless(&self, shutdown: &mut Shutdown, within: Duration) -> Result<Session> {
-        warn_if_open(&self.config()?);
-        let endpoints = self.config()?.get_json("connect/endpoints").unwrap_or_default();
+        let config = self.config()?;
+        warn_if_open(&config);
+        let endpoints = config.get_json("connect/endpoints").unwrap_or_default();
         let trying = !matches!(endpoints.as_str(), "" | "[]" | "{}");
         if trying {
             tracing::info!("connecting to {endpoints}");
         }
-        let args = self.clone();
-        let opening = tokio::time::timeout(within, tokio::spawn(async move { args.open().await }));
+        let opening = tokio::time::timeout(within, tokio::spawn(open(config)));
         match shutdown.unless(opening).await {
             Some(Ok(opened)) => opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
             Some(Err(_)) if trying => Err(anyhow!(
@@ -345,30 +345,34 @@ impl ZenohArgs {
     }
 
     pub async fn open(&self) -> Result<Session> {
-        let config = self.config()?;
-        let opened = zenoh::open(config).await.map_err(|e| anyhow!("{}", zenoh_words(e)));
-        if let Err(e) = &opened {
-            let words = e.to_string();
-            if words.contains("listener") {
-                let hint = if words.contains("Address already in use") {
-                    " (is another process listening there?)"
-                } else if words.contains("Cannot assign requested address") {
-                    " (is that address one of this host's?)"
-                } else {
-                    ""
-                };
-                return Err(anyhow!("cannot open the Zenoh session: {e}{hint}"));
-            }
-        }
-        opened.context(
-            "cannot open the Zenoh session: nothing answered at the endpoints to connect to, a \
-                 TLS handshake failed, or the router refused this process's credentials (is the \
-                 router up and reachable? does it accept this host's certificate? is the router's \
-                 certificate valid for the address connected to, and signed by the CA this host \
-                 trusts? to join a `tcpf run`, use its run directory's zenoh.json5, which holds the \
-                 run's credentials; RUST_LOG=zenoh=debug says which)",
-        )
+        open(self.config()?).await
     }
+}
+
+/// Opens a session with `config`, saying in a user's words why it could not.
+async fn open(config: Config) -> Result<Session> {
+    let opened = zenoh::open(config).await.map_err(|e| anyhow!("{}", zenoh_words(e)));
+    if let Err(e) = &opened {
+        let words = e.to_string();
+        if words.contains("listener") {
+            let hint = if words.contains("Address already in use") {
+                " (is another process listening there?)"
+            } else if words.contains("Cannot assign requested address") {
+                " (is that address one of this host's?)"
+            } else {
+                ""
+            };
+            return Err(anyhow!("cannot open the Zenoh session: {e}{hint}"));
+        }
+    }
+    opened.context(
+        "cannot open the Zenoh session: nothing answered at the endpoints to connect to, a \
+             TLS handshake failed, or the router refused this process's credentials (is the \
+             router up and reachable? does it accept this host's certificate? is the router's \
+             certificate valid for the address connected to, and signed by the CA this host \
+             trusts? to join a `tcpf run`, use its run directory's zenoh.json5, which holds the \
+             run's credentials; RUST_LOG=zenoh=debug says which)",
+    )
 }
 
 #[cfg(test)]

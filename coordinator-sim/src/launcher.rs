@@ -633,6 +633,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         }
                     }
                     let waited = recording.progress.elapsed();
+                    let refused_ahead = recording.rejected.totals().future;
                     match recording.ticks() {
                         0 if waited > startup_timeout + START_MARGIN => {
                             break Outcome::Failed(format!("the run did not start within {} s; see logs/world.log", waited.as_secs()));
@@ -641,11 +642,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         // Messages of ticks far ahead, and none of the next: the recorder's link
                         // lost some (a lockstep fleet publishes a tick only once the one before is
                         // whole), and waiting longer brings nothing.
-                        ticks if lockstep && waited > END_ON_ITS_WAY && recording.rejected.totals().future > 0 => {
+                        ticks if lockstep && waited > END_ON_ITS_WAY && refused_ahead > 0 => {
                             break Outcome::Failed(format!(
-                                "the recorder lost messages of tick {}: {} of later ticks came and were refused as too far ahead, none of it for {} s; its link to the world dropped them (was this process stopped, by SIGSTOP, or starved?). The fleet's own logs say how it ended",
+                                "the recorder lost messages of tick {}: {refused_ahead} of later ticks came and were refused as too far ahead, none of it for {} s; its link to the world dropped them (was this process stopped, by SIGSTOP, or starved?). The fleet's own logs say how it ended",
                                 ticks + 1,
-                                recording.rejected.totals().future,
                                 END_ON_ITS_WAY.as_secs()
                             ));
                         }

@@ -9,6 +9,7 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{presence, report, subscribe, Rejected};
+use tcpf_bus::waits;
 use tcpf_core::lockstep::Timing;
 use tcpf_core::mission::Mission;
 use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
@@ -32,15 +33,13 @@ impl std::fmt::Display for Exit {
     }
 }
 
-/// How long the planner waits for its router to answer: as long as the other roles do by
-/// default (their --startup-timeout).
-const ROUTER_WAIT: Duration = Duration::from_secs(60);
-
 /// Serves `plan` until the world goes away (having announced the end, or not), or a signal.
 pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown, ROUTER_WAIT).await?;
+    // The planner has no --startup-timeout: it waits for its router as long as the other roles
+    // do by default.
+    let session = zenoh.open_unless(&mut shutdown, waits::STARTUP).await?;
     let rejected = Rejected::default();
     let paths: Vec<(KeyExpr<'static>, Vec<u8>)> = plan
         .vehicles

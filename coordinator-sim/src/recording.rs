@@ -493,9 +493,9 @@ impl Recording {
             reproducible_reasons.push(REALTIME.into());
             // An agent's commands are stamped by its clock, so each is fresher than the one
             // before, and a restarted agent's by the same clock: none is ever older than the one
-            // the world holds. Some were: another process commanded a vehicle, ahead of the
-            // clock, and the vehicle followed it instead of its agent.
-            // Nor are two different ones stamped alike.
+            // the world holds, nor two different ones stamped alike. Some were: another process
+            // commanded a vehicle, ahead of the clock, and the vehicle followed it instead of its
+            // agent.
             let (past, conflict) = self
                 .exit_reports
                 .iter()

@@ -30,8 +30,8 @@ pub struct Recorder {
     /// Emptied ticks, kept for the next ones: a run fills one or two at a time.
     spare: Vec<Tick>,
     states: Vec<State>,
-    /// The end's tick count, and how many states and commands for ticks past it came.
-    past_the_end: Option<(u64, u64)>,
+    /// States and commands that came for ticks past the end.
+    past_the_end: u64,
 }
 
 impl Recorder {
@@ -45,7 +45,7 @@ impl Recorder {
             losses: Vec::new(),
             spare: Vec::new(),
             states: Vec::with_capacity(ids.len()),
-            past_the_end: None,
+            past_the_end: 0,
         }
     }
 
@@ -62,7 +62,7 @@ impl Recorder {
             if tick == end.ticks {
                 return Err(Reject::Future);
             }
-            self.past_the_end = Some(self.past_the_end.map_or((end.ticks, 1), |(at, n)| (at, n + 1)));
+            self.past_the_end += 1;
             return Err(Reject::Conflict);
         }
         if tick >= self.next + WINDOW {
@@ -226,7 +226,8 @@ impl Recorder {
     /// past it. A world that ended sends none; a forged end (a process on the bus that
     /// speaks for the world) stops the recording while the fleet runs on, and this says so.
     pub fn contradicted_end(&self) -> Option<(u64, u64)> {
-        self.past_the_end
+        let end = self.end.as_ref().filter(|_| self.past_the_end > 0)?;
+        Some((end.ticks, self.past_the_end))
     }
 
     pub fn ticks_recorded(&self) -> u64 {

@@ -275,12 +275,12 @@ impl Telemetry {
         Ok(())
     }
 
-    /// Hands the ticks batched so far to the thread writing run.mcap.
     /// A realtime fleet's epoch (its clock's), for run.mcap's times; before the first tick.
     pub fn set_epoch(&mut self, epoch: f64) {
         self.epoch = epoch;
     }
 
+    /// Hands the ticks batched so far to the thread writing run.mcap.
     fn hand_over(&mut self) -> Result<()> {
         let batch = std::mem::replace(&mut self.batch, Vec::with_capacity(VIEWER_BATCH));
         match &self.viewer {

@@ -299,17 +299,19 @@ pub fn assert_none_left(summary: &Value) {
     }
 }
 
+/// The tick and time (s) of a whole row near the end of `out`'s telemetry.csv (the last line
+/// may be half written), if it has one.
+pub fn last_recorded(out: &Path) -> Option<(u64, f64)> {
+    let text = std::fs::read_to_string(out.join("telemetry.csv")).ok()?;
+    let mut fields = text.lines().rev().nth(1)?.split(',');
+    Some((fields.next()?.parse().ok()?, fields.next()?.parse().ok()?))
+}
+
 /// Waits until the telemetry in run directory `out` reaches simulated time `t`.
 pub fn wait_until_simulated(out: &Path, t: f64) {
     let deadline = Instant::now() + Duration::from_secs(60);
     loop {
-        let text = std::fs::read_to_string(out.join("telemetry.csv")).unwrap_or_default();
-        let last = text
-            .lines()
-            .rev()
-            .nth(1)
-            .and_then(|l| l.split(',').nth(1)?.parse::<f64>().ok());
-        if last.is_some_and(|now| now >= t) {
+        if last_recorded(out).is_some_and(|(_, now)| now >= t) {
             return;
         }
         assert!(Instant::now() < deadline, "the run never reached t = {t} s");

@@ -520,8 +520,8 @@ pub struct Override {
 }
 
 impl Override {
-    /// `--set o`.
-    pub fn set(o: &str) -> Override {
+    /// `o` (`key=value`), given as `--set o`.
+    pub fn from_set(o: &str) -> Override {
         Override {
             set: o.to_string(),
             said: format!("--set {o}"),
@@ -532,7 +532,7 @@ impl Override {
 /// Parses `text` (from `file`), applies `overrides` (`section.key=value`; `vehicle.<id>.key=value`
 /// for a vehicle), each given as `--set`, and validates the result.
 pub fn parse(file: &str, text: &str, overrides: &[String]) -> Result<Mission, MissionError> {
-    let overrides: Vec<Override> = overrides.iter().map(|o| Override::set(o)).collect();
+    let overrides: Vec<Override> = overrides.iter().map(|o| Override::from_set(o)).collect();
     parse_with(file, text, &overrides)
 }
 
