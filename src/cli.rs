@@ -219,6 +219,12 @@ pub enum Command {
         #[arg(long, default_value_t = 0)]
         id: u32,
     },
+    /// Make a fleet's credential (a Zenoh user and password, owner-only) for every role's and
+    /// the router's --credential.
+    Credential {
+        /// The file to write; it must not exist.
+        file: PathBuf,
+    },
     /// A Zenoh router for a testbed: every role connects to it (configs/zenoh/).
     Router {
         #[command(flatten)]

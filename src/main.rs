@@ -177,6 +177,7 @@ fn main() -> ExitCode {
             })
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { role } => roles::planner(&clocked(&role.mission, &role.clock), &role.zenoh),
+        Command::Credential { file } => roles::credential(&file),
         Command::Router { zenoh } => runtime()
             .and_then(|rt| rt.block_on(tcpf_coordinator::router::run(&zenoh)).map_err(role_failure))
             .map(|_| ExitCode::SUCCESS),

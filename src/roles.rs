@@ -15,6 +15,23 @@ use crate::cli::MissionArgs;
 use crate::outputs::{fresh_out, live_free, run_dir};
 use crate::{code, load, role, role_failure, solve, Failure};
 
+/// `tcpf credential FILE`: a new credential for a fleet started by hand. An existing file is
+/// never replaced: every host that holds it would be locked out of the fleet.
+pub fn credential(file: &Path) -> Result<ExitCode, Failure> {
+    if file.exists() {
+        return Err(Failure::Input(anyhow!(
+            "{}: exists; a credential is never overwritten (every host holding it would be locked out): remove it first to make a new one",
+            file.display()
+        )));
+    }
+    tcpf_bus::credential::create(file).map_err(Failure::Input)?;
+    sayln!(
+        "wrote {0} (owner-only): copy it to every host of the fleet and give every role and the router `--credential {0}`; only processes that present it can join",
+        file.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;

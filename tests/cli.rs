@@ -5,7 +5,9 @@ use std::process::Output;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{config, exited, fleet, free_endpoint, kill, paper, scratch, tcpf, text, Reaper};
+use common::{
+    config, credential, credentialed, exited, fleet, free_endpoint, kill, paper, scratch, tcpf, text, Reaper,
+};
 
 #[test]
 fn plan_json_has_the_contract_fields() {
@@ -752,9 +754,9 @@ fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
         // Alone, each waits for a planner that never comes (up to --startup-timeout, 60 s).
         let mut role = Reaper(
             std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
-                .args(&args[..1])
-                .arg(paper("b-current"))
-                .args(&args[1..])
+                .args(credentialed(
+                    &[&args[..1], &[paper("b-current").as_str()], &args[1..]].concat(),
+                ))
                 .stdout(std::process::Stdio::null())
                 .stderr(std::process::Stdio::null())
                 .spawn()
@@ -775,13 +777,60 @@ fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
     }
 }
 
-/// A role whose Zenoh configuration demands no credential says, as it starts, that it runs open
-/// (any process that reaches it could speak for any role); one whose configuration demands a
-/// user and password does not.
+/// `tcpf credential FILE` writes a user and password only its owner may read, which a role takes
+/// with `--credential`; it never replaces a file (every host holding it would be locked out),
+/// and a credential others may read is refused, as ssh refuses such a key.
 #[test]
-fn a_role_without_a_credential_says_that_it_runs_open() {
+fn a_credential_is_made_owner_only_never_overwritten_and_refused_when_others_can_read_it() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch("credential-made");
+    let file = dir.join("fleet.key");
+    let path = file.to_str().unwrap();
+    let o = tcpf(&["credential", path]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains(&format!("--credential {path}")), "{}", text(&o));
+    let made = std::fs::read_to_string(&file).unwrap();
+    let (user, password) = made.trim().split_once(':').unwrap();
+    assert_eq!((user, password.len()), ("tcpf", 32), "{made}");
+    assert_eq!(std::fs::metadata(&file).unwrap().permissions().mode() & 0o777, 0o600);
+    let o = tcpf(&["credential", path]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("exists; a credential is never overwritten"),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), made, "the credential is kept");
+    std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let o = tcpf(&["planner", &paper("b-current"), "--credential", path]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains(&format!("--credential {path}: others may read it (mode 644)")),
+        "{}",
+        text(&o)
+    );
+    let o = tcpf(&["planner", &paper("b-current"), "--credential", path, "--open"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("cannot be used with"), "{}", text(&o));
+}
+
+/// A role started by hand demands a credential: without one it does not start (exit 2) and says
+/// how to make one, unless told to run open, when it says so as it starts; a role whose
+/// configuration or `--credential` demands a user and password says nothing of the kind.
+#[test]
+fn a_role_runs_open_only_when_told_and_says_so() {
     let _fleet = fleet();
     let dir = scratch("open");
+    let o = tcpf(&["planner", &paper("b-current")]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    for words in [
+        "this role would run open",
+        "`tcpf credential fleet.key`",
+        "--credential",
+        "--open",
+    ] {
+        assert!(text(&o).contains(words), "{words}: {}", text(&o));
+    }
     let dictionary = dir.join("credentials");
     std::fs::write(&dictionary, "tcpf:a-secret\n").unwrap();
     let closed = dir.join("closed.json5");
@@ -794,15 +843,18 @@ fn a_role_without_a_credential_says_that_it_runs_open() {
         ),
     )
     .unwrap();
-    for (config, open) in [(None, true), (Some(&closed), false)] {
-        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"));
-        command.args(["planner", &paper("b-current")]);
-        if let Some(config) = config {
-            command.arg("-c").arg(config);
-        }
-        let log = dir.join(format!("planner-open-{open}.log"));
+    let key = credential().to_str().unwrap();
+    let closed = closed.to_str().unwrap();
+    for (how, open) in [
+        (["--open", ""], true),
+        (["-c", closed], false),
+        (["--credential", key], false),
+    ] {
+        let log = dir.join(format!("planner{}.log", how[0]));
         let _planner = Reaper(
-            command
+            std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+                .args(["planner", &paper("b-current")])
+                .args(how.iter().filter(|a| !a.is_empty()))
                 .stdout(std::process::Stdio::null())
                 .stderr(std::fs::File::create(&log).unwrap())
                 .spawn()
@@ -811,7 +863,7 @@ fn a_role_without_a_credential_says_that_it_runs_open() {
         // Serving: it has opened its session, and said what it had to before.
         common::wait_for_text(&log, "planner: t_f =", Duration::from_secs(30));
         let said = std::fs::read_to_string(&log).unwrap();
-        assert_eq!(said.contains("this role runs open"), open, "{said}");
+        assert_eq!(said.contains("this role runs open (--open)"), open, "{how:?}: {said}");
     }
 }
 
@@ -830,7 +882,7 @@ fn a_role_that_cannot_listen_says_why() {
         // TEST-NET-1: nobody's address.
         ("tcp/192.0.2.1:7447", "(is that address one of this host's?)"),
     ] {
-        let o = tcpf(&["planner", &paper("b-current"), "-l", endpoint]);
+        let o = tcpf(&["planner", &paper("b-current"), "-l", endpoint, "--open"]);
         assert_eq!(o.status.code(), Some(1), "{}", text(&o));
         assert!(text(&o).contains(hint), "{}", text(&o));
     }
@@ -841,11 +893,20 @@ fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
     let _fleet = fleet();
     let dir = scratch("no-world");
     let out = dir.join("runs").join("p");
-    // Nobody listens there: the world of a mistyped endpoint, or of another mission.
+    // A router and no world: the world is of another mission, or not started yet.
+    let (router, endpoint) = common::listening(|e| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(credentialed(&["router", "-l", e]))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap()
+    });
+    let _router = Reaper(router);
     let mut recorder = Reaper(
         std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(["record", &paper("b-current"), "--startup-timeout", "1"])
-            .args(["-e", &free_endpoint(), "--out", out.to_str().unwrap()])
+            .args(credentialed(&["record", &paper("b-current"), "--startup-timeout", "1"]))
+            .args(["-e", &endpoint, "--out", out.to_str().unwrap()])
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::piped())
             .spawn()
@@ -865,7 +926,7 @@ fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
     // command may take the same --out.
     let left = || std::fs::read_dir(&dir).unwrap().collect::<Vec<_>>();
     assert!(!dir.join("runs").exists(), "{:?}", left());
-    // Nor when its session never opens (a client, and no router there).
+    // Nor when its session never opens (nothing listens there: a mistyped endpoint).
     let o = tcpf(&[
         "record",
         &paper("b-current"),
@@ -873,6 +934,8 @@ fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
         "client",
         "-e",
         &free_endpoint(),
+        "--credential",
+        credential().to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]);
@@ -984,6 +1047,7 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
                 std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
                     .args(*args)
                     .args(["-c", &client, "-e", &endpoint])
+                    .args(["--credential", credential().to_str().unwrap()])
                     .stdout(std::process::Stdio::null())
                     .stderr(std::process::Stdio::piped())
                     .spawn()
@@ -1031,6 +1095,8 @@ fn a_role_whose_router_never_answers_says_where_and_gives_up_at_its_startup_time
         "1",
         "-c",
         &vehicle,
+        "--credential",
+        credential().to_str().unwrap(),
         "-e",
         &endpoint,
         "--startup-timeout",
@@ -1201,7 +1267,7 @@ fn a_bare_router_names_the_port_it_got() {
     use std::io::{BufRead, BufReader};
     let mut router = Reaper(
         std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .arg("router")
+            .args(["router", "--open"])
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::piped())
             .spawn()

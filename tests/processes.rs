@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, arrivals, assert_none_left, assert_same_run, child_of, config, descendants, exited, failure, fleet, kill,
-    lanes, listening, paper, pid_of, processes, run_in_process, scratch, stop_the_planner, summary, wait_for_text,
-    wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
+    alive, arrivals, assert_none_left, assert_same_run, child_of, config, credentialed, descendants, exited, failure,
+    fleet, kill, lanes, listening, paper, pid_of, processes, run_in_process, scratch, stop_the_planner, summary,
+    usrpwd, wait_for_text, wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
 };
 
 #[test]
@@ -1178,7 +1178,7 @@ impl Drop for Fleet {
 /// says so.
 fn role(args: &[&str], stderr: Stdio) -> Child {
     Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(args)
+        .args(credentialed(args))
         .stdout(Stdio::null())
         .stderr(stderr)
         .spawn()
@@ -1202,14 +1202,37 @@ fn by_hand(mission: &str, ids: &[&str], clock: &[&str], dir: &Path) -> (Fleet, S
 }
 
 #[test]
-fn roles_started_by_hand_with_a_recorder_make_the_same_run() {
+fn roles_started_by_hand_demand_their_credential_and_make_the_same_run() {
     let _fleet = fleet();
     let dir = scratch("by-hand");
     let mission = paper("b-current");
     let (mut fleet, endpoint) = by_hand(&mission, &["2", "1"], &[], &dir);
+    wait_for_text(&dir.join("world.log"), "(2 of 2)", Duration::from_secs(30));
+    // A process without the fleet's credential reaches the port and hears nothing: the world,
+    // which waits for a recorder, never meets it.
+    let anonymous = dir.join("anonymous");
+    let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["record", &mission, "-e", &endpoint, "--open", "--startup-timeout", "5"])
+        .args(["--out", anonymous.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(said.contains("this role runs open (--open)"), "{said}");
+    assert!(said.contains("no world of mission paper-b-current within 5s"), "{said}");
+    assert!(!anonymous.exists(), "nothing recorded");
+    let world = std::fs::read_to_string(dir.join("world.log")).unwrap();
+    assert!(!world.contains("a recorder is here"), "{world}");
     let out = dir.join("p");
     let record = Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+        .args(credentialed(&[
+            "record",
+            &mission,
+            "-e",
+            &endpoint,
+            "--out",
+            out.to_str().unwrap(),
+        ]))
         .output()
         .unwrap();
     assert!(record.status.success(), "{}", String::from_utf8_lossy(&record.stderr));
@@ -1238,6 +1261,7 @@ fn router_knows(endpoint: &str, wanted: &[&str]) {
             ("mode", "\"client\"".to_string()),
             ("connect/endpoints", format!("[\"{endpoint}\"]")),
             ("scouting/multicast/enabled", "false".to_string()),
+            ("transport/auth/usrpwd", usrpwd()),
         ] {
             config.insert_json5(key, &value).unwrap();
         }
@@ -1371,7 +1395,14 @@ fn a_new_agent_of_a_lost_vehicle_is_told_and_the_others_arrive() {
     let out = dir.join("r");
     let mut record = Reaper(
         Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+            .args(credentialed(&[
+                "record",
+                &mission,
+                "-e",
+                &endpoint,
+                "--out",
+                out.to_str().unwrap(),
+            ]))
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -1503,6 +1534,7 @@ fn a_run_waits_for_a_recorder_from_elsewhere_which_records_the_same_run() {
             endpoint.trim(),
             "--mode",
             "client",
+            "--open",
             "--out",
             refused.to_str().unwrap(),
         ])

@@ -9,8 +9,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    arrivals, assert_none_left, config, descendants, failure, fleet, kill, listening, paper, run_in_process, scratch,
-    stop_the_planner, summary, timing, wait_until_simulated, without_command, Launch, Reaper,
+    arrivals, assert_none_left, config, credential, credentialed, descendants, failure, fleet, kill, listening, paper,
+    run_in_process, scratch, stop_the_planner, summary, timing, wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -136,7 +136,10 @@ fn logged(logs: &Path, name: &str, program: &str, args: &[&str]) -> Child {
 fn fleet_without_vehicle_2(mission: &str, logs: &Path, settings: &[&str]) -> (Vec<Reaper>, String) {
     std::fs::create_dir_all(logs).unwrap();
     let tcpf = env!("CARGO_BIN_EXE_tcpf");
-    let role = |name: &str, args: &[&str]| logged(logs, name, tcpf, &[args, settings].concat());
+    let role = |name: &str, args: &[&str]| {
+        let args = credentialed(&[args, settings].concat());
+        logged(logs, name, tcpf, &args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
     let (planner, endpoint) = listening(|e| role("planner", &["planner", mission, "-l", e]));
     let e = endpoint.as_str();
     let mut fleet = vec![
@@ -169,12 +172,21 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
         &logs,
         "vehicle",
         "python3",
-        &[&script, &mission, "--id", "2", "-e", &endpoint],
+        &[
+            &script,
+            &mission,
+            "--id",
+            "2",
+            "-e",
+            &endpoint,
+            "--credential",
+            credential().to_str().unwrap(),
+        ],
     ));
     let out = dir.join("run");
     let mut record = vec!["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()];
     record.extend(clock);
-    let recorded = Command::new(tcpf).args(&record).output().unwrap();
+    let recorded = Command::new(tcpf).args(credentialed(&record)).output().unwrap();
     let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
     assert!(
         recorded.status.success(),
@@ -221,7 +233,14 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
     let tcpf = env!("CARGO_BIN_EXE_tcpf");
     let out = dir.join("run");
     let recorded = Command::new(tcpf)
-        .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+        .args(credentialed(&[
+            "record",
+            &mission,
+            "-e",
+            &endpoint,
+            "--out",
+            out.to_str().unwrap(),
+        ]))
         .args(settings)
         .output()
         .unwrap();

@@ -41,6 +41,17 @@ impl Security {
         }
     }
 
+    /// What a process presents beyond its configuration: the fleet's credential, where the
+    /// configuration (plain TCP or UDP) demands none by itself.
+    fn credential(self) -> Vec<String> {
+        match self {
+            Security::Plain | Security::Udp => {
+                vec!["--credential".into(), common::credential().display().to_string()]
+            }
+            Security::Tls | Security::Acl => vec![],
+        }
+    }
+
     /// Mutual TLS rides QUIC: configs/zenoh/tls/router.json5 says why not TCP.
     fn scheme(self) -> &'static str {
         match self {
@@ -127,11 +138,18 @@ fn start(
         &shore_dir,
         &log("router"),
         TCPF,
-        &["router", "-c", &security.config("router")],
+        &as_strs(
+            &[
+                vec!["router".into(), "-c".into(), security.config("router")],
+                security.credential(),
+            ]
+            .concat(),
+        ),
     );
     let shore = security.config("shore");
     let on_shore = |role: &str| {
         let mut args = vec![role.to_string(), mission.clone(), "-c".into(), shore.clone()];
+        args.extend(security.credential());
         args.extend(clock.iter().map(|c| c.to_string()));
         args
     };
@@ -149,7 +167,7 @@ fn start(
     let mut record = on_shore("record");
     record.extend(["--out".into(), out.display().to_string()]);
     let recorder = bed.spawn("shore", &shore_dir, &log("record"), TCPF, &as_strs(&record));
-    let vehicle = security.vehicle(dir, &bed.address("shore"));
+    let vehicle = [security.vehicle(dir, &bed.address("shore")), security.credential()].concat();
     let agent = |bed: &mut Testbed, id: &str| {
         let host = format!("v{id}");
         let home = host_dir(dir, &host, "vehicle", &format!("vehicle-{id}"));
@@ -225,6 +243,8 @@ fn with_mutual_tls_the_fleet_runs_and_a_process_without_a_certificate_cannot_joi
             config.to_str().unwrap(),
             "-e",
             &router,
+            // It has no credential to give, and knows it.
+            "--open",
             "--out",
             outsider_run.to_str().unwrap(),
         ];

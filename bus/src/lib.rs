@@ -3,6 +3,7 @@
 
 pub mod clock;
 pub mod codec;
+pub mod credential;
 pub mod keys;
 pub mod session;
 pub mod signals;

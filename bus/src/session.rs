@@ -6,6 +6,7 @@ use std::time::Duration;
 use anyhow::{anyhow, Context, Result};
 use zenoh::{Config, Session};
 
+use crate::credential;
 use crate::signals::{Interrupted, Shutdown};
 
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -22,6 +23,15 @@ pub struct ZenohArgs {
     /// Zenoh mode: peer, client or router.
     #[arg(long = "mode", value_name = "MODE")]
     pub mode: Option<String>,
+    /// The fleet's credential (`tcpf credential FILE` makes one): this process presents it and
+    /// demands it of every link. Without -c or --mode, a process that listens is the fleet's
+    /// router and one that connects its client.
+    #[arg(long = "credential", value_name = "FILE", conflicts_with = "open")]
+    pub credential: Option<PathBuf>,
+    /// Run with no credential, on a network only you use: any process that reaches this one
+    /// can join the fleet and speak for any role.
+    #[arg(long = "open")]
+    pub open: bool,
 }
 
 fn json_list(items: &[String]) -> String {
@@ -204,6 +214,9 @@ fn readable(file: &str) -> std::result::Result<(), String> {
 pub const ACCEPT_PENDING: usize = 4096;
 pub const ACCEPT_TIMEOUT_MS: u64 = 5000;
 
+/// Why a role with no credential does not start unless told to (`--open`).
+const RUNS_OPEN: &str = "this role would run open: its Zenoh configuration demands no credential, so any process that reaches it could join the fleet and speak for any role. Make a credential once with `tcpf credential fleet.key`, copy it to every host (owner-only) and give every role and the router `--credential fleet.key`; or give -c a mutual-TLS configuration (configs/zenoh/tls/); or, on a network only you use, `--open`";
+
 /// What `config` demands of the processes it meets, if anything: a user and password, or a
 /// certificate (mutual TLS).
 pub fn credential(config: &Config) -> Option<&'static str> {
@@ -221,9 +234,8 @@ pub fn credential(config: &Config) -> Option<&'static str> {
     }
 }
 
-/// A role whose configuration demands no credential says so as it starts: any process that
-/// reaches it can join the fleet and speak for any role (`tcpf run` makes a credential for each
-/// run; a fleet started by hand has the one its configuration gives).
+/// A role told to run with no credential (`--open`) says so as it starts: any process that
+/// reaches it can join the fleet and speak for any role.
 pub fn warn_if_open(config: &Config) {
     if credential(config).is_none() {
         let at = ["listen/endpoints", "connect/endpoints"]
@@ -233,7 +245,7 @@ pub fn warn_if_open(config: &Config) {
             .collect::<Vec<_>>()
             .join(" and ");
         tracing::warn!(
-            "this role runs open: its Zenoh configuration demands no credential, so any process that reaches {at} can join this fleet and speak for any role; give -c a configuration that demands one (configs/zenoh/tls/ or configs/zenoh/acl/, docs/TESTBED.md), or use `tcpf run`, which makes one for each run"
+            "this role runs open (--open): its Zenoh configuration demands no credential, so any process that reaches {at} can join this fleet and speak for any role; `tcpf credential FILE` makes a credential for every role's --credential (docs/TESTBED.md)"
         );
     }
 }
@@ -302,7 +314,59 @@ impl ZenohArgs {
             }
             files_of(&config, path)?;
         }
+        if let Some(file) = &self.credential {
+            self.present(&mut config, file)?;
+        }
+        if credential(&config).is_none() && !self.open {
+            return Err(bad(RUNS_OPEN.to_string()));
+        }
         Ok(config)
+    }
+
+    /// Makes `config` present and demand the credential in `file`. Peers that find each other
+    /// open links both ways, and with a user and password Zenoh 1.10 refuses the second
+    /// (eclipse-zenoh/zenoh#2577), so a fleet with a credential meets at a router: without -c
+    /// or --mode, the process that listens is that router, and one that connects its client.
+    fn present(&self, config: &mut Config, file: &std::path::Path) -> Result<()> {
+        let (user, password) =
+            credential::read(file).map_err(|why| bad(format!("--credential {}: {why}", file.display())))?;
+        let dictionary =
+            std::fs::canonicalize(file).map_err(|e| bad(format!("--credential {}: {e}", file.display())))?;
+        let auth = serde_json::json!({
+            "user": user,
+            "password": password,
+            "dictionary_file": dictionary,
+        });
+        config
+            .insert_json5("transport/auth/usrpwd", &auth.to_string())
+            .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
+        if self.config.is_none() && self.mode.is_none() {
+            let mode = match (self.listen.is_empty(), self.connect.is_empty()) {
+                (false, _) => "router",
+                (true, false) => "client",
+                (true, true) => return Ok(()),
+            };
+            let set = |c: &mut Config, k: &str, v: &str| {
+                c.insert_json5(k, v)
+                    .map_err(|e| anyhow!("zenoh {k}: {}", zenoh_words(e)))
+            };
+            set(config, "mode", &format!("\"{mode}\""))?;
+            if mode == "router" {
+                // Nothing is scouted for, and a router's open would sleep 500 ms for it.
+                set(config, "scouting/gossip/enabled", "false")?;
+                set(config, "scouting/delay", "0")?;
+            } else {
+                // A client gives up at once if its router is not up (Zenoh's default): this one
+                // waits for it, as a peer would, until the role's --startup-timeout.
+                set(config, "connect/timeout_ms", "-1")?;
+                set(
+                    config,
+                    "connect/retry",
+                    "{ period_init_ms: 50, period_max_ms: 1000, period_increase_factor: 2 }",
+                )?;
+            }
+        }
+        Ok(())
     }
 
     /// Whether the session these options open is a router, through which others' messages pass.
@@ -333,7 +397,7 @@ impl ZenohArgs {
         match shutdown.unless(opening).await {
             Some(Ok(opened)) => opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
             Some(Err(_)) if trying => Err(anyhow!(
-                "cannot open the Zenoh session: nothing answered at {endpoints} within {} s (--startup-timeout); is the router up, and reachable from this host?",
+                "cannot open the Zenoh session: nothing answered at {endpoints} within {} s (--startup-timeout), or it refused this process's credential; is the router up, reachable from this host, and given the same --credential? (RUST_LOG=zenoh=debug says which)",
                 within.as_secs_f64()
             )),
             Some(Err(_)) => Err(anyhow!(
@@ -430,6 +494,7 @@ mod tests {
         };
         let args = ZenohArgs {
             config: Some(config.clone()),
+            open: true,
             ..Default::default()
         };
         for key in ["connect_certificate", "listen_private_key"] {
@@ -479,6 +544,7 @@ mod tests {
         let there = format!("tls/127.0.0.1:7447#root_ca_certificate_file={}", ca.display());
         let flagged = ZenohArgs {
             connect: vec![there],
+            open: true,
             ..Default::default()
         };
         assert!(flagged.config().is_ok(), "a file that is there");
@@ -507,5 +573,59 @@ mod tests {
             let e = endpoint("-e", bad).unwrap_err();
             assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{bad}");
         }
+    }
+
+    #[test]
+    fn a_role_runs_open_only_when_told_and_a_credential_makes_a_router_or_its_client() {
+        let e = ZenohArgs::default().config().unwrap_err();
+        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+        let words = e.to_string();
+        for named in ["run open", "tcpf credential fleet.key", "--credential", "--open"] {
+            assert!(words.contains(named), "{named}: {words}");
+        }
+        let open = ZenohArgs {
+            open: true,
+            ..Default::default()
+        };
+        assert!(credential(&open.config().unwrap()).is_none());
+
+        let dir = std::env::temp_dir().join(format!("tcpf-present-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("fleet.key");
+        let password = credential::create(&file).unwrap();
+        let with = |listen: &[&str], connect: &[&str], mode: Option<&str>| {
+            let args = ZenohArgs {
+                credential: Some(file.clone()),
+                listen: listen.iter().map(|s| s.to_string()).collect(),
+                connect: connect.iter().map(|s| s.to_string()).collect(),
+                mode: mode.map(str::to_string),
+                ..Default::default()
+            };
+            let config = args.config().unwrap();
+            assert_eq!(credential(&config), Some("a user and password"));
+            let user = config.get_json("transport/auth/usrpwd/user").unwrap();
+            assert_eq!(user, "\"tcpf\"");
+            let pass = config.get_json("transport/auth/usrpwd/password").unwrap();
+            assert_eq!(pass, format!("\"{password}\""));
+            config.get_json("mode").unwrap().trim_matches('"').to_string()
+        };
+        assert_eq!(with(&["tcp/127.0.0.1:0"], &[], None), "router");
+        assert_eq!(with(&[], &["tcp/127.0.0.1:7447"], None), "client");
+        assert_eq!(with(&[], &["tcp/127.0.0.1:7447"], Some("peer")), "peer");
+
+        std::fs::set_permissions(&file, std::os::unix::fs::PermissionsExt::from_mode(0o640)).unwrap();
+        let args = ZenohArgs {
+            credential: Some(file.clone()),
+            ..Default::default()
+        };
+        let e = args.config().unwrap_err();
+        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with(&format!("--credential {}: others may read it", file.display())),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

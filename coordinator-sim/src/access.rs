@@ -3,16 +3,13 @@
 //! directory's owner-only files can join: another user's process, or one that merely knows the
 //! port, cannot publish into the run.
 
-use std::io::{Read, Write};
-use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use serde_json::json;
+use tcpf_bus::credential::{self, private};
 use tcpf_bus::session::{ACCEPT_PENDING, ACCEPT_TIMEOUT_MS};
 
-/// The user every process of a run presents.
-const USER: &str = "tcpf";
 /// How long a client of the run waits for the world to listen.
 const CONNECT_TIMEOUT_MS: u64 = 60_000;
 
@@ -22,26 +19,6 @@ const CONNECT_TIMEOUT_MS: u64 = 60_000;
 /// A killed process's connection closes at once anyway, and a hung one is the run's own
 /// timeouts' (the command and stale timeouts) to find.
 const LINK_PATIENCE_MS: u64 = 60_000;
-
-/// 128 bits from the kernel, in hex: a password nobody can guess in a run's lifetime.
-fn secret() -> Result<String> {
-    let mut bytes = [0u8; 16];
-    std::fs::File::open("/dev/urandom")
-        .and_then(|mut f| f.read_exact(&mut bytes))
-        .context("cannot read /dev/urandom for the run's credential")?;
-    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
-}
-
-/// Writes `contents` to a new file that only its owner may read.
-fn private(path: &Path, contents: &str) -> Result<()> {
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(path)
-        .and_then(|mut f| f.write_all(contents.as_bytes()))
-        .with_context(|| format!("cannot write {}", path.display()))
-}
 
 /// The Zenoh configurations of a run, both owner-only files in its directory.
 pub struct Configs {
@@ -64,12 +41,11 @@ pub struct Configs {
 /// interleaved with the launcher as router: case (b) 0.20-0.26 -> 0.15-0.20 ms a tick, 10 agents
 /// 0.49-0.54 -> 0.47-0.49 ms, 50 agents 2.46-2.77 -> 2.13-2.57 ms).
 pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
-    let password = secret()?;
     let dictionary = dir.join("credentials");
-    private(&dictionary, &format!("{USER}:{password}\n"))?;
+    let password = credential::create(&dictionary)?;
     let dictionary = std::fs::canonicalize(&dictionary)?;
     let auth = json!({ "usrpwd": {
-        "user": USER,
+        "user": credential::USER,
         "password": password,
         "dictionary_file": dictionary,
     } });

@@ -76,7 +76,8 @@ fn start_pong(exe: &Path, args: &[&str]) -> Result<Child> {
 
 /// Round-trip times to a `tcpf pong` child on a loopback port, sorted: peer to peer, or with
 /// `routed` both sides clients of a router in this process: the path of a γ, which the world
-/// passes from one agent to another.
+/// passes from one agent to another. Both sides run open: a bare Zenoh baseline, on loopback for
+/// the seconds it takes.
 pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
@@ -90,6 +91,7 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
     } else {
         ZenohArgs {
             listen: vec![endpoint.clone()],
+            open: true,
             ..ZenohArgs::default()
         }
         .open()
@@ -102,7 +104,15 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
     let out = Outlet::new(&session, PING.into()).await?;
     let mut child = start_pong(
         exe,
-        &["--count", &(count + 100).to_string(), "-e", &endpoint, "--mode", mode],
+        &[
+            "--count",
+            &(count + 100).to_string(),
+            "-e",
+            &endpoint,
+            "--mode",
+            mode,
+            "--open",
+        ],
     )?;
     let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
     while tokio::time::timeout_at(deadline, alive.recv())
@@ -192,6 +202,7 @@ async fn open_router(endpoint: &str) -> Result<zenoh::Session> {
     ZenohArgs {
         listen: vec![endpoint.into()],
         mode: Some("router".into()),
+        open: true,
         ..ZenohArgs::default()
     }
     .open()
@@ -202,6 +213,7 @@ fn client(endpoint: &str) -> ZenohArgs {
     ZenohArgs {
         connect: vec![endpoint.into()],
         mode: Some("client".into()),
+        open: true,
         ..ZenohArgs::default()
     }
 }
@@ -281,7 +293,9 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
         let id = id.to_string();
         children.push(start_pong(
             exe,
-            &["--count", "1", "--id", &id, "-e", &endpoint, "--mode", "client"],
+            &[
+                "--count", "1", "--id", &id, "-e", &endpoint, "--mode", "client", "--open",
+            ],
         )?);
     }
     let mut up = std::collections::BTreeSet::new();

@@ -14,6 +14,7 @@ Needs Python >= 3.11 (tomllib) and `pip install eclipse-zenoh==1.10.2`.
 import argparse
 import json
 import math
+import os
 import signal
 import struct
 import sys
@@ -315,17 +316,44 @@ def load_mission(path, vid):
     return name, dt, max_duration, Vehicle(vid, position, wrap(h0 + psi_e), current, max_ticks)
 
 
+def credential(path):
+    """The user and password of a `tcpf credential` file, refused, as tcpf refuses it, when
+    others may read it."""
+    try:
+        if os.stat(path).st_mode & 0o077:
+            fail(2, f"--credential {path}: others may read it; `chmod 600 {path}` and keep it so")
+        with open(path) as f:
+            line = next((l.strip() for l in f if l.strip()), "")
+    except OSError as e:
+        fail(2, f"--credential {path}: {e.strerror}")
+    user, _, password = line.partition(":")
+    if not user or not password:
+        fail(2, f"--credential {path}: not a credential: its first line must be USER:PASSWORD")
+    return {"user": user, "password": password}
+
+
 def open_session(zenoh, args):
+    if not (args.config or args.credential or args.open):
+        fail(2, "this vehicle would run open: give it the fleet's --credential FILE (`tcpf credential`), "
+                "-c a Zenoh configuration that holds one, or --open on a network only you use")
     try:
         config = zenoh.Config.from_file(args.config) if args.config else zenoh.Config()
         if not args.config:
-            config.insert_json5("mode", '"peer"')
+            # A client of the process that listens, as a tcpf role given --credential is: peers
+            # with a user and password refuse each other's second link (eclipse-zenoh/zenoh#2577).
+            config.insert_json5("mode", '"client"' if args.credential else '"peer"')
             # Zenoh's default listens on every interface; like tcpf, stay on loopback.
             config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
         # Never find (or be found by) another run on the network by accident.
         config.insert_json5("scouting/multicast/enabled", "false")
         if args.connect:
             config.insert_json5("connect/endpoints", json.dumps(args.connect))
+        if args.credential:
+            config.insert_json5("transport/auth/usrpwd", json.dumps(credential(args.credential)))
+            if not args.config:
+                # Wait for the router, as a tcpf client does, up to the startup timeout.
+                config.insert_json5("connect/timeout_ms", str(int(args.startup_timeout * 1000)))
+                config.insert_json5("connect/retry", '{ "period_init_ms": 50, "period_max_ms": 1000 }')
     except zenoh.ZError as e:
         fail(2, f"bad Zenoh configuration: {e}")
     try:
@@ -494,6 +522,10 @@ def main():
     p.add_argument("-e", "--connect", action="append", default=[], metavar="ENDPOINT",
                    help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
     p.add_argument("-c", "--config", metavar="ZENOH_JSON5", help="Zenoh configuration file")
+    p.add_argument("--credential", metavar="FILE",
+                   help="the fleet's credential (`tcpf credential FILE`): present it to the fleet")
+    p.add_argument("--open", action="store_true",
+                   help="run with no credential, on a network only you use")
     p.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
                    help="seconds to wait for the world's clock (default 60)")
     p.add_argument("--self-test", action="store_true", help="check the encoder and decoder, then exit")

@@ -18,6 +18,38 @@ pub fn tcpf(args: &[&str]) -> Output {
         .expect("tcpf runs")
 }
 
+/// The tests' fleet credential, made once per test process by `tcpf credential`: a role started
+/// by hand demands one (or `--open`).
+pub fn credential() -> &'static Path {
+    static FILE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    FILE.get_or_init(|| {
+        let file = scratch("credential").join("fleet.key");
+        let o = tcpf(&["credential", file.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", text(&o));
+        file
+    })
+}
+
+/// The arguments of a role started by hand, with `--credential` of the tests' credential unless
+/// they give a Zenoh config of their own (`-c`) or run open.
+pub fn credentialed(args: &[&str]) -> Vec<String> {
+    let mut all: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+    if !args
+        .iter()
+        .any(|a| matches!(*a, "-c" | "--config" | "--open" | "--credential"))
+    {
+        all.extend(["--credential".into(), credential().display().to_string()]);
+    }
+    all
+}
+
+/// The tests' credential as Zenoh's `transport/auth/usrpwd` of a session opened by a test.
+pub fn usrpwd() -> String {
+    let text = std::fs::read_to_string(credential()).unwrap();
+    let (user, password) = text.trim().split_once(':').unwrap();
+    serde_json::json!({ "user": user, "password": password }).to_string()
+}
+
 /// `tcpf gen lanes --vehicles n`, written into `dir`: a fleet of any size.
 pub fn lanes(dir: &Path, n: u32) -> PathBuf {
     let o = tcpf(&["gen", "lanes", "--vehicles", &n.to_string()]);

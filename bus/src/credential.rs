@@ -1,0 +1,106 @@
+//! A fleet's credential: one Zenoh user and password, in a file that is at once what a process
+//! presents (`transport/auth/usrpwd/user`, `password`) and what it demands of others (the
+//! `dictionary_file`, one `user:password` per line). `tcpf credential FILE` makes one for a fleet
+//! started by hand; `tcpf run` makes one for each run.
+
+use std::io::{Read, Write};
+use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+/// The user every process of a fleet presents.
+pub const USER: &str = "tcpf";
+
+/// 128 bits from the kernel, in hex: a password nobody can guess in a fleet's lifetime.
+pub fn secret() -> Result<String> {
+    let mut bytes = [0u8; 16];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut bytes))
+        .context("cannot read /dev/urandom for a credential")?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Writes `contents` to a new file that only its owner may read; an existing file is left as
+/// it is (a credential overwritten would lock every host that holds the old one out).
+pub fn private(path: &Path, contents: &str) -> Result<()> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(path)
+        .and_then(|mut f| f.write_all(contents.as_bytes()))
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Makes a new credential file at `path`: the password it holds.
+pub fn create(path: &Path) -> Result<String> {
+    let password = secret()?;
+    private(path, &format!("{USER}:{password}\n"))?;
+    Ok(password)
+}
+
+/// The user and password of the credential file at `path`, or why it cannot be one: a file that
+/// others may read is refused, as ssh refuses such a key, since anyone who reads it can speak
+/// for every role of the fleet.
+pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
+    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
+    if meta.is_dir() {
+        return Err("a directory, not a file".into());
+    }
+    let mode = meta.permissions().mode() & 0o777;
+    if mode & 0o077 != 0 {
+        return Err(format!(
+            "others may read it (mode {mode:03o}); `chmod 600 {}` and keep it so",
+            path.display()
+        ));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    let line = text.lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("");
+    match line.split_once(':') {
+        Some((user, password)) if !user.is_empty() && !password.is_empty() => {
+            Ok((user.to_string(), password.to_string()))
+        }
+        _ => {
+            Err("not a credential: its first line must be USER:PASSWORD (make one with `tcpf credential FILE`)".into())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("tcpf-credential-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join("fleet.key")
+    }
+
+    #[test]
+    fn a_new_credential_reads_back_and_is_owner_only() {
+        let path = scratch("new");
+        let password = create(&path).unwrap();
+        assert_eq!(password.len(), 32);
+        assert_eq!(read(&path).unwrap(), (USER.to_string(), password));
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+        let again = create(&path).unwrap_err().to_string();
+        assert!(again.contains("cannot write"), "{again}");
+        assert_eq!(read(&path).unwrap().0, USER, "an existing credential is kept");
+    }
+
+    #[test]
+    fn a_credential_others_can_read_or_without_a_password_is_refused() {
+        let path = scratch("open");
+        std::fs::write(&path, "tcpf:secret\n").unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
+        let why = read(&path).unwrap_err();
+        assert!(why.contains("mode 644") && why.contains("chmod 600"), "{why}");
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+        assert_eq!(read(&path).unwrap(), ("tcpf".into(), "secret".into()));
+        std::fs::write(&path, "tcpf\n").unwrap();
+        assert!(read(&path).unwrap_err().contains("USER:PASSWORD"));
+    }
+}
