@@ -122,7 +122,11 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let role = matches!(
         cli.command,
-        Command::Planner { .. } | Command::World { .. } | Command::Agent { .. } | Command::Router { .. }
+        Command::Planner { .. }
+            | Command::World { .. }
+            | Command::Agent { .. }
+            | Command::Record { .. }
+            | Command::Router { .. }
     );
     let filter =
         std::env::var("RUST_LOG").unwrap_or_else(|_| if role { "info,zenoh=warn" } else { "warn,zenoh=error" }.into());

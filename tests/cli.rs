@@ -762,8 +762,13 @@ fn roles_waiting_at_startup_honour_sigterm_sigint_and_sighup() {
                 .spawn()
                 .unwrap(),
         );
-        std::thread::sleep(Duration::from_millis(800));
-        assert!(role.0.try_wait().unwrap().is_none(), "{args:?} waits at startup");
+        // SIGHUP, SIGINT and SIGTERM handled: the role is under way, and waits.
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while !catches(role.0.id(), &[1, 2, 15]) {
+            assert!(role.0.try_wait().unwrap().is_none(), "{args:?} waits at startup");
+            assert!(Instant::now() < deadline, "{args:?} never handled {signal}");
+            std::thread::sleep(Duration::from_millis(10));
+        }
         kill(signal, role.0.id());
         let deadline = Instant::now() + Duration::from_secs(2);
         let status = loop {
@@ -1012,13 +1017,13 @@ fn bench_prints_every_figure_beside_its_baseline() {
 }
 
 /// Whether process `pid` catches SIGINT yet.
-fn catches_sigint(pid: u32) -> bool {
+fn catches(pid: u32, signals: &[u32]) -> bool {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
     status
         .lines()
         .find_map(|l| l.strip_prefix("SigCgt:"))
         .and_then(|mask| u64::from_str_radix(mask.trim(), 16).ok())
-        .is_some_and(|mask| mask & (1 << (2 - 1)) != 0)
+        .is_some_and(|mask| signals.iter().all(|s| mask & (1 << (s - 1)) != 0))
 }
 
 /// A client of a router that does not answer waits for it (a minute in configs/zenoh/); each
@@ -1032,7 +1037,8 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
     // answered, and the port stays ours for the test.
     let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let endpoint = format!("tcp/{}", silent.local_addr().unwrap());
-    let out = scratch("waiting-sigint");
+    let dir = scratch("waiting-sigint");
+    let out = dir.join("run");
     let out = out.to_str().unwrap();
     let roles: [&[&str]; 4] = [
         &["planner", &mission],
@@ -1049,27 +1055,24 @@ fn roles_waiting_for_their_router_stop_at_ctrl_c() {
                     .args(["-c", &client, "-e", &endpoint])
                     .args(["--credential", credential().to_str().unwrap()])
                     .stdout(std::process::Stdio::null())
-                    .stderr(std::process::Stdio::piped())
+                    .stderr(std::fs::File::create(dir.join(format!("{}.log", args[0]))).unwrap())
                     .spawn()
                     .unwrap(),
             )
         })
         .collect();
     for (role, child) in roles.iter().zip(&mut waiting) {
-        let deadline = Instant::now() + Duration::from_secs(30);
-        while !catches_sigint(child.0.id()) {
-            assert!(Instant::now() < deadline, "{} never handled SIGINT", role[0]);
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        // Past the handler's installation, into the session's opening.
-        std::thread::sleep(Duration::from_millis(500));
+        // Into the session's opening, which it logs.
+        let log = dir.join(format!("{}.log", role[0]));
+        common::wait_for_text(&log, "connecting to", Duration::from_secs(30));
         assert!(
             child.0.try_wait().unwrap().is_none(),
             "{} waits for its router",
             role[0]
         );
         kill("-INT", child.0.id());
-        let (code, stderr) = exited(&mut child.0, Duration::from_secs(10), "a waiting role ignored Ctrl-C");
+        let code = common::wait_exit(&mut child.0, Duration::from_secs(10), "a waiting role ignored Ctrl-C");
+        let stderr = std::fs::read_to_string(&log).unwrap();
         assert_eq!(code, Some(130), "{}: {stderr}", role[0]);
         assert!(
             stderr.contains("interrupted while the Zenoh session was opening"),

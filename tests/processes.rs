@@ -188,11 +188,10 @@ fn an_interrupted_fleet_of_ten_hears_from_every_process() {
     // (1 run in 6): three runs, stopped by Ctrl-C, SIGTERM and the terminal closing (SIGHUP).
     for (run, signal) in ["-INT", "-TERM", "-HUP"].into_iter().enumerate() {
         let out = dir.join(format!("p{run}"));
-        // About 6 s of ticks, to be stopped 0.5 s in on any machine.
+        // About 6 s of ticks, to be stopped a few hundred ticks in on any machine.
         let slower = ["--set", "mission.control_period=0.005"];
         let mut launch = Launch::start(mission.to_str().unwrap(), &out, &slower);
-        launch.wait_for("logs/world.log", "starting");
-        std::thread::sleep(Duration::from_millis(500));
+        wait_until_simulated(&out, 1.5);
         kill(signal, launch.child.id());
         assert_eq!(launch.wait(Duration::from_secs(10)).code(), Some(130), "{signal}");
         let s = launch.summary();
@@ -1068,10 +1067,9 @@ fn lockstep_agents_run_as_batch_jobs_and_realtime_agents_do_not() {
 fn sigint_stops_every_child_and_leaves_a_readable_run_directory() {
     let _fleet = fleet();
     let dir = scratch("sigint");
-    // About 8 s of ticks, to be stopped 0.3 s in on any machine.
+    // About 8 s of ticks, to be stopped a few hundred ticks in on any machine.
     let mut launch = Launch::start(&paper("b-current"), &dir, &["--set", "mission.control_period=0.001"]);
-    launch.wait_for("logs/world.log", "starting");
-    std::thread::sleep(Duration::from_millis(300));
+    wait_until_simulated(&dir, 0.3);
     let children = descendants(launch.child.id());
     assert!(children.len() >= 4, "planner, world and agents run: {children:?}");
     let signalled = Instant::now();
@@ -1544,7 +1542,6 @@ fn a_run_waits_for_a_recorder_from_elsewhere_which_records_the_same_run() {
     assert_eq!(o.status.code(), Some(1), "{said}");
     assert!(said.contains("the router refused this process's credentials"), "{said}");
     assert!(!refused.exists(), "nothing recorded, nothing left");
-    std::thread::sleep(Duration::from_secs(1));
     assert!(
         launch.child.try_wait().unwrap().is_none(),
         "the run went on without the recorder"

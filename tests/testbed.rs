@@ -324,7 +324,11 @@ fn with_access_control_a_vehicle_can_steer_only_itself() {
             "tcpf/paper-b-current/cmd/2",
         ];
         intruder = Some(bed.spawn("rogue", &home, &dir.join("intruder.log"), "python3", &args));
-        std::thread::sleep(Duration::from_secs(1));
+        common::wait_for_text(
+            &dir.join("intruder.log"),
+            "connected, publishing",
+            Duration::from_secs(30),
+        );
     });
     assert_same_run(&out, &reference(&dir));
     let s = summary(&out);

@@ -444,10 +444,19 @@ fn holds_listener(pid: u32, port: u16) -> bool {
 /// Waits for `child` to exit (at most `limit`, or says `what` is still running) and returns its
 /// exit code and standard error.
 pub fn exited(child: &mut Child, limit: Duration, what: &str) -> (Option<i32>, String) {
+    let code = wait_exit(child, limit, what);
+    let mut stderr = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut stderr).unwrap();
+    (code, stderr)
+}
+
+/// The exit code of `child` once it has exited, within `limit`: else it is killed, and the test
+/// fails with `what` and what the child said, where its standard error is piped.
+pub fn wait_exit(child: &mut Child, limit: Duration, what: &str) -> Option<i32> {
     let started = Instant::now();
-    let status = loop {
+    loop {
         if let Some(status) = child.try_wait().unwrap() {
-            break status;
+            return status.code();
         }
         if started.elapsed() >= limit {
             // What it said, for the failure to show why it is still running.
@@ -460,8 +469,5 @@ pub fn exited(child: &mut Child, limit: Duration, what: &str) -> (Option<i32>, S
             panic!("{what}: still running after {limit:?}; it said:\n{stderr}");
         }
         std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut stderr = String::new();
-    child.stderr.take().unwrap().read_to_string(&mut stderr).unwrap();
-    (status.code(), stderr)
+    }
 }

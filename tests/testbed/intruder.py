@@ -46,6 +46,9 @@ def main():
     sent = 0
     with zenoh.open(config) as session:
         publishers = [session.declare_publisher(k) for k in keys]
+        # What the test waits for before it starts the vehicle the fleet waits for: every forged
+        # message from here on meets a running fleet.
+        print(f"intruder: connected, publishing on {keys}", file=sys.stderr, flush=True)
         end = time.monotonic() + seconds
         while time.monotonic() < end and sent < MAX_MESSAGES:
             for key, publisher in zip(keys, publishers):
