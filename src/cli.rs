@@ -116,6 +116,11 @@ fn recorders() -> clap::builder::RangedU64ValueParser<usize> {
     clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_RECORDERS)
 }
 
+/// A ROS 2 domain id: ROS 2 allows 0 to 232.
+fn ros2_domain() -> clap::builder::RangedU64ValueParser<u32> {
+    clap::builder::RangedU64ValueParser::<u32>::new().range(0..=232)
+}
+
 /// A probability on the command line: a number in [0, 1].
 fn probability(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
@@ -151,6 +156,10 @@ pub enum Command {
         /// More than the agents' stale timeout.
         #[arg(long, default_value = waits::COMMAND_S, value_parser = command_timeout, allow_hyphen_values = true, conflicts_with = "in_process")]
         command_timeout: Duration,
+        /// Speak ROS 2 (rmw_zenoh) on this domain beside tcpf's own protocol: each vehicle's
+        /// odometry and, in lockstep, /clock, seen by ROS 2 tools (docs/ROS2.md).
+        #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain(), conflicts_with = "in_process")]
+        ros2: Option<u32>,
         /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
         /// own, with the run directory's `zenoh.json5` (-c).
         #[arg(long, value_name = "N", default_value_t = 0, value_parser = recorders(), conflicts_with = "in_process")]
@@ -256,6 +265,10 @@ pub enum Command {
         /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
         #[arg(long, default_value = waits::COMMAND_S, value_parser = seconds, allow_hyphen_values = true)]
         command_timeout: Duration,
+        /// Speak ROS 2 (rmw_zenoh) on this domain beside tcpf's own protocol: each vehicle's
+        /// odometry and, in lockstep, /clock, seen by ROS 2 tools (docs/ROS2.md).
+        #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain())]
+        ros2: Option<u32>,
     },
     /// Role: record a fleet started by hand (start its world with --recorders 1).
     Record {

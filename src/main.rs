@@ -148,6 +148,7 @@ fn main() -> ExitCode {
             command_timeout,
             recorders,
             startup_timeout,
+            ros2,
         } => run::run(
             &clocked(&mission, &clock),
             out.as_deref(),
@@ -159,6 +160,7 @@ fn main() -> ExitCode {
                 startup_timeout,
                 restart: restart == Restart::OnFailure,
                 recorders,
+                ros2,
             },
         ),
         Command::Bench { mission, count } => bench::run(&mission, count),
@@ -204,6 +206,7 @@ fn main() -> ExitCode {
             recorders,
             startup_timeout,
             command_timeout,
+            ros2,
         } => roles::world(
             &clocked(&role.mission, &role.clock),
             &role.zenoh,
@@ -213,6 +216,7 @@ fn main() -> ExitCode {
                 command_timeout,
                 rejoin_timeout,
                 vehicles,
+                ros2,
             },
         ),
         Command::Agent {

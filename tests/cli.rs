@@ -535,6 +535,12 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
             "is not in 0..=64",
         ),
         (vec!["world", &mission, "--recorders", "65"], "is not in 0..=64"),
+        // ROS 2's domains are 0 to 232; an in-process run has no bus to speak it on.
+        (vec!["world", &mission, "--ros2", "233"], "is not in 0..=232"),
+        (
+            vec!["run", &mission, "--in-process", "--ros2"],
+            "'--in-process' cannot be used with '--ros2 [<DOMAIN>]'",
+        ),
         // Every role took 1e-22 and panicked on a wall-clock period no computer can wait.
         (
             vec!["run", &mission, "--clock", "realtime", "--time-scale", "1e-22"],

@@ -5,6 +5,7 @@ pub mod clock;
 pub mod codec;
 pub mod credential;
 pub mod keys;
+pub mod ros2;
 pub mod session;
 pub mod signals;
 pub mod typed;

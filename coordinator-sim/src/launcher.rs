@@ -337,6 +337,8 @@ pub struct Options {
     pub recorders: usize,
     /// How long the world waits for every agent and recorder.
     pub startup_timeout: Duration,
+    /// The ROS 2 domain the world speaks rmw_zenoh on, if any.
+    pub ros2: Option<u32>,
 }
 
 impl Default for Options {
@@ -347,6 +349,7 @@ impl Default for Options {
             restart: false,
             recorders: 0,
             startup_timeout: waits::STARTUP,
+            ros2: None,
         }
     }
 }
@@ -460,6 +463,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         restart,
         recorders,
         startup_timeout,
+        ros2,
     } = options;
     let begun = Instant::now();
     let mut shutdown = Shutdown::new()?;
@@ -486,6 +490,9 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     ]);
     if restart {
         world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
+    }
+    if let Some(domain) = ros2 {
+        world_args.extend(["--ros2".to_string(), domain.to_string()]);
     }
     // The world is the run's router: every other process, this one too, is its client. The
     // planner plans while the world starts (a client, it waits for the world to listen): the

@@ -17,6 +17,7 @@ pub mod pause;
 pub mod planner;
 pub mod realtime;
 pub mod record;
+pub mod ros2;
 pub mod roster;
 pub mod sim;
 pub mod telemetry;

@@ -329,6 +329,11 @@ impl RealtimeWorld {
         &self.states
     }
 
+    /// The command vehicle `id` holds, if one has come.
+    pub fn command_of(&self, id: u32) -> Option<&Command> {
+        self.ids.position(id).and_then(|n| self.held[n].as_ref())
+    }
+
     /// A vehicle's command, `horizon` the latest tick the world's clock allows: the freshest is
     /// held until a fresher one comes.
     pub fn on_command(&mut self, command: Command, horizon: u64) -> Result<(), Reject> {

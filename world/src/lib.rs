@@ -22,6 +22,7 @@ use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, PROTOCOL_VERSI
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::pause;
 use tcpf_core::realtime::RealtimeWorld;
+use tcpf_core::ros2::Stamp;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
@@ -43,6 +44,8 @@ pub struct Options {
     pub rejoin_timeout: Option<Duration>,
     /// Realtime: the vehicles this world simulates; the others are played by other processes.
     pub vehicles: Option<Vec<u32>>,
+    /// The ROS 2 domain to speak rmw_zenoh on, if any.
+    pub ros2: Option<u32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,6 +83,8 @@ struct Shell {
     outlets: Arc<Vec<Outlet>>,
     end_out: Arc<Outlet>,
     clock: Arc<ClockServer>,
+    /// Realtime: the fleet as ROS 2 nodes see it (`--ros2`).
+    ros2: Option<tcpf_bus::ros2::World>,
 }
 
 /// Where the agents' commands go.
@@ -122,6 +127,8 @@ struct Stepped {
     since: Instant,
     /// The end is out: nothing more is published.
     over: bool,
+    /// Each closed tick, for ROS 2 nodes (`--ros2`).
+    ros2: Option<tcpf_bus::ros2::World>,
 }
 
 impl Stepper {
@@ -155,7 +162,17 @@ impl Stepper {
     fn step(&self, stepped: &mut Stepped) {
         while !stepped.over && !stepped.node.waiting() {
             let mut recorded = Ok(());
-            let closed = stepped.node.advance(|record| recorded = self.tick_out.put_now(&record));
+            let ros2 = &mut stepped.ros2;
+            let closed = stepped.node.advance(|record| {
+                let put = self.tick_out.put_now(&record);
+                recorded = match ros2 {
+                    Some(ros2) => put.and_then(|()| {
+                        let fleet = record.states.iter().zip(record.commands.iter().map(Option::as_ref));
+                        ros2.put(fleet, Stamp::from_seconds(record.states[0].t))
+                    }),
+                    None => put,
+                };
+            });
             if let Err(e) = recorded {
                 let _ = self.ends.send(Err(e));
             }
@@ -269,6 +286,10 @@ async fn serve(
         outlets.push(Outlet::for_clock(session, keys.state(id), realtime).await?);
     }
     let outlets = Arc::new(outlets);
+    let mut ros2 = match options.ros2 {
+        Some(domain) => Some(tcpf_bus::ros2::World::declare(session, domain, ids, !realtime).await?),
+        None => None,
+    };
     let end_out = Arc::new(Outlet::last_words(session, keys.end()).await?);
     let clock = Arc::new(ClockServer::declare(session, keys).await?);
     let (_commands, inbound) = if realtime {
@@ -290,6 +311,7 @@ async fn serve(
                 },
                 since: Instant::now(),
                 over: false,
+                ros2: ros2.take(),
             }),
             session: session.clone(),
             keys: keys.clone(),
@@ -388,6 +410,7 @@ async fn serve(
         outlets,
         end_out,
         clock,
+        ros2,
     };
     let exit = match inbound {
         Inbound::Queued(commands) => shell.realtime(mission, digest, &paths, &simulated, commands).await?,
@@ -547,6 +570,13 @@ impl Shell {
                     self.clock.set(Clock { tick: node.tick(), ..clock });
                     for (outlet, state) in self.outlets.iter().zip(node.states()) {
                         outlet.put(state).await?;
+                    }
+                    if let Some(ros2) = &mut self.ros2 {
+                        // The wall clock of the fleet's epoch: simulated time runs time_scale
+                        // times faster than it.
+                        let t = node.tick() as f64 * mission.mission.control_period;
+                        let stamp = Stamp::from_seconds(clock.epoch + t / mission.mission.time_scale);
+                        ros2.put(node.states().iter().map(|s| (s, node.command_of(s.id))), stamp)?;
                     }
                 }
                 Some(c) = commands.recv() => {

@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""Watches a running tcpf fleet as a ROS 2 tool would, with nothing of tcpf's: eclipse-zenoh for
+the bus and rosbags (an independent implementation of ROS 2's type hashes and CDR) for the
+messages. Joins as a recorder so that the run waits for it, reads every ROS 2 sample of the
+domain until the run ends, checks what rmw_zenoh would, and writes what it decoded as JSON for
+tests/ros2.rs to compare with the run's telemetry.
+
+    watch.py ZENOH_JSON5 MISSION_NAME DOMAIN OUT.json
+"""
+
+import json
+import math
+import sys
+import threading
+import time
+
+import zenoh
+from rosbags.typesys import Stores, get_typestore
+
+TYPES = {"nav_msgs::msg::dds_::Odometry_": "nav_msgs/msg/Odometry",
+         "rosgraph_msgs::msg::dds_::Clock_": "rosgraph_msgs/msg/Clock"}
+
+
+def main():
+    config_file, mission, domain, out = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
+    store = get_typestore(Stores.ROS2_JAZZY)
+    hashes = {name: store.hash_rihs01(name) for name in TYPES.values()}
+    samples, ended, last = [], threading.Event(), [time.monotonic()]
+
+    def on_sample(sample):
+        attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
+        samples.append((str(sample.key_expr), sample.payload.to_bytes(), attachment))
+        last[0] = time.monotonic()
+
+    with zenoh.open(zenoh.Config.from_file(config_file)) as session:
+        subscriber = session.declare_subscriber(f"{domain}/**", on_sample)
+        end = session.declare_subscriber(f"tcpf/{mission}/end", lambda _: ended.set())
+        # The world declares its node's token after its publishers': once the node is in the
+        # graph, so is every topic of it.
+        deadline = time.monotonic() + 60
+        while True:
+            tokens = [str(r.ok.key_expr) for r in session.liveliness().get(f"@ros2_lv/{domain}/**") if r.ok]
+            if any("/NN/" in t for t in tokens) or time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
+        # A recorder's token: the world starts once it is here, so nothing is missed.
+        recorder = session.liveliness().declare_token(f"tcpf/{mission}/alive/record/77")
+        if not ended.wait(120):
+            sys.exit("watch.py: the run did not end within 120 s")
+        # The world publishes a tick's ROS 2 samples before it announces the end; wait for the
+        # last of them to arrive.
+        while time.monotonic() - last[0] < 1.0:
+            time.sleep(0.1)
+        recorder.undeclare()
+        subscriber.undeclare()
+        end.undeclare()
+
+    problems, odometry, clock, sequences = [], {}, [], {}
+    for key, payload, attachment in samples:
+        parts = key.split("/")
+        dds, hash_ = parts[-2], parts[-1]
+        name = TYPES.get(dds)
+        if name is None:
+            problems.append(f"{key}: a type rosbags was not asked about")
+            continue
+        if hash_ != hashes[name]:
+            problems.append(f"{key}: hash {hash_}, rosbags says {hashes[name]}")
+        if attachment is None or len(attachment) != 33 or attachment[16] != 16:
+            problems.append(f"{key}: attachment {attachment!r} is not rmw_zenoh's 33 bytes")
+            continue
+        sequence = int.from_bytes(attachment[0:8], "little", signed=True)
+        sequences.setdefault(key, []).append(sequence)
+        message = store.deserialize_cdr(payload, name)
+        stamp = [message.clock.sec, message.clock.nanosec] if name.endswith("Clock") else [
+            message.header.stamp.sec, message.header.stamp.nanosec]
+        if name.endswith("Clock"):
+            clock.append(stamp)
+            continue
+        pose, twist = message.pose.pose, message.twist.twist
+        q = pose.orientation
+        odometry.setdefault(parts[2], []).append({
+            "stamp": stamp, "frame": message.header.frame_id, "child": message.child_frame_id,
+            # Numbers as their shortest round-trip text: compared to the telemetry's to the bit.
+            "x": repr(pose.position.x), "y": repr(pose.position.y),
+            "yaw": repr(2.0 * math.atan2(q.z, q.w)), "yaw_rate": repr(twist.angular.z),
+            "tilt": [q.x, q.y, pose.position.z], "velocity": [twist.linear.x, twist.linear.y]})
+    for key, seq in sequences.items():
+        if seq != list(range(1, len(seq) + 1)):
+            problems.append(f"{key}: sequence numbers {seq[:5]}... are not 1, 2, 3 without a gap")
+    json.dump({"problems": problems, "hashes": hashes, "tokens": tokens, "clock": clock,
+               "odometry": odometry, "keys": sorted(sequences)}, open(out, "w"))
+
+
+if __name__ == "__main__":
+    main()
