@@ -107,6 +107,20 @@ pub fn run(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     if summary.interrupted {
         return interrupted();
     }
+    // The same fleet speaking ROS 2 beside its own protocol (odometry and /clock every tick), with
+    // no ROS 2 subscriber: what --ros2 costs the fleet itself.
+    let speaking = RunDir::create(Some(&scratch.join("ros2")), &mission).map_err(Failure::Failed)?;
+    let options = launcher::Options {
+        ros2: Some(0),
+        ..launcher::Options::default()
+    };
+    let Some(ros2) = rt.block_on(shutdown.unless(launcher::run(&mission, &plan, &speaking, &exe, options))) else {
+        return interrupted();
+    };
+    let ros2 = ros2.map_err(Failure::Failed)?;
+    if ros2.interrupted {
+        return interrupted();
+    }
     let Some(idle) = rt.block_on(shutdown.unless(bench::idle_fleet(&exe, plan.vehicles.len()))) else {
         return interrupted();
     };
@@ -125,6 +139,11 @@ pub fn run(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
         tick,
         tick / median(&direct),
         tick / median(&routed)
+    );
+    sayln!(
+        "lockstep tick with --ros2 (odometry and /clock, no ROS 2 subscriber): {:.1} µs; / without it: {:.2}",
+        ros2.tick_wall_time_us,
+        ros2.tick_wall_time_us / tick
     );
     // A short mission's wall time is much its start: the tick says how fast the fleet runs.
     sayln!(

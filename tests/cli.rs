@@ -1001,6 +1001,13 @@ fn bench_prints_every_figure_beside_its_baseline() {
     assert!(tick[2] > 10.0 && tick[2] < 1e5, "tick in µs: {tick:?}");
     assert!((tick[3] - tick[2] / rtt[0]).abs() < 0.01 * tick[3], "{tick:?} {rtt:?}");
     assert!((tick[4] - tick[2] / rtt[1]).abs() < 0.01 * tick[4], "{tick:?} {rtt:?}");
+    // The tick with --ros2 and its ratio to the tick without, the line's last two numbers.
+    let ros2 = numbers(&line("lockstep tick with --ros2"));
+    let [with, ratio] = ros2[ros2.len() - 2..] else {
+        panic!("{ros2:?}")
+    };
+    assert!(with > 10.0 && with < 1e5, "tick in µs: {ros2:?}");
+    assert!((ratio - with / tick[2]).abs() < 0.01 * ratio, "{ros2:?} {tick:?}");
     // b-current's control period is 0.01 s: a tick's wall time says how fast it runs.
     let speed = numbers(&line("simulated / wall time:"));
     assert!(
