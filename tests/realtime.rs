@@ -49,6 +49,31 @@ fn beside_lockstep(mission: &str, dir: &Path) -> (Value, Value, String) {
     (summary(&dir.join("lockstep")), summary(&out), printed)
 }
 
+/// How far a realtime run of a 10 ms period may be from lockstep, from the timing it reports:
+/// the periods it disturbed, and the tolerances of its arrivals and coordination error. An
+/// arrival is seen on a tick, and the realtime world may see it a tick later (two periods, with
+/// the start); then each disturbed period (a command held over, a period skipped, an agent acting
+/// on an older state) shifts a vehicle by a small part of a period's travel, counted here as a
+/// tenth of a period each. Measured at x10 on 2 cores, case (b): 14 runs (6 beside a CPU hog), 27
+/// to 161 disturbed periods, arrivals within 0.017 s of lockstep's, errors within 0.009 s; MEDUSA
+/// case (b): 9 runs (4 beside a hog), 29 to 138 disturbed, arrivals within 0.009 s, errors 0.007 s.
+fn allowed(realtime: &Value) -> (u64, f64, f64) {
+    let period = 0.01;
+    let disturbed: u64 = realtime["timing"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            ["late_commands", "skipped", "stale_states"]
+                .iter()
+                .map(|k| t[k].as_u64().unwrap())
+                .sum::<u64>()
+        })
+        .sum();
+    let slack = disturbed as f64 / 10.0;
+    (disturbed, period * (2.0 + slack), period * (1.0 + slack))
+}
+
 #[test]
 fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_timing() {
     let _fleet = fleet();
@@ -61,8 +86,12 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
         realtime["reproducible"], false,
         "a realtime run says it is not reproducible"
     );
+    let (disturbed, arrival_tolerance, error_tolerance) = allowed(&realtime);
     for (l, r) in arrivals(&lockstep).iter().zip(arrivals(&realtime)) {
-        assert!((l - r).abs() < 0.3, "arrival {r:.3} s against lockstep's {l:.3} s");
+        assert!(
+            (l - r).abs() < arrival_tolerance,
+            "arrival {r:.3} s against lockstep's {l:.3} s ({disturbed} disturbed periods: {arrival_tolerance:.3} s allowed)"
+        );
     }
     // The run lasted the world's ticks, not the periods the recorder sampled.
     let world = std::fs::read_to_string(out.join("logs/world.log")).unwrap();
@@ -73,8 +102,8 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
     );
     let error = |s: &Value| s["max_coordination_error"].as_f64().unwrap();
     assert!(
-        (error(&lockstep) - error(&realtime)).abs() < 0.15,
-        "coordination error {:.3} s against lockstep's {:.3} s",
+        (error(&lockstep) - error(&realtime)).abs() < error_tolerance,
+        "coordination error {:.3} s against lockstep's {:.3} s ({disturbed} disturbed periods: {error_tolerance:.3} s allowed)",
         error(&realtime),
         error(&lockstep)
     );
@@ -109,11 +138,20 @@ fn a_medusa_fleet_in_realtime_arrives_as_in_lockstep() {
         arrivals(&realtime),
         arrivals(&lockstep)
     );
+    let (disturbed, arrival_tolerance, error_tolerance) = allowed(&realtime);
     for (l, r) in arrivals(&lockstep).iter().zip(arrivals(&realtime)) {
-        assert!((l - r).abs() < 0.3, "arrival {r:.3} s against lockstep's {l:.3} s");
+        assert!(
+            (l - r).abs() < arrival_tolerance,
+            "arrival {r:.3} s against lockstep's {l:.3} s ({disturbed} disturbed periods: {arrival_tolerance:.3} s allowed)"
+        );
     }
     let error = |s: &Value| s["max_coordination_error"].as_f64().unwrap();
-    assert!((error(&lockstep) - error(&realtime)).abs() < 0.15);
+    assert!(
+        (error(&lockstep) - error(&realtime)).abs() < error_tolerance,
+        "coordination error {:.3} s against lockstep's {:.3} s ({disturbed} disturbed periods: {error_tolerance:.3} s allowed)",
+        error(&realtime),
+        error(&lockstep)
+    );
     let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
     assert!(telemetry.lines().next().unwrap().contains(",surge,sway,yaw_rate,beta,"));
     assert_none_left(&realtime);
