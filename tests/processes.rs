@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 mod common;
 use common::{
     alive, arrivals, assert_none_left, assert_same_run, child_of, config, credentialed, descendants, exited, failure,
-    fleet, kill, lanes, listening, paper, pid_of, processes, run_in_process, scratch, stop_the_planner, summary,
-    usrpwd, wait_for_text, wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
+    fleet, kill, lanes, listening, paper, pid_of, processes, record_by_hand, run_in_process, scratch, stop_the_planner,
+    summary, usrpwd, wait_for_text, wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
 };
 
 #[test]
@@ -1222,17 +1222,7 @@ fn roles_started_by_hand_demand_their_credential_and_make_the_same_run() {
     let world = std::fs::read_to_string(dir.join("world.log")).unwrap();
     assert!(!world.contains("a recorder is here"), "{world}");
     let out = dir.join("p");
-    let record = Command::new(env!("CARGO_BIN_EXE_tcpf"))
-        .args(credentialed(&[
-            "record",
-            &mission,
-            "-e",
-            &endpoint,
-            "--out",
-            out.to_str().unwrap(),
-        ]))
-        .output()
-        .unwrap();
+    let record = record_by_hand(&mission, &endpoint, &out).output().unwrap();
     assert!(record.status.success(), "{}", String::from_utf8_lossy(&record.stderr));
     for child in &mut fleet.0 {
         let deadline = Instant::now() + Duration::from_secs(10);
@@ -1392,15 +1382,7 @@ fn a_new_agent_of_a_lost_vehicle_is_told_and_the_others_arrive() {
     let (mut fleet, endpoint) = by_hand(&mission, &["1", "2", "3"], &[], &dir);
     let out = dir.join("r");
     let mut record = Reaper(
-        Command::new(env!("CARGO_BIN_EXE_tcpf"))
-            .args(credentialed(&[
-                "record",
-                &mission,
-                "-e",
-                &endpoint,
-                "--out",
-                out.to_str().unwrap(),
-            ]))
+        record_by_hand(&mission, &endpoint, &out)
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()

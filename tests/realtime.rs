@@ -10,7 +10,8 @@ use std::time::{Duration, Instant};
 
 use common::{
     arrivals, assert_none_left, config, credential, credentialed, descendants, failure, fleet, kill, listening, paper,
-    run_in_process, scratch, stop_the_planner, summary, timing, wait_until_simulated, without_command, Launch, Reaper,
+    record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing, wait_until_simulated, without_command,
+    Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -204,7 +205,6 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     let clock = ["--clock", "realtime", "--time-scale", "5"];
     let logs = dir.join("logs");
     let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &logs, &clock);
-    let tcpf = env!("CARGO_BIN_EXE_tcpf");
     let script = format!("{}/examples/python/vehicle.py", env!("CARGO_MANIFEST_DIR"));
     let mut vehicle = Reaper(logged(
         &logs,
@@ -222,9 +222,7 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
         ],
     ));
     let out = dir.join("run");
-    let mut record = vec!["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()];
-    record.extend(clock);
-    let recorded = Command::new(tcpf).args(credentialed(&record)).output().unwrap();
+    let recorded = record_by_hand(&mission, &endpoint, &out).args(clock).output().unwrap();
     let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
     assert!(
         recorded.status.success(),
@@ -268,17 +266,8 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
         "mission.max_duration=6",
     ];
     let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &dir.join("logs"), &settings);
-    let tcpf = env!("CARGO_BIN_EXE_tcpf");
     let out = dir.join("run");
-    let recorded = Command::new(tcpf)
-        .args(credentialed(&[
-            "record",
-            &mission,
-            "-e",
-            &endpoint,
-            "--out",
-            out.to_str().unwrap(),
-        ]))
+    let recorded = record_by_hand(&mission, &endpoint, &out)
         .args(settings)
         .output()
         .unwrap();

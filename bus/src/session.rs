@@ -214,6 +214,13 @@ fn readable(file: &str) -> std::result::Result<(), String> {
 pub const ACCEPT_PENDING: usize = 4096;
 pub const ACCEPT_TIMEOUT_MS: u64 = 5000;
 
+/// Sets `key` of `config` to the JSON5 `value`.
+fn set(config: &mut Config, key: &str, value: &str) -> Result<()> {
+    config
+        .insert_json5(key, value)
+        .map_err(|e| anyhow!("zenoh {key}: {}", zenoh_words(e)))
+}
+
 /// Why a role with no credential does not start unless told to (`--open`).
 const RUNS_OPEN: &str = "this role would run open: its Zenoh configuration demands no credential, so any process that reaches it could join the fleet and speak for any role. Make a credential once with `tcpf credential fleet.key`, copy it to every host (owner-only) and give every role and the router `--credential fleet.key`; or give -c a mutual-TLS configuration (configs/zenoh/tls/); or, on a network only you use, `--open`";
 
@@ -260,10 +267,6 @@ impl ZenohArgs {
                 .map_err(|e| bad(format!("{}: bad Zenoh config: {}", path.display(), zenoh_words(e))))?,
             None => {
                 let mut c = Config::default();
-                let set = |c: &mut Config, k: &str, v: &str| {
-                    c.insert_json5(k, v)
-                        .map_err(|e| anyhow!("zenoh {k}: {}", zenoh_words(e)))
-                };
                 set(&mut c, "mode", "\"peer\"")?;
                 set(&mut c, "scouting/multicast/enabled", "false")?;
                 set(&mut c, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
@@ -276,8 +279,8 @@ impl ZenohArgs {
                 c
             }
         };
-        if let Some(mode) = &self.mode {
-            if !["peer", "client", "router"].contains(&mode.as_str()) {
+        if let Some(mode) = self.mode.as_deref().or(self.implied_mode()) {
+            if !["peer", "client", "router"].contains(&mode) {
                 return Err(bad(format!("--mode {mode}: expected peer, client or router")));
             }
             config
@@ -323,10 +326,22 @@ impl ZenohArgs {
         Ok(config)
     }
 
-    /// Makes `config` present and demand the credential in `file`. Peers that find each other
-    /// open links both ways, and with a user and password Zenoh 1.10 refuses the second
-    /// (eclipse-zenoh/zenoh#2577), so a fleet with a credential meets at a router: without -c
-    /// or --mode, the process that listens is that router, and one that connects its client.
+    /// The mode a credential implies without -c or --mode. Peers that find each other open links
+    /// both ways, and with a user and password Zenoh 1.10 refuses the second
+    /// (eclipse-zenoh/zenoh#2577), so a fleet with a credential meets at a router: the process
+    /// that listens is that router, and one that only connects its client.
+    fn implied_mode(&self) -> Option<&'static str> {
+        if self.credential.is_none() || self.config.is_some() || self.mode.is_some() {
+            return None;
+        }
+        match (self.listen.is_empty(), self.connect.is_empty()) {
+            (false, _) => Some("router"),
+            (true, false) => Some("client"),
+            (true, true) => None,
+        }
+    }
+
+    /// Makes `config` present and demand the credential in `file`, and suit the mode it implies.
     fn present(&self, config: &mut Config, file: &std::path::Path) -> Result<()> {
         let (user, password) =
             credential::read(file).map_err(|why| bad(format!("--credential {}: {why}", file.display())))?;
@@ -340,22 +355,10 @@ impl ZenohArgs {
         config
             .insert_json5("transport/auth/usrpwd", &auth.to_string())
             .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
-        if self.config.is_none() && self.mode.is_none() {
-            let mode = match (self.listen.is_empty(), self.connect.is_empty()) {
-                (false, _) => "router",
-                (true, false) => "client",
-                (true, true) => return Ok(()),
-            };
-            let set = |c: &mut Config, k: &str, v: &str| {
-                c.insert_json5(k, v)
-                    .map_err(|e| anyhow!("zenoh {k}: {}", zenoh_words(e)))
-            };
-            set(config, "mode", &format!("\"{mode}\""))?;
-            if mode == "router" {
-                // Nothing is scouted for, and a router's open would sleep 500 ms for it.
-                set(config, "scouting/gossip/enabled", "false")?;
-                set(config, "scouting/delay", "0")?;
-            } else {
+        match self.implied_mode() {
+            // Its clients need no gossip to find each other.
+            Some("router") => set(config, "scouting/gossip/enabled", "false"),
+            Some(_) => {
                 // A client gives up at once if its router is not up (Zenoh's default): this one
                 // waits for it, as a peer would, until the role's --startup-timeout.
                 set(config, "connect/timeout_ms", "-1")?;
@@ -363,10 +366,10 @@ impl ZenohArgs {
                     config,
                     "connect/retry",
                     "{ period_init_ms: 50, period_max_ms: 1000, period_increase_factor: 2 }",
-                )?;
+                )
             }
+            None => Ok(()),
         }
-        Ok(())
     }
 
     /// Whether the session these options open is a router, through which others' messages pass.

@@ -43,6 +43,21 @@ pub fn credentialed(args: &[&str]) -> Vec<String> {
     all
 }
 
+/// `tcpf record` of `mission` into `out`, joining the fleet started by hand at `endpoint` with the
+/// tests' credential.
+pub fn record_by_hand(mission: &str, endpoint: &str, out: &Path) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_tcpf"));
+    command.args(credentialed(&[
+        "record",
+        mission,
+        "-e",
+        endpoint,
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    command
+}
+
 /// The tests' credential as Zenoh's `transport/auth/usrpwd` of a session opened by a test.
 pub fn usrpwd() -> String {
     let text = std::fs::read_to_string(credential()).unwrap();
