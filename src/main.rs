@@ -70,7 +70,7 @@ fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
 fn role_failure(e: anyhow::Error) -> Failure {
     if e.downcast_ref::<tcpf_bus::clock::WrongClock>().is_some()
         || e.downcast_ref::<tcpf_bus::session::BadZenohConfig>().is_some()
-        || e.downcast_ref::<tcpf_bus::typed::AlreadyRunning>().is_some()
+        || e.downcast_ref::<tcpf_bus::claim::AlreadyRunning>().is_some()
     {
         Failure::Input(e)
     } else if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() {

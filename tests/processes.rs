@@ -10,7 +10,7 @@ mod common;
 use common::{
     alive, arrivals, assert_none_left, assert_same_run, child_of, config, credentialed, descendants, exited, failure,
     fleet, kill, lanes, listening, paper, pid_of, processes, record_by_hand, run_in_process, scratch, stop_the_planner,
-    summary, usrpwd, wait_for_text, wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
+    summary, usrpwd, wait_exit, wait_for_text, wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
 };
 
 #[test]
@@ -1234,6 +1234,70 @@ fn roles_started_by_hand_demand_their_credential_and_make_the_same_run() {
     }
     run_in_process(&mission, &dir.join("i"), &[]);
     assert_same_run(&out, &dir.join("i"));
+}
+
+/// Two worlds and two agents of each vehicle started at once, every role a client of one router,
+/// twenty times: each time exactly one world and one agent per vehicle drive the fleet, to the
+/// same run as in-process, and the others exit 2 naming who holds their role. Before claims
+/// (`tcpf_core::claim`), a role looked for a holder before it announced itself, and two that
+/// started together could both find nobody.
+#[test]
+fn of_two_worlds_and_two_agents_per_vehicle_started_at_once_one_of_each_drives_the_fleet() {
+    let _fleet = fleet();
+    let dir = scratch("race");
+    let mission = paper("b-current");
+    run_in_process(&mission, &dir.join("i"), &[]);
+    let (router, endpoint) = listening(|e| role(&["router", "-l", e], Stdio::null()));
+    let _router = Reaper(router);
+    for round in 0..20 {
+        let at = dir.join(format!("round-{round}"));
+        std::fs::create_dir_all(&at).unwrap();
+        let log = |name: &str| Stdio::from(std::fs::File::create(at.join(name)).unwrap());
+        let client =
+            |args: &[&str], name: &str| role(&[args, &["-e", &endpoint, "--mode", "client"]].concat(), log(name));
+        let mut contenders = Fleet(vec![
+            client(&["world", &mission, "--recorders", "1"], "world-a.log"),
+            client(&["world", &mission, "--recorders", "1"], "world-b.log"),
+            client(&["agent", &mission, "--id", "1"], "agent-1a.log"),
+            client(&["agent", &mission, "--id", "1"], "agent-1b.log"),
+            client(&["agent", &mission, "--id", "2"], "agent-2a.log"),
+            client(&["agent", &mission, "--id", "2"], "agent-2b.log"),
+        ]);
+        let _others = Fleet(vec![client(&["planner", &mission], "planner.log")]);
+        let out = at.join("p");
+        let record = record_by_hand(&mission, &endpoint, &out).output().unwrap();
+        assert!(
+            record.status.success(),
+            "round {round}: {}",
+            String::from_utf8_lossy(&record.stderr)
+        );
+        let mut codes = Vec::new();
+        for (child, name) in contenders
+            .0
+            .iter_mut()
+            .zip(["world-a", "world-b", "agent-1a", "agent-1b", "agent-2a", "agent-2b"])
+        {
+            let code = wait_exit(child, Duration::from_secs(30), name);
+            let said = std::fs::read_to_string(at.join(format!("{name}.log"))).unwrap();
+            if code == Some(2) {
+                assert!(
+                    said.contains("is already running, held by session"),
+                    "round {round}, {name}: {said}"
+                );
+            } else {
+                assert_eq!(code, Some(0), "round {round}, {name}: {said}");
+            }
+            codes.push(code);
+        }
+        for (pair, role) in codes.chunks(2).zip(["world", "agent 1", "agent 2"]) {
+            let held = pair.iter().filter(|&&c| c == Some(0)).count();
+            assert_eq!(
+                held, 1,
+                "round {round}: {held} processes held the {role}: exit codes {codes:?}"
+            );
+        }
+        assert_same_run(&out, &dir.join("i"));
+    }
 }
 
 /// A second agent of one vehicle, or a second world of one fleet, is refused (exit 2): both

@@ -6,12 +6,13 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::claim::claim;
 use tcpf_bus::clock::{self, metronome, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    alone, answered, ask_clock, await_clock, fetch_paths, linger, linger_within, presence, queue, report, subscribe,
+    answered, ask_clock, await_clock, fetch_paths, linger, linger_within, presence, queue, report, subscribe,
     subscribe_into, subscribe_with, Outlet, Presence, Received, Rejected,
 };
 use tcpf_core::agent::Agent;
@@ -233,7 +234,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     // Before this session follows liveliness: a liveliness query from a session with a liveliness
     // subscriber of its own at times answers nothing (Zenoh 1.10), and a second agent of a
     // running vehicle then found nobody holding its id.
-    alone(&session, &keys, Role::Agent, id, &mission.mission.name).await?;
+    let claimed = claim(&session, &keys, Role::Agent, id, &mission.mission.name).await?;
     let (presence_subscriber, mut presence) = presence(&session, &keys).await?;
     let ids = [id];
     let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
@@ -424,6 +425,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         linger_within(&shell.session, &shell.keys, &[Role::World], REPORT_SENT).await;
     }
     let _ = token.undeclare().await;
+    let _ = claimed.undeclare().await;
     let _ = shell.session.close().await;
     Ok(exit)
 }

@@ -64,6 +64,14 @@ impl Keys {
     pub fn alive(&self, role: Role, id: impl fmt::Display) -> String {
         format!("{}/alive/{role}/{id}", self.root)
     }
+    /// A process's claim of a role only one may hold (`tcpf_core::claim`), as a liveliness token.
+    pub fn claim(&self, role: Role, id: impl fmt::Display, chunk: &str) -> String {
+        format!("{}/claim/{role}/{id}/{chunk}", self.root)
+    }
+    /// Every claim of a role.
+    pub fn claims(&self, role: Role, id: impl fmt::Display) -> String {
+        format!("{}/claim/{role}/{id}/*", self.root)
+    }
     /// Every liveliness token of the mission.
     pub fn alive_all(&self) -> String {
         format!("{}/alive/**", self.root)

@@ -307,21 +307,10 @@ pub struct Presence {
 
 /// Who of the mission is present now, by their liveliness tokens.
 pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>> {
-    present_within(session, keys, Duration::from_millis(500)).await
-}
-
-/// How long a claim of a role waits for the router's list of tokens. The query ends when the
-/// router has answered, at once on a calm machine; its timeout only bounds a router that does not.
-/// At 500 ms, under a loaded machine's delays, a second agent of a running vehicle found the list
-/// empty and joined the fleet.
-const CLAIM_QUERY: Duration = Duration::from_secs(10);
-
-/// `present`, waiting up to `timeout` for the answer.
-async fn present_within(session: &Session, keys: &Keys, timeout: Duration) -> Result<Vec<(Role, u32)>> {
     let replies = session
         .liveliness()
         .get(keys.alive_all())
-        .timeout(timeout)
+        .timeout(Duration::from_millis(500))
         .await
         .map_err(|e| anyhow!("cannot ask who is present: {e}"))?;
     let mut present = Vec::new();
@@ -331,52 +320,6 @@ async fn present_within(session: &Session, keys: &Keys, timeout: Duration) -> Re
         }
     }
     Ok(present)
-}
-
-/// Another process holds this role's token: two agents of one vehicle would both steer it, two
-/// worlds would both drive the fleet.
-#[derive(Debug)]
-pub struct AlreadyRunning {
-    pub role: Role,
-    pub id: u32,
-    pub mission: String,
-}
-
-impl std::fmt::Display for AlreadyRunning {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let AlreadyRunning { role, id, mission } = self;
-        match role {
-            Role::Agent => write!(
-                f,
-                "agent {id} of mission {mission} is already running: two agents would steer vehicle {id}; stop the other, or give this one another --id"
-            ),
-            _ => write!(f, "a {role} of mission {mission} is already running: a fleet has one"),
-        }
-    }
-}
-
-impl std::error::Error for AlreadyRunning {}
-
-/// How long a token of a process that has just stopped may linger: until the router hears its
-/// connection close.
-const TOKEN_SETTLE: Duration = Duration::from_secs(2);
-
-/// Whether this process may take `role` `id`: nobody else holds its token, or the one who did
-/// lets go of it within `TOKEN_SETTLE` (an agent started again at once after it died).
-pub async fn alone(session: &Session, keys: &Keys, role: Role, id: u32, mission: &str) -> Result<()> {
-    let deadline = tokio::time::Instant::now() + TOKEN_SETTLE;
-    while present_within(session, keys, CLAIM_QUERY).await?.contains(&(role, id)) {
-        if tokio::time::Instant::now() >= deadline {
-            return Err(AlreadyRunning {
-                role,
-                id,
-                mission: mission.to_string(),
-            }
-            .into());
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-    Ok(())
 }
 
 /// How long a role stays after its last words for those who should hear them to leave, and how

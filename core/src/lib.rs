@@ -2,6 +2,7 @@
 //! No I/O, no async, no clocks: the process crates only move these machines' messages.
 
 pub mod agent;
+pub mod claim;
 pub mod coord;
 pub mod dynamics;
 #[cfg(test)]

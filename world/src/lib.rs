@@ -8,13 +8,14 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::claim::claim;
 use tcpf_bus::clock::{metronome, unix_now, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    alone, fetch_paths, linger, linger_for_reports, linger_within, presence, report, say_now, subscribe,
-    subscribe_with, Carried, ClockServer, Outlet, Presence, Received, Rejected, RECORDERS_PATIENCE,
+    fetch_paths, linger, linger_for_reports, linger_within, presence, report, say_now, subscribe, subscribe_with,
+    Carried, ClockServer, Outlet, Presence, Received, Rejected, RECORDERS_PATIENCE,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::mission::{ClockKind, Mission};
@@ -221,6 +222,10 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let mut shutdown = Shutdown::new()?;
     let session = zenoh.open_unless(&mut shutdown, options.startup_timeout).await?;
     let rejected = Rejected::default();
+    // Before this session follows liveliness: a liveliness query from a session with a liveliness
+    // subscriber of its own at times answers nothing (Zenoh 1.10), and a second world then found
+    // no world running and drove the fleet.
+    let claimed = claim(&session, &keys, Role::World, 0, &mission.mission.name).await?;
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once they have passed through it.
     let carried = match zenoh.routes()? {
@@ -241,6 +246,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     if let Some(token) = token {
         let _ = token.undeclare().await;
     }
+    let _ = claimed.undeclare().await;
     // The planner reports once the world's token has gone.
     if let Some((_, carried)) = &carried {
         linger_for_reports(&session, &keys, &[(Role::Planner, 0)], carried).await;
@@ -268,10 +274,6 @@ async fn serve(
     let digest = mission.digest();
     // What a role on another host whose mission is not this one is told to compare with.
     tracing::info!("world: mission {} (digest {digest:016x})", mission.mission.name);
-    // Before this session follows liveliness: a liveliness query from a session with a liveliness
-    // subscriber of its own at times answers nothing (Zenoh 1.10), and a second world then found
-    // no world running and drove the fleet.
-    alone(session, keys, Role::World, 0, &mission.mission.name).await?;
     let (_presence, mut presence) = presence(session, keys).await?;
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
