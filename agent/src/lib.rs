@@ -3,11 +3,11 @@
 //! its neighbours and publishes commands. Started while the run is under way, it rejoins.
 
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use tcpf_bus::claim::claim;
-use tcpf_bus::clock::{self, metronome, FleetClock};
+use tcpf_bus::clock::{self, metronome, FleetClock, Monotonic};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
@@ -17,9 +17,9 @@ use tcpf_bus::typed::{
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
+use tcpf_core::membership::{StaleCheck, StaleTimer, WorldAway, WorldReach};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
-use tcpf_core::pause;
 use tcpf_core::realtime::RealtimeAgent;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
@@ -35,6 +35,9 @@ const REPORT_SENT: Duration = Duration::from_millis(500);
 /// waits for it; a lockstep one, running meanwhile, asks less and less often, up to the max.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
 const CLOCK_POLL_MAX: Duration = Duration::from_secs(1);
+/// How long a realtime agent waits for a world out of reach before it stops: a radio link that
+/// drops for a while must not end the vehicle's mission.
+const WORLD_AWAY: Duration = Duration::from_secs(60);
 /// Where in its period a realtime agent acts: after the world published the period's states,
 /// and early enough that its command reaches the world before the next.
 const AGENT_PHASE: f64 = 0.5;
@@ -120,14 +123,16 @@ struct Feed {
     faults: UnboundedSender<anyhow::Error>,
     /// A state came while the node was held: the world has started, and its clock answers.
     first_state: Notify,
+    /// The agent's monotonic clock, which `stale` counts in.
+    monotonic: Monotonic,
 }
 
 struct Fed {
     node: AgentNode,
     /// Until the loop starts (the node's neighbours and rejoining known), what came, in order.
     held: Option<Vec<(String, Input)>>,
-    /// Since when the node has been waiting for a neighbour's γ.
-    waiting_since: Option<Instant>,
+    /// How long the node has been waiting for a neighbour's γ.
+    stale: StaleTimer,
     /// The loop has ended: what still comes is not answered, so that an agent that was told to
     /// stop steers its vehicle no more while it reports and leaves.
     stopped: bool,
@@ -179,11 +184,8 @@ impl Feed {
             warn_if_not_finite(self.id, &command);
             self.sent(self.commands.put_now(&command));
         }
-        if fed.node.waiting() {
-            fed.waiting_since.get_or_insert_with(Instant::now);
-        } else {
-            fed.waiting_since = None;
-        }
+        let waiting = fed.node.waiting();
+        fed.stale.note(waiting, self.monotonic.now());
     }
 
     /// A publication that failed ends the loop, which owns the error.
@@ -268,7 +270,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             fed: Mutex::new(Fed {
                 node: AgentNode::new(agent),
                 held: Some(Vec::new()),
-                waiting_since: None,
+                stale: StaleTimer::new(options.stale_timeout),
                 stopped: false,
             }),
             commands: Outlet::for_clock(&session, keys.cmd(id), false).await?,
@@ -276,6 +278,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             rejected: rejected.clone(),
             faults: faults_tx,
             first_state: Notify::new(),
+            monotonic: Monotonic::start(),
         });
         let to = feed.clone();
         subscribers.push(
@@ -368,7 +371,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 None => shell.wait_for_clock(mission, deadline).await?,
             };
             match clock {
-                Some(clock) => shell.realtime(mission, *queued, &clock, options).await?,
+                Some(clock) => shell.realtime(mission, *queued, &clock).await?,
                 None => Exit::Interrupted,
             }
         }
@@ -494,8 +497,15 @@ impl Shell {
             feed.start();
         }
         let exit = loop {
-            // Woken once per timeout while the fleet moves on, to look whether it still waits.
-            let stale_at = feed.lock().waiting_since.unwrap_or_else(Instant::now) + options.stale_timeout;
+            // Not waiting: woken once per timeout while the fleet moves on, to look again.
+            let stale_at = {
+                let fed = feed.lock();
+                let now = feed.monotonic.now();
+                feed.monotonic.at(fed
+                    .stale
+                    .poll_timeout()
+                    .unwrap_or(now + options.stale_timeout.as_secs_f64()))
+            };
             tokio::select! {
                 Some(e) = faults.recv() => return Err(e),
                 answer = answered(&mut clock), if clock.is_some() => {
@@ -545,24 +555,24 @@ impl Shell {
                     }
                 }
                 _ = self.shutdown.recv() => break Exit::Interrupted,
-                _ = tokio::time::sleep_until(stale_at.into()) => {
+                _ = tokio::time::sleep_until(stale_at) => {
                     let mut fed = feed.lock();
-                    if let Some(more) = pause::extension(stale_at.elapsed()) {
-                        tracing::info!("agent {id}: resumed after {:.1} s stopped or starved; the neighbours get that long more", more.as_secs_f64());
-                        if let Some(since) = fed.waiting_since.as_mut() {
-                            *since += more;
+                    match fed.stale.handle_timeout(feed.monotonic.now()) {
+                        StaleCheck::Nothing => {}
+                        StaleCheck::Resumed(more) => tracing::info!(
+                            "agent {id}: resumed after {:.1} s stopped or starved; the neighbours get that long more",
+                            more.as_secs_f64()
+                        ),
+                        StaleCheck::Stale => {
+                            for j in fed.node.waiting_for() {
+                                tracing::warn!(
+                                    "agent {id}: neighbour {j} silent for {:?}; going on without it until it speaks again (the run is no longer reproducible)",
+                                    options.stale_timeout
+                                );
+                                fed.node.on_stale(j);
+                            }
+                            feed.settle(&mut fed);
                         }
-                        continue;
-                    }
-                    if fed.waiting_since.is_some_and(|since| since.elapsed() >= options.stale_timeout) {
-                        for j in fed.node.waiting_for() {
-                            tracing::warn!(
-                                "agent {id}: neighbour {j} silent for {:?}; going on without it until it speaks again (the run is no longer reproducible)",
-                                options.stale_timeout
-                            );
-                            fed.node.on_stale(j);
-                        }
-                        feed.settle(&mut fed);
                     }
                 }
             }
@@ -585,17 +595,10 @@ impl Shell {
         Ok(exit)
     }
 
-    async fn realtime(
-        &mut self,
-        mission: &Mission,
-        mut queued: Queued,
-        clock: &Clock,
-        options: &Options,
-    ) -> Result<Exit> {
+    async fn realtime(&mut self, mission: &Mission, mut queued: Queued, clock: &Clock) -> Result<Exit> {
         let id = self.id;
-        // When the world went out of reach, and until when to wait for it: on a testbed a link
-        // that drops for a while must not end the vehicle's mission.
-        let mut away: Option<tokio::time::Instant> = None;
+        let mut away = WorldAway::new(WORLD_AWAY);
+        let monotonic = Monotonic::start();
         let mut published = 0;
         let fleet = FleetClock::new(clock, mission.mission.control_period);
         let period = fleet.period().as_secs_f64();
@@ -623,22 +626,24 @@ impl Shell {
                 Some(g) = queued.gammas.recv() => {
                     self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message, fleet.horizon()));
                 }
-                Some(p) = self.presence.recv() => {
-                    if p.role == Role::World && !p.alive && away.is_none() {
-                        tracing::warn!(
-                            "agent {id}: the world is out of reach; acting on what it last sent, and waiting up to {:?} for it",
-                            options.startup_timeout
-                        );
-                        away = Some(tokio::time::Instant::now() + options.startup_timeout);
-                    } else if p.role == Role::World && p.alive && away.take().is_some() {
-                        tracing::info!("agent {id}: the world is back");
-                    } else if p.role == Role::Planner && !p.alive {
+                Some(p) = self.presence.recv() => match p.role {
+                    Role::World => match away.on_world(p.alive, monotonic.now()) {
+                        Some(WorldReach::Away(grace)) => tracing::warn!(
+                            "agent {id}: the world is out of reach; acting on what it last sent, and waiting up to {grace:?} for it"
+                        ),
+                        Some(WorldReach::Back) => tracing::info!("agent {id}: the world is back"),
+                        None => {}
+                    },
+                    Role::Planner if !p.alive => {
                         tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
                     }
-                }
-                _ = tokio::time::sleep_until(away.unwrap_or_else(tokio::time::Instant::now)), if away.is_some() => {
-                    tracing::warn!("agent {id}: the world did not come back; stopping");
-                    break Exit::Orphaned;
+                    _ => {}
+                },
+                _ = tokio::time::sleep_until(monotonic.at(away.poll_timeout().unwrap_or_default())), if away.poll_timeout().is_some() => {
+                    if away.handle_timeout(monotonic.now()) {
+                        tracing::warn!("agent {id}: the world did not come back; stopping");
+                        break Exit::Orphaned;
+                    }
                 }
                 Some(_) = self.ends.recv() => break Exit::Ended,
                 Some(_) = self.losses.recv() => {}

@@ -85,10 +85,12 @@ pub async fn claim(session: &Session, keys: &Keys, role: Role, id: u32, mission:
             Outcome::Holds => return Ok(token),
             Outcome::Lost(holder) => return Err(refused(holder).into()),
             Outcome::HeldBy(holder) if last_look => return Err(refused(holder).into()),
-            Outcome::Unseen if last_look => return Err(anyhow!(
+            Outcome::Unseen if last_look => {
+                return Err(anyhow!(
                 "the router did not show this {role}'s claim within {:?}: cannot tell whether another process holds it",
                 SETTLE + LINGER
-            )),
+            ))
+            }
             Outcome::HeldBy(_) | Outcome::Unseen => tokio::time::sleep(Duration::from_millis(100)).await,
         }
     }

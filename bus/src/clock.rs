@@ -15,6 +15,26 @@ use tcpf_core::msg::Clock;
 use tcpf_core::realtime::AHEAD_LIMIT_WALL_S;
 use tokio::sync::mpsc;
 
+/// A role's monotonic clock as `tcpf_core`'s machines take it: seconds since it was made. The
+/// machines say when they want waking in those seconds, and this turns that into a deadline.
+#[derive(Debug, Clone, Copy)]
+pub struct Monotonic(Instant);
+
+impl Monotonic {
+    pub fn start() -> Monotonic {
+        Monotonic(Instant::now())
+    }
+
+    pub fn now(&self) -> f64 {
+        self.0.elapsed().as_secs_f64()
+    }
+
+    /// The instant `s` seconds after the start.
+    pub fn at(&self, s: f64) -> tokio::time::Instant {
+        (self.0 + Duration::try_from_secs_f64(s).unwrap_or_default()).into()
+    }
+}
+
 /// A role whose clock is not the world's: bad input (exit 2), not a failure of the run.
 #[derive(Debug)]
 pub struct WrongClock(pub String);

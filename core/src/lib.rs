@@ -10,6 +10,7 @@ mod fixtures;
 pub mod follow;
 pub mod links;
 pub mod lockstep;
+pub mod membership;
 pub mod metrics;
 pub mod mission;
 pub mod msg;

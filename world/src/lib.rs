@@ -3,13 +3,12 @@
 //! the clock) or `RealtimeWorld` in realtime (it integrates on a metronome with the freshest
 //! commands, and serves the wall-clock epoch everyone keeps time by).
 
-use std::collections::BTreeSet;
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use tcpf_bus::claim::claim;
-use tcpf_bus::clock::{metronome, unix_now, FleetClock};
+use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
@@ -18,10 +17,10 @@ use tcpf_bus::typed::{
     Carried, ClockServer, Outlet, Presence, Received, Rejected, RECORDERS_PATIENCE,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
+use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
-use tcpf_core::pause;
 use tcpf_core::realtime::RealtimeWorld;
 use tcpf_core::ros2::Stamp;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
@@ -113,6 +112,8 @@ struct Stepper {
     tick_out: Outlet,
     end_out: Arc<Outlet>,
     clock: Arc<ClockServer>,
+    /// The world's monotonic clock, which `deadlines` counts in.
+    monotonic: Monotonic,
     rejected: Rejected,
     /// The end, once published, or a publication that failed: the task stops on either.
     ends: UnboundedSender<Result<End>>,
@@ -124,8 +125,8 @@ struct Stepped {
     held: Option<Vec<(String, Command)>>,
     /// The clock the world serves, but for its tick.
     clock: Clock,
-    /// When the tick under way began.
-    since: Instant,
+    /// The command timeout of the tick under way, and the rejoin deadlines.
+    deadlines: Deadlines,
     /// The end is out: nothing more is published.
     over: bool,
     /// Each closed tick, for ROS 2 nodes (`--ros2`).
@@ -197,7 +198,7 @@ impl Stepper {
                 let _ = self.ends.send(Err(e));
             }
         }
-        stepped.since = Instant::now();
+        stepped.deadlines.on_tick(self.monotonic.now());
     }
 
     /// Vehicle `id` is lost: says so, then the tick goes on without it.
@@ -277,7 +278,8 @@ async fn serve(
     let (_presence, mut presence) = presence(session, keys).await?;
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
-    let deadline = tokio::time::Instant::now() + options.startup_timeout;
+    let monotonic = Monotonic::start();
+    let mut gathering = Gathering::new(ids, options.recorders, options.startup_timeout, monotonic.now());
     let fetched = shutdown.unless(fetch_paths(session, keys, ids, options.startup_timeout, &rejected));
     let Some(paths) = fetched.await else {
         return Ok((Exit::Interrupted, None));
@@ -311,7 +313,7 @@ async fn serve(
                     tick: 0,
                     mission: digest,
                 },
-                since: Instant::now(),
+                deadlines: Deadlines::new(options.command_timeout, options.rejoin_timeout, monotonic.now()),
                 over: false,
                 ros2: ros2.take(),
             }),
@@ -321,6 +323,7 @@ async fn serve(
             tick_out: Outlet::new(session, keys.tick()).await?,
             end_out: end_out.clone(),
             clock: clock.clone(),
+            monotonic,
             rejected: rejected.clone(),
             ends: ends_tx,
         });
@@ -341,61 +344,28 @@ async fn serve(
         .await
         .map_err(|e| anyhow!("liveliness token: {e}"))?;
 
-    let mut present: BTreeSet<(&'static str, u32)> = BTreeSet::new();
-    let track = |p: Presence, present: &mut BTreeSet<(&'static str, u32)>| {
-        if p.alive {
-            present.insert((p.role.as_str(), p.id));
-        } else {
-            present.remove(&(p.role.as_str(), p.id));
-        }
-    };
-    let agent = |id: &u32, present: &BTreeSet<(&'static str, u32)>| present.contains(&(Role::Agent.as_str(), *id));
-    let recorders =
-        |present: &BTreeSet<(&'static str, u32)>| present.iter().filter(|p| p.0 == Role::Record.as_str()).count();
-    loop {
-        if ids.iter().all(|i| agent(i, &present)) && recorders(&present) >= options.recorders {
-            break;
-        }
-        let Some(arrived) = shutdown
-            .unless(tokio::time::timeout_at(deadline, presence.recv()))
-            .await
-        else {
+    while !gathering.complete() {
+        let wake = monotonic.at(gathering.poll_timeout());
+        let Some(arrived) = shutdown.unless(tokio::time::timeout_at(wake, presence.recv())).await else {
             return Ok((Exit::Interrupted, None));
         };
-        match arrived {
-            Ok(Some(p)) => {
-                let recorder = p.alive && p.role == Role::Record;
-                let vehicle = (p.alive && p.role == Role::Agent && ids.contains(&p.id)).then_some(p.id);
-                track(p, &mut present);
-                if let Some(id) = vehicle {
-                    let here = ids.iter().filter(|i| agent(i, &present)).count();
-                    tracing::info!("world: agent {id} is here ({here} of {})", ids.len());
-                }
-                if recorder {
-                    tracing::info!(
-                        "world: a recorder is here ({} of {})",
-                        recorders(&present),
-                        options.recorders
-                    );
-                }
-            }
+        let p = match arrived {
+            Ok(Some(p)) => p,
             Ok(None) => return Err(anyhow!("liveliness subscription closed")),
-            Err(_) => {
-                let agents: Vec<u32> = ids.iter().copied().filter(|i| !agent(i, &present)).collect();
-                let mut missing = Vec::new();
-                if !agents.is_empty() {
-                    missing.push(format!("agents {agents:?}"));
-                }
-                match options.recorders.saturating_sub(recorders(&present)) {
-                    0 => {}
-                    n => missing.push(format!("{n} of {} recorders", options.recorders)),
-                }
-                return Err(anyhow!(
-                    "world: after {:?}, {} still missing",
-                    options.startup_timeout,
-                    missing.join(" and ")
-                ));
-            }
+            Err(_) => match gathering.handle_timeout(monotonic.now()) {
+                Some(missing) => return Err(anyhow!("world: {missing}")),
+                None => continue,
+            },
+        };
+        let member = match p.role {
+            Role::Agent => Member::Agent(p.id),
+            Role::Record => Member::Recorder(p.id),
+            _ => continue,
+        };
+        match gathering.on_presence(member, p.alive) {
+            Some(Arrival::Agent { id, here, of }) => tracing::info!("world: agent {id} is here ({here} of {of})"),
+            Some(Arrival::Recorder { here, of }) => tracing::info!("world: a recorder is here ({here} of {of})"),
+            None => {}
         }
     }
     tracing::info!(
@@ -432,12 +402,11 @@ impl Shell {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         stepper.lock().clock.epoch = unix_now();
         stepper.start();
-        // Agents gone whose return is awaited, and until when.
-        let mut restarting: Vec<(u32, tokio::time::Instant)> = Vec::new();
         let exit = loop {
-            // Woken once per timeout while the fleet moves on, to look whether it still waits.
-            let deadline = tokio::time::Instant::from_std(stepper.lock().since + options.command_timeout);
-            let back_by = restarting.iter().map(|r| r.1).min();
+            let (wake, over) = {
+                let stepped = stepper.lock();
+                (stepper.monotonic.at(stepped.deadlines.poll_timeout()), stepped.over)
+            };
             tokio::select! {
                 Some(end) = ends.recv() => {
                     let end = end?;
@@ -448,69 +417,21 @@ impl Shell {
                     };
                 }
                 Some(p) = self.presence.recv() => {
-                    if p.role != Role::Agent {
+                    if p.role != Role::Agent || !ids.contains(&p.id) {
                         continue;
                     }
-                    let Some(n) = ids.iter().position(|&i| i == p.id) else { continue };
                     let mut stepped = stepper.lock();
-                    let t = stepped.node.states()[0].t;
-                    match (p.alive, options.rejoin_timeout, stepped.node.loss_of(p.id)) {
-                        (false, _, Some(_)) => {}
-                        (false, Some(wait), None) => {
-                            tracing::warn!("world: agent {} is gone at t = {t:.2} s; waiting {wait:?} for it to come back", p.id);
-                            restarting.push((p.id, tokio::time::Instant::now() + wait));
-                        }
-                        (false, None, None) => {
-                            tracing::warn!("world: agent {} is gone at t = {t:.2} s; its vehicle drifts", p.id);
-                            stepper.lose(&mut stepped, p.id, LossReason::Gone);
-                        }
-                        // A new agent of a lost vehicle: the world refuses its commands, and
-                        // its neighbours would wait for it again. It is told, and stops.
-                        (true, _, Some(lost)) => {
-                            tracing::warn!(
-                                "world: an agent of vehicle {} is here at t = {t:.2} s, but the vehicle was lost at tick {}: telling it again",
-                                p.id,
-                                lost.tick
-                            );
-                            stepper.announce(lost);
-                        }
-                        (true, _, None) if restarting.iter().any(|r| r.0 == p.id) => {
-                            tracing::info!("world: agent {} is back at t = {t:.2} s", p.id);
-                            restarting.retain(|r| r.0 != p.id);
-                            // It subscribed before its token: the state it missed, again.
-                            if !stepped.over {
-                                self.outlets[n].put_now(&stepped.node.states()[n])?;
-                            }
-                        }
-                        (true, _, None) => {}
+                    let lost = stepped.node.loss_of(p.id);
+                    let now = stepper.monotonic.now();
+                    if let Some(decision) = stepped.deadlines.on_agent(p.id, p.alive, lost, now) {
+                        self.decide(stepper, &mut stepped, decision, &ids, options)?;
                     }
                 }
-                _ = tokio::time::sleep_until(back_by.unwrap_or(deadline)), if back_by.is_some() => {
-                    let now = tokio::time::Instant::now();
+                _ = tokio::time::sleep_until(wake), if !over => {
                     let mut stepped = stepper.lock();
-                    for (id, _) in restarting.iter().filter(|r| r.1 <= now) {
-                        tracing::warn!("world: agent {id} did not come back; its vehicle drifts");
-                        stepper.lose(&mut stepped, *id, LossReason::Gone);
-                    }
-                    restarting.retain(|r| r.1 > now);
-                }
-                _ = tokio::time::sleep_until(deadline) => {
-                    let mut stepped = stepper.lock();
-                    if let Some(more) = pause::extension(deadline.elapsed()) {
-                        tracing::info!("world: resumed after {:.1} s stopped or starved; the agents' commands get that long more", more.as_secs_f64());
-                        stepped.since += more;
-                        continue;
-                    }
-                    if stepped.over || stepped.since.elapsed() < options.command_timeout {
-                        continue;
-                    }
-                    for id in stepped.node.waiting_for() {
-                        tracing::warn!(
-                            "world: agent {id} sent no command of t = {:.2} s within {:?}; its vehicle is lost and drifts",
-                            stepped.node.states()[0].t,
-                            options.command_timeout
-                        );
-                        stepper.lose(&mut stepped, id, LossReason::Silent);
+                    let Stepped { node, deadlines, .. } = &mut *stepped;
+                    for decision in deadlines.handle_timeout(stepper.monotonic.now(), || node.waiting_for()) {
+                        self.decide(stepper, &mut stepped, decision, &ids, options)?;
                     }
                 }
                 _ = self.shutdown.recv() => {
@@ -534,6 +455,60 @@ impl Shell {
         )
         .await?;
         Ok(exit)
+    }
+
+    /// Carries out what the world's deadlines decided, and says so.
+    fn decide(
+        &self,
+        stepper: &Stepper,
+        stepped: &mut Stepped,
+        decision: Decision,
+        ids: &[u32],
+        options: &Options,
+    ) -> Result<()> {
+        let t = stepped.node.states()[0].t;
+        match decision {
+            Decision::AwaitReturn { id, within } => {
+                tracing::warn!("world: agent {id} is gone at t = {t:.2} s; waiting {within:?} for it to come back");
+            }
+            Decision::Lose { id, reason, awaited } => {
+                match (reason, awaited) {
+                    (LossReason::Silent, _) => tracing::warn!(
+                        "world: agent {id} sent no command of t = {t:.2} s within {:?}; its vehicle is lost and drifts",
+                        options.command_timeout
+                    ),
+                    (LossReason::Gone, true) => {
+                        tracing::warn!("world: agent {id} did not come back; its vehicle drifts")
+                    }
+                    (LossReason::Gone, false) => {
+                        tracing::warn!("world: agent {id} is gone at t = {t:.2} s; its vehicle drifts")
+                    }
+                }
+                stepper.lose(stepped, id, reason);
+            }
+            // A new agent of a lost vehicle: the world refuses its commands, and its neighbours
+            // would wait for it again. It is told, and stops.
+            Decision::TellAgain(lost) => {
+                tracing::warn!(
+                    "world: an agent of vehicle {} is here at t = {t:.2} s, but the vehicle was lost at tick {}: telling it again",
+                    lost.id,
+                    lost.tick
+                );
+                stepper.announce(lost);
+            }
+            Decision::Back(id) => {
+                tracing::info!("world: agent {id} is back at t = {t:.2} s");
+                // It subscribed before its token: the state it missed, again.
+                if let Some(n) = ids.iter().position(|&i| i == id).filter(|_| !stepped.over) {
+                    self.outlets[n].put_now(&stepped.node.states()[n])?;
+                }
+            }
+            Decision::Resumed(more) => tracing::info!(
+                "world: resumed after {:.1} s stopped or starved; the agents' commands get that long more",
+                more.as_secs_f64()
+            ),
+        }
+        Ok(())
     }
 
     async fn realtime(

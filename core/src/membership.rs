@@ -1,0 +1,509 @@
+//! Who a role waits for, and for how long: the world gathering its fleet before the first tick,
+//! the lockstep world's command timeout and rejoin deadlines, an agent's stale neighbours and a
+//! realtime agent's world out of reach. Each is a machine of the quinn-proto kind: the shell
+//! hands it liveliness changes and `now`, asks `poll_timeout()` when to wake it, and wakes it
+//! with `handle_timeout(now)`; what it decides comes back as values. Times are inputs: seconds on
+//! the role's monotonic clock, from any origin.
+//!
+//! A timer that fires long after it was due measures a pause of the role itself (`pause`): the
+//! wait is put off, not ended.
+
+use std::collections::BTreeSet;
+use std::fmt;
+use std::time::Duration;
+
+use crate::msg::{LossReason, Lost};
+use crate::pause;
+
+/// A liveliness change the world gathers: an agent (by vehicle id) or a recorder (by its id).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Member {
+    Agent(u32),
+    Recorder(u32),
+}
+
+/// Who came, counted against who is awaited.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arrival {
+    Agent { id: u32, here: usize, of: usize },
+    Recorder { here: usize, of: usize },
+}
+
+/// Who had not come when the world's startup timeout passed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Missing {
+    pub after: Duration,
+    pub agents: Vec<u32>,
+    pub recorders: usize,
+    pub recorders_wanted: usize,
+}
+
+impl fmt::Display for Missing {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut missing = Vec::new();
+        if !self.agents.is_empty() {
+            missing.push(format!("agents {:?}", self.agents));
+        }
+        if self.recorders > 0 {
+            missing.push(format!("{} of {} recorders", self.recorders, self.recorders_wanted));
+        }
+        write!(f, "after {:?}, {} still missing", self.after, missing.join(" and "))
+    }
+}
+
+/// The world before its first tick: every agent of the fleet and `recorders` recorders must be
+/// there within the startup timeout.
+pub struct Gathering {
+    ids: Vec<u32>,
+    recorders_wanted: usize,
+    agents: BTreeSet<u32>,
+    recorders: BTreeSet<u32>,
+    timeout: Duration,
+    deadline: f64,
+}
+
+impl Gathering {
+    pub fn new(ids: &[u32], recorders: usize, timeout: Duration, now: f64) -> Gathering {
+        Gathering {
+            ids: ids.to_vec(),
+            recorders_wanted: recorders,
+            agents: BTreeSet::new(),
+            recorders: BTreeSet::new(),
+            timeout,
+            deadline: now + timeout.as_secs_f64(),
+        }
+    }
+
+    /// A member came (`alive`) or went; an arrival worth telling, if it is one.
+    pub fn on_presence(&mut self, member: Member, alive: bool) -> Option<Arrival> {
+        match member {
+            Member::Agent(id) if self.ids.contains(&id) => {
+                if !alive {
+                    self.agents.remove(&id);
+                    return None;
+                }
+                self.agents.insert(id);
+                Some(Arrival::Agent {
+                    id,
+                    here: self.agents.len(),
+                    of: self.ids.len(),
+                })
+            }
+            Member::Agent(_) => None,
+            Member::Recorder(id) => {
+                if !alive {
+                    self.recorders.remove(&id);
+                    return None;
+                }
+                self.recorders.insert(id);
+                Some(Arrival::Recorder {
+                    here: self.recorders.len(),
+                    of: self.recorders_wanted,
+                })
+            }
+        }
+    }
+
+    pub fn complete(&self) -> bool {
+        self.agents.len() == self.ids.len() && self.recorders.len() >= self.recorders_wanted
+    }
+
+    pub fn poll_timeout(&self) -> f64 {
+        self.deadline
+    }
+
+    /// Who is still missing, once the startup timeout has passed and the fleet is not complete.
+    pub fn handle_timeout(&self, now: f64) -> Option<Missing> {
+        (now >= self.deadline && !self.complete()).then(|| Missing {
+            after: self.timeout,
+            agents: self.ids.iter().copied().filter(|i| !self.agents.contains(i)).collect(),
+            recorders: self.recorders_wanted.saturating_sub(self.recorders.len()),
+            recorders_wanted: self.recorders_wanted,
+        })
+    }
+}
+
+/// What the lockstep world is to do about an agent or a deadline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Decision {
+    /// The agent is gone: its vehicle waits `within` for it to come back.
+    AwaitReturn { id: u32, within: Duration },
+    /// The vehicle is lost (`Gone`: its agent went, or did not come back in time; `Silent`: it
+    /// sent no command within the command timeout).
+    Lose { id: u32, reason: LossReason, awaited: bool },
+    /// An agent of a vehicle already lost came: it is told again, and stops.
+    TellAgain(Lost),
+    /// The agent awaited is back: it is sent its vehicle's state again, which it subscribed too
+    /// late to hear.
+    Back(u32),
+    /// The world itself was stopped or starved: its deadlines are put off by this much.
+    Resumed(Duration),
+}
+
+/// The lockstep world once running: each tick waits up to the command timeout for the agents it
+/// waits for, and a gone agent up to the rejoin timeout to come back.
+pub struct Deadlines {
+    command_timeout: f64,
+    rejoin_timeout: Option<Duration>,
+    /// When the tick under way began.
+    tick_since: f64,
+    /// Agents gone whose return is awaited, and until when.
+    restarting: Vec<(u32, f64)>,
+}
+
+impl Deadlines {
+    pub fn new(command_timeout: Duration, rejoin_timeout: Option<Duration>, now: f64) -> Deadlines {
+        Deadlines {
+            command_timeout: command_timeout.as_secs_f64(),
+            rejoin_timeout,
+            tick_since: now,
+            restarting: Vec::new(),
+        }
+    }
+
+    /// A tick began: its states are out.
+    pub fn on_tick(&mut self, now: f64) {
+        self.tick_since = now;
+    }
+
+    /// Agent `id` came (`alive`) or went; `lost` is its vehicle's loss, if the world gave up on it.
+    pub fn on_agent(&mut self, id: u32, alive: bool, lost: Option<Lost>, now: f64) -> Option<Decision> {
+        match (alive, lost, self.rejoin_timeout) {
+            (false, Some(_), _) => None,
+            (false, None, Some(within)) => {
+                self.restarting.retain(|r| r.0 != id);
+                self.restarting.push((id, now + within.as_secs_f64()));
+                Some(Decision::AwaitReturn { id, within })
+            }
+            (false, None, None) => Some(Decision::Lose {
+                id,
+                reason: LossReason::Gone,
+                awaited: false,
+            }),
+            (true, Some(lost), _) => Some(Decision::TellAgain(lost)),
+            (true, None, _) if self.restarting.iter().any(|r| r.0 == id) => {
+                self.restarting.retain(|r| r.0 != id);
+                Some(Decision::Back(id))
+            }
+            (true, None, _) => None,
+        }
+    }
+
+    /// When to wake the world: the tick's command timeout, or the first rejoin deadline.
+    pub fn poll_timeout(&self) -> f64 {
+        let command = self.tick_since + self.command_timeout;
+        self.restarting.iter().map(|r| r.1).fold(command, f64::min)
+    }
+
+    /// The deadlines passed by `now`; `waiting_for` says which agents the tick still waits for.
+    pub fn handle_timeout(&mut self, now: f64, waiting_for: impl FnOnce() -> Vec<u32>) -> Vec<Decision> {
+        let due = self.poll_timeout();
+        if now < due {
+            return Vec::new();
+        }
+        if let Some(more) = late_by(now - due).and_then(pause::extension) {
+            let s = more.as_secs_f64();
+            self.tick_since += s;
+            for r in &mut self.restarting {
+                r.1 += s;
+            }
+            return vec![Decision::Resumed(more)];
+        }
+        let mut decisions: Vec<Decision> = self
+            .restarting
+            .iter()
+            .filter(|r| r.1 <= now)
+            .map(|r| Decision::Lose {
+                id: r.0,
+                reason: LossReason::Gone,
+                awaited: true,
+            })
+            .collect();
+        self.restarting.retain(|r| r.1 > now);
+        if now >= self.tick_since + self.command_timeout {
+            // Re-armed: the losses advance the tick, which sets it again; were nobody waited
+            // for, the world must not wake at once and forever.
+            self.tick_since = now;
+            decisions.extend(waiting_for().into_iter().map(|id| Decision::Lose {
+                id,
+                reason: LossReason::Silent,
+                awaited: false,
+            }));
+        }
+        decisions
+    }
+}
+
+fn late_by(s: f64) -> Option<Duration> {
+    Duration::try_from_secs_f64(s).ok()
+}
+
+/// What a stale timer's wake-up found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StaleCheck {
+    /// Nothing is due: the node no longer waits, or not for long enough.
+    Nothing,
+    /// The agent itself was stopped or starved: the neighbours get this long more.
+    Resumed(Duration),
+    /// The neighbours waited for are stale: go on without them.
+    Stale,
+}
+
+/// A lockstep agent's wait for its neighbours' γ: a live neighbour silent for the stale timeout
+/// stops being waited for.
+pub struct StaleTimer {
+    timeout: f64,
+    /// Since when the node has been waiting for a neighbour's γ.
+    since: Option<f64>,
+}
+
+impl StaleTimer {
+    pub fn new(timeout: Duration) -> StaleTimer {
+        StaleTimer {
+            timeout: timeout.as_secs_f64(),
+            since: None,
+        }
+    }
+
+    /// Whether the node waits now.
+    pub fn note(&mut self, waiting: bool, now: f64) {
+        if !waiting {
+            self.since = None;
+        } else if self.since.is_none() {
+            self.since = Some(now);
+        }
+    }
+
+    pub fn poll_timeout(&self) -> Option<f64> {
+        self.since.map(|s| s + self.timeout)
+    }
+
+    pub fn handle_timeout(&mut self, now: f64) -> StaleCheck {
+        let Some(due) = self.poll_timeout() else {
+            return StaleCheck::Nothing;
+        };
+        if now < due {
+            return StaleCheck::Nothing;
+        }
+        if let Some(more) = late_by(now - due).and_then(pause::extension) {
+            self.since = self.since.map(|s| s + more.as_secs_f64());
+            return StaleCheck::Resumed(more);
+        }
+        // Re-armed, for a node that still waits once it has given up on these.
+        self.since = Some(now);
+        StaleCheck::Stale
+    }
+}
+
+/// What a realtime agent makes of the world's token coming and going.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WorldReach {
+    /// Out of reach: the agent acts on what the world last sent, and waits this long for it.
+    Away(Duration),
+    Back,
+}
+
+/// A realtime agent's world out of reach: on a testbed a link that drops for a while must not end
+/// the vehicle's mission, so the agent waits up to a grace period for the world to come back.
+pub struct WorldAway {
+    grace: Duration,
+    until: Option<f64>,
+}
+
+impl WorldAway {
+    pub fn new(grace: Duration) -> WorldAway {
+        WorldAway { grace, until: None }
+    }
+
+    pub fn on_world(&mut self, alive: bool, now: f64) -> Option<WorldReach> {
+        match (alive, self.until) {
+            (false, None) => {
+                self.until = Some(now + self.grace.as_secs_f64());
+                Some(WorldReach::Away(self.grace))
+            }
+            (true, Some(_)) => {
+                self.until = None;
+                Some(WorldReach::Back)
+            }
+            _ => None,
+        }
+    }
+
+    pub fn poll_timeout(&self) -> Option<f64> {
+        self.until
+    }
+
+    /// Whether the world stayed away past the grace period: the agent has nobody to act for.
+    pub fn handle_timeout(&self, now: f64) -> bool {
+        self.until.is_some_and(|until| now >= until)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const S: Duration = Duration::from_secs(1);
+
+    #[test]
+    fn the_world_starts_once_every_agent_and_recorder_is_there_and_names_who_is_missing_after_the_timeout() {
+        let mut g = Gathering::new(&[1, 2], 1, 60 * S, 100.0);
+        assert_eq!(g.poll_timeout(), 160.0);
+        assert_eq!(
+            g.on_presence(Member::Agent(2), true),
+            Some(Arrival::Agent { id: 2, here: 1, of: 2 })
+        );
+        assert_eq!(g.on_presence(Member::Agent(9), true), None, "not of this fleet");
+        assert_eq!(
+            g.on_presence(Member::Recorder(77), true),
+            Some(Arrival::Recorder { here: 1, of: 1 })
+        );
+        assert!(!g.complete());
+        assert_eq!(g.handle_timeout(159.9), None, "not yet due");
+        assert_eq!(g.on_presence(Member::Recorder(77), false), None);
+        let missing = g.handle_timeout(160.0).unwrap();
+        assert_eq!(
+            missing.to_string(),
+            "after 60s, agents [1] and 1 of 1 recorders still missing"
+        );
+        g.on_presence(Member::Agent(1), true);
+        g.on_presence(Member::Recorder(5), true);
+        assert!(g.complete());
+        assert_eq!(g.handle_timeout(200.0), None, "complete: nothing missing");
+    }
+
+    fn lost(id: u32, tick: u64) -> Lost {
+        Lost {
+            id,
+            tick,
+            reason: LossReason::Gone,
+        }
+    }
+
+    #[test]
+    fn a_tick_waits_the_command_timeout_then_loses_the_silent_and_rearms() {
+        let mut d = Deadlines::new(10 * S, None, 0.0);
+        d.on_tick(5.0);
+        assert_eq!(d.poll_timeout(), 15.0);
+        assert_eq!(
+            d.handle_timeout(14.9, || unreachable!()),
+            vec![],
+            "a wake-up before it is due"
+        );
+        let silent = d.handle_timeout(15.2, || vec![3, 1]);
+        assert_eq!(
+            silent,
+            vec![
+                Decision::Lose {
+                    id: 3,
+                    reason: LossReason::Silent,
+                    awaited: false
+                },
+                Decision::Lose {
+                    id: 1,
+                    reason: LossReason::Silent,
+                    awaited: false
+                },
+            ]
+        );
+        assert_eq!(d.poll_timeout(), 25.2, "re-armed, not due again at once");
+    }
+
+    #[test]
+    fn a_timer_fired_after_a_pause_puts_the_deadlines_off_instead_of_losing_anyone() {
+        let mut d = Deadlines::new(10 * S, Some(30 * S), 0.0);
+        d.on_agent(2, false, None, 0.0);
+        // A 12 s Ctrl-Z: the command timeout due at 10 s is seen at 22 s.
+        assert_eq!(d.handle_timeout(22.0, || vec![1]), vec![Decision::Resumed(13 * S)]);
+        assert_eq!(d.poll_timeout(), 23.0);
+        assert_eq!(d.handle_timeout(22.5, || vec![1]), vec![]);
+        // The rejoin deadline (30 s) moved by the pause too.
+        d.on_tick(23.0);
+        assert_eq!(d.poll_timeout(), 33.0);
+    }
+
+    #[test]
+    fn a_gone_agent_is_lost_at_once_or_awaited_until_its_rejoin_deadline() {
+        let mut at_once = Deadlines::new(10 * S, None, 0.0);
+        assert_eq!(
+            at_once.on_agent(2, false, None, 1.0),
+            Some(Decision::Lose {
+                id: 2,
+                reason: LossReason::Gone,
+                awaited: false
+            })
+        );
+        assert_eq!(at_once.on_agent(2, false, Some(lost(2, 7)), 1.0), None, "already lost");
+
+        let mut d = Deadlines::new(10 * S, Some(5 * S), 0.0);
+        assert_eq!(
+            d.on_agent(2, false, None, 1.0),
+            Some(Decision::AwaitReturn { id: 2, within: 5 * S })
+        );
+        assert_eq!(
+            d.poll_timeout(),
+            6.0,
+            "the rejoin deadline comes before the command timeout"
+        );
+        assert_eq!(d.on_agent(2, true, None, 3.0), Some(Decision::Back(2)));
+        assert_eq!(d.poll_timeout(), 10.0, "back: no rejoin deadline left");
+        assert_eq!(d.on_agent(1, true, None, 3.0), None, "an agent nobody awaited");
+
+        d.on_agent(3, false, None, 4.0);
+        d.on_tick(4.0);
+        assert_eq!(
+            d.handle_timeout(9.0, || vec![]),
+            vec![Decision::Lose {
+                id: 3,
+                reason: LossReason::Gone,
+                awaited: true
+            }]
+        );
+        assert_eq!(d.poll_timeout(), 14.0);
+        assert_eq!(
+            d.on_agent(3, true, Some(lost(3, 40)), 9.5),
+            Some(Decision::TellAgain(lost(3, 40)))
+        );
+    }
+
+    #[test]
+    fn a_neighbour_is_stale_after_the_timeout_of_waiting_unless_the_agent_was_paused() {
+        let mut t = StaleTimer::new(3 * S);
+        assert_eq!(t.poll_timeout(), None, "not waiting");
+        t.note(true, 10.0);
+        t.note(true, 11.0);
+        assert_eq!(
+            t.poll_timeout(),
+            Some(13.0),
+            "since it began waiting, not since the last look"
+        );
+        assert_eq!(t.handle_timeout(12.0), StaleCheck::Nothing);
+        assert_eq!(t.handle_timeout(13.1), StaleCheck::Stale);
+        assert_eq!(t.poll_timeout(), Some(16.1), "re-armed");
+        t.note(false, 13.2);
+        assert_eq!(t.handle_timeout(20.0), StaleCheck::Nothing, "the γ came");
+        // Stopped 5 s by SIGSTOP as it waited.
+        t.note(true, 30.0);
+        assert_eq!(t.handle_timeout(38.0), StaleCheck::Resumed(6 * S));
+        assert_eq!(t.poll_timeout(), Some(39.0));
+        assert_eq!(t.handle_timeout(39.0), StaleCheck::Stale);
+    }
+
+    #[test]
+    fn a_realtime_agent_waits_its_grace_for_a_world_out_of_reach() {
+        let mut w = WorldAway::new(60 * S);
+        assert_eq!(w.on_world(true, 0.0), None);
+        assert_eq!(w.on_world(false, 10.0), Some(WorldReach::Away(60 * S)));
+        assert_eq!(
+            w.on_world(false, 20.0),
+            None,
+            "already away: the grace runs from the first"
+        );
+        assert_eq!(w.poll_timeout(), Some(70.0));
+        assert!(!w.handle_timeout(69.0));
+        assert_eq!(w.on_world(true, 30.0), Some(WorldReach::Back));
+        assert_eq!(w.poll_timeout(), None);
+        w.on_world(false, 40.0);
+        assert!(w.handle_timeout(100.0), "did not come back");
+    }
+}
