@@ -498,13 +498,12 @@ impl Shell {
         }
         let exit = loop {
             // Not waiting: woken once per timeout while the fleet moves on, to look again.
-            let stale_at = {
+            let woken_for = {
                 let fed = feed.lock();
                 let now = feed.monotonic.now();
-                feed.monotonic.at(fed
-                    .stale
+                fed.stale
                     .poll_timeout()
-                    .unwrap_or(now + options.stale_timeout.as_secs_f64()))
+                    .unwrap_or(now + options.stale_timeout.as_secs_f64())
             };
             tokio::select! {
                 Some(e) = faults.recv() => return Err(e),
@@ -555,9 +554,9 @@ impl Shell {
                     }
                 }
                 _ = self.shutdown.recv() => break Exit::Interrupted,
-                _ = tokio::time::sleep_until(stale_at) => {
+                _ = tokio::time::sleep_until(feed.monotonic.at(woken_for)) => {
                     let mut fed = feed.lock();
-                    match fed.stale.handle_timeout(feed.monotonic.now()) {
+                    match fed.stale.handle_timeout(feed.monotonic.now(), woken_for) {
                         StaleCheck::Nothing => {}
                         StaleCheck::Resumed(more) => tracing::info!(
                             "agent {id}: resumed after {:.1} s stopped or starved; the neighbours get that long more",

@@ -2,36 +2,7 @@
 
 use std::fmt;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Role {
-    Planner,
-    World,
-    Agent,
-    Record,
-}
-
-impl Role {
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            Role::Planner => "planner",
-            Role::World => "world",
-            Role::Agent => "agent",
-            Role::Record => "record",
-        }
-    }
-
-    pub fn parse(s: &str) -> Option<Role> {
-        [Role::Planner, Role::World, Role::Agent, Role::Record]
-            .into_iter()
-            .find(|r| r.as_str() == s)
-    }
-}
-
-impl fmt::Display for Role {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
+pub use tcpf_core::msg::Role;
 
 #[derive(Debug, Clone)]
 pub struct Keys {

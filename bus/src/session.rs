@@ -54,22 +54,10 @@ fn bad(message: String) -> anyhow::Error {
     BadZenohConfig(message).into()
 }
 
-/// A Zenoh error in a user's words: a JSON5 parser's message and location taken out of their
-/// Debug form, and without the source file and line Zenoh appends to an error and to each of
-/// its causes (` at /…/src/lib.rs:62.`).
+/// A Zenoh error in a user's words: without the source file and line Zenoh appends to an error
+/// and to each of its causes (` at /…/src/lib.rs:62.`).
 pub fn zenoh_words(e: impl std::fmt::Display) -> String {
-    let mut text = e.to_string();
-    if let (Some(m), Some(end)) = (text.find("msg: \""), text.find("\", location")) {
-        if m < end {
-            let msg = text[m + 6..end].to_string();
-            let line = text.split("line: ").nth(1).and_then(|r| r.split(',').next());
-            let column = text.split("column: ").nth(1).and_then(|r| r.split(' ').next());
-            text = match (line, column) {
-                (Some(l), Some(c)) => format!("line {l}, column {c}: {msg}"),
-                _ => msg,
-            };
-        }
-    }
+    let text = e.to_string();
     let mut words = String::with_capacity(text.len());
     let mut rest = text.as_str();
     while let Some(at) = rest.find(" at /") {
@@ -90,6 +78,25 @@ pub fn zenoh_words(e: impl std::fmt::Display) -> String {
     }
     words.push_str(rest);
     words.trim_end_matches('.').to_string()
+}
+
+/// A Zenoh configuration file, read as Zenoh reads it, with its errors by kind: the file not
+/// there, JSON5 that does not parse, or keys and values Zenoh does not take (the parser's message
+/// and where in the file).
+fn from_file(path: &std::path::Path) -> Result<Config> {
+    let bad_file = |why: String| bad(format!("{}: bad Zenoh config: {why}", path.display()));
+    let text = std::fs::read_to_string(path).map_err(|e| bad_file(e.to_string()))?;
+    let at = |e: json5::Error| match e {
+        json5::Error::Message { msg, location: Some(l) } => {
+            format!("line {}, column {}: {}", l.line, l.column, zenoh_words(msg))
+        }
+        json5::Error::Message { msg, location: None } => zenoh_words(msg),
+    };
+    let mut parsed = json5::Deserializer::from_str(&text).map_err(|e| bad_file(at(e)))?;
+    Config::from_deserializer(&mut parsed).map_err(|e| match e {
+        Ok(_) => bad_file("Zenoh read it but finds it invalid".into()),
+        Err(e) => bad_file(at(e)),
+    })
 }
 
 /// The transports this build of Zenoh has.
@@ -263,8 +270,7 @@ impl ZenohArgs {
     /// needs installing and runs never meet by accident.
     pub fn config(&self) -> Result<Config> {
         let mut config = match &self.config {
-            Some(path) => Config::from_file(path)
-                .map_err(|e| bad(format!("{}: bad Zenoh config: {}", path.display(), zenoh_words(e))))?,
+            Some(path) => from_file(path)?,
             None => {
                 let mut c = Config::default();
                 set(&mut c, "mode", "\"peer\"")?;
@@ -447,7 +453,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn zenoh_errors_lose_their_source_paths_and_debug_forms() {
+    fn zenoh_errors_lose_their_source_paths() {
         let raw = "invalid port value at /root/.cargo/registry/src/index/zenoh-link-commons-1.10.2/src/lib.rs:62.";
         assert_eq!(zenoh_words(raw), "invalid port value");
         let bracketed = "Can not create a new TCP listener bound to tcp/127.0.0.1:42975: [127.0.0.1:42975: Address already in use (os error 98) at /root/.cargo/registry/src/i/zenoh-link-commons-1.10.2/src/tcp.rs:61.] at /root/.cargo/registry/src/i/zenoh-link-tcp-1.10.2/src/unicast.rs:338.";
@@ -460,24 +466,45 @@ mod tests {
             zenoh_words(chained),
             "Unable to bind UDP port 192.0.2.1:7446 - Caused by Cannot assign requested address"
         );
-        let inside = "JSON error: Message { msg: \"Endpoints must be of the form <protocol>/<address>: foo at /r/endpoint.rs:615.\", \
-                      location: Some(Location { line: 1, column: 26 }) } at /r/zenoh-1.10.2/src/api/config.rs:86.";
-        assert_eq!(
-            zenoh_words(inside),
-            "line 1, column 26: Endpoints must be of the form <protocol>/<address>: foo"
-        );
         assert_eq!(zenoh_words("see /etc at /home/my files"), "see /etc at /home/my files");
 
-        let json = "JSON error: Message { msg: \"unknown field `bogus`, expected one of `id`\", location: \
-                    Some(Location { line: 1, column: 19 }) } at /r/zenoh-config-1.10.2/src/lib.rs:1484.";
-        assert_eq!(
-            zenoh_words(json),
-            "line 1, column 19: unknown field `bogus`, expected one of `id`"
-        );
         assert_eq!(
             zenoh_words("no route to host at the shore"),
             "no route to host at the shore"
         );
+    }
+
+    #[test]
+    fn a_bad_config_file_is_named_with_where_and_what_its_parser_found() {
+        let dir = std::env::temp_dir().join(format!("tcpf-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("zenoh.json5");
+        for (text, at, words) in [
+            (
+                "{ mode: \"client\", bogus: 1 }",
+                "line 1, column ",
+                "unknown field `bogus`",
+            ),
+            ("{ mode: \"client\",\n  mode: ", "line 2, column ", ""),
+            (
+                "{ connect: { endpoints: [\"foo\"] } }",
+                "line 1, column ",
+                "Endpoints must be of the form <protocol>/<address>",
+            ),
+        ] {
+            std::fs::write(&file, text).unwrap();
+            let e = from_file(&file).unwrap_err();
+            assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+            let said = e.to_string();
+            let expected = format!("{}: bad Zenoh config: {at}", file.display());
+            assert!(said.starts_with(&expected) && said.contains(words), "{said}");
+            assert!(!said.contains(".rs:") && !said.contains("Message {"), "{said}");
+        }
+        std::fs::write(&file, "{ mode: \"client\" }").unwrap();
+        assert!(from_file(&file).is_ok());
+        let e = from_file(&dir.join("nothing.json5")).unwrap_err().to_string();
+        assert!(e.contains("nothing.json5: bad Zenoh config: No such file"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -10,8 +10,8 @@ use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 
 use crate::progress::Ticks;
+use tcpf_core::summary::{Clock, Mode, Summary};
 use tcpf_report::rundir::RunDir;
-use tcpf_report::summary::{Clock, Mode, Summary};
 
 /// Runs the mission in one loop and writes the run directory. SIGINT, SIGTERM or SIGHUP (the
 /// terminal closing; not under `nohup`) stop it after the tick under way, with the summary and

@@ -19,9 +19,9 @@ use tcpf_core::planner::Plan;
 use tokio::process::{Child, Command};
 
 use crate::progress::Ticks;
-use crate::recording::{Closing, Recording};
+use crate::recording::Recording;
+use tcpf_core::summary::{ChildSummary, Closing, Mode, Restarts, Summary};
 use tcpf_report::rundir::RunDir;
-use tcpf_report::summary::{ChildSummary, Mode, Restarts, Summary};
 
 /// Zenoh's threads in a lockstep agent or planner (unless the user set ZENOH_RUNTIME): one,
 /// instead of six that hand every message to each other. Such a child is a client and routes
@@ -46,13 +46,23 @@ pub const LAUNCHER_RUNTIME: &str =
 static OWN_RUNTIME: AtomicBool = AtomicBool::new(false);
 
 /// Gives this process, about to launch a lockstep fleet, `LAUNCHER_RUNTIME` unless the user
-/// chose Zenoh's threads. Call while the process has one thread, before any Zenoh session: Zenoh
-/// reads the variable once, and nothing else reads the environment meanwhile.
+/// chose Zenoh's threads. Zenoh reads the variable once, at its first session, and offers no
+/// other way to set its threads; setting a variable is safe only while no other thread may read
+/// the environment, so it is set only while the process has one thread (Linux says how many), and
+/// otherwise left alone: the fleet then runs on Zenoh's default threads, a little slower.
 pub fn launcher_runtime() {
-    if std::env::var_os("ZENOH_RUNTIME").is_none() {
+    if std::env::var_os("ZENOH_RUNTIME").is_none() && threads() == Some(1) {
         std::env::set_var("ZENOH_RUNTIME", LAUNCHER_RUNTIME);
         OWN_RUNTIME.store(true, Ordering::Relaxed);
     }
+}
+
+/// How many threads this process has.
+fn threads() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("Threads:")?.trim().parse().ok())
 }
 
 /// The ZENOH_RUNTIME a lockstep child of `role` is given, unless the user chose one.
@@ -764,5 +774,14 @@ mod tests {
             "mission.control_period=0.05",
         ]);
         assert_eq!(secs(stall_limit(&slow, waits::COMMAND, false)), 110.0);
+    }
+
+    #[test]
+    fn zenohs_threads_are_chosen_only_while_the_process_has_one_thread() {
+        // The test harness runs tests on threads of their own: more than one.
+        assert!(threads().is_some_and(|n| n > 1), "{:?}", threads());
+        let before = std::env::var_os("ZENOH_RUNTIME");
+        launcher_runtime();
+        assert_eq!(std::env::var_os("ZENOH_RUNTIME"), before, "left alone");
     }
 }

@@ -10,10 +10,9 @@ use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, metronome, Beat, Expected, FleetClock};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
-use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Command, End, Loss, LossReason, Report, State, TickRecord};
+use tcpf_core::msg::{Command, End, Loss, Report, State, TickRecord};
 use tcpf_core::realtime::{Sampler, STATES_DUE_S};
 use tcpf_core::record::Recorder;
 use tcpf_core::watch::WorldWatch;
@@ -27,9 +26,8 @@ use tcpf_bus::signals::Shutdown;
 use tcpf_core::planner::Plan;
 
 use crate::progress::Ticks;
+use tcpf_core::summary::{self, Closing, Mode, Recorded, Summary};
 use tcpf_report::rundir::{RunDir, Telemetry};
-use tcpf_report::summary::{ChildSummary, Clock, Mode, Restarts, Summary, REALTIME};
-use tcpf_report::table;
 
 /// How long `tcpf record` waits, after the world's end (or after the world left without one),
 /// for a tick that does not come whole.
@@ -82,20 +80,6 @@ impl std::fmt::Display for NothingRecorded {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str("nothing recorded")
     }
-}
-
-/// How a recorded run ended, and who ran it.
-pub struct Closing {
-    /// The run reached its end.
-    pub ended: bool,
-    pub interrupted: bool,
-    /// What stopped the run before its end, if something failed.
-    pub failure: Option<String>,
-    pub wall_time_s: f64,
-    pub children: Vec<ChildSummary>,
-    pub restarts: Vec<Restarts>,
-    /// What went wrong without failing the run (the planner gone once the fleet ran).
-    pub warnings: Vec<String>,
 }
 
 pub struct Recording {
@@ -264,7 +248,7 @@ impl Recording {
                     if let Some(ids) = sampler.overdue_states() {
                         tracing::warn!(
                             "recorder: no state of {} has come in {STATES_DUE_S} s of the run (simulated), so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?",
-                            table::vehicles(&ids)
+                            tcpf_core::summary::vehicles(&ids)
                         );
                     }
                 }
@@ -339,7 +323,7 @@ impl Recording {
 
     /// The roles whose exit report the end calls for and has not come.
     pub fn unreported(&self) -> Vec<(Role, u32)> {
-        unreported(&self.ids, self.end.as_ref(), &self.exit_reports)
+        summary::unreported(&self.ids, self.end.as_ref(), &self.exit_reports)
     }
 
     pub fn ticks(&self) -> u64 {
@@ -374,190 +358,40 @@ impl Recording {
 
     /// Ends the recording: flushes telemetry.csv and writes summary.json and report.html.
     pub fn close(mut self, mission: &Mission, dir: &RunDir, how: Closing) -> Result<Summary> {
-        let Closing {
-            ended,
-            interrupted,
-            mut failure,
-            wall_time_s,
-            children,
-            restarts,
-            warnings,
-        } = how;
-        // Cut short by a signal or by what stopped it: its roles may not have reported.
-        let cut_short = interrupted || failure.is_some();
-        if let Machine::Realtime { sampler, .. } = &mut self.machine {
-            let mut written = Ok(());
-            let telemetry = &mut self.telemetry;
-            sampler.finish(|states, commands| written = telemetry.tick(states, commands));
-            written?;
-            let missing = sampler.never_heard();
-            if !missing.is_empty() && !cut_short {
-                failure = Some(format!(
-                    "no state of {} ever came, so the telemetry has no row (a row needs every vehicle's state)",
-                    table::vehicles(&missing)
-                ));
-            }
-        }
-        if let Machine::Lockstep(recorder) = &self.machine {
-            if let Some((ticks, _)) = recorder.contradicted_end() {
-                failure.get_or_insert(format!(
-                    "the end announced after tick {} was contradicted: the fleet's messages of later ticks kept coming (a process on the bus spoke for the world?); the recording stops there",
-                    ticks.saturating_sub(1)
-                ));
-            }
-        }
-        let mut results = self.results();
-        for r in self.exit_reports.iter().filter(|r| r.role == Role::Agent.as_str()) {
-            for &(from, n) in &r.late_gammas {
-                match results.links.iter_mut().find(|l| (l.from, l.to) == (from, r.id)) {
-                    Some(link) => link.unused += n,
-                    None => results.links.push(LinkStats {
-                        from,
-                        to: r.id,
-                        sent: 0,
-                        delivered: 0,
-                        dropped: 0,
-                        unused: n,
-                        published: None,
-                        overtaken: None,
-                    }),
+        let recorded = match &mut self.machine {
+            Machine::Realtime { sampler, .. } => {
+                let mut written = Ok(());
+                let telemetry = &mut self.telemetry;
+                sampler.finish(|states, commands| written = telemetry.tick(states, commands));
+                written?;
+                Recorded::Realtime {
+                    never_heard: sampler.never_heard(),
+                    newest_state: sampler.newest_state(),
                 }
             }
-        }
-        let realtime = mission.mission.clock == ClockKind::Realtime;
-        if realtime {
-            // The metrics count the periods this recorder sampled; the run lasted the world's
-            // ticks: as many as its end says, or, without one, to its newest state.
-            if let Machine::Realtime { sampler, .. } = &self.machine {
-                results.ticks = self
-                    .end
-                    .as_ref()
-                    .map_or_else(|| sampler.newest_state().map_or(0, |k| k + 1), |end| end.ticks);
-            }
-            // What each sender published, against what reached its receivers (judged at an
-            // instant, or overtaken before one): the network's own loss. An agent started again
-            // reports once per life.
-            let agent = |id: u32| {
-                let mut reports = self
-                    .exit_reports
-                    .iter()
-                    .filter(move |r| r.role == Role::Agent.as_str() && r.id == id)
-                    .peekable();
-                reports.peek().is_some().then_some(reports)
-            };
-            for v in results.vehicles.iter_mut() {
-                let lives = 1 + restarts
-                    .iter()
-                    .filter(|r| r.id == v.id)
-                    .map(|r| r.restarts)
-                    .sum::<u64>();
-                if let Some(reports) = agent(v.id) {
-                    v.gamma_sent = broadcasts(v.gamma_sent, lives, reports.map(|r| r.published));
-                }
-            }
-            for link in results.links.iter_mut() {
-                link.published = agent(link.from).map(|r| r.map(|r| r.published).sum());
-                link.overtaken = agent(link.to).map(|r| {
-                    r.filter_map(|r| r.timing.as_ref())
-                        .flat_map(|t| &t.overtaken)
-                        .filter(|o| o.0 == link.from)
-                        .map(|o| o.1)
-                        .sum()
-                });
-            }
-        }
-        let mut reproducible_reasons = Summary::irreproducible_because(&self.exit_reports);
-        let conflicts = self.rejected.totals().conflict;
-        if conflicts > 0 {
-            reproducible_reasons.push(tcpf_report::summary::conflicting("the recorder", conflicts));
-        }
-        let unreported = match (cut_short, children.is_empty()) {
-            (false, _) => self.unreported(),
-            // `tcpf record` interrupted: the fleet goes on, and its reports are yet to come.
-            (true, true) => Vec::new(),
-            // `tcpf run` interrupted stopped its children: one that did not report was killed.
-            (true, false) => silent_children(&children, &self.lost()),
+            Machine::Lockstep(recorder) => Recorded::Lockstep {
+                contradicted_end: recorder.contradicted_end(),
+            },
         };
-        for &(role, id) in &unreported {
-            tracing::warn!(
-                "recorder: no exit report from {role} {id}: its refusals, timing and γ counts are not in the summary"
-            );
-            // Before the first tick there is nothing it could have done otherwise.
-            if role == Role::Agent && !realtime && self.ticks() > 0 {
-                reproducible_reasons.push(format!(
-                    "agent {id} sent no exit report: whether it went on without a silent neighbour's γ is unknown"
-                ));
-            }
-        }
-        if realtime {
-            reproducible_reasons.push(REALTIME.into());
-            // An agent's commands are stamped by its clock, so each is fresher than the one
-            // before, and a restarted agent's by the same clock: none is ever older than the one
-            // the world holds, nor two different ones stamped alike. Some were: another process
-            // commanded a vehicle, ahead of the clock, and the vehicle followed it instead of its
-            // agent.
-            let (past, conflict) = self
-                .exit_reports
-                .iter()
-                .filter(|r| r.role == Role::World.as_str())
-                .fold((0, 0), |(p, c), r| (p + r.rejected.past, c + r.rejected.conflict));
-            if past + conflict > 0 {
-                failure.get_or_insert(format!(
-                    "the world refused {past} command(s) as older than one it held and {conflict} as another for a tick it had: two processes commanded a vehicle, and the one stamping ahead of the clock steered it (a process on the bus spoke for an agent?)"
-                ));
-            }
-        } else {
-            // When the world gives up on an agent is a matter of wall-clock time (its command
-            // timeout, or when the agent's process died), which the in-process run knows nothing of.
-            for v in results.vehicles.iter().filter(|v| v.lost) {
-                let why = match v.lost_reason {
-                    Some(LossReason::Silent) => "no command within the world's --command-timeout",
-                    _ => "its agent's process went away",
-                };
-                reproducible_reasons.push(format!("vehicle {} was lost ({why})", v.id));
-            }
-        }
-        reproducible_reasons.extend(
-            restarts
-                .iter()
-                .map(|r| format!("agent {} was started again {} time(s)", r.id, r.restarts)),
+        let summary = summary::of_recording(
+            summary::Recording {
+                mission,
+                results: self.results(),
+                recorded,
+                reports: &self.exit_reports,
+                end: self.end.as_ref(),
+                lost: self.lost(),
+                rejections: self.rejected.totals(),
+                ticks_recorded: self.ticks(),
+                tick_wall_time_s: self.tick_wall_time(),
+            },
+            how,
         );
-        // A role that ended badly while the run went on to its end (stopped by a signal, or an
-        // error) leaves a run that did not go as it should: named, it is the run's failure.
-        if failure.is_none() && !cut_short {
-            let badly = ended_badly(&children, &self.lost(), Summary::all_arrived(&results));
-            failure = (!badly.is_empty()).then(|| badly.join("; "));
+        for who in &summary.unreported {
+            tracing::warn!(
+                "recorder: no exit report from {who}: its refusals, timing and γ counts are not in the summary"
+            );
         }
-        let mut rejections = self.rejected.totals();
-        self.exit_reports.iter().for_each(|r| rejections.add(&r.rejected));
-        let mut summary = Summary {
-            mission: mission.mission.name.clone(),
-            seed: mission.mission.seed,
-            mode: Mode::Processes,
-            clock: if realtime { Clock::Realtime } else { Clock::Lockstep },
-            completed: ended && failure.is_none() && Summary::all_arrived(&results),
-            interrupted,
-            failure,
-            reproducible: reproducible_reasons.is_empty(),
-            reproducible_reasons,
-            sim_time_s: results.ticks as f64 * mission.mission.control_period,
-            tick_wall_time_us: 1e6
-                * self
-                    .tick_wall_time()
-                    .unwrap_or(if self.ticks() > 0 { wall_time_s } else { 0.0 }),
-            results,
-            wall_time_s,
-            rejected_messages: rejections.total(),
-            rejections,
-            children,
-            time_scale: realtime.then_some(mission.mission.time_scale),
-            timing: Summary::timing_of(&self.exit_reports),
-            restarts,
-            unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
-            coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
-            warnings,
-        };
-        summary.name_the_shortfall();
         // The summary first: a run directory whose telemetry could not be finished still says
         // how the run went.
         dir.write_summary(&summary)?;
@@ -715,18 +549,6 @@ pub async fn record(
     )
 }
 
-/// A realtime vehicle's γ broadcasts, from what the neighbours' sampled commands show (`sampled`:
-/// a row merges the broadcasts since the one before, so fewer) and what each life of its agent
-/// that reported says it published: theirs, if all `lives` reported, else at least the sampled.
-fn broadcasts(sampled: u64, lives: u64, published: impl Iterator<Item = u64>) -> u64 {
-    let (told, published) = published.fold((0, 0), |(n, sum), p| (n + 1, sum + p));
-    if told == lives {
-        published
-    } else {
-        sampled.max(published)
-    }
-}
-
 /// Keeps a process's exit report if its key names the role and id its body does (false if
 /// not); the same process's report again replaces the first, so its counts are not summed twice.
 fn keep_report(reports: &mut Vec<Report>, keys: &Keys, key: &str, report: Report) -> bool {
@@ -745,75 +567,10 @@ fn keep_report(reports: &mut Vec<Report>, keys: &Keys, key: &str, report: Report
     true
 }
 
-/// After `tcpf run` was interrupted: the world and every agent not lost whose last life sent no
-/// exit report (an earlier life of an agent started again died, and sends none).
-/// The roles whose last life ended otherwise than with code 0, in words ("agent 2 exited with
-/// code 130 (stopped by a signal)"), but for processes killed outright (SIGKILL: what `tcpf run`
-/// does to a role that would not stop; a killed world fails the run and a killed agent loses its
-/// vehicle already) and the agents of lost vehicles that exited as told (the world gave up on
-/// them: their loss says it), unless a signal stopped them; nor the world's code 1 when not every
-/// vehicle `arrived`, which is how it says so (the summary says which did not).
-fn ended_badly(children: &[ChildSummary], lost: &[u32], arrived: bool) -> Vec<String> {
-    let by_signal = |c: &ChildSummary| c.exit_code == Some(130) || c.exit_code.is_none();
-    let world = Role::World.as_str();
-    children
-        .iter()
-        .enumerate()
-        .filter(|(k, c)| children[k + 1..].iter().all(|o| (&o.role, o.id) != (&c.role, c.id)))
-        .map(|(_, c)| c)
-        .filter(|c| c.exit_code != Some(0) && c.signal != Some(libc::SIGKILL))
-        .filter(|c| !(c.role == Role::Agent.as_str() && lost.contains(&c.id)) || by_signal(c))
-        .filter(|c| !(c.role == world && c.exit_code == Some(1) && !arrived))
-        // Gone once the fleet ran, the planner is a warning (`Closing::warnings`), not a failure.
-        .filter(|c| c.role != Role::Planner.as_str())
-        .map(|c| {
-            let (who, log) = match Role::parse(&c.role) {
-                Some(Role::Agent) => (format!("agent {}", c.id), format!("agent-{}", c.id)),
-                _ => (format!("the {}", c.role), c.role.clone()),
-            };
-            let how = match (c.exit_code, c.signal) {
-                (Some(130), _) => "with code 130 (stopped by a signal)".to_string(),
-                (Some(code), _) => format!("with code {code}"),
-                (None, Some(signal)) => format!("killed by signal {signal}"),
-                (None, None) => "without an exit code".to_string(),
-            };
-            format!("{who} exited {how}; see logs/{log}.log")
-        })
-        .collect()
-}
-
-fn silent_children(children: &[ChildSummary], lost: &[u32]) -> Vec<(Role, u32)> {
-    children
-        .iter()
-        .enumerate()
-        .filter(|(k, c)| children[k + 1..].iter().all(|o| (&o.role, o.id) != (&c.role, c.id)))
-        .filter(|(_, c)| c.reported_pid.is_none())
-        .filter_map(|(_, c)| match Role::parse(&c.role)? {
-            Role::World => Some((Role::World, c.id)),
-            Role::Agent if !lost.contains(&c.id) => Some((Role::Agent, c.id)),
-            _ => None,
-        })
-        .collect()
-}
-
-/// Of a mission of vehicles `ids`, the roles whose exit report `end` calls for and that are not
-/// among `reports`: the world, and the agent of every vehicle the world did not give up on (an
-/// agent started again reports once per life; any one will do). None before the end.
-fn unreported(ids: &[u32], end: Option<&End>, reports: &[Report]) -> Vec<(Role, u32)> {
-    let Some(end) = end else {
-        return Vec::new();
-    };
-    let agents = ids.iter().filter(|&&id| end.lost.iter().all(|l| l.id != id));
-    std::iter::once((Role::World, 0))
-        .chain(agents.map(|&id| (Role::Agent, id)))
-        .filter(|&(role, id)| !reports.iter().any(|r| r.role == role.as_str() && r.id == id))
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tcpf_core::msg::{LossReason, Lost, PROTOCOL_VERSION};
+    use tcpf_core::msg::PROTOCOL_VERSION;
 
     fn report(role: Role, id: u32) -> Report {
         Report {
@@ -827,70 +584,6 @@ mod tests {
             timing: None,
             published: 0,
         }
-    }
-
-    #[test]
-    fn the_end_calls_for_the_worlds_report_and_every_live_agents() {
-        let end = End {
-            version: PROTOCOL_VERSION,
-            ticks: 100,
-            lost: vec![Lost {
-                id: 3,
-                tick: 50,
-                reason: LossReason::Gone,
-            }],
-        };
-        assert_eq!(unreported(&[1, 2, 3], None, &[]), vec![], "nothing before the end");
-        assert_eq!(
-            unreported(
-                &[1, 2, 3],
-                Some(&end),
-                &[report(Role::Planner, 0), report(Role::Agent, 2)]
-            ),
-            vec![(Role::World, 0), (Role::Agent, 1)],
-            "the planner's report is not waited for, nor a lost vehicle's agent's"
-        );
-        let all = [report(Role::Agent, 1), report(Role::World, 0), report(Role::Agent, 2)];
-        assert_eq!(unreported(&[1, 2, 3], Some(&end), &all), vec![]);
-    }
-
-    #[test]
-    fn an_interrupted_run_names_the_children_killed_before_they_reported() {
-        let child = |role: Role, id: u32, reported: bool| ChildSummary {
-            role: role.as_str().into(),
-            id,
-            pid: 10 + id,
-            exit_code: None,
-            signal: None,
-            rejected: reported.then_some(0),
-            reported_pid: reported.then_some(10 + id),
-        };
-        let children = [
-            child(Role::Planner, 0, false),
-            child(Role::World, 0, true),
-            child(Role::Agent, 1, false),
-            child(Role::Agent, 2, false),
-            child(Role::Agent, 3, false),
-            child(Role::Agent, 3, true),
-            child(Role::Agent, 4, false),
-        ];
-        assert_eq!(
-            silent_children(&children, &[4]),
-            vec![(Role::Agent, 1), (Role::Agent, 2)],
-            "not the planner, not a life before the last, not a lost vehicle's agent"
-        );
-    }
-
-    #[test]
-    fn broadcasts_are_the_agents_own_count_when_every_life_reported() {
-        assert_eq!(broadcasts(547, 1, [556].into_iter()), 556);
-        assert_eq!(broadcasts(547, 2, [300, 256].into_iter()), 556);
-        assert_eq!(
-            broadcasts(547, 2, [256].into_iter()),
-            547,
-            "a life that died told nothing"
-        );
-        assert_eq!(broadcasts(100, 2, [256].into_iter()), 256);
     }
 
     #[test]

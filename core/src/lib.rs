@@ -22,6 +22,7 @@ pub mod record;
 pub mod ros2;
 pub mod roster;
 pub mod sim;
+pub mod summary;
 pub mod telemetry;
 pub mod watch;
 pub mod world;

@@ -5,8 +5,11 @@
 //! with `handle_timeout(now)`; what it decides comes back as values. Times are inputs: seconds on
 //! the role's monotonic clock, from any origin.
 //!
-//! A timer that fires long after it was due measures a pause of the role itself (`pause`): the
-//! wait is put off, not ended.
+//! A timer that fires long after the shell set it for measures a pause of the role itself
+//! (`pause`): the wait is put off, not ended. So `handle_timeout` takes, beside `now`, the time
+//! the shell slept until: in the meantime a message may have moved the deadline on (the first
+//! thing a resumed process does is read what came while it was stopped), and the pause is still
+//! the role's own.
 
 use std::collections::BTreeSet;
 use std::fmt;
@@ -195,19 +198,24 @@ impl Deadlines {
         self.restarting.iter().map(|r| r.1).fold(command, f64::min)
     }
 
-    /// The deadlines passed by `now`; `waiting_for` says which agents the tick still waits for.
-    pub fn handle_timeout(&mut self, now: f64, waiting_for: impl FnOnce() -> Vec<u32>) -> Vec<Decision> {
-        let due = self.poll_timeout();
-        if now < due {
-            return Vec::new();
-        }
-        if let Some(more) = late_by(now - due).and_then(pause::extension) {
+    /// The deadlines passed by `now`, woken from a sleep until `woken_for`; `waiting_for` says
+    /// which agents the tick still waits for.
+    pub fn handle_timeout(
+        &mut self,
+        now: f64,
+        woken_for: f64,
+        waiting_for: impl FnOnce() -> Vec<u32>,
+    ) -> Vec<Decision> {
+        if let Some(more) = late_by(now - woken_for).and_then(pause::extension) {
             let s = more.as_secs_f64();
             self.tick_since += s;
             for r in &mut self.restarting {
                 r.1 += s;
             }
             return vec![Decision::Resumed(more)];
+        }
+        if now < self.poll_timeout() {
+            return Vec::new();
         }
         let mut decisions: Vec<Decision> = self
             .restarting
@@ -278,16 +286,14 @@ impl StaleTimer {
         self.since.map(|s| s + self.timeout)
     }
 
-    pub fn handle_timeout(&mut self, now: f64) -> StaleCheck {
-        let Some(due) = self.poll_timeout() else {
-            return StaleCheck::Nothing;
-        };
-        if now < due {
-            return StaleCheck::Nothing;
-        }
-        if let Some(more) = late_by(now - due).and_then(pause::extension) {
+    /// Woken at `now` from a sleep until `woken_for`.
+    pub fn handle_timeout(&mut self, now: f64, woken_for: f64) -> StaleCheck {
+        if let Some(more) = late_by(now - woken_for).and_then(pause::extension) {
             self.since = self.since.map(|s| s + more.as_secs_f64());
             return StaleCheck::Resumed(more);
+        }
+        if self.poll_timeout().is_none_or(|due| now < due) {
+            return StaleCheck::Nothing;
         }
         // Re-armed, for a node that still waits once it has given up on these.
         self.since = Some(now);
@@ -386,11 +392,11 @@ mod tests {
         d.on_tick(5.0);
         assert_eq!(d.poll_timeout(), 15.0);
         assert_eq!(
-            d.handle_timeout(14.9, || unreachable!()),
+            d.handle_timeout(14.9, 14.9, || unreachable!()),
             vec![],
             "a wake-up before it is due"
         );
-        let silent = d.handle_timeout(15.2, || vec![3, 1]);
+        let silent = d.handle_timeout(15.2, 15.0, || vec![3, 1]);
         assert_eq!(
             silent,
             vec![
@@ -414,12 +420,24 @@ mod tests {
         let mut d = Deadlines::new(10 * S, Some(30 * S), 0.0);
         d.on_agent(2, false, None, 0.0);
         // A 12 s Ctrl-Z: the command timeout due at 10 s is seen at 22 s.
-        assert_eq!(d.handle_timeout(22.0, || vec![1]), vec![Decision::Resumed(13 * S)]);
+        assert_eq!(
+            d.handle_timeout(22.0, 10.0, || vec![1]),
+            vec![Decision::Resumed(13 * S)]
+        );
         assert_eq!(d.poll_timeout(), 23.0);
-        assert_eq!(d.handle_timeout(22.5, || vec![1]), vec![]);
+        assert_eq!(d.handle_timeout(22.5, 22.5, || vec![1]), vec![]);
         // The rejoin deadline (30 s) moved by the pause too.
         d.on_tick(23.0);
         assert_eq!(d.poll_timeout(), 33.0);
+        // Resumed, the world first reads a command that closes the tick, then its timer fires:
+        // the deadline moved on, but the pause was still the world's own.
+        let mut moved = Deadlines::new(10 * S, None, 0.0);
+        moved.on_tick(12.0);
+        let resumed = moved.handle_timeout(12.1, 10.0, || vec![1]);
+        assert!(
+            matches!(resumed[..], [Decision::Resumed(more)] if (more.as_secs_f64() - 3.1).abs() < 1e-9),
+            "{resumed:?}"
+        );
     }
 
     #[test]
@@ -452,7 +470,7 @@ mod tests {
         d.on_agent(3, false, None, 4.0);
         d.on_tick(4.0);
         assert_eq!(
-            d.handle_timeout(9.0, || vec![]),
+            d.handle_timeout(9.0, 9.0, || vec![]),
             vec![Decision::Lose {
                 id: 3,
                 reason: LossReason::Gone,
@@ -477,16 +495,16 @@ mod tests {
             Some(13.0),
             "since it began waiting, not since the last look"
         );
-        assert_eq!(t.handle_timeout(12.0), StaleCheck::Nothing);
-        assert_eq!(t.handle_timeout(13.1), StaleCheck::Stale);
+        assert_eq!(t.handle_timeout(12.0, 12.0), StaleCheck::Nothing);
+        assert_eq!(t.handle_timeout(13.1, 13.0), StaleCheck::Stale);
         assert_eq!(t.poll_timeout(), Some(16.1), "re-armed");
         t.note(false, 13.2);
-        assert_eq!(t.handle_timeout(20.0), StaleCheck::Nothing, "the γ came");
+        assert_eq!(t.handle_timeout(20.0, 20.0), StaleCheck::Nothing, "the γ came");
         // Stopped 5 s by SIGSTOP as it waited.
         t.note(true, 30.0);
-        assert_eq!(t.handle_timeout(38.0), StaleCheck::Resumed(6 * S));
+        assert_eq!(t.handle_timeout(38.0, 33.0), StaleCheck::Resumed(6 * S));
         assert_eq!(t.poll_timeout(), Some(39.0));
-        assert_eq!(t.handle_timeout(39.0), StaleCheck::Stale);
+        assert_eq!(t.handle_timeout(39.0, 39.0), StaleCheck::Stale);
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! carries the protocol version; a receiver drops one whose version or numbers it cannot use.
 
 use std::borrow::Cow;
+use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
@@ -499,6 +500,38 @@ pub(crate) fn tally(counts: &mut Vec<(u32, u64)>, id: u32) {
     match counts.iter_mut().find(|c| c.0 == id) {
         Some(c) => c.1 += 1,
         None => counts.push((id, 1)),
+    }
+}
+
+/// The roles of a fleet, as reports, keys and liveliness tokens name them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Role {
+    Planner,
+    World,
+    Agent,
+    Record,
+}
+
+impl Role {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Role::Planner => "planner",
+            Role::World => "world",
+            Role::Agent => "agent",
+            Role::Record => "record",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Role> {
+        [Role::Planner, Role::World, Role::Agent, Role::Record]
+            .into_iter()
+            .find(|r| r.as_str() == s)
+    }
+}
+
+impl fmt::Display for Role {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
     }
 }
 

@@ -1,12 +1,11 @@
 //! tcpf-report: what a run or a sweep leaves behind, with no network stack: the run directory
-//! and its files, the summary, `report.html` and its plots, the tables printed at the end, and a
+//! and its files, `report.html` and its plots, the tables printed at the end, and a
 //! sweep's summaries, and `run.mcap` with its live twin for Foxglove. Changing a report rebuilds this crate, not Zenoh.
 
 pub mod live;
 pub mod plots;
 pub mod report;
 pub mod rundir;
-pub mod summary;
 pub mod sweep;
 pub mod table;
 pub mod viewer;

@@ -12,7 +12,7 @@ use tcpf_core::metrics::Thrusters;
 use tcpf_core::mission::{self, Mission};
 
 use crate::plots::{bars, Chart, Series};
-use crate::summary::{Clock, RoleTiming, Summary};
+use tcpf_core::summary::{Clock, RoleTiming, Summary};
 
 /// At most this many points per line: enough for the eye, small enough for the page.
 const POINTS: usize = 1500;

@@ -14,8 +14,8 @@ use tcpf_core::msg::{Command, State};
 use tcpf_core::planner::Plan;
 use tcpf_core::telemetry;
 
-use crate::summary::{Mode, Summary};
 use crate::viewer::Viewer;
+use tcpf_core::summary::{Mode, Summary};
 
 pub struct RunDir {
     pub path: PathBuf,

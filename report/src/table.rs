@@ -4,7 +4,7 @@ use std::fmt::Write;
 
 use tcpf_core::planner::Plan;
 
-use crate::summary::Summary;
+use tcpf_core::summary::Summary;
 
 pub fn plan(plan: &Plan) -> String {
     let mut s = String::new();
@@ -44,13 +44,6 @@ pub fn plan(plan: &Plan) -> String {
     s
 }
 
-/// "vehicle 2", "vehicles 1, 3".
-pub fn vehicles(ids: &[u32]) -> String {
-    let plural = if ids.len() > 1 { "s" } else { "" };
-    let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
-    format!("vehicle{plural} {}", ids.join(", "))
-}
-
 /// What kept a run from completing, in the words of its summary.
 fn why_not_completed(summary: &Summary) -> String {
     let mut why: Vec<String> = summary
@@ -62,7 +55,7 @@ fn why_not_completed(summary: &Summary) -> String {
     // because of it.
     why.extend(summary.reasons());
     if why.is_empty() {
-        why.push(crate::summary::NEVER_ENDED.into());
+        why.push(tcpf_core::summary::NEVER_ENDED.into());
     }
     why.join("; ")
 }

@@ -403,9 +403,9 @@ impl Shell {
         stepper.lock().clock.epoch = unix_now();
         stepper.start();
         let exit = loop {
-            let (wake, over) = {
+            let (woken_for, over) = {
                 let stepped = stepper.lock();
-                (stepper.monotonic.at(stepped.deadlines.poll_timeout()), stepped.over)
+                (stepped.deadlines.poll_timeout(), stepped.over)
             };
             tokio::select! {
                 Some(end) = ends.recv() => {
@@ -427,10 +427,11 @@ impl Shell {
                         self.decide(stepper, &mut stepped, decision, &ids, options)?;
                     }
                 }
-                _ = tokio::time::sleep_until(wake), if !over => {
+                _ = tokio::time::sleep_until(stepper.monotonic.at(woken_for)), if !over => {
                     let mut stepped = stepper.lock();
                     let Stepped { node, deadlines, .. } = &mut *stepped;
-                    for decision in deadlines.handle_timeout(stepper.monotonic.now(), || node.waiting_for()) {
+                    let now = stepper.monotonic.now();
+                    for decision in deadlines.handle_timeout(now, woken_for, || node.waiting_for()) {
                         self.decide(stepper, &mut stepped, decision, &ids, options)?;
                     }
                 }
