@@ -65,6 +65,21 @@ async fn put(session: &zenoh::Session, key: &str, bytes: Vec<u8>) {
         .unwrap();
 }
 
+/// Speaks as the world does to everyone: publishes for the agents, and hands over to the
+/// recorders, which take the world's last words only by hand-over (docs/PROTOCOL.md).
+async fn as_the_world(session: &zenoh::Session, key: &str, bytes: Vec<u8>) {
+    put(session, key, bytes.clone()).await;
+    let replies = session
+        .get(key)
+        .payload(bytes)
+        .target(zenoh::query::QueryTarget::All)
+        .consolidation(zenoh::query::ConsolidationMode::None)
+        .timeout(Duration::from_secs(5))
+        .await
+        .unwrap();
+    while replies.recv_async().await.is_ok() {}
+}
+
 /// What one tick of case (b) looks like on the bus, to forge from.
 fn samples() -> (State, Command, Gamma) {
     let state = State {
@@ -585,7 +600,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
         ticks: last + 100,
         lost: vec![],
     };
-    put(&session, &key("end"), postcard::to_stdvec(&forged).unwrap()).await;
+    as_the_world(&session, &key("end"), postcard::to_stdvec(&forged).unwrap()).await;
     let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
     session.close().await.unwrap();
     let s = launch.summary();
@@ -618,7 +633,7 @@ async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
         tick: 1,
         reason: tcpf_core::msg::LossReason::Silent,
     });
-    put(&session, &key("lost/2"), postcard::to_stdvec(&forged).unwrap()).await;
+    as_the_world(&session, &key("lost/2"), postcard::to_stdvec(&forged).unwrap()).await;
     let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
     session.close().await.unwrap();
     let s = launch.summary();

@@ -12,8 +12,8 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    answered, ask_clock, await_clock, fetch_paths, linger, linger_within, presence, queue, report, subscribe,
-    subscribe_into, subscribe_with, Outlet, Presence, Received, Rejected,
+    answered, ask_clock, await_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, subscribe_with,
+    Outlet, Presence, Received, Rejected,
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
@@ -28,9 +28,6 @@ use zenoh::Session;
 
 /// How long to wait for the end message after the world or the planner went away.
 const END_GRACE: Duration = Duration::from_millis(500);
-/// After an interrupt, how long an agent waits for the world to leave, which a world that routes
-/// the fleet does once it has passed on every report: the longest Ctrl-C waits in an agent.
-const REPORT_SENT: Duration = Duration::from_millis(500);
 /// How often an agent asks for the clock while the world has not started: a realtime agent
 /// waits for it; a lockstep one, running meanwhile, asks less and less often, up to the max.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
@@ -419,14 +416,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             exit?
         }
     };
-    // The recorders wait for this agent's report, and leave once they have every one. Otherwise
-    // the world, when it routes the fleet, leaves once it has passed every report on: a session
-    // closed at once could drop the report unsent (1 interrupted run of 10 agents in 6).
-    if matches!(exit, Exit::Ended) {
-        linger(&shell.session, &shell.keys, &[Role::Record]).await;
-    } else {
-        linger_within(&shell.session, &shell.keys, &[Role::World], REPORT_SENT).await;
-    }
+    // Its report is acknowledged by the recorders (`report`): nothing to wait for.
     let _ = token.undeclare().await;
     let _ = claimed.undeclare().await;
     let _ = shell.session.close().await;

@@ -2,7 +2,7 @@
 //! or straight to a core machine: what to do with a message is the machines' business. Refused
 //! payloads are counted, never fatal.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -70,7 +70,7 @@ impl Rejected {
         self.bump(key, |r| r.wrong_sender += 1);
     }
 
-    fn overflow(&self, key: &str) {
+    pub(crate) fn overflow(&self, key: &str) {
         self.bump(key, |r| r.overflow += 1);
     }
 
@@ -329,34 +329,18 @@ const LINGER_POLL: Duration = Duration::from_millis(20);
 
 /// Stays until no process of `roles` is present, or `LINGER` has passed: a session closed at once
 /// may take its last messages with it (over QUIC, closing a connection drops what it has not yet
-/// delivered), and those who wait for them (recorders for reports, agents for the end) leave once
-/// they have them.
+/// delivered), and those who wait for them (agents for the end) leave once they have them. A
+/// role's words to the recorders need no lingering: they are acknowledged (`handover`).
 pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
     linger_within(session, keys, roles, LINGER).await;
 }
 
-/// How long a world that has ended waits for its recorders to leave, which they do once they
-/// have every tick and report: their leaving is their acknowledgement. A recorder that lags (its
-/// machine busy) still has the end's messages in the world's queue, which a world that left
-/// would take with it; a recorder that died has no token, and is not waited for; one that lost
-/// ticks never leaves, and costs the end this long.
-pub const RECORDERS_PATIENCE: Duration = Duration::from_secs(10);
-
-/// `linger`, for at most `within`.
+/// `linger`, for at most `within`: asks who is present every `LINGER_POLL`.
 pub async fn linger_within(session: &Session, keys: &Keys, roles: &[Role], within: Duration) {
-    linger_until(session, keys, within, |present| {
-        present.iter().all(|(role, _)| !roles.contains(role))
-    })
-    .await;
-}
-
-/// Asks who is present every `LINGER_POLL` until `done` says so of the answer, or `within` has
-/// passed, or nobody can be asked.
-async fn linger_until(session: &Session, keys: &Keys, within: Duration, mut done: impl FnMut(&[(Role, u32)]) -> bool) {
     let until = tokio::time::Instant::now() + within;
     while tokio::time::Instant::now() < until {
         match present(session, keys).await {
-            Ok(p) if done(&p) => return,
+            Ok(p) if p.iter().all(|(role, _)| !roles.contains(role)) => return,
             Ok(_) => {}
             Err(e) => {
                 tracing::warn!("{e}");
@@ -365,53 +349,6 @@ async fn linger_until(session: &Session, keys: &Keys, within: Duration, mut done
         }
         tokio::time::sleep(LINGER_POLL).await;
     }
-}
-
-/// How long a router waits for the report of a process gone: a report may come just after the
-/// token's withdrawal, which travels at a higher priority.
-const SETTLE: Duration = Duration::from_millis(200);
-
-/// The exit reports that have passed through this session, by role and id: a router that
-/// carries them to the recorders leaves only once they have.
-#[derive(Clone, Default)]
-pub struct Carried(Arc<Mutex<BTreeSet<(Role, u32)>>>);
-
-impl Carried {
-    pub async fn follow(session: &Session, keys: &Keys, rejected: &Rejected) -> Result<(Subscriber<()>, Carried)> {
-        let carried = Carried::default();
-        let seen = carried.clone();
-        let subscriber = subscribe_with::<Report>(session, &keys.reports(), rejected, move |_, r| {
-            if let Some(role) = Role::parse(&r.role) {
-                seen.0.lock().expect("carried reports").insert((role, r.id));
-            }
-        })
-        .await?;
-        Ok((subscriber, carried))
-    }
-
-    fn has(&self, process: &(Role, u32)) -> bool {
-        self.0.lock().expect("carried reports").contains(process)
-    }
-}
-
-/// Stays until each of `expected` has reported through this session, or has been gone `SETTLE`
-/// (killed, it reports nothing), or `LINGER` has passed.
-pub async fn linger_for_reports(session: &Session, keys: &Keys, expected: &[(Role, u32)], carried: &Carried) {
-    let mut gone: BTreeMap<(Role, u32), tokio::time::Instant> = BTreeMap::new();
-    linger_until(session, keys, LINGER, |present| {
-        let now = tokio::time::Instant::now();
-        let mut settled = true;
-        for p in expected.iter().filter(|p| !carried.has(p)) {
-            settled &= if present.contains(p) {
-                gone.remove(p);
-                false
-            } else {
-                now - *gone.entry(*p).or_insert(now) >= SETTLE
-            };
-        }
-        settled
-    })
-    .await;
 }
 
 /// Follows every liveliness token of the mission, those already there included.
@@ -628,8 +565,7 @@ pub async fn report(
         timing: realtime,
         published,
     };
-    // Without a publisher declared for it now: over QUIC, a message can overtake the
-    // declaration it refers to (they travel on different streams), and the router drops it.
-    // Its one wait, if the link is congested, is the process's last.
-    say_now(session, keys.report(role, id), &report)
+    let what = format!("the exit report of {role} {id}");
+    crate::handover::hand_over(session, keys, keys.report(role, id), &report, &what).await?;
+    Ok(())
 }

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, metronome, Beat, Expected, FleetClock};
+use tcpf_bus::handover::take_over;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
 use tcpf_core::metrics::Results;
@@ -19,6 +20,7 @@ use tcpf_core::watch::WorldWatch;
 use tokio::sync::mpsc::{self, Receiver};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
+use zenoh::query::Queryable;
 use zenoh::Session;
 
 use tcpf_bus::session::ZenohArgs;
@@ -99,6 +101,7 @@ pub struct Recording {
     /// When the first tick was written.
     first: Option<Instant>,
     _subscribers: Vec<Subscriber<()>>,
+    _queryables: Vec<Queryable<()>>,
     /// Withdrawn once the recording is complete and every report it waits for is in: the world
     /// and the agents wait for the recorders to leave before they close their sessions.
     token: Option<LivelinessToken>,
@@ -128,10 +131,12 @@ impl Recording {
             subscribers.push(subscribe_as(session, &keys.state("*"), &rejected, tx.clone(), Message::State).await?);
             subscribers.push(subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Message::Command).await?);
         }
-        subscribers.push(subscribe_as(session, &keys.end(), &rejected, tx.clone(), Message::End).await?);
-        subscribers.push(subscribe_as(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?);
-        let reports = format!("tcpf/{}/report/**", mission.mission.name);
-        subscribers.push(subscribe_as(session, &reports, &rejected, tx, Message::Report).await?);
+        // The roles' last words come as hand-overs, which this recorder acknowledges.
+        let queryables = vec![
+            take_over(session, &keys.end(), &rejected, tx.clone(), Message::End).await?,
+            take_over(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?,
+            take_over(session, &keys.reports(), &rejected, tx, Message::Report).await?,
+        ];
         let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
         let dt = mission.mission.control_period;
         let machine = match mission.mission.clock {
@@ -155,6 +160,7 @@ impl Recording {
             progress: Instant::now(),
             first: None,
             _subscribers: subscribers,
+            _queryables: queryables,
             token: None,
             ids,
             from_world: 0,

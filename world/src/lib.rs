@@ -9,12 +9,13 @@ use std::time::Duration;
 use anyhow::{anyhow, Result};
 use tcpf_bus::claim::claim;
 use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
+use tcpf_bus::handover::{self, hand_over};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    fetch_paths, linger, linger_for_reports, linger_within, presence, report, say_now, subscribe, subscribe_with,
-    Carried, ClockServer, Outlet, Presence, Received, Rejected, RECORDERS_PATIENCE,
+    fetch_paths, linger, linger_within, presence, report, say_now, subscribe, subscribe_with, ClockServer, Outlet,
+    Presence, Received, Rejected,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
@@ -117,6 +118,8 @@ struct Stepper {
     rejected: Rejected,
     /// The end, once published, or a publication that failed: the task stops on either.
     ends: UnboundedSender<Result<End>>,
+    /// The losses being handed over to the recorders.
+    handovers: Mutex<Vec<tokio::task::JoinHandle<()>>>,
 }
 
 struct Stepped {
@@ -209,11 +212,21 @@ impl Stepper {
         self.step(stepped);
     }
 
-    /// Tells the agents and the recorders that a vehicle is lost.
+    /// Tells the agents that a vehicle is lost, and hands it over to the recorders on a task of
+    /// its own, while the fleet goes on (the end repeats it, should that fail).
     fn announce(&self, lost: Lost) {
-        if let Err(e) = say_now(&self.session, self.keys.lost(lost.id), &Loss::from(lost)) {
+        let loss = Loss::from(lost);
+        if let Err(e) = say_now(&self.session, self.keys.lost(lost.id), &loss) {
             let _ = self.ends.send(Err(e));
         }
+        let (session, keys) = (self.session.clone(), self.keys.clone());
+        let handing = tokio::spawn(async move {
+            let what = format!("world: the loss of vehicle {}", lost.id);
+            if let Err(e) = hand_over(&session, &keys, keys.lost(lost.id), &loss, &what).await {
+                tracing::warn!("{e}");
+            }
+        });
+        self.handovers.lock().unwrap_or_else(|e| e.into_inner()).push(handing);
     }
 }
 
@@ -228,29 +241,23 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     // no world running and drove the fleet.
     let claimed = claim(&session, &keys, Role::World, 0, &mission.mission.name).await?;
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
-    // recorders: it leaves only once they have passed through it.
-    let carried = match zenoh.routes()? {
-        true => Some(Carried::follow(&session, &keys, &rejected).await?),
-        false => None,
-    };
+    // recorders: it leaves only once its roles have had theirs acknowledged, and left.
+    let routes = zenoh.routes()?;
     let (exit, token) = serve(mission, options, &keys, &session, shutdown, rejected, &ids).await?;
     tracing::info!("world: {exit}");
-    // The end reaches the agents, and their reports the recorders, before the world leaves.
-    if matches!(exit, Exit::Ended { .. }) {
-        linger(&session, &keys, &[Role::Agent]).await;
-        linger_within(&session, &keys, &[Role::Record], RECORDERS_PATIENCE).await;
-    }
-    if let Some((_, carried)) = &carried {
-        let agents: Vec<(Role, u32)> = ids.iter().map(|&id| (Role::Agent, id)).collect();
-        linger_for_reports(&session, &keys, &agents, carried).await;
+    // The recorders acknowledged the end; it reaches the agents before the world leaves.
+    match (routes, exit) {
+        (true, _) => linger_within(&session, &keys, &[Role::Agent], handover::BOUND).await,
+        (false, Exit::Ended { .. }) => linger(&session, &keys, &[Role::Agent]).await,
+        (false, Exit::Interrupted) => {}
     }
     if let Some(token) = token {
         let _ = token.undeclare().await;
     }
     let _ = claimed.undeclare().await;
     // The planner reports once the world's token has gone.
-    if let Some((_, carried)) = &carried {
-        linger_for_reports(&session, &keys, &[(Role::Planner, 0)], carried).await;
+    if routes {
+        linger_within(&session, &keys, &[Role::Planner], handover::BOUND).await;
     }
     let _ = session.close().await;
     Ok(exit)
@@ -326,6 +333,7 @@ async fn serve(
             monotonic,
             rejected: rejected.clone(),
             ends: ends_tx,
+            handovers: Mutex::new(Vec::new()),
         });
         // One subscription per vehicle, not one to cmd/*: Zenoh caches a route only for a key it
         // has a resource for, and on cmd/* it matched every arriving command against every key
@@ -402,7 +410,7 @@ impl Shell {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         stepper.lock().clock.epoch = unix_now();
         stepper.start();
-        let exit = loop {
+        let (exit, end) = loop {
             let (woken_for, over) = {
                 let stepped = stepper.lock();
                 (stepped.deadlines.poll_timeout(), stepped.over)
@@ -410,11 +418,12 @@ impl Shell {
             tokio::select! {
                 Some(end) = ends.recv() => {
                     let end = end?;
-                    break Exit::Ended {
+                    let exit = Exit::Ended {
                         ticks: end.ticks,
                         lost: end.lost.len(),
                         short: stepper.lock().node.not_arrived(),
                     };
+                    break (exit, Some(end));
                 }
                 Some(p) = self.presence.recv() => {
                     if p.role != Role::Agent || !ids.contains(&p.id) {
@@ -437,14 +446,25 @@ impl Shell {
                 }
                 _ = self.shutdown.recv() => {
                     let mut stepped = stepper.lock();
-                    if !stepped.over {
+                    let end = if stepped.over {
+                        ends.try_recv().ok().and_then(Result::ok)
+                    } else {
                         stepped.over = true;
-                        self.end_out.put_now(&stepped.node.interrupted())?;
-                    }
-                    break Exit::Interrupted;
+                        let end = stepped.node.interrupted();
+                        self.end_out.put_now(&end)?;
+                        Some(end)
+                    };
+                    break (Exit::Interrupted, end);
                 }
             }
         };
+        let handing: Vec<_> = std::mem::take(&mut *stepper.handovers.lock().unwrap_or_else(|e| e.into_inner()));
+        for loss in handing {
+            let _ = loss.await;
+        }
+        if let Some(end) = &end {
+            self.hand_over_end(end).await?;
+        }
         report(
             &self.session,
             &self.keys,
@@ -456,6 +476,12 @@ impl Shell {
         )
         .await?;
         Ok(exit)
+    }
+
+    /// Hands the end over to the recorders: acknowledged, they have every tick before it too.
+    async fn hand_over_end(&self, end: &End) -> Result<()> {
+        hand_over(&self.session, &self.keys, self.keys.end(), end, "world: the end").await?;
+        Ok(())
     }
 
     /// Carries out what the world's deadlines decided, and says so.
@@ -538,12 +564,13 @@ impl Shell {
             outlet.put(state).await?;
         }
         let mut beats = metronome(fleet, 0.0, 1);
-        let exit = loop {
+        let (exit, end) = loop {
             tokio::select! {
                 Some(beat) = beats.recv() => {
                     if let Some(end) = node.advance_to(beat.tick, beat.late_s(), period, beat.skipped) {
                         self.end_out.put(&end).await?;
-                        break Exit::Ended { ticks: end.ticks, lost: end.lost.len(), short: node.not_arrived() };
+                        let exit = Exit::Ended { ticks: end.ticks, lost: end.lost.len(), short: node.not_arrived() };
+                        break (exit, end);
                     }
                     self.clock.set(Clock { tick: node.tick(), ..clock });
                     for (outlet, state) in self.outlets.iter().zip(node.states()) {
@@ -572,11 +599,13 @@ impl Shell {
                     }
                 }
                 _ = self.shutdown.recv() => {
-                    self.end_out.put(&node.interrupted()).await?;
-                    break Exit::Interrupted;
+                    let end = node.interrupted();
+                    self.end_out.put(&end).await?;
+                    break (Exit::Interrupted, end);
                 }
             }
         };
+        self.hand_over_end(&end).await?;
         let timing = node.timing();
         tracing::info!(
             "world: period lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped, {} late commands",

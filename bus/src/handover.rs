@@ -1,0 +1,133 @@
+//! Last words that must reach the recorders (an exit report, the end, a loss) travel as a query
+//! to every recorder's queryable, and each recorder's reply is its acknowledgement: the sender
+//! knows who has them, instead of lingering a while and hoping. A recorder that did not answer
+//! is asked again, up to `ATTEMPTS` times; what still went unacknowledged is logged by the
+//! sender, and the recorder's summary names what never came (an unreported role, a missed end).
+//!
+//! A query overtakes nothing sent before it on the same link, so a recorder that acknowledges the
+//! end has every tick before it too.
+
+use std::collections::BTreeSet;
+use std::time::Duration;
+
+use anyhow::{anyhow, Result};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use tcpf_core::msg::Checked;
+use tokio::sync::mpsc;
+use zenoh::query::{ConsolidationMode, QueryTarget, Queryable};
+use zenoh::{Session, Wait};
+
+use crate::codec::{decode, encode};
+use crate::keys::{Keys, Role};
+use crate::typed::{present, Received, Rejected};
+
+/// How many times a sender asks a recorder that does not answer.
+pub const ATTEMPTS: u32 = 3;
+/// How long one attempt waits for every recorder's answer.
+pub const WAIT: Duration = Duration::from_secs(2);
+/// The longest a hand-over takes: a role that waits for another's is bounded by this.
+pub const BOUND: Duration = Duration::from_secs(ATTEMPTS as u64 * WAIT.as_secs() + 1);
+
+/// How a hand-over went: of the recorders present, how many acknowledged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Handed {
+    pub acknowledged: usize,
+    pub recorders: usize,
+    pub attempts: u32,
+}
+
+/// Hands `message` over on `key` to every recorder of the mission and waits for their
+/// acknowledgements; `what` names it in the warning if some never came.
+pub async fn hand_over<T: Serialize>(
+    session: &Session,
+    keys: &Keys,
+    key: String,
+    message: &T,
+    what: &str,
+) -> Result<Handed> {
+    let payload = encode(message);
+    let mut acknowledged = BTreeSet::new();
+    let mut recorders = 0;
+    for attempt in 1..=ATTEMPTS {
+        recorders = present(session, keys)
+            .await?
+            .iter()
+            .filter(|(role, _)| *role == Role::Record)
+            .count();
+        if acknowledged.len() >= recorders {
+            return Ok(Handed {
+                acknowledged: acknowledged.len(),
+                recorders,
+                attempts: attempt - 1,
+            });
+        }
+        let replies = session
+            .get(key.clone())
+            .payload(payload.clone())
+            .target(QueryTarget::All)
+            .consolidation(ConsolidationMode::None)
+            .timeout(WAIT)
+            .await
+            .map_err(|e| anyhow!("cannot hand over {what}: {e}"))?;
+        while let Ok(reply) = replies.recv_async().await {
+            if reply.result().is_ok() {
+                acknowledged.extend(reply.replier_id().map(|id| id.zid()));
+            }
+        }
+    }
+    if acknowledged.len() < recorders {
+        tracing::warn!(
+            "{what}: {} of {recorders} recorder(s) did not acknowledge it after {ATTEMPTS} attempts",
+            recorders - acknowledged.len()
+        );
+    }
+    Ok(Handed {
+        acknowledged: acknowledged.len(),
+        recorders,
+        attempts: ATTEMPTS,
+    })
+}
+
+/// The recorder's side: takes what is handed over on `key` (each message wrapped by `wrap`, into
+/// the channel its subscriptions share) and acknowledges it once it is queued. What cannot be
+/// used is refused and counted, and not acknowledged; a full queue is counted and not
+/// acknowledged either, so the sender asks again.
+pub async fn take_over<T, M>(
+    session: &Session,
+    key: &str,
+    rejected: &Rejected,
+    tx: mpsc::Sender<Received<M>>,
+    wrap: fn(T) -> M,
+) -> Result<Queryable<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+    M: Send + 'static,
+{
+    let rejected = rejected.clone();
+    session
+        .declare_queryable(key)
+        .callback(move |query| {
+            let key = query.key_expr().as_str();
+            let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+            let message = match decode::<T>(&bytes) {
+                Ok(message) => message,
+                Err(e) => return rejected.invalid(e, key),
+            };
+            let received = Received {
+                key: key.to_string(),
+                message: wrap(message),
+            };
+            match tx.try_send(received) {
+                Ok(()) => {
+                    if let Err(e) = query.reply(query.key_expr().clone(), Vec::<u8>::new()).wait() {
+                        tracing::warn!("cannot acknowledge what came on {key}: {e}");
+                    }
+                }
+                Err(mpsc::error::TrySendError::Full(_)) => rejected.overflow(key),
+                Err(mpsc::error::TrySendError::Closed(_)) => {}
+            }
+        })
+        .await
+        .map_err(|e| anyhow!("cannot take over {key}: {e}"))
+}
