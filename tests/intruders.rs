@@ -702,3 +702,71 @@ async fn a_vehicle_commanded_ahead_of_the_clock_by_another_process_fails_the_run
     let why = s["failure"].as_str().unwrap_or_default();
     assert!(why.contains("two processes commanded a vehicle"), "{s}");
 }
+
+/// An insider answers for the fleet's clock while the fleet waits for its world to start (the
+/// agents and the launcher's recorder ask every so often until it answers), with another
+/// mission's clock. Only the world that holds its role is listened to (`tcpf_core::claim`): the
+/// run goes on as in-process, and each forged answer is counted as from the wrong sender.
+/// Before, the first answer was taken, and every agent that heard it refused to run (exit 2).
+#[tokio::test(flavor = "multi_thread")]
+async fn a_clock_answered_by_another_process_than_the_world_is_counted_and_not_listened_to() {
+    let _fleet = fleet();
+    let dir = scratch("forged-clock");
+    let out = dir.join("p");
+    let mut launch = Launch::start(&paper("b-current"), &out, &["--recorders", "1"]);
+    endpoint(&launch);
+    let session = insider(&out).await;
+    let forged = tcpf_core::msg::Clock {
+        version: PROTOCOL_VERSION,
+        realtime: false,
+        time_scale: 1.0,
+        epoch: 0.0,
+        tick: 0,
+        mission: 0xdead_beef,
+    };
+    let bytes = postcard::to_stdvec(&forged).unwrap();
+    let answered = Arc::new(AtomicU64::new(0));
+    let count = answered.clone();
+    let _forger = session
+        .declare_queryable(key("clock"))
+        .callback(move |query| {
+            use zenoh::Wait;
+            count.fetch_add(1, Ordering::Relaxed);
+            let _ = query.reply(query.key_expr().clone(), bytes.clone()).wait();
+        })
+        .await
+        .unwrap();
+    let until = Instant::now() + Duration::from_secs(30);
+    while answered.load(Ordering::Relaxed) < 3 {
+        assert!(Instant::now() < until, "nobody asked for the clock");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let recorded = dir.join("r");
+    let recorder = tokio::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["record", &paper("b-current"), "-c"])
+        .arg(out.join("zenoh.json5"))
+        .arg("--out")
+        .arg(&recorded)
+        .kill_on_drop(true)
+        .output()
+        .await
+        .unwrap();
+    assert!(
+        recorder.status.success(),
+        "{}",
+        String::from_utf8_lossy(&recorder.stderr)
+    );
+    let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
+    session.close().await.unwrap();
+    let s = launch.summary();
+    assert!(status.success(), "{s}");
+    run_in_process(&paper("b-current"), &dir.join("i"), &[]);
+    assert_same_run(&out, &dir.join("i"));
+    let wrong = s["rejections"]["wrong_sender"].as_u64().unwrap();
+    eprintln!(
+        "forged clock answers: {} sent, {wrong} counted",
+        answered.load(Ordering::Relaxed)
+    );
+    assert!(wrong >= 1, "{s}");
+    assert_none_left(&s);
+}

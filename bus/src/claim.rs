@@ -96,6 +96,11 @@ pub async fn claim(session: &Session, keys: &Keys, role: Role, id: u32, mission:
     }
 }
 
+/// Who holds `role` `id`: the earliest of its claims the router knows, if any.
+pub async fn holder(session: &Session, keys: &Keys, role: Role, id: u32) -> Result<Option<Claim>> {
+    Ok(claims(session, keys, role, id).await?.into_iter().min())
+}
+
 /// The claims of `role` `id` the router knows.
 async fn claims(session: &Session, keys: &Keys, role: Role, id: u32) -> Result<Vec<Claim>> {
     let replies = session

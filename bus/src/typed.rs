@@ -15,6 +15,7 @@ use tcpf_core::path::GeneralizedPath;
 use tokio::sync::{mpsc, oneshot};
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Reliability};
+use zenoh::query::{ConsolidationMode, QueryTarget};
 use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait};
 
@@ -486,14 +487,26 @@ impl ClockServer {
 /// Asks the world for its clock once: `None` if the run has not started (or no world answers).
 pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> Result<Option<Clock>> {
     let key = keys.clock();
+    // Only the world that holds its role answers for the fleet's clock: another process that
+    // answers is counted, and not listened to.
+    let Some(world) = crate::claim::holder(session, keys, Role::World, 0).await? else {
+        return Ok(None);
+    };
+    // Every answer, not one per key: the world's must not be consolidated away behind another's.
     let replies = session
         .get(key.clone())
+        .target(QueryTarget::All)
+        .consolidation(ConsolidationMode::None)
         .timeout(Duration::from_secs(1))
         .await
         .map_err(|e| anyhow!("cannot query {key}: {e}"))?;
     let mut found = None;
     while let Ok(reply) = replies.recv_async().await {
         let Ok(sample) = reply.result() else { continue };
+        if reply.replier_id().map(|id| id.zid().to_string()) != Some(world.session.clone()) {
+            rejected.wrong_sender(&key);
+            continue;
+        }
         match decode::<Clock>(&sample.payload().to_bytes()) {
             Ok(clock) => found = found.or(Some(clock)),
             Err(e) => rejected.invalid(e, &key),

@@ -7,7 +7,7 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::clock::{check_clock, metronome, Beat, Expected, FleetClock};
+use tcpf_bus::clock::{check_clock, metronome, Beat, Expected, FleetClock, Monotonic};
 use tcpf_bus::handover::take_over;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
@@ -16,7 +16,7 @@ use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Command, End, Loss, Report, State, TickRecord};
 use tcpf_core::realtime::{Sampler, STATES_DUE_S};
 use tcpf_core::record::Recorder;
-use tcpf_core::watch::WorldWatch;
+use tcpf_core::watch::{Due, RecorderWaits};
 use tokio::sync::mpsc::{self, Receiver};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
@@ -31,9 +31,6 @@ use crate::progress::Ticks;
 use tcpf_core::summary::{self, Closing, Mode, Recorded, Summary};
 use tcpf_report::rundir::{RunDir, Telemetry};
 
-/// How long `tcpf record` waits, after the world's end (or after the world left without one),
-/// for a tick that does not come whole.
-const END_STALL: Duration = Duration::from_secs(5);
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
 /// fleet sends, so it may lag behind a fast lockstep fleet by many ticks (one message each).
 const INBOX: usize = 65_536;
@@ -437,90 +434,94 @@ pub async fn record(
     let (_presence, mut presence) = presence(&session, &keys).await.map_err(unrecorded)?;
     recording.declare().await.map_err(unrecorded)?;
     let progress = Ticks::new(mission);
-    let started = Instant::now();
-    // A world that dies says no end: without this the recording would wait for it forever.
-    let mut world = WorldWatch::new(0.0);
-    let now = || started.elapsed().as_secs_f64();
-    let instant = |s: f64| started + Duration::from_secs_f64(s);
-    let mut from_world = recording.from_world;
+    let clock = Monotonic::start();
+    let realtime = mission.mission.clock == ClockKind::Realtime;
+    // A world that dies says no end, and one may never come (another mission name, endpoint or
+    // credential): without these waits the recording would wait for it forever.
+    let mut waits = RecorderWaits::new(clock.now(), startup_timeout.as_secs_f64(), realtime);
+    let (mut from_world, mut written) = (recording.from_world, 0);
     // Who is present, asked on a task of its own while the recording goes on.
     let mut asking: Option<tokio::task::JoinHandle<Option<bool>>> = None;
-    // Nor would one that never comes (another mission name, endpoint or credential).
-    let give_up_at = started + startup_timeout;
-    let realtime = mission.mission.clock == ClockKind::Realtime;
     let mut failure = None;
     let interrupted = loop {
         if recording.complete() {
             break false;
         }
-        // When to give up: END_STALL without a tick after the end or after the world left; a
-        // realtime recording goes on sampling without a world, so there only its absence counts.
-        let stall_at = match world.left() {
-            Some(left) if realtime => Some(instant(left) + END_STALL),
-            left => (recording.end.is_some() || left.is_some()).then(|| recording.progress + END_STALL),
-        };
-        let ask_at = world.ask_at().filter(|_| asking.is_none()).map(instant);
+        let woken_for = waits.poll_timeout();
         tokio::select! {
             r = recording.step() => {
+                let ticks = recording.ticks();
                 if let Err(e) = r {
-                    if recording.ticks() == 0 {
+                    if ticks == 0 {
                         return Err(unrecorded(e));
                     }
                     tracing::error!("recorder: {e:#}; writing what was recorded");
                     failure = Some(format!("the recorder failed: {e:#}"));
                     break false;
                 }
-                progress.set(recording.ticks());
+                if ticks > written {
+                    written = ticks;
+                    waits.progressed(clock.now());
+                }
+                progress.set(ticks);
                 if recording.from_world > from_world {
                     from_world = recording.from_world;
-                    world.heard(now());
+                    waits.heard(clock.now());
+                }
+                if recording.end.is_some() {
+                    waits.ended();
                 }
             }
             _ = shutdown.recv() => break true,
             Some(p) = presence.recv() => {
                 if p.role == Role::World {
-                    world.on_presence(p.alive, now());
+                    waits.on_presence(p.alive, clock.now());
                 }
-            }
-            _ = tokio::time::sleep_until(ask_at.unwrap_or_else(Instant::now).into()), if ask_at.is_some() => {
-                let (session, keys) = (session.clone(), keys.clone());
-                asking = Some(tokio::spawn(async move {
-                    match present(&session, &keys).await {
-                        Ok(present) => Some(present.iter().any(|(role, _)| *role == Role::World)),
-                        Err(e) => {
-                            tracing::warn!("recorder: {e}");
-                            None
-                        }
-                    }
-                }));
             }
             answer = async { asking.as_mut().expect("asked").await }, if asking.is_some() => {
                 asking = None;
-                world.on_answer(answer.ok().flatten(), now());
-                if world.left().is_some() {
+                waits.on_answer(answer.ok().flatten(), clock.now());
+                if waits.left().is_some() {
                     tracing::warn!("recorder: the world's token is gone, though its leaving was never seen");
                 }
             }
-            _ = tokio::time::sleep_until(give_up_at.into()), if !world.seen() => {
-                return Err(unrecorded(anyhow!(
-                    "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
-                    mission.mission.name
-                )));
-            }
-            _ = tokio::time::sleep_until(stall_at.unwrap_or_else(Instant::now).into()), if stall_at.is_some() => {
-                let why = match recording.end {
-                    Some(_) => format!(
-                        "the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder)",
-                        recording.ticks()
-                    ),
-                    None => format!(
-                        "the world left without announcing the end, after tick {}",
-                        recording.world_ticks()
-                    ),
-                };
-                tracing::error!("recorder: {why}; writing what was recorded");
-                failure = Some(why);
-                break false;
+            _ = tokio::time::sleep_until(clock.at(woken_for.unwrap_or_default())), if woken_for.is_some() => {
+                match waits.handle_timeout(clock.now()) {
+                    None => {}
+                    Some(Due::Ask) => {
+                        let (session, keys) = (session.clone(), keys.clone());
+                        asking = Some(tokio::spawn(async move {
+                            match present(&session, &keys).await {
+                                Ok(present) => Some(present.iter().any(|(role, _)| *role == Role::World)),
+                                Err(e) => {
+                                    tracing::warn!("recorder: {e}");
+                                    None
+                                }
+                            }
+                        }));
+                    }
+                    Some(Due::NoWorld) => {
+                        return Err(unrecorded(anyhow!(
+                            "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
+                            mission.mission.name
+                        )));
+                    }
+                    Some(Due::Stalled) => {
+                        let why = match recording.end {
+                            Some(_) => format!(
+                                "the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder)",
+                                recording.ticks()
+                            ),
+                            None => format!(
+                                "the world left without announcing the end, after tick {}",
+                                recording.world_ticks()
+                            ),
+                        };
+                        tracing::error!("recorder: {why}; writing what was recorded");
+                        failure = Some(why);
+                        break false;
+                    }
+                }
             }
         }
     };
@@ -528,7 +529,7 @@ pub async fn record(
         question.abort();
     }
     progress.finish();
-    let wall_time_s = started.elapsed().as_secs_f64();
+    let wall_time_s = clock.now();
     // The world and the agents report as they exit, just after the end: a moment for them.
     let _ = tokio::time::timeout(REPORT_GRACE, async {
         while !interrupted && !recording.unreported().is_empty() {

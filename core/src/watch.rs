@@ -73,6 +73,107 @@ impl WorldWatch {
     }
 }
 
+/// How long a recorder waits, after the world's end or after the world left without one, for a
+/// tick that does not come whole, in seconds.
+pub const END_STALL_S: f64 = 5.0;
+
+/// What a recorder's wait found due.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Due {
+    /// Ask who is present: the world has been silent a while.
+    Ask,
+    /// No world came within the startup timeout.
+    NoWorld,
+    /// The world ended or left, and no tick was written for `END_STALL_S`; in realtime, the
+    /// world has been gone that long.
+    Stalled,
+}
+
+/// Every wait of `tcpf record`, as one machine: for a world to come (within the startup
+/// timeout), whether a silent one is still there (`WorldWatch`), and for the last ticks once it
+/// ended or left. A realtime recording goes on sampling without a world, so there only the
+/// world's absence counts. Times are inputs, in seconds.
+pub struct RecorderWaits {
+    world: WorldWatch,
+    give_up_at: f64,
+    realtime: bool,
+    /// When the last tick was written (or the recording started).
+    progress: f64,
+    ended: bool,
+    /// A question about the world is out: not asked again until it is answered.
+    asking: bool,
+}
+
+impl RecorderWaits {
+    pub fn new(now: f64, startup_timeout_s: f64, realtime: bool) -> RecorderWaits {
+        RecorderWaits {
+            world: WorldWatch::new(now),
+            give_up_at: now + startup_timeout_s,
+            realtime,
+            progress: now,
+            ended: false,
+            asking: false,
+        }
+    }
+
+    pub fn on_presence(&mut self, alive: bool, now: f64) {
+        self.world.on_presence(alive, now);
+    }
+
+    /// A message from the world.
+    pub fn heard(&mut self, now: f64) {
+        self.world.heard(now);
+    }
+
+    /// A tick was written.
+    pub fn progressed(&mut self, now: f64) {
+        self.progress = now;
+    }
+
+    /// The world's end came.
+    pub fn ended(&mut self) {
+        self.ended = true;
+    }
+
+    /// The answer to the question `Due::Ask` called for (see `WorldWatch::on_answer`).
+    pub fn on_answer(&mut self, there: Option<bool>, now: f64) {
+        self.asking = false;
+        self.world.on_answer(there, now);
+    }
+
+    pub fn left(&self) -> Option<f64> {
+        self.world.left()
+    }
+
+    fn stall_at(&self) -> Option<f64> {
+        match self.world.left() {
+            Some(left) if self.realtime => Some(left + END_STALL_S),
+            left => (self.ended || left.is_some()).then_some(self.progress + END_STALL_S),
+        }
+    }
+
+    pub fn poll_timeout(&self) -> Option<f64> {
+        let give_up = (!self.world.seen()).then_some(self.give_up_at);
+        let ask = self.world.ask_at().filter(|_| !self.asking);
+        [give_up, ask, self.stall_at()].into_iter().flatten().reduce(f64::min)
+    }
+
+    /// What is due at `now`, if anything; `Ask` marks the question as out.
+    pub fn handle_timeout(&mut self, now: f64) -> Option<Due> {
+        if !self.world.seen() && now >= self.give_up_at {
+            return Some(Due::NoWorld);
+        }
+        if self.stall_at().is_some_and(|at| now >= at) {
+            return Some(Due::Stalled);
+        }
+        if !self.asking && self.world.ask_at().is_some_and(|at| now >= at) {
+            self.asking = true;
+            return Some(Due::Ask);
+        }
+        None
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -114,5 +215,57 @@ mod tests {
         assert_eq!(watch.left(), Some(at(32)), "it says nothing either way");
         watch.on_presence(false, at(33));
         assert_eq!(watch.left(), Some(at(33)), "its token's going is enough");
+    }
+
+    #[test]
+    fn a_recorder_gives_up_on_a_world_that_never_comes() {
+        let mut waits = RecorderWaits::new(0.0, 60.0, false);
+        assert_eq!(waits.poll_timeout(), Some(60.0));
+        assert_eq!(waits.handle_timeout(59.0), None);
+        assert_eq!(waits.handle_timeout(60.0), Some(Due::NoWorld));
+        waits.on_presence(true, 61.0);
+        assert_eq!(waits.handle_timeout(61.0), None, "it came, late but before the look");
+    }
+
+    #[test]
+    fn a_recorder_asks_after_a_silent_world_once_at_a_time() {
+        let mut waits = RecorderWaits::new(0.0, 60.0, false);
+        waits.on_presence(true, 1.0);
+        assert_eq!(waits.poll_timeout(), Some(1.0 + SILENCE_S));
+        assert_eq!(waits.handle_timeout(6.0), Some(Due::Ask));
+        assert_eq!(waits.poll_timeout(), None, "not asked again while the question is out");
+        assert_eq!(waits.handle_timeout(30.0), None);
+        waits.progressed(10.0);
+        waits.on_answer(Some(false), 7.0);
+        assert_eq!(waits.handle_timeout(12.0), Some(Due::Ask));
+        waits.on_answer(Some(false), 12.0);
+        assert_eq!(waits.left(), Some(12.0));
+        assert_eq!(
+            waits.poll_timeout(),
+            Some(10.0 + END_STALL_S),
+            "then the last ticks are waited for, from the last one written"
+        );
+        assert_eq!(waits.handle_timeout(15.0), Some(Due::Stalled));
+    }
+
+    #[test]
+    fn after_the_end_a_recorder_waits_for_the_last_ticks_from_the_last_one_written() {
+        let mut lockstep = RecorderWaits::new(0.0, 60.0, false);
+        lockstep.on_presence(true, 0.0);
+        lockstep.heard(4.0);
+        lockstep.progressed(4.0);
+        lockstep.ended();
+        assert_eq!(lockstep.poll_timeout(), Some(4.0 + END_STALL_S));
+        lockstep.heard(6.0);
+        lockstep.progressed(6.0);
+        assert_eq!(lockstep.handle_timeout(9.0), None, "a tick written since");
+        assert_eq!(lockstep.handle_timeout(11.0), Some(Due::Stalled));
+        // Realtime samples on without the world: only how long it has been gone counts.
+        let mut realtime = RecorderWaits::new(0.0, 60.0, true);
+        realtime.on_presence(true, 0.0);
+        realtime.on_presence(false, 20.0);
+        realtime.progressed(24.0);
+        assert_eq!(realtime.poll_timeout(), Some(20.0 + END_STALL_S));
+        assert_eq!(realtime.handle_timeout(25.0), Some(Due::Stalled));
     }
 }
