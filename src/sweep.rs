@@ -19,68 +19,8 @@ pub fn run(
     processes: bool,
     out: Option<&Path>,
 ) -> Result<ExitCode, Failure> {
-    let (key, column, values): (String, String, Vec<String>) = match param {
-        Some(p) => {
-            let (k, v) = p
-                .split_once('=')
-                .ok_or_else(|| Failure::Input(anyhow!("--param {p}: expected KEY=V1,V2,...")))?;
-            (
-                k.trim().into(),
-                k.trim().into(),
-                v.split(',').map(|s| s.trim().to_string()).collect(),
-            )
-        }
-        None => (
-            "comms.loss".into(),
-            "loss".into(),
-            loss.iter().map(|s| s.trim().to_string()).collect(),
-        ),
-    };
-    if values.iter().any(|v| v.is_empty()) {
-        return Err(Failure::Input(anyhow!("{key}: an empty value in {}", values.join(","))));
-    }
-    // The `--set` that names `k`, if one does.
-    let set_of = |k: &str| {
-        args.set
-            .iter()
-            .find(|s| s.split_once('=').is_some_and(|(set, _)| set.trim() == k))
-    };
-    if key == "mission.seed" || set_of("mission.seed").is_some() {
-        return Err(Failure::Input(anyhow!(
-            "mission.seed: the sweep gives each run its seed (--seeds N: 1 to N); sweep or set another key"
-        )));
-    }
-    // Runs are counted, and written in sweep.json, as integers JSON keeps exact.
-    if (values.len() as u64)
-        .checked_mul(seeds)
-        .is_none_or(|runs| runs > 1 << 53)
-    {
-        return Err(Failure::Input(anyhow!(
-            "--seeds {seeds}: {} values × {seeds} seeds are more runs than a sweep counts (2^53)",
-            values.len()
-        )));
-    }
-    if let Some(set) = set_of(&key) {
-        return Err(Failure::Input(anyhow!(
-            "--set {set}: {key} is the key the sweep sets, value by value"
-        )));
-    }
-    if let Some(v) = values.iter().find(|v| v.starts_with('[') || v.ends_with(']')) {
-        return Err(Failure::Input(anyhow!(
-            "{key}: {v} is part of an array, and an array cannot be swept: the values are split at commas"
-        )));
-    }
-    // "0" and "0.0" are one number: the same runs twice.
-    let same = |a: &str, b: &str| a == b || matches!((a.parse::<f64>(), b.parse::<f64>()), (Ok(x), Ok(y)) if x == y);
-    if let Some((v, w)) = values
-        .iter()
-        .enumerate()
-        .find_map(|(i, v)| values[..i].iter().find(|w| same(v, w)).map(|w| (v, w)))
-    {
-        return Err(Failure::Input(anyhow!(
-            "{key}: the value {v} is swept twice ({w} and {v})"
-        )));
-    }
+    let sweep::Swept { key, column, values } =
+        sweep::Swept::parse(param, loss, &args.set, seeds).map_err(|e| Failure::Input(e.into()))?;
     fresh_out(out)?;
     let mut grid = sweep::Grid {
         values: Vec::with_capacity(values.len()),

@@ -11,11 +11,16 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
+use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{presence, subscribe, subscribe_with, Outlet, Rejected};
 use tcpf_core::mission::{Mission, VehicleKind};
 use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::{world_alone, world_and_laws, Fleet};
+use tcpf_core::summary::Summary;
+use tcpf_report::rundir::RunDir;
+
+use crate::launcher;
 use tokio::process::{Child, Command};
 
 const PING: &str = "tcpf/bench/ping";
@@ -318,4 +323,182 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
     }
     let _ = router.close().await;
     Ok(footprint)
+}
+
+/// Measures `mission`'s lockstep fleet, saying each figure beside its baseline as soon as it has
+/// both (`planned`: how long the plan took on every core); `false` if a signal stopped it, which
+/// leaves no child and no scratch directory.
+pub async fn measure(
+    mission: &Mission,
+    plan: &Plan,
+    planned: Duration,
+    exe: &Path,
+    count: u64,
+    shutdown: &mut Shutdown,
+    mut say: impl FnMut(String),
+) -> Result<bool> {
+    let seconds = |d: Duration| d.as_secs_f64();
+    let started = Instant::now();
+    let _ = tcpf_core::planner::plan(mission);
+    let on_one = started.elapsed();
+    say(format!(
+        "plan ({} vehicles): {:.3} s on {} cores, {:.3} s on one (baseline): {:.2}x",
+        plan.vehicles.len(),
+        seconds(planned),
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        seconds(on_one),
+        seconds(on_one) / seconds(planned)
+    ));
+    let took = in_process(mission, plan, 3);
+    let rate = |d: Duration| took.steps as f64 / seconds(d) / 1e6;
+    say(format!(
+        "in-process: {:.2} M vehicle-steps/s; the world alone (baseline) {:.2} M/s: {:.2}x; \
+         the world and the laws alone {:.2} M/s: {:.2}x",
+        rate(took.fleet),
+        rate(took.world),
+        rate(took.fleet) / rate(took.world),
+        rate(took.laws),
+        rate(took.fleet) / rate(took.laws)
+    ));
+    let [(_, kinematic), (_, medusa)] = vehicle_models(mission, plan, 3);
+    let per_second = |t: &InProcess| t.steps as f64 / seconds(t.fleet) / 1e6;
+    say(format!(
+        "in-process on MEDUSA (every vehicle): {:.2} M vehicle-steps/s; kinematic (baseline) {:.2} M/s: {:.2}x",
+        per_second(&medusa),
+        per_second(&kinematic),
+        per_second(&medusa) / per_second(&kinematic)
+    ));
+
+    // This process's own scratch directory: one a killed bench of the same pid left is stale.
+    let scratch = std::env::temp_dir().join(format!("tcpf-bench-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&scratch);
+    let measured = processes(mission, plan, exe, count, &scratch, shutdown).await;
+    let _ = std::fs::remove_dir_all(&scratch);
+    let Some(Processes {
+        direct,
+        routed,
+        fleet,
+        ros2,
+        busiest,
+        idle,
+    }) = measured?
+    else {
+        return Ok(false);
+    };
+    let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
+    let tick = fleet.tick_wall_time_us;
+    say(format!(
+        "zenoh round trip between two processes: median {:.1} µs direct, {:.1} µs through a router",
+        median(&direct),
+        median(&routed)
+    ));
+    say(format!(
+        "lockstep tick ({} vehicles, {} ticks): {:.1} µs; tick / round trip: {:.2} direct, {:.2} through a router",
+        plan.vehicles.len(),
+        fleet.results.ticks,
+        tick,
+        tick / median(&direct),
+        tick / median(&routed)
+    ));
+    say(format!(
+        "lockstep tick with --ros2 (odometry and /clock, no ROS 2 subscriber): {:.1} µs; / without it: {:.2}",
+        ros2.tick_wall_time_us,
+        ros2.tick_wall_time_us / tick
+    ));
+    // A short mission's wall time is much its start: the tick says how fast the fleet runs.
+    say(format!(
+        "simulated / wall time: {:.1} by the tick, {:.1} from the start to the end",
+        mission.mission.control_period / (tick * 1e-6),
+        fleet.speedup()
+    ));
+    let (rss, pss) = busiest.per_process_mib();
+    let (idle_rss, idle_pss) = idle.per_process_mib();
+    say(format!(
+        "per agent: RSS {rss:.1} MiB, PSS {pss:.1} MiB; an idle Zenoh client (baseline): RSS {idle_rss:.1} MiB, PSS {idle_pss:.1} MiB"
+    ));
+    say(format!(
+        "agents' sockets: {} for {} agents; idle clients' (baseline): {}",
+        busiest.sockets, busiest.processes, idle.sockets
+    ));
+    Ok(true)
+}
+
+/// What the bench measures of processes: round trips, the fleet, the fleet speaking ROS 2, and
+/// the footprints of its agents and of as many idle clients.
+struct Processes {
+    direct: Vec<Duration>,
+    routed: Vec<Duration>,
+    fleet: Summary,
+    ros2: Summary,
+    busiest: Footprint,
+    idle: Footprint,
+}
+
+/// `None` if a signal stopped it: its children go (dropped, they are killed).
+async fn processes(
+    mission: &Mission,
+    plan: &Plan,
+    exe: &Path,
+    count: u64,
+    scratch: &Path,
+    shutdown: &mut Shutdown,
+) -> Result<Option<Processes>> {
+    let Some(direct) = shutdown.unless(ping(exe, count, false)).await else {
+        return Ok(None);
+    };
+    let Some(routed) = shutdown.unless(ping(exe, count, true)).await else {
+        return Ok(None);
+    };
+    let dir = RunDir::create(Some(scratch), mission)?;
+    // The fleet's footprint, sampled while it runs: the largest seen.
+    let sampling = tokio::spawn(async {
+        let mut busiest = Footprint::default();
+        loop {
+            // Often enough to see a fleet of a second at least once.
+            tokio::time::sleep(Duration::from_millis(100)).await;
+            let now = tokio::task::spawn_blocking(|| Footprint::of_children("agent"))
+                .await
+                .unwrap_or_default();
+            if now.pss_kib > busiest.pss_kib {
+                busiest = now;
+            }
+            if now.processes == 0 && busiest.processes > 0 {
+                return busiest;
+            }
+        }
+    });
+    let fleet = launcher::run(mission, plan, &dir, exe, launcher::Options::default()).await?;
+    let busiest = tokio::time::timeout(Duration::from_secs(2), sampling).await;
+    let busiest = busiest.ok().and_then(Result::ok).unwrap_or_default();
+    if fleet.interrupted {
+        return Ok(None);
+    }
+    // The same fleet speaking ROS 2 beside its own protocol (odometry and /clock every tick), with
+    // no ROS 2 subscriber: what --ros2 costs the fleet itself.
+    let speaking = RunDir::create(Some(&scratch.join("ros2")), mission)?;
+    let options = launcher::Options {
+        ros2: Some(0),
+        ..launcher::Options::default()
+    };
+    let Some(ros2) = shutdown
+        .unless(launcher::run(mission, plan, &speaking, exe, options))
+        .await
+    else {
+        return Ok(None);
+    };
+    let ros2 = ros2?;
+    if ros2.interrupted {
+        return Ok(None);
+    }
+    let Some(idle) = shutdown.unless(idle_fleet(exe, plan.vehicles.len())).await else {
+        return Ok(None);
+    };
+    Ok(Some(Processes {
+        direct: direct?,
+        routed: routed?,
+        fleet,
+        ros2,
+        busiest,
+        idle: idle?,
+    }))
 }

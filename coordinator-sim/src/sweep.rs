@@ -54,6 +54,89 @@ impl Grid {
     }
 }
 
+/// A sweep asked for that cannot be run: bad input, said before anything is written.
+#[derive(Debug)]
+pub struct BadSweep(pub String);
+
+impl std::fmt::Display for BadSweep {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BadSweep {}
+
+/// The key a sweep sets, and its values, as `--param KEY=V1,V2,...` or `--loss V1,V2,...` gave
+/// them: checked against each other, the `--set`s beside them (`sets`) and the number of seeds.
+pub struct Swept {
+    pub key: String,
+    /// The column that names it in the sweep's tables.
+    pub column: String,
+    pub values: Vec<String>,
+}
+
+impl Swept {
+    pub fn parse(param: Option<&str>, loss: &[String], sets: &[String], seeds: u64) -> Result<Swept, BadSweep> {
+        let bad = |m: String| Err(BadSweep(m));
+        let (key, column, values): (String, String, Vec<String>) = match param {
+            Some(p) => {
+                let Some((k, v)) = p.split_once('=') else {
+                    return bad(format!("--param {p}: expected KEY=V1,V2,..."));
+                };
+                let values = v.split(',').map(|s| s.trim().to_string()).collect();
+                (k.trim().into(), k.trim().into(), values)
+            }
+            None => (
+                "comms.loss".into(),
+                "loss".into(),
+                loss.iter().map(|s| s.trim().to_string()).collect(),
+            ),
+        };
+        if values.iter().any(|v| v.is_empty()) {
+            return bad(format!("{key}: an empty value in {}", values.join(",")));
+        }
+        // The `--set` that names `k`, if one does.
+        let set_of = |k: &str| {
+            sets.iter()
+                .find(|s| s.split_once('=').is_some_and(|(set, _)| set.trim() == k))
+        };
+        if key == "mission.seed" || set_of("mission.seed").is_some() {
+            return bad(
+                "mission.seed: the sweep gives each run its seed (--seeds N: 1 to N); sweep or set another key".into(),
+            );
+        }
+        // Runs are counted, and written in sweep.json, as integers JSON keeps exact.
+        if (values.len() as u64)
+            .checked_mul(seeds)
+            .is_none_or(|runs| runs > 1 << 53)
+        {
+            return bad(format!(
+                "--seeds {seeds}: {} values × {seeds} seeds are more runs than a sweep counts (2^53)",
+                values.len()
+            ));
+        }
+        if let Some(set) = set_of(&key) {
+            return bad(format!("--set {set}: {key} is the key the sweep sets, value by value"));
+        }
+        if let Some(v) = values.iter().find(|v| v.starts_with('[') || v.ends_with(']')) {
+            return bad(format!(
+                "{key}: {v} is part of an array, and an array cannot be swept: the values are split at commas"
+            ));
+        }
+        // "0" and "0.0" are one number: the same runs twice.
+        let same =
+            |a: &str, b: &str| a == b || matches!((a.parse::<f64>(), b.parse::<f64>()), (Ok(x), Ok(y)) if x == y);
+        if let Some((v, w)) = values
+            .iter()
+            .enumerate()
+            .find_map(|(i, v)| values[..i].iter().find(|w| same(v, w)).map(|w| (v, w)))
+        {
+            return bad(format!("{key}: the value {v} is swept twice ({w} and {v})"));
+        }
+        Ok(Swept { key, column, values })
+    }
+}
+
 fn progress(total: u64) -> ProgressBar {
     let bar = ProgressBar::new(total);
     bar.set_style(
@@ -168,4 +251,44 @@ pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, 
     }
     bar.finish_and_clear();
     Ok(false)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refused(param: Option<&str>, loss: &[&str], sets: &[&str], seeds: u64) -> String {
+        let loss: Vec<String> = loss.iter().map(|s| s.to_string()).collect();
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        match Swept::parse(param, &loss, &sets, seeds) {
+            Ok(_) => panic!("{param:?} {loss:?} {sets:?} taken"),
+            Err(e) => e.0,
+        }
+    }
+
+    #[test]
+    fn a_sweep_names_its_key_and_values_or_says_what_it_cannot_sweep() {
+        let loss = Swept::parse(None, &["0".into(), " 0.2".into()], &[], 5).unwrap();
+        assert_eq!((loss.key.as_str(), loss.column.as_str()), ("comms.loss", "loss"));
+        assert_eq!(loss.values, ["0", "0.2"]);
+        let gain = Swept::parse(Some("coord.k_c = 0.1,0.5"), &[], &["comms.loss=0.1".into()], 1).unwrap();
+        assert_eq!((gain.key.as_str(), gain.values.len()), ("coord.k_c", 2));
+        assert_eq!(
+            refused(Some("coord.k_c"), &[], &[], 1),
+            "--param coord.k_c: expected KEY=V1,V2,..."
+        );
+        assert!(refused(Some("a=1,,2"), &[], &[], 1).contains("an empty value"));
+        assert!(refused(Some("mission.seed=1,2"), &[], &[], 1).starts_with("mission.seed: the sweep gives"));
+        assert!(refused(None, &["0.1"], &["mission.seed=3"], 1).starts_with("mission.seed"));
+        assert!(refused(None, &["0.1", "0.2"], &[], 1 << 53).contains("more runs than a sweep counts"));
+        assert_eq!(
+            refused(None, &["0.1"], &["comms.loss=0.3"], 1),
+            "--set comms.loss=0.3: comms.loss is the key the sweep sets, value by value"
+        );
+        assert!(refused(Some("comms.link=[1,2]"), &[], &[], 1).contains("an array cannot be swept"));
+        assert_eq!(
+            refused(None, &["0", "0.0"], &[], 1),
+            "comms.loss: the value 0.0 is swept twice (0 and 0.0)"
+        );
+    }
 }
