@@ -17,7 +17,7 @@ use tcpf_bus::typed::{
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
-use tcpf_core::membership::{StaleCheck, StaleTimer, WorldAway, WorldReach};
+use tcpf_core::membership::{AgentStartup, Peer, StaleCheck, StaleTimer, StartupCheck, WorldAway, WorldReach};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
 use tcpf_core::realtime::RealtimeAgent;
@@ -305,36 +305,28 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
 
     // The world's token first: its clock is declared before it, so whether the run is under way
     // (the clock answers) is then known for sure.
-    let (mut world, mut planner) = (false, false);
-    let mut present: Vec<u32> = Vec::new();
-    let deadline = tokio::time::Instant::now() + options.startup_timeout;
-    let mut note = |p: Presence, world: &mut bool, planner: &mut bool| match p.role {
-        Role::World => *world = p.alive,
-        Role::Planner => *planner = p.alive,
-        Role::Agent if neighbours.contains(&p.id) => {
-            present.retain(|&j| j != p.id);
-            if p.alive {
-                present.push(p.id);
-            }
-        }
-        _ => {}
-    };
-    while !(world && planner) {
-        let Some(arrived) = shutdown
-            .unless(tokio::time::timeout_at(deadline, presence.recv()))
-            .await
-        else {
+    let monotonic = Monotonic::start();
+    let mut startup = AgentStartup::new(&neighbours, options.startup_timeout, monotonic.now());
+    while !startup.fleet_here() {
+        let wake = monotonic.at(startup.poll_timeout());
+        let Some(arrived) = shutdown.unless(tokio::time::timeout_at(wake, presence.recv())).await else {
             return Ok(Exit::Interrupted);
         };
         match arrived {
-            Ok(Some(p)) => note(p, &mut world, &mut planner),
+            Ok(Some(p)) => {
+                if let Some(peer) = peer(p) {
+                    startup.on_presence(peer, p.alive);
+                }
+            }
             Ok(None) => return Err(anyhow!("liveliness subscription closed")),
             Err(_) => {
-                return Err(anyhow!(
-                    "agent {id}: no world and planner for mission {} within {:?}",
-                    mission.mission.name,
-                    options.startup_timeout
-                ))
+                if let Some(StartupCheck::NoFleet) = startup.handle_timeout(monotonic.now()) {
+                    return Err(anyhow!(
+                        "agent {id}: no world and planner for mission {} within {:?}",
+                        mission.mission.name,
+                        options.startup_timeout
+                    ));
+                }
             }
         }
     }
@@ -365,7 +357,11 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         Inbound::Queued(queued) => {
             let clock = match under_way {
                 Some(clock) => Some(clock),
-                None => shell.wait_for_clock(mission, deadline).await?,
+                None => {
+                    shell
+                        .wait_for_clock(mission, monotonic.at(startup.poll_timeout()))
+                        .await?
+                }
             };
             match clock {
                 Some(clock) => shell.realtime(mission, *queued, &clock).await?,
@@ -376,37 +372,36 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             if under_way.is_some() {
                 feed.with(AgentNode::rejoin);
             } else {
-                // A neighbour counts once its token is seen, so that the first tick waits for
-                // exactly the neighbours every later tick waits for.
-                for &j in &neighbours {
-                    feed.with(|node| node.set_gone(j, !present.contains(&j)));
-                }
-                while !feed.with(|node| node.all_present()) {
-                    let Some(arrived) = shell
-                        .shutdown
-                        .unless(tokio::time::timeout_at(deadline, shell.presence.recv()))
-                        .await
-                    else {
+                while startup.deserted().is_none() && !startup.absent().is_empty() {
+                    let wake = monotonic.at(startup.poll_timeout());
+                    let waited = tokio::time::timeout_at(wake, shell.presence.recv());
+                    let Some(arrived) = shell.shutdown.unless(waited).await else {
                         return Ok(Exit::Interrupted);
                     };
                     match arrived {
-                        Ok(Some(p)) if p.role == Role::Agent && neighbours.contains(&p.id) => {
-                            feed.with(|node| node.set_gone(p.id, !p.alive))
+                        Ok(Some(p)) => {
+                            if let Some(peer) = peer(p) {
+                                startup.on_presence(peer, p.alive);
+                            }
                         }
-                        // The world gives up when the fleet is not there within its startup
-                        // timeout: its token goes, and no tick will ever come.
-                        Ok(Some(p)) if matches!(p.role, Role::World | Role::Planner) && !p.alive => {
-                            tracing::warn!("agent {id}: the {} is gone before the run started; stopping", p.role);
-                            return Ok(Exit::Orphaned);
-                        }
-                        Ok(Some(_)) => {}
                         Ok(None) => return Err(anyhow!("liveliness subscription closed")),
                         Err(_) => {
-                            let absent = feed.lock().node.absent();
-                            tracing::warn!("agent {id}: starting without neighbours {absent:?}");
-                            break;
+                            if let Some(StartupCheck::WithoutNeighbours(absent)) =
+                                startup.handle_timeout(monotonic.now())
+                            {
+                                tracing::warn!("agent {id}: starting without neighbours {absent:?}");
+                                break;
+                            }
                         }
                     }
+                }
+                if let Some(gone) = startup.deserted() {
+                    tracing::warn!("agent {id}: the {gone} is gone before the run started; stopping");
+                    return Ok(Exit::Orphaned);
+                }
+                let absent = startup.absent();
+                for &j in &neighbours {
+                    feed.with(|node| node.set_gone(j, absent.contains(&j)));
                 }
             }
             let exit = shell
@@ -421,6 +416,16 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let _ = claimed.undeclare().await;
     let _ = shell.session.close().await;
     Ok(exit)
+}
+
+/// Whom a liveliness change is about, for an agent's startup.
+fn peer(p: Presence) -> Option<Peer> {
+    match p.role {
+        Role::World => Some(Peer::World),
+        Role::Planner => Some(Peer::Planner),
+        Role::Agent => Some(Peer::Neighbour(p.id)),
+        Role::Record => None,
+    }
 }
 
 /// This agent's clock against the world's.

@@ -20,7 +20,7 @@ use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode};
 use crate::keys::{Keys, Role};
-use crate::typed::{present, Received, Rejected};
+use crate::typed::{enqueue, present, Received, Rejected};
 
 /// How many times a sender asks a recorder that does not answer.
 pub const ATTEMPTS: u32 = 3;
@@ -116,18 +116,10 @@ where
                 Ok(message) => message,
                 Err(e) => return rejected.invalid(e, key),
             };
-            let received = Received {
-                key: key.to_string(),
-                message: wrap(message),
-            };
-            match tx.try_send(received) {
-                Ok(()) => {
-                    if let Err(e) = query.reply(query.key_expr().clone(), Vec::<u8>::new()).wait() {
-                        tracing::warn!("cannot acknowledge what came on {key}: {e}");
-                    }
+            if enqueue(&tx, key, wrap(message), &rejected) {
+                if let Err(e) = query.reply(query.key_expr().clone(), Vec::<u8>::new()).wait() {
+                    tracing::warn!("cannot acknowledge what came on {key}: {e}");
                 }
-                Err(mpsc::error::TrySendError::Full(_)) => rejected.overflow(key),
-                Err(mpsc::error::TrySendError::Closed(_)) => {}
             }
         })
         .await

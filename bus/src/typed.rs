@@ -10,7 +10,7 @@ use anyhow::{anyhow, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tcpf_core::lockstep::{Reject, Timing};
-use tcpf_core::msg::{Checked, Clock, PathMsg, PeriodTiming, Rejections, Report, PROTOCOL_VERSION};
+use tcpf_core::msg::{Checked, Clock, PathMsg, PeriodTiming, Rejections, Report};
 use tcpf_core::path::GeneralizedPath;
 use tokio::sync::{mpsc, oneshot};
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -71,7 +71,7 @@ impl Rejected {
         self.bump(key, |r| r.wrong_sender += 1);
     }
 
-    pub(crate) fn overflow(&self, key: &str) {
+    fn overflow(&self, key: &str) {
         self.bump(key, |r| r.overflow += 1);
     }
 
@@ -171,15 +171,26 @@ where
 {
     let overflowed = rejected.clone();
     subscribe_with(session, key, rejected, move |key, message| {
-        let received = Received {
-            key: key.to_string(),
-            message: wrap(message),
-        };
-        if let Err(mpsc::error::TrySendError::Full(_)) = tx.try_send(received) {
-            overflowed.overflow(key);
-        }
+        enqueue(&tx, key, wrap(message), &overflowed);
     })
     .await
+}
+
+/// Queues what came on `key` for its receiver, counted as dropped if the queue is full; whether
+/// it was queued.
+pub(crate) fn enqueue<M>(tx: &mpsc::Sender<Received<M>>, key: &str, message: M, rejected: &Rejected) -> bool {
+    let received = Received {
+        key: key.to_string(),
+        message,
+    };
+    match tx.try_send(received) {
+        Ok(()) => true,
+        Err(mpsc::error::TrySendError::Full(_)) => {
+            rejected.overflow(key);
+            false
+        }
+        Err(mpsc::error::TrySendError::Closed(_)) => false,
+    }
 }
 
 /// Subscribes to `key` and hands every usable message of type T, with the key it came on, to
@@ -568,15 +579,12 @@ pub async fn report(
     let (realtime, published) = realtime.map_or((None, 0), |(t, p)| (Some(t), p));
     rejected.flush();
     let report = Report {
-        version: PROTOCOL_VERSION,
-        role: role.as_str().into(),
-        id,
-        pid: std::process::id(),
         rejected: rejected.totals(),
         stale_timeouts: timing.stale_timeouts,
         late_gammas: timing.late_gammas.clone(),
         timing: realtime,
         published,
+        ..Report::new(role, id, std::process::id())
     };
     let what = format!("the exit report of {role} {id}");
     crate::handover::hand_over(session, keys, keys.report(role, id), &report, &what).await?;

@@ -577,20 +577,9 @@ fn keep_report(reports: &mut Vec<Report>, keys: &Keys, key: &str, report: Report
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tcpf_core::msg::PROTOCOL_VERSION;
 
     fn report(role: Role, id: u32) -> Report {
-        Report {
-            version: PROTOCOL_VERSION,
-            role: role.as_str().into(),
-            id,
-            pid: 1,
-            rejected: Default::default(),
-            stale_timeouts: 0,
-            late_gammas: vec![],
-            timing: None,
-            published: 0,
-        }
+        Report::new(role, id, 1)
     }
 
     #[test]

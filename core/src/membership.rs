@@ -246,6 +246,116 @@ fn late_by(s: f64) -> Option<Duration> {
     Duration::try_from_secs_f64(s).ok()
 }
 
+/// Whom an agent meets before it starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Peer {
+    World,
+    Planner,
+    Neighbour(u32),
+}
+
+impl fmt::Display for Peer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Peer::World => f.write_str("world"),
+            Peer::Planner => f.write_str("planner"),
+            Peer::Neighbour(j) => write!(f, "agent {j}"),
+        }
+    }
+}
+
+/// What an agent's startup found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StartupCheck {
+    /// The world or the planner is not there by the startup timeout: nobody to act for.
+    NoFleet,
+    /// The startup timeout passed with these neighbours absent: the agent starts without them.
+    WithoutNeighbours(Vec<u32>),
+}
+
+/// An agent before its first tick: it waits for the world and the planner, then (in lockstep,
+/// in a run not yet under way) for its neighbours, all within one startup timeout. A neighbour
+/// counts once its token is seen, so that the first tick waits for exactly the neighbours every
+/// later tick waits for.
+pub struct AgentStartup {
+    world: bool,
+    planner: bool,
+    /// Whether the world or the planner went after both had come.
+    deserted: Option<Peer>,
+    neighbours: Vec<u32>,
+    present: BTreeSet<u32>,
+    deadline: f64,
+}
+
+impl AgentStartup {
+    pub fn new(neighbours: &[u32], timeout: Duration, now: f64) -> AgentStartup {
+        AgentStartup {
+            world: false,
+            planner: false,
+            deserted: None,
+            neighbours: neighbours.to_vec(),
+            present: BTreeSet::new(),
+            deadline: now + timeout.as_secs_f64(),
+        }
+    }
+
+    pub fn on_presence(&mut self, peer: Peer, alive: bool) {
+        let here = self.fleet_here();
+        match peer {
+            Peer::World => self.world = alive,
+            Peer::Planner => self.planner = alive,
+            Peer::Neighbour(j) if self.neighbours.contains(&j) => {
+                if alive {
+                    self.present.insert(j);
+                } else {
+                    self.present.remove(&j);
+                }
+            }
+            Peer::Neighbour(_) => {}
+        }
+        if here && !alive && matches!(peer, Peer::World | Peer::Planner) {
+            self.deserted.get_or_insert(peer);
+        }
+    }
+
+    /// The world and the planner are both there.
+    pub fn fleet_here(&self) -> bool {
+        self.world && self.planner
+    }
+
+    /// The world or the planner that went once both were there: the world gives up when the
+    /// fleet is not there within its startup timeout, and no tick will ever come.
+    pub fn deserted(&self) -> Option<Peer> {
+        self.deserted
+    }
+
+    /// The neighbours whose token has not been seen (or went).
+    pub fn absent(&self) -> Vec<u32> {
+        self.neighbours
+            .iter()
+            .copied()
+            .filter(|j| !self.present.contains(j))
+            .collect()
+    }
+
+    pub fn poll_timeout(&self) -> f64 {
+        self.deadline
+    }
+
+    /// What the startup timeout leaves, once it has passed: without the fleet, nothing to do;
+    /// without some neighbours, a start without them.
+    pub fn handle_timeout(&self, now: f64) -> Option<StartupCheck> {
+        if now < self.deadline {
+            return None;
+        }
+        if !self.fleet_here() {
+            return Some(StartupCheck::NoFleet);
+        }
+        let absent = self.absent();
+        (!absent.is_empty()).then_some(StartupCheck::WithoutNeighbours(absent))
+    }
+}
+
 /// What a stale timer's wake-up found.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum StaleCheck {
@@ -523,5 +633,36 @@ mod tests {
         assert_eq!(w.poll_timeout(), None);
         w.on_world(false, 40.0);
         assert!(w.handle_timeout(100.0), "did not come back");
+    }
+
+    #[test]
+    fn an_agent_waits_for_its_world_planner_and_neighbours_within_one_timeout() {
+        let mut start = AgentStartup::new(&[2, 3], 60 * S, 0.0);
+        assert_eq!(start.poll_timeout(), 60.0);
+        start.on_presence(Peer::Neighbour(2), true);
+        start.on_presence(Peer::Neighbour(7), true);
+        start.on_presence(Peer::World, true);
+        assert!(!start.fleet_here());
+        assert_eq!(start.handle_timeout(59.0), None, "not yet due");
+        assert_eq!(start.handle_timeout(60.0), Some(StartupCheck::NoFleet));
+        start.on_presence(Peer::Planner, true);
+        assert!(start.fleet_here());
+        assert_eq!(start.absent(), vec![3], "not a neighbour: 7 is not waited for");
+        assert_eq!(
+            start.handle_timeout(60.0),
+            Some(StartupCheck::WithoutNeighbours(vec![3]))
+        );
+        start.on_presence(Peer::Neighbour(3), true);
+        assert_eq!(start.handle_timeout(61.0), None, "everyone here");
+        start.on_presence(Peer::Neighbour(2), false);
+        assert_eq!(start.absent(), vec![2], "a neighbour whose token went is absent again");
+        assert_eq!(start.deserted(), None);
+        start.on_presence(Peer::World, false);
+        assert_eq!(start.deserted(), Some(Peer::World), "the world gave up before the run");
+        // A world that goes before the planner came did not desert a fleet it had.
+        let mut early = AgentStartup::new(&[], 60 * S, 0.0);
+        early.on_presence(Peer::World, true);
+        early.on_presence(Peer::World, false);
+        assert_eq!(early.deserted(), None);
     }
 }

@@ -553,6 +553,23 @@ pub struct Report {
     pub published: u64,
 }
 
+impl Report {
+    /// The report of a process that refused nothing and counted nothing: what a role fills in.
+    pub fn new(role: Role, id: u32, pid: u32) -> Report {
+        Report {
+            version: PROTOCOL_VERSION,
+            role: role.as_str().into(),
+            id,
+            pid,
+            rejected: Rejections::default(),
+            stale_timeouts: 0,
+            late_gammas: Vec::new(),
+            timing: None,
+            published: 0,
+        }
+    }
+}
+
 impl Checked for Report {
     fn version(&self) -> u16 {
         self.version
