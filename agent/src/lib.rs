@@ -32,6 +32,8 @@ const END_GRACE: Duration = Duration::from_millis(500);
 /// waits for it; a lockstep one, running meanwhile, asks less and less often, up to the max.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
 const CLOCK_POLL_MAX: Duration = Duration::from_secs(1);
+/// How long after its token an agent is running, not starting.
+const STARTED: Duration = Duration::from_secs(1);
 /// How long a realtime agent waits for a world out of reach before it stops: a radio link that
 /// drops for a while must not end the vehicle's mission.
 const WORLD_AWAY: Duration = Duration::from_secs(60);
@@ -340,6 +342,14 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         .declare_token(keys.alive(Role::Agent, id))
         .await
         .map_err(|e| anyhow!("liveliness token: {e}"))?;
+    // Once it runs, its start's code need not stay mapped (`footprint`): dozens of agents share
+    // a host.
+    tokio::spawn(async move {
+        tokio::time::sleep(STARTED).await;
+        if let Some(kib) = tcpf_bus::footprint::drop_startup_code() {
+            tracing::debug!("agent {id}: let go of {kib} KiB of mapped code");
+        }
+    });
     let mut shell = Shell {
         id,
         neighbours: neighbours.clone(),

@@ -5,6 +5,7 @@ pub mod claim;
 pub mod clock;
 pub mod codec;
 pub mod credential;
+pub mod footprint;
 pub mod handover;
 pub mod keys;
 pub mod ros2;

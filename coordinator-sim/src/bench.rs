@@ -379,7 +379,7 @@ pub async fn measure(
         routed,
         fleet,
         ros2,
-        busiest,
+        running,
         idle,
     }) = measured?
     else {
@@ -411,14 +411,14 @@ pub async fn measure(
         mission.mission.control_period / (tick * 1e-6),
         fleet.speedup()
     ));
-    let (rss, pss) = busiest.per_process_mib();
+    let (rss, pss) = running.per_process_mib();
     let (idle_rss, idle_pss) = idle.per_process_mib();
     say(format!(
         "per agent: RSS {rss:.1} MiB, PSS {pss:.1} MiB; an idle Zenoh client (baseline): RSS {idle_rss:.1} MiB, PSS {idle_pss:.1} MiB"
     ));
     say(format!(
         "agents' sockets: {} for {} agents; idle clients' (baseline): {}",
-        busiest.sockets, busiest.processes, idle.sockets
+        running.sockets, running.processes, idle.sockets
     ));
     Ok(true)
 }
@@ -430,7 +430,7 @@ struct Processes {
     routed: Vec<Duration>,
     fleet: Summary,
     ros2: Summary,
-    busiest: Footprint,
+    running: Footprint,
     idle: Footprint,
 }
 
@@ -450,26 +450,27 @@ async fn processes(
         return Ok(None);
     };
     let dir = RunDir::create(Some(scratch), mission)?;
-    // The fleet's footprint, sampled while it runs: the largest seen.
+    // The fleet's footprint as it runs: the last sample of the whole fleet, once its agents have
+    // let go of the code of their start (`tcpf_bus::footprint`), before the first leaves.
     let sampling = tokio::spawn(async {
-        let mut busiest = Footprint::default();
+        let mut running = Footprint::default();
         loop {
             // Often enough to see a fleet of a second at least once.
             tokio::time::sleep(Duration::from_millis(100)).await;
             let now = tokio::task::spawn_blocking(|| Footprint::of_children("agent"))
                 .await
                 .unwrap_or_default();
-            if now.pss_kib > busiest.pss_kib {
-                busiest = now;
+            if now.processes >= running.processes && now.processes > 0 {
+                running = now;
             }
-            if now.processes == 0 && busiest.processes > 0 {
-                return busiest;
+            if now.processes == 0 && running.processes > 0 {
+                return running;
             }
         }
     });
     let fleet = launcher::run(mission, plan, &dir, exe, launcher::Options::default()).await?;
-    let busiest = tokio::time::timeout(Duration::from_secs(2), sampling).await;
-    let busiest = busiest.ok().and_then(Result::ok).unwrap_or_default();
+    let running = tokio::time::timeout(Duration::from_secs(2), sampling).await;
+    let running = running.ok().and_then(Result::ok).unwrap_or_default();
     if fleet.interrupted {
         return Ok(None);
     }
@@ -498,7 +499,7 @@ async fn processes(
         routed: routed?,
         fleet,
         ros2,
-        busiest,
+        running,
         idle: idle?,
     }))
 }
