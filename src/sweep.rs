@@ -20,7 +20,7 @@ pub fn run(
     out: Option<&Path>,
 ) -> Result<ExitCode, Failure> {
     let sweep::Swept { key, column, values } =
-        sweep::Swept::parse(param, loss, &args.set, seeds).map_err(|e| Failure::Input(e.into()))?;
+        sweep::Swept::parse(param, loss, &args.set, seeds).map_err(|e| Failure::Input(anyhow!(e)))?;
     fresh_out(out)?;
     let mut grid = sweep::Grid {
         values: Vec::with_capacity(values.len()),

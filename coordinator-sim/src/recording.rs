@@ -578,15 +578,11 @@ fn keep_report(reports: &mut Vec<Report>, keys: &Keys, key: &str, report: Report
 mod tests {
     use super::*;
 
-    fn report(role: Role, id: u32) -> Report {
-        Report::new(role, id, 1)
-    }
-
     #[test]
     fn a_report_is_kept_once_and_only_under_its_own_key() {
         let mut kept = Vec::new();
         let keys = Keys::new("m");
-        let mut twice = report(Role::Agent, 2);
+        let mut twice = Report::new(Role::Agent, 2, 1);
         assert!(keep_report(&mut kept, &keys, "tcpf/m/report/agent/2", twice.clone()));
         twice.stale_timeouts = 3;
         assert!(keep_report(&mut kept, &keys, "tcpf/m/report/agent/2", twice.clone()));

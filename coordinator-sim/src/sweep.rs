@@ -54,18 +54,6 @@ impl Grid {
     }
 }
 
-/// A sweep asked for that cannot be run: bad input, said before anything is written.
-#[derive(Debug)]
-pub struct BadSweep(pub String);
-
-impl std::fmt::Display for BadSweep {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for BadSweep {}
-
 /// The key a sweep sets, and its values, as `--param KEY=V1,V2,...` or `--loss V1,V2,...` gave
 /// them: checked against each other, the `--set`s beside them (`sets`) and the number of seeds.
 pub struct Swept {
@@ -76,8 +64,9 @@ pub struct Swept {
 }
 
 impl Swept {
-    pub fn parse(param: Option<&str>, loss: &[String], sets: &[String], seeds: u64) -> Result<Swept, BadSweep> {
-        let bad = |m: String| Err(BadSweep(m));
+    /// Why a sweep cannot be run, if it cannot: bad input, said before anything is written.
+    pub fn parse(param: Option<&str>, loss: &[String], sets: &[String], seeds: u64) -> Result<Swept, String> {
+        let bad = |m: String| Err(m);
         let (key, column, values): (String, String, Vec<String>) = match param {
             Some(p) => {
                 let Some((k, v)) = p.split_once('=') else {
@@ -262,7 +251,7 @@ mod tests {
         let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
         match Swept::parse(param, &loss, &sets, seeds) {
             Ok(_) => panic!("{param:?} {loss:?} {sets:?} taken"),
-            Err(e) => e.0,
+            Err(e) => e,
         }
     }
 

@@ -609,10 +609,6 @@ mod tests {
     use super::*;
     use crate::msg::{Lost, PROTOCOL_VERSION};
 
-    fn report(role: Role, id: u32) -> Report {
-        Report::new(role, id, 1)
-    }
-
     #[test]
     fn the_end_calls_for_the_worlds_report_and_every_live_agents() {
         let end = End {
@@ -629,12 +625,16 @@ mod tests {
             unreported(
                 &[1, 2, 3],
                 Some(&end),
-                &[report(Role::Planner, 0), report(Role::Agent, 2)]
+                &[Report::new(Role::Planner, 0, 1), Report::new(Role::Agent, 2, 1)]
             ),
             vec![(Role::World, 0), (Role::Agent, 1)],
             "the planner's report is not waited for, nor a lost vehicle's agent's"
         );
-        let all = [report(Role::Agent, 1), report(Role::World, 0), report(Role::Agent, 2)];
+        let all = [
+            Report::new(Role::Agent, 1, 1),
+            Report::new(Role::World, 0, 1),
+            Report::new(Role::Agent, 2, 1),
+        ];
         assert_eq!(unreported(&[1, 2, 3], Some(&end), &all), vec![]);
     }
 
