@@ -23,6 +23,7 @@ use std::process::Command;
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
+    commit();
     println!("cargo:rerun-if-changed=link-order.txt");
     println!("cargo:rerun-if-env-changed=TCPF_FLEET_LINK");
     let var = |name: &str| std::env::var(name).unwrap_or_default();
@@ -141,4 +142,31 @@ fn takes(args: &[String], var: &dyn Fn(&str) -> String) -> Result<(), Skip> {
         }
         Err(e) => Err(skip(format!("cannot run {}: {e}", var("RUSTC")))),
     }
+}
+
+/// `TCPF_COMMIT`: the git commit this is built from, where it is built from a checkout with git
+/// at hand (empty otherwise), for the provenance of every run. Built again when HEAD moves.
+fn commit() {
+    let git = Path::new(env!("CARGO_MANIFEST_DIR")).join(".git");
+    for watched in [git.join("HEAD"), git.join("packed-refs")] {
+        if watched.is_file() {
+            println!("cargo:rerun-if-changed={}", watched.display());
+        }
+    }
+    // The branch HEAD names, whose file moves with every commit.
+    let head = std::fs::read_to_string(git.join("HEAD")).unwrap_or_default();
+    if let Some(branch) = head.trim().strip_prefix("ref: ") {
+        if git.join(branch).is_file() {
+            println!("cargo:rerun-if-changed={}", git.join(branch).display());
+        }
+    }
+    let commit = Command::new("git")
+        .args(["rev-parse", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_default();
+    println!("cargo:rustc-env=TCPF_COMMIT={commit}");
 }

@@ -119,6 +119,12 @@ fn solve(mission: &Mission, file: &Path) -> Result<Plan, Failure> {
 }
 
 fn main() -> ExitCode {
+    tcpf_report::rundir::Invocation {
+        command: std::env::args().collect(),
+        version: env!("CARGO_PKG_VERSION").into(),
+        commit: option_env!("TCPF_COMMIT").filter(|c| !c.is_empty()).map(String::from),
+    }
+    .set();
     let cli = Cli::parse();
     let role = matches!(
         cli.command,

@@ -1381,3 +1381,63 @@ fn a_report_of_a_sweeps_directory_says_it_reads_one_run() {
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("a sweep's directory (sweep.csv)"), "{}", text(&o));
 }
+
+/// A run directory says what made it, so that the run can be told apart and made again: the
+/// command, tcpf's version and the commit it was built from (where built from a checkout, as
+/// here), the digest of the mission as run (its `mission.toml`, overrides applied), in
+/// summary.json and on report.html's first screen with the mission's main parameters.
+#[test]
+fn a_run_directory_says_what_made_it() {
+    let out = scratch("provenance");
+    let mission = paper("b-current");
+    let args = [
+        "run",
+        &mission,
+        "--in-process",
+        "--seed",
+        "3",
+        "--set",
+        "comms.loss=0.2",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let o = tcpf(&args);
+    assert!(o.status.success(), "{}", text(&o));
+    let s = common::summary(&out);
+    let p = &s["provenance"];
+    let command: Vec<&str> = p["command"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert_eq!(command[1..], args, "{p}");
+    assert_eq!(p["version"], env!("CARGO_PKG_VERSION"));
+    let head = std::process::Command::new("git")
+        .args(["rev-parse", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match head {
+        Some(head) => assert_eq!(p["commit"], head.as_str(), "built from this checkout's HEAD"),
+        None => assert!(p.get("commit").is_none(), "{p}"),
+    }
+    let as_run = std::fs::read_to_string(out.join("mission.toml")).unwrap();
+    assert!(as_run.contains("loss = 0.2"), "the override is in the mission as run");
+    let digest = format!("{:016x}", tcpf_core::mission::digest_of(&as_run));
+    assert_eq!(p["mission_digest"], digest.as_str());
+    assert_eq!(s["seed"], 3);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let first_screen = &html[..html.find("<figure").unwrap_or(html.len())];
+    for shown in [
+        &command.join(" ")[..],
+        &digest,
+        "loss 0.2",
+        "k_c 0.5",
+        env!("CARGO_PKG_VERSION"),
+    ] {
+        assert!(first_screen.contains(shown), "{shown} not on the first screen");
+    }
+}

@@ -97,6 +97,11 @@ fn run_mcap_holds_a_pose_per_vehicle_and_tick_in_foxglove_schemas() {
         metadata["frames"].as_str().unwrap().starts_with("ENU (x east, y north"),
         "{metadata}"
     );
+    let mission_as_run = std::fs::read_to_string(dir.join("mission.toml")).unwrap();
+    let digest = format!("{:016x}", tcpf_core::mission::digest_of(&mission_as_run));
+    assert_eq!(metadata["mission_digest"], digest.as_str(), "{metadata}");
+    assert_eq!(metadata["tcpf_version"], env!("CARGO_PKG_VERSION"), "{metadata}");
+    assert!(metadata["command"].as_str().unwrap().contains(" run "), "{metadata}");
     let epoch: f64 = metadata["epoch_unix_s"].as_str().unwrap().parse().unwrap();
     assert!((epoch - started).abs() < finished - started + 1.0, "{metadata}");
     let mission = channels["#attachments"]["mission.toml"].as_str().unwrap();

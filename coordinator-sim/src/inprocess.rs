@@ -10,7 +10,7 @@ use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 
 use crate::progress::Ticks;
-use tcpf_core::summary::{Clock, Mode, Summary};
+use tcpf_core::summary::{Clock, Mode, Provenance, Summary};
 use tcpf_report::rundir::RunDir;
 
 /// Runs the mission in one loop and writes the run directory. SIGINT, SIGTERM or SIGHUP (the
@@ -68,6 +68,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         unreported: Vec::new(),
         coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         warnings: Vec::new(),
+        provenance: Provenance::of(mission),
     };
     summary.name_the_shortfall();
     dir.write_summary(&summary)?;

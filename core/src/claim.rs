@@ -93,7 +93,7 @@ mod tests {
         let (a, b, c) = (claim(100, "a1"), claim(250, "0f"), claim(300, "ff"));
         // Each sees a different subset, always with its own; all name `a`.
         assert_eq!(
-            outcome(&a, &[a.clone()], SETTLE),
+            outcome(&a, std::slice::from_ref(&a), SETTLE),
             Outcome::Holds,
             "a looked before the others came"
         );
@@ -121,7 +121,7 @@ mod tests {
             Outcome::Lost(old)
         );
         assert_eq!(
-            outcome(&new, &[new.clone()], SETTLE),
+            outcome(&new, std::slice::from_ref(&new), SETTLE),
             Outcome::Holds,
             "its claim went: the role is free"
         );

@@ -580,7 +580,7 @@ mod tests {
         d.on_agent(3, false, None, 4.0);
         d.on_tick(4.0);
         assert_eq!(
-            d.handle_timeout(9.0, 9.0, || vec![]),
+            d.handle_timeout(9.0, 9.0, Vec::new),
             vec![Decision::Lose {
                 id: 3,
                 reason: LossReason::Gone,

@@ -73,6 +73,34 @@ pub struct Restarts {
     pub restarts: u64,
 }
 
+/// What made a run, so that it can be made again: the mission as run (its digest: the run's
+/// `mission.toml` holds it whole), and the command and the build of tcpf that ran it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// `Mission::digest` of the mission as run, overrides applied, in hex: what the world's
+    /// clock carries.
+    pub mission_digest: String,
+    /// The command line, word by word.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub command: Vec<String>,
+    /// tcpf's version.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub version: String,
+    /// The git commit tcpf was built from, where it was built from a checkout.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub commit: Option<String>,
+}
+
+impl Provenance {
+    /// The mission's part; the command and the build are the writing process's to fill in.
+    pub fn of(mission: &Mission) -> Provenance {
+        Provenance {
+            mission_digest: format!("{:016x}", mission.digest()),
+            ..Provenance::default()
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     pub mission: String,
@@ -123,6 +151,9 @@ pub struct Summary {
     /// What went wrong without failing the run: the planner gone once the fleet ran.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// What made the run (older summaries have none).
+    #[serde(default)]
+    pub provenance: Provenance,
 }
 
 /// "vehicle 2", "vehicles 1, 3".
@@ -188,6 +219,7 @@ impl Summary {
             children,
             coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
             warnings: Vec::new(),
+            provenance: Provenance::of(mission),
         }
     }
 
@@ -520,6 +552,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
         coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
         warnings,
+        provenance: Provenance::of(mission),
     };
     summary.name_the_shortfall();
     summary

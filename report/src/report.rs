@@ -207,6 +207,64 @@ pub fn write(dir: &Path) -> Result<()> {
         .with_context(|| format!("cannot write {}", dir.join("report.html").display()))
 }
 
+/// What made the run, and the mission's main parameters, on the first screen: enough to tell runs
+/// apart, and to make one again (`mission.toml` beside this page holds the mission whole).
+fn provenance_table(html: &mut String, mission: &Mission, summary: &Summary) {
+    let p = &summary.provenance;
+    let or_dash = |s: String| if s.is_empty() { "–".to_string() } else { s };
+    let built = match &p.commit {
+        Some(commit) => format!("tcpf {} (commit {commit})", p.version),
+        None if !p.version.is_empty() => format!("tcpf {}", p.version),
+        None => String::new(),
+    };
+    let (control, comms, current) = (&mission.control, &mission.comms, &mission.current);
+    let topology = match (&comms.topology, &comms.edges) {
+        (_, Some(edges)) => format!("{} edges given", edges.len()),
+        (Some(t), None) => format!("{t:?}").to_lowercase(),
+        (None, None) => "complete".into(),
+    };
+    let rows = [
+        ("command", or_dash(p.command.join(" "))),
+        ("built", or_dash(built)),
+        ("mission digest", or_dash(p.mission_digest.clone())),
+        (
+            "current",
+            format!("{} m/s towards {} rad", current.speed, current.direction),
+        ),
+        (
+            "communication",
+            format!(
+                "every {} s, loss {}, delay {} s, {topology}",
+                comms.period, comms.loss, comms.delay
+            ),
+        ),
+        (
+            "gains",
+            format!(
+                "k1 {}, k2 {}, k3 {}, k_c {}{}",
+                control.k1,
+                control.k2,
+                control.k3,
+                control.kc,
+                if control.coordination {
+                    ""
+                } else {
+                    " (coordination off)"
+                }
+            ),
+        ),
+    ];
+    html.push_str("<table id=\"provenance\">");
+    for (what, value) in rows {
+        let _ = write!(
+            html,
+            "<tr><th style=\"text-align:left\">{what}</th><td style=\"text-align:left\">{}</td></tr>",
+            escape(&value)
+        );
+    }
+    html.push_str("</table>\n");
+}
+
 type Pairs = Vec<(u32, u32)>;
 
 /// At most this many pairs per chart: a fleet of 200 has 19 900, which drew a report of hundreds
@@ -567,6 +625,7 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         number(summary.results.min_clearance, 3),
         number(summary.wall_time_s, 3),
     );
+    provenance_table(&mut html, mission, summary);
     for warning in &summary.warnings {
         let _ = writeln!(
             html,

@@ -27,7 +27,7 @@ use foxglove::{
     Schema,
 };
 use serde::Serialize;
-use tcpf_core::mission::Mission;
+use tcpf_core::mission::{digest_of, Mission};
 use tcpf_core::msg::{Command, State};
 use tcpf_core::path::GeneralizedPath;
 
@@ -237,6 +237,7 @@ impl Viewer {
             self.log_encoded(&drawn, &message, epoch);
         }
         let Some(mcap) = &self.mcap else { return };
+        let invocation = crate::rundir::invocation();
         let metadata = [
             ("frames", FRAMES.to_string()),
             (
@@ -244,6 +245,10 @@ impl Viewer {
                 "log times are Unix time: the fleet's epoch plus simulated time (the wall clock as a lockstep run started; a realtime fleet's clock)".to_string(),
             ),
             ("epoch_unix_s", format!("{epoch}")),
+            ("mission_digest", format!("{:016x}", digest_of(&self.mission))),
+            ("command", invocation.command.join(" ")),
+            ("tcpf_version", invocation.version),
+            ("commit", invocation.commit.unwrap_or_default()),
         ];
         let attachment = McapAttachment {
             log_time: nanos(epoch),

@@ -463,6 +463,13 @@ mod defaults {
     }
 }
 
+/// The digest of a mission as its `mission.toml` reads (`Mission::digest`): FNV-1a of the text.
+pub fn digest_of(toml: &str) -> u64 {
+    toml.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
 impl Mission {
     /// The mission as a TOML file that parses back to it (the run directory's `mission.toml`).
     pub fn to_toml(&self) -> String {
@@ -473,9 +480,7 @@ impl Mission {
     /// hosts, each with its own copy of the file, compare it to find that they run one mission.
     /// FNV-1a of its TOML (the run directory's `mission.toml`), stable from process to process.
     pub fn digest(&self) -> u64 {
-        self.to_toml().bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
-            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-        })
+        digest_of(&self.to_toml())
     }
 
     /// Ticks per communication period T_c.
