@@ -465,3 +465,41 @@ fn a_sweep_of_one_value_plots_its_point() {
     assert!(svg.contains("<circle"), "the mean at loss 0.5 is marked");
     assert!(svg.contains("mean over 1 seed\n"), "one seed, singular");
 }
+
+/// A sweep's directory says what made it: the mission of its first value (`mission.toml`, the
+/// `--set`s applied), and in sweep.json the command, tcpf's version and the mission's digest.
+#[test]
+fn a_sweeps_directory_says_what_made_it() {
+    let dir = scratch("sweep-provenance");
+    let args = [
+        "sweep",
+        &config("paper/a-nominal"),
+        "--loss",
+        "0,0.1",
+        "--seeds",
+        "1",
+        "--set",
+        "control.kc=0.4",
+        "--out",
+        dir.to_str().unwrap(),
+    ];
+    ok(tcpf(&args));
+    let as_run = std::fs::read_to_string(dir.join("mission.toml")).unwrap();
+    let (said, toml) = as_run.split_once('\n').unwrap();
+    assert_eq!(
+        said,
+        "# The mission of the sweep's first value, loss = 0; sweep.json has every value."
+    );
+    assert!(toml.contains("kc = 0.4") && toml.contains("loss = 0.0"), "{toml}");
+    let p = &json(&dir.join("sweep.json"))["provenance"];
+    let command: Vec<&str> = p["command"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert_eq!(command[1..], args, "{p}");
+    assert_eq!(p["version"], env!("CARGO_PKG_VERSION"));
+    let digest = format!("{:016x}", tcpf_core::mission::digest_of(toml));
+    assert_eq!(p["mission_digest"], digest.as_str());
+}

@@ -9,6 +9,7 @@ use anyhow::Result;
 use serde::Serialize;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::Mission;
+use tcpf_core::summary::Provenance;
 
 use crate::plots::{Chart, Series};
 
@@ -151,6 +152,9 @@ pub struct SweepSummary {
     /// `GIVE_UP` runs failed in a row, and the sweep stopped there: what fails them would
     /// fail the rest.
     pub gave_up: bool,
+    /// What made the sweep: its command, tcpf's version and commit, and the digest of the
+    /// mission of its first value (`mission.toml` beside it).
+    pub provenance: Provenance,
 }
 
 /// Failed runs in a row that end a sweep.
@@ -166,6 +170,7 @@ pub struct Sweep {
     failed: Vec<FailedRun>,
     /// Failed runs since the last one done.
     in_a_row: usize,
+    provenance: Provenance,
 }
 
 impl Sweep {
@@ -181,12 +186,20 @@ impl Sweep {
             "{column},seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s,last_arrival"
         )?;
         csv.flush()?;
+        // The mission as run by the first value; the sweep sets its key to each value in turn.
+        let as_run = format!(
+            "# The mission of the sweep's first value, {column} = {}; sweep.json has every value.\n{}",
+            values.first().map_or("", String::as_str),
+            mission.to_toml()
+        );
+        std::fs::write(claimed.path.join("mission.toml"), as_run)?;
         let sweep = Sweep {
             csv,
             values: values.iter().map(|v| (v.clone(), PerValue::default())).collect(),
             done: 0,
             failed: Vec::new(),
             in_a_row: 0,
+            provenance: Provenance::of(mission),
         };
         Ok((claimed.path, sweep))
     }
@@ -233,7 +246,10 @@ impl Sweep {
     /// The statistics per value of the rows pushed so far (values with no row are left out).
     pub fn summary(&self, mission: &str, parameter: &str, seeds: u64, mode: &str) -> SweepSummary {
         let planned = seeds * self.values.len() as u64;
+        let mut provenance = self.provenance.clone();
+        crate::rundir::invocation().fill(&mut provenance);
         SweepSummary {
+            provenance,
             mission: mission.into(),
             parameter: parameter.into(),
             seeds,
@@ -504,6 +520,7 @@ mod tests {
             values,
             failed_runs: Vec::new(),
             gave_up: false,
+            provenance: Provenance::default(),
         };
         let same = "gave the same results";
         assert!(table(&sweep(vec![value("0", 55.5), value("1", 55.5)])).contains(same));
