@@ -449,8 +449,11 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
         (l["sent"].as_f64().unwrap() + l["overtaken"].as_f64().unwrap()) / l["published"].as_f64().unwrap()
     };
     let (lossy, clean) = (arrived(&link(2)), arrived(&link(1)));
+    // 547 γ at loss 0.3: 0.70 ± 0.02 if each were dropped alone, but a datagram can carry more
+    // than one, and the rule drops datagrams, so losses come in clumps: 0.627 was seen once in
+    // about twenty runs. The bounds stay well clear of no loss (1.0) and of double it (0.4).
     assert!(
-        (0.63..=0.77).contains(&lossy),
+        (0.60..=0.80).contains(&lossy),
         "fraction of vehicle 2's γ that reached vehicle 1: {lossy:.3} ({})",
         link(2)
     );
