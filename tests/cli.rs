@@ -1404,40 +1404,14 @@ fn a_run_directory_says_what_made_it() {
     let o = tcpf(&args);
     assert!(o.status.success(), "{}", text(&o));
     let s = common::summary(&out);
-    let p = &s["provenance"];
-    let command: Vec<&str> = p["command"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap())
-        .collect();
-    assert_eq!(command[1..], args, "{p}");
-    assert_eq!(p["version"], env!("CARGO_PKG_VERSION"));
-    let head = std::process::Command::new("git")
-        .args(["rev-parse", "HEAD"])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
-    match head {
-        Some(head) => assert_eq!(p["commit"], head.as_str(), "built from this checkout's HEAD"),
-        None => assert!(p.get("commit").is_none(), "{p}"),
-    }
     let as_run = std::fs::read_to_string(out.join("mission.toml")).unwrap();
     assert!(as_run.contains("loss = 0.2"), "the override is in the mission as run");
+    let command = common::assert_provenance(&s["provenance"], &args, &as_run);
     let digest = format!("{:016x}", tcpf_core::mission::digest_of(&as_run));
-    assert_eq!(p["mission_digest"], digest.as_str());
     assert_eq!(s["seed"], 3);
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     let first_screen = &html[..html.find("<figure").unwrap_or(html.len())];
-    for shown in [
-        &command.join(" ")[..],
-        &digest,
-        "loss 0.2",
-        "k_c 0.5",
-        env!("CARGO_PKG_VERSION"),
-    ] {
+    for shown in [&command[..], &digest, "loss 0.2", "k_c 0.5", env!("CARGO_PKG_VERSION")] {
         assert!(first_screen.contains(shown), "{shown} not on the first screen");
     }
 }

@@ -491,15 +491,5 @@ fn a_sweeps_directory_says_what_made_it() {
         "# The mission of the sweep's first value, loss = 0; sweep.json has every value."
     );
     assert!(toml.contains("kc = 0.4") && toml.contains("loss = 0.0"), "{toml}");
-    let p = &json(&dir.join("sweep.json"))["provenance"];
-    let command: Vec<&str> = p["command"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap())
-        .collect();
-    assert_eq!(command[1..], args, "{p}");
-    assert_eq!(p["version"], env!("CARGO_PKG_VERSION"));
-    let digest = format!("{:016x}", tcpf_core::mission::digest_of(toml));
-    assert_eq!(p["mission_digest"], digest.as_str());
+    common::assert_provenance(&json(&dir.join("sweep.json"))["provenance"], &args, toml);
 }
