@@ -72,6 +72,66 @@ pub struct Results {
     #[serde(deserialize_with = "infinite_if_null")]
     pub min_clearance_to_last_arrival: f64,
     pub links: Vec<LinkStats>,
+    /// The root mean square of the coordination error on [0, first arrival].
+    #[serde(default)]
+    pub rms_coordination_error: f64,
+    /// ∫ max |γ_i − γ_j| dt on [0, first arrival], in s².
+    #[serde(default)]
+    pub integral_coordination_error: f64,
+    /// Every window in which the fleet could not coordinate as planned, in time order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<FaultWindow>,
+}
+
+impl Results {
+    /// The longest re-synchronisation of the run: `None` without a fault window, infinite if the
+    /// fleet never came back within `RESYNC_WITHIN` after one.
+    pub fn resync_time(&self) -> Option<f64> {
+        self.faults
+            .iter()
+            .map(|f| f.resync_time.unwrap_or(f64::INFINITY))
+            .reduce(f64::max)
+    }
+}
+
+/// s of γ: a fleet whose coordination error is at most this is back in step after a fault. A
+/// tenth of a second of the mission's timing is well under the paper's steady errors under a
+/// current (0.36 s at most in case (b)) and well over the error of a fleet that has converged.
+pub const RESYNC_WITHIN: f64 = 0.1;
+
+/// What kept the fleet from coordinating as planned for a while.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultKind {
+    /// Every `[[comms.outage]]` whose windows overlap, as one window.
+    Outage,
+    /// The world gave up on a vehicle: the window closes as it opens, and the rest of the fleet
+    /// coordinates without it from then on.
+    Lost,
+}
+
+/// A fault window, and how long after its end the fleet's coordination error took to come back
+/// within `RESYNC_WITHIN` (`None`: not before the run ended).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FaultWindow {
+    pub kind: FaultKind,
+    pub start: f64,
+    pub end: f64,
+    pub resync_time: Option<f64>,
+}
+
+/// The union of `windows` as disjoint windows in time order: outages of several links at once
+/// are one fault of the fleet.
+pub fn union(mut windows: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    windows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut joined: Vec<(f64, f64)> = Vec::with_capacity(windows.len());
+    for (start, end) in windows {
+        match joined.last_mut() {
+            Some(last) if start <= last.1 => last.1 = last.1.max(end),
+            _ => joined.push((start, end)),
+        }
+    }
+    joined
 }
 
 #[derive(Debug, Clone)]
@@ -97,6 +157,9 @@ pub struct Metrics {
     thrusters: Vec<Option<Thrusters>>,
     /// Vehicles by x, for the closest pair: a run allocates it once.
     order: Vec<usize>,
+    /// ∫ e dt, ∫ e² dt and the time they span, on [0, first arrival].
+    integral: (f64, f64, f64),
+    faults: Vec<FaultWindow>,
 }
 
 /// max |γ_i − γ_j| over pairs of live vehicles (a lost vehicle's γ is frozen: it coordinates
@@ -160,11 +223,39 @@ impl Metrics {
             sent_at: vec![None; ids.len()],
             thrusters: vec![None; ids.len()],
             order: Vec::with_capacity(ids.len()),
+            integral: (0.0, 0.0, 0.0),
+            faults: Vec::new(),
         }
+    }
+
+    /// The outages of the mission's links, joined where they overlap (`union`).
+    pub fn with_outages(mut self, windows: &[(f64, f64)]) -> Metrics {
+        self.faults = union(windows.to_vec())
+            .into_iter()
+            .map(|(start, end)| FaultWindow {
+                kind: FaultKind::Outage,
+                start,
+                end,
+                resync_time: None,
+            })
+            .collect();
+        self
     }
 
     pub fn mark_lost(&mut self, id: u32, reason: LossReason) {
         if let Some(n) = self.ids.position(id) {
+            if self.lost[n].is_none() {
+                // Lost before the tick being recorded: since the last tick recorded.
+                let at = self.previous_tick.map_or(0.0, |k| k as f64 * self.dt);
+                let window = FaultWindow {
+                    kind: FaultKind::Lost,
+                    start: at,
+                    end: at,
+                    resync_time: None,
+                };
+                let k = self.faults.partition_point(|f| f.start <= at);
+                self.faults.insert(k, window);
+            }
             self.lost[n] = Some(reason);
         }
     }
@@ -209,8 +300,18 @@ impl Metrics {
         let live = |n: usize| commands[n].is_some();
         let now = spread(&gammas, &positions, &mut self.order, live);
         self.to_last = (self.to_last.0.max(now.0), self.to_last.1.min(now.1));
+        for f in self.faults.iter_mut() {
+            if f.resync_time.is_none() && t >= f.end && now.0 <= RESYNC_WITHIN {
+                f.resync_time = Some(t - f.end);
+            }
+        }
         match (before_first, self.first_arrival(), &self.previous) {
-            (true, None, _) => self.en_route = (self.en_route.0.max(now.0), self.en_route.1.min(now.1)),
+            (true, None, _) => {
+                self.en_route = (self.en_route.0.max(now.0), self.en_route.1.min(now.1));
+                // The first row starts the integral: it covers no time before it.
+                let covered = if self.previous.is_some() { span } else { 0.0 };
+                self.integrate(now.0, covered);
+            }
             // The first arrival fell inside this step: close the en-route window exactly there.
             (true, Some(first), Some((pg, pp))) => {
                 let s = ((first - (t - span)) / span).clamp(0.0, 1.0);
@@ -222,6 +323,7 @@ impl Metrics {
                     .collect();
                 let at = spread(&g, &p, &mut self.order, live);
                 self.en_route = (self.en_route.0.max(at.0), self.en_route.1.min(at.1));
+                self.integrate(at.0, s * span);
             }
             _ => {}
         }
@@ -255,6 +357,13 @@ impl Metrics {
         self.spare = self.previous.replace((gammas, positions));
         self.previous_tick = Some(tick);
         self.ticks += 1;
+    }
+
+    /// The error `e` held over the `span` up to this row (rectangles: the rows are the samples).
+    fn integrate(&mut self, e: f64, span: f64) {
+        self.integral.0 += e * span;
+        self.integral.1 += e * e * span;
+        self.integral.2 += span;
     }
 
     pub fn all_arrived(&self) -> bool {
@@ -292,6 +401,12 @@ impl Metrics {
             max_coordination_error_to_last_arrival: self.to_last.0,
             min_clearance_to_last_arrival: self.to_last.1,
             links: self.links.values().copied().collect(),
+            rms_coordination_error: match self.integral.2 {
+                0.0 => 0.0,
+                span => (self.integral.1 / span).sqrt(),
+            },
+            integral_coordination_error: self.integral.0,
+            faults: self.faults.clone(),
         }
     }
 }
@@ -354,6 +469,102 @@ mod tests {
             "the spread there: {}",
             r.max_coordination_error
         );
+    }
+
+    /// Two vehicles 10 m apart whose γ differ by `error(t)`, one row per tick from 0 to `ticks`.
+    fn run_with_error(
+        m: &mut Metrics,
+        dt: f64,
+        ticks: u64,
+        error: impl Fn(f64) -> f64,
+        lost_at: Option<u64>,
+    ) -> Results {
+        use crate::msg::{State, PROTOCOL_VERSION};
+        let state = |id: u32, tick: u64| State {
+            version: PROTOCOL_VERSION,
+            tick,
+            id,
+            t: tick as f64 * dt,
+            position: [0.0, 10.0 * id as f64],
+            heading: 0.0,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [0.0, 0.0],
+            dynamics: None,
+        };
+        for k in 0..=ticks {
+            let t = k as f64 * dt;
+            if lost_at == Some(k) {
+                m.mark_lost(3, LossReason::Gone);
+            }
+            let third = (lost_at.is_none_or(|at| k < at)).then(|| crate::fixtures::command_at(3, k, t + 5.0));
+            m.record(
+                k,
+                &[state(1, k), state(2, k), state(3, k)],
+                &[
+                    Some(crate::fixtures::command_at(1, k, t)),
+                    Some(crate::fixtures::command_at(2, k, t + error(t))),
+                    third.filter(|_| lost_at.is_some()),
+                ],
+            );
+        }
+        m.results()
+    }
+
+    #[test]
+    fn the_rms_and_the_integral_of_the_error_are_those_of_its_samples() {
+        let dt = 0.01;
+        // e(t) = 0.1 t on [0, 10]: ∫ e = 5, and the rms is 0.1 · √(100/3).
+        let mut m = Metrics::new(&[1, 2, 3], 100.0, dt);
+        let r = run_with_error(&mut m, dt, 1000, |t| 0.1 * t, None);
+        // Rectangles of the samples at the right of each step: half a step's worth over.
+        assert!((r.integral_coordination_error - 5.0).abs() < 0.5 * 0.1 * 10.0 * dt + 1e-9);
+        let rms = 0.1 * (100.0f64 / 3.0).sqrt();
+        assert!(
+            (r.rms_coordination_error - rms).abs() < 1e-3,
+            "{}",
+            r.rms_coordination_error
+        );
+        assert!(r.faults.is_empty() && r.resync_time().is_none());
+    }
+
+    #[test]
+    fn the_fleet_is_back_in_step_when_its_error_is_within_the_threshold_after_the_window() {
+        let dt = 0.01;
+        // Outages of both directions, overlapping: one window, [1, 3].
+        let mut m = Metrics::new(&[1, 2, 3], 100.0, dt).with_outages(&[(2.0, 3.0), (1.0, 2.5), (8.0, 8.5)]);
+        // 0.05 before, 1 s in the window, then halving every second: 0.1 at 3 + log2(10) s.
+        let error = |t: f64| match t {
+            t if t < 1.0 => 0.05,
+            t if t < 3.0 => 1.0,
+            t => 0.5f64.powf(t - 3.0).max(0.01),
+        };
+        let r = run_with_error(&mut m, dt, 1000, error, None);
+        assert_eq!(r.faults.len(), 2, "{:?}", r.faults);
+        let (first, second) = (r.faults[0], r.faults[1]);
+        assert_eq!((first.kind, first.start, first.end), (FaultKind::Outage, 1.0, 3.0));
+        let want = 10f64.log2();
+        let got = first.resync_time.unwrap();
+        assert!(got >= want && got < want + dt + 1e-9, "{got} vs {want}");
+        assert_eq!(second.resync_time, Some(0.0), "already in step when it ended");
+        assert_eq!(r.resync_time(), first.resync_time);
+        // A fleet that never gets back: infinite.
+        let mut m = Metrics::new(&[1, 2, 3], 100.0, dt).with_outages(&[(1.0, 2.0)]);
+        let r = run_with_error(&mut m, dt, 500, |_| 0.5, None);
+        assert_eq!((r.faults[0].resync_time, r.resync_time()), (None, Some(f64::INFINITY)));
+    }
+
+    #[test]
+    fn a_lost_vehicle_opens_a_window_the_rest_of_the_fleet_closes() {
+        let dt = 0.01;
+        let mut m = Metrics::new(&[1, 2, 3], 100.0, dt);
+        // Vehicle 3 runs 5 s ahead until it is lost at 2 s; 1 and 2 are 0.2 apart until 4 s.
+        let r = run_with_error(&mut m, dt, 600, |t| if t < 4.0 { 0.2 } else { 0.0 }, Some(200));
+        assert_eq!(r.faults.len(), 1);
+        let lost = r.faults[0];
+        assert_eq!(lost.kind, FaultKind::Lost);
+        assert!((lost.start - 1.99).abs() < 1e-9 && lost.start == lost.end, "{lost:?}");
+        assert!((lost.resync_time.unwrap() - 2.01).abs() < 1e-9, "{lost:?}");
     }
 
     #[test]

@@ -487,6 +487,12 @@ pub struct Sampler {
 }
 
 impl Sampler {
+    /// Measures the outages of the mission as fault windows (`Metrics::with_outages`).
+    pub fn with_outages(mut self, windows: &[(f64, f64)]) -> Sampler {
+        self.metrics = self.metrics.with_outages(windows);
+        self
+    }
+
     pub fn new(ids: &[u32], graph: &Graph, t_f: f64, dt: f64) -> Sampler {
         Sampler {
             neighbours: neighbour_lists(graph, ids),

@@ -35,6 +35,12 @@ pub struct Recorder {
 }
 
 impl Recorder {
+    /// Measures the outages of the mission as fault windows (`Metrics::with_outages`).
+    pub fn with_outages(mut self, windows: &[(f64, f64)]) -> Recorder {
+        self.metrics = self.metrics.with_outages(windows);
+        self
+    }
+
     pub fn new(ids: &[u32], t_f: f64, dt: f64) -> Recorder {
         Recorder {
             ids: Roster::new(ids),

@@ -41,7 +41,8 @@ impl Fleet {
             .collect();
         Fleet {
             world: WorldNode::new(mission, &paths),
-            recorder: Recorder::new(&ids, plan.t_f, mission.mission.control_period),
+            recorder: Recorder::new(&ids, plan.t_f, mission.mission.control_period)
+                .with_outages(&mission.outage_windows()),
             live: vec![true; agents.len()],
             agents,
             listeners,

@@ -509,6 +509,14 @@ impl Mission {
             .any(|v| v.vehicle_model.as_ref().unwrap_or(&self.vehicle_model).is_dynamic())
     }
 
+    /// The windows of `[[comms.outage]]` as (start, end), when there are links to cut.
+    pub fn outage_windows(&self) -> Vec<(f64, f64)> {
+        if !self.control.coordination {
+            return Vec::new();
+        }
+        self.comms.outages.iter().map(|o| (o.start, o.end)).collect()
+    }
+
     /// The undirected communication graph: each vehicle's neighbours in ascending id order.
     pub fn graph(&self) -> Graph {
         graph::build(self)
