@@ -33,6 +33,73 @@ pub struct MissionArgs {
     pub flags: Vec<(String, String)>,
 }
 
+#[derive(Args)]
+#[command(group(clap::ArgGroup::new("values").required(true).multiple(true).args(["loss", "param"])))]
+pub struct SweepArgs {
+    /// Mission file (TOML).
+    pub file: PathBuf,
+    /// Override a mission key: `section.key=value`, `section.table.key=value`, or
+    /// `vehicle.<id>.key=value`.
+    #[arg(long = "set", value_name = "K=V")]
+    pub set: Vec<String>,
+    /// Loss probabilities to sweep (comms.loss), e.g. 0,0.3,0.6,0.9: --param comms.loss=...
+    #[arg(long, value_delimiter = ',')]
+    pub loss: Vec<String>,
+    /// Any mission key and its values: KEY=V1,V2,... Repeat it for a grid (every combination);
+    /// a list or a table in brackets or braces is one value.
+    #[arg(long, value_name = "KEY=V1,V2,...")]
+    pub param: Vec<String>,
+    /// Seeds per grid point: S to S + N − 1 (each a run's --seed).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=i64::MAX as u64))]
+    pub seeds: u64,
+    /// The first seed.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed_start: u64,
+    /// In-process runs at once (default: the cores).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=4096), conflicts_with = "processes")]
+    pub jobs: Option<u64>,
+    /// Run only shard I of K: the runs k with k mod K = I − 1, into a directory of its own
+    /// (`tcpf sweep merge` joins the shards).
+    #[arg(long, value_name = "I/K", value_parser = shard)]
+    pub shard: Option<tcpf_report::sweep::Shard>,
+    /// Run only the runs missing from --out (and those that failed), and write its tables again.
+    #[arg(long, requires = "out")]
+    pub resume: bool,
+    /// Run each as a real fleet of processes (one after the other) instead of in-process.
+    #[arg(long)]
+    pub processes: bool,
+    /// The band around each mean in the figures.
+    #[arg(long, value_parser = ["ci95", "min-max"], default_value = "ci95")]
+    pub band: String,
+    /// Output directory (default runs/<mission>-sweep-<timestamp>/).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// The band of `--band`.
+pub fn band(name: &str) -> tcpf_report::sweep::figures::Band {
+    match name {
+        "min-max" => tcpf_report::sweep::figures::Band::MinMax,
+        _ => tcpf_report::sweep::figures::Band::Ci95,
+    }
+}
+
+#[derive(Subcommand)]
+pub enum SweepCommand {
+    /// Join the shards of one sweep (`--shard I/K`) into what the sweep unsharded writes.
+    Merge {
+        /// The shards' directories.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// The merged sweep's directory (new).
+        #[arg(long)]
+        out: PathBuf,
+        /// The band around each mean in the figures.
+        #[arg(long, value_parser = ["ci95", "min-max"], default_value = "ci95")]
+        band: String,
+    },
+}
+
 /// Which clock the fleet runs on; on top of the mission's `[mission] clock` and `time_scale`.
 #[derive(Args, Clone)]
 pub struct ClockArgs {
@@ -177,26 +244,13 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Fault-injection experiment: every (value, seed) pair, summarised per value.
-    #[command(group(clap::ArgGroup::new("values").required(true).args(["loss", "param"])))]
+    /// Fault-injection experiment: every (grid point, seed) pair, summarised per grid point.
+    #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
     Sweep {
+        #[command(subcommand)]
+        merge: Option<SweepCommand>,
         #[command(flatten)]
-        mission: MissionArgs,
-        /// Loss probabilities to sweep (comms.loss), e.g. 0,0.3,0.6,0.9.
-        #[arg(long, value_delimiter = ',')]
-        loss: Vec<String>,
-        /// Any mission key instead: KEY=V1,V2,...
-        #[arg(long, value_name = "KEY=V1,V2,...")]
-        param: Option<String>,
-        /// Seeds 1..=N for every value (each a run's --seed).
-        #[arg(long, value_parser = clap::value_parser!(u64).range(1..=i64::MAX as u64))]
-        seeds: u64,
-        /// Run each as a real fleet of processes (one after the other) instead of in-process.
-        #[arg(long)]
-        processes: bool,
-        /// Output directory (default runs/<mission>-sweep-<timestamp>/).
-        #[arg(long)]
-        out: Option<PathBuf>,
+        sweep: Option<SweepArgs>,
     },
     /// Print a generated mission file, for fleets of any size.
     Gen {
@@ -301,6 +355,10 @@ pub enum Command {
 }
 
 /// A duration on the command line: seconds, finite, positive and at most a day.
+fn shard(text: &str) -> Result<tcpf_report::sweep::Shard, String> {
+    tcpf_report::sweep::Shard::parse(text)
+}
+
 fn seconds(text: &str) -> Result<Duration, String> {
     let s: f64 = text
         .parse()

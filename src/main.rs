@@ -175,13 +175,15 @@ fn main() -> ExitCode {
             mission: Generated::Lanes { vehicles, loss },
         } => out(format_args!("{}", mission::generate::lanes(vehicles, loss))).map(|()| ExitCode::SUCCESS),
         Command::Sweep {
-            mission,
-            loss,
-            param,
-            seeds,
-            processes,
-            out,
-        } => sweep::run(&mission, &loss, param.as_deref(), seeds, processes, out.as_deref()),
+            merge: Some(cli::SweepCommand::Merge { dirs, out, band }),
+            ..
+        } => sweep::merge(&dirs, &out, cli::band(&band)),
+        Command::Sweep {
+            sweep: Some(args), ..
+        } => sweep::run(&args),
+        Command::Sweep { .. } => Err(Failure::Input(anyhow::anyhow!(
+            "tcpf sweep: give a mission file and what to sweep (tcpf sweep FILE --loss ... --seeds N), or `tcpf sweep merge DIR... --out DIR`"
+        ))),
         Command::Pong { zenoh, count, id } => runtime()
             .and_then(|rt| {
                 rt.block_on(tcpf_coordinator::bench::pong(&zenoh, count, id))

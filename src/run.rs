@@ -67,9 +67,9 @@ pub fn run(
 
 pub fn report(dir: &Path) -> Result<ExitCode, Failure> {
     // A sweep's directory holds its runs' directories when it ran them as processes.
-    if dir.join("sweep.csv").is_file() && !dir.join("summary.json").exists() {
+    if dir.join("runs.csv").is_file() && !dir.join("summary.json").exists() {
         return Err(Failure::Input(anyhow!(
-            "{}: a sweep's directory (sweep.csv), which tcpf sweep wrote with its sweep.html; tcpf report reads one run's directory",
+            "{}: a sweep's directory (runs.csv), which tcpf sweep wrote with its sweep.html; tcpf report reads one run's directory",
             dir.display()
         )));
     }

@@ -1,77 +1,116 @@
-//! `tcpf sweep`: its values checked and planned before anything is written, then its runs.
+//! `tcpf sweep`: its grid checked and planned before anything is written, then its runs; and
+//! `tcpf sweep merge`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::anyhow;
 use tcpf_coordinator::sweep;
 use tcpf_core::mission;
+use tcpf_core::summary::Provenance;
+use tcpf_report::sweep::figures::Band;
+use tcpf_report::sweep::{Design, Sweep};
 
-use crate::cli::MissionArgs;
+use crate::cli::{MissionArgs, SweepArgs};
 use crate::outputs::{fresh_out, out_failure};
 use crate::{code, load, runtime, Failure};
 
-pub fn run(
-    args: &MissionArgs,
-    loss: &[String],
-    param: Option<&str>,
-    seeds: u64,
-    processes: bool,
-    out: Option<&Path>,
-) -> Result<ExitCode, Failure> {
-    let sweep::Swept { key, column, values } =
-        sweep::Swept::parse(param, loss, &args.set, seeds).map_err(|e| Failure::Input(anyhow!(e)))?;
-    fresh_out(out)?;
-    let mut grid = sweep::Grid {
-        values: Vec::with_capacity(values.len()),
-        seeds,
-    };
-    for value in &values {
+pub fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
+    let grid = sweep::parse_grid(&args.param, &args.loss, &args.set, args.seeds, args.seed_start)
+        .map_err(|e| Failure::Input(anyhow!(e)))?;
+    if let Some(out) = args
+        .out
+        .as_ref()
+        .filter(|out| !args.resume && out.join("sweep.json").exists())
+    {
+        return Err(Failure::Input(anyhow!(
+            "--out {}: it holds a sweep already; give a new directory, or --resume to run the runs missing from it",
+            out.display()
+        )));
+    }
+    if !args.resume || args.out.as_ref().is_some_and(|out| !out.exists()) {
+        fresh_out(args.out.as_deref())?;
+    }
+    let mut missions = Vec::with_capacity(grid.points() as usize);
+    for point in 0..grid.points() {
         let mut one = MissionArgs {
             file: args.file.clone(),
             set: args.set.clone(),
-            flags: args.flags.clone(),
+            flags: Vec::new(),
         };
-        one.set.push(format!("{key}={value}"));
-        // An error in a swept value names the sweep's flag, not a --set the user never wrote.
-        let flag = match param {
-            Some(p) => format!("--param {} (the value {value})", p.trim()),
-            None => format!("--loss {value}"),
-        };
-        one.flags.push((format!("{key}={value}"), flag));
+        for (p, value) in grid.params.iter().zip(grid.values(point)) {
+            one.set.push(format!("{}={value}", p.key));
+            // An error in a swept value names the sweep's flag, not a --set the user never wrote.
+            let flag = if p.key == "comms.loss" && !args.loss.is_empty() {
+                format!("--loss {value}")
+            } else {
+                format!("--param {} (the value {value})", p.key)
+            };
+            one.flags.push((format!("{}={value}", p.key), flag));
+        }
         let mission = load(&one, None)?;
-        if !processes && mission.mission.clock == mission::ClockKind::Realtime {
+        if !args.processes && mission.mission.clock == mission::ClockKind::Realtime {
             return Err(Failure::Input(anyhow!(
                 "an in-process sweep runs lockstep only: the realtime clock is for fleets of processes (--processes)"
             )));
         }
-        grid.values.push((value.clone(), mission));
+        missions.push(mission);
     }
-    // Every value planned before anything is written: an infeasible one leaves no directory.
-    let plans = grid.plans().map_err(Failure::Failed)?;
-    // The file alone may be incomplete (a table set key by key, the swept key among them).
-    let base = &grid.values[0].1;
-    let (out, mut rows) = tcpf_report::sweep::Sweep::create(out, base, &column, &values).map_err(|e| {
-        let given = out.is_some();
-        let e = match out {
-            Some(out) => e.context(format!("{}: cannot write the sweep there", out.display())),
-            None => e,
-        };
-        out_failure(e, given)
-    })?;
-    let interrupted = if processes {
+    let runs = sweep::Runs { grid, missions };
+    // Every point planned before anything is written: an infeasible one leaves no directory.
+    let plans = runs.plans().map_err(Failure::Failed)?;
+    // The file alone may be incomplete (a table set key by key, the swept keys among them).
+    let base = &runs.missions[0];
+    let design = Design {
+        mission: base.mission.name.clone(),
+        grid: runs.grid.clone(),
+        shard: args.shard,
+        mode: if args.processes { "processes" } else { "in-process" }.into(),
+        clearance: base.planner.clearance,
+    };
+    let as_run = format!(
+        "# The mission of the sweep's first grid point, {}; sweep.json has the grid.\n{}",
+        runs.grid.label(0),
+        base.to_toml()
+    );
+    let out = args.out.as_deref();
+    // A directory deleted, or never made: every run is missing from it.
+    let made = if let Some(dir) = out.filter(|dir| args.resume && dir.exists()) {
+        Sweep::resume(dir, Provenance::of(base), design).map_err(Failure::Input)
+    } else {
+        Sweep::create(out, &as_run, Provenance::of(base), design).map_err(|e| {
+            let e = match out {
+                Some(out) => e.context(format!("{}: cannot write the sweep there", out.display())),
+                None => e,
+            };
+            out_failure(e, out.is_some())
+        })
+    };
+    let mut rows = made?;
+    let interrupted = if args.processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
-            .block_on(sweep::run_processes(&grid, &plans, &out, &exe, &mut rows))
+            .block_on(sweep::run_processes(&runs, &plans, &exe, &mut rows))
             .map_err(Failure::Failed)?
     } else {
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        sweep::run_in_process(&grid, &plans, threads, &mut rows).map_err(Failure::Failed)?
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let jobs = args.jobs.map_or(cores, |j| j as usize);
+        sweep::run_in_process(&runs, &plans, jobs, &mut rows).map_err(Failure::Failed)?
     };
-    let mode = if processes { "processes" } else { "in-process" };
-    let summary = rows.summary(&base.mission.name, &key, seeds, mode);
-    let table = tcpf_report::sweep::write(&out, &summary).map_err(Failure::Failed)?;
+    finish(rows, crate::cli::band(&args.band), interrupted)
+}
+
+fn finish(rows: Sweep, band: Band, interrupted: bool) -> Result<ExitCode, Failure> {
+    let dir = rows.dir().to_path_buf();
+    let (summary, table) = rows.finish(band).map_err(Failure::Failed)?;
     say!("{table}");
-    sayln!("sweep directory: {}", out.display());
+    sayln!("sweep directory: {}", dir.display());
+    sayln!("again: {}/rerun.sh DIR   ({})", dir.display(), summary.rerun);
     Ok(code(summary.failed_runs.is_empty(), interrupted))
+}
+
+pub fn merge(dirs: &[PathBuf], out: &Path, band: Band) -> Result<ExitCode, Failure> {
+    fresh_out(Some(out))?;
+    let rows = Sweep::merge(dirs, out).map_err(Failure::Input)?;
+    finish(rows, band, false)
 }

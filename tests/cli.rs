@@ -128,7 +128,7 @@ fn an_out_given_as_a_new_directory_and_a_dot_is_that_directory() {
     assert!(dir.join("new/summary.json").is_file());
     let o = a_small_sweep(&dir.join("sweep").join("."));
     assert!(o.status.success(), "{}", text(&o));
-    assert!(dir.join("sweep/sweep.csv").is_file());
+    assert!(dir.join("sweep/runs.csv").is_file());
 }
 
 /// Case (a) swept over one loss and one seed, in-process, into `out`.
@@ -1379,7 +1379,7 @@ fn a_report_of_a_sweeps_directory_says_it_reads_one_run() {
     assert!(o.status.success(), "{}", text(&o));
     let o = tcpf(&["report", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
-    assert!(text(&o).contains("a sweep's directory (sweep.csv)"), "{}", text(&o));
+    assert!(text(&o).contains("a sweep's directory (runs.csv)"), "{}", text(&o));
 }
 
 /// A run directory says what made it, so that the run can be told apart and made again: the

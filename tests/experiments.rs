@@ -39,36 +39,46 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
         out.to_str().unwrap(),
     ]));
     let summary = json(&out.join("sweep.json"));
-    let means: Vec<f64> = summary["values"]
+    let means: Vec<f64> = summary["points"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|v| v["max_coordination_error"]["mean"].as_f64().unwrap())
+        .map(|v| v["metrics"]["max_coordination_error"]["mean"].as_f64().unwrap())
         .collect();
     eprintln!("mean coordination error at loss 0, 0.5, 0.9: {means:?}");
     assert!(means[0] < means[1] && means[1] < means[2], "{means:?}");
     assert!((3.3..=4.3).contains(&means[2]), "MODEL §5 (d): {}", means[2]);
-    for plot in ["sweep-error.svg", "sweep-clearance.svg", "sweep.html"] {
+    for plot in [
+        "sweep-error.svg",
+        "sweep-error.pdf",
+        "sweep-clearance.svg",
+        "sweep.html",
+    ] {
         assert!(out.join(plot).is_file(), "{plot}");
     }
 
-    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
-    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let header = std::fs::read_to_string(out.join("runs.csv")).unwrap();
     assert_eq!(
-        csv.lines().next().unwrap(),
-        "loss,seed,max_coordination_error,min_clearance,arrival_spread,delivered_fraction,messages_per_vehicle_s,last_arrival"
+        header.lines().next().unwrap(),
+        "run,comms.loss,seed,status,max_coordination_error,rms_coordination_error,integral_coordination_error,\
+         resync_time,min_clearance,arrival_spread,last_arrival,delivered_fraction,messages_per_vehicle_s"
     );
+    let rows = common::csv_rows(&out.join("runs.csv"));
     assert_eq!(rows.len(), 60);
+    let f = |r: &std::collections::BTreeMap<String, String>, k: &str| r[k].parse::<f64>().unwrap();
     // The json's mean is the csv's mean.
     let at_09: Vec<f64> = rows
         .iter()
-        .filter(|r| r[0] == "0.9")
-        .map(|r| r[2].parse().unwrap())
+        .filter(|r| r["comms.loss"] == "0.9")
+        .map(|r| f(r, "max_coordination_error"))
         .collect();
     assert!((at_09.iter().sum::<f64>() / 20.0 - means[2]).abs() < 1e-12);
     // A row is the run of the same mission, loss and seed, to the bit.
     for (loss, seed) in [("0.5", "3"), ("0.9", "17")] {
-        let row = rows.iter().find(|r| r[0] == loss && r[1] == seed).unwrap();
+        let row = rows
+            .iter()
+            .find(|r| r["comms.loss"] == loss && r["seed"] == seed)
+            .unwrap();
         let run = dir.join(format!("run-{loss}-{seed}"));
         ok(tcpf(&[
             "run",
@@ -82,14 +92,17 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
             run.to_str().unwrap(),
         ]));
         let s = json(&run.join("summary.json"));
-        assert_eq!(
-            row[2].parse::<f64>().unwrap(),
-            s["max_coordination_error"].as_f64().unwrap()
-        );
-        assert_eq!(row[3].parse::<f64>().unwrap(), s["min_clearance"].as_f64().unwrap());
+        for key in [
+            "max_coordination_error",
+            "rms_coordination_error",
+            "integral_coordination_error",
+            "min_clearance",
+        ] {
+            assert_eq!(f(row, key), s[key].as_f64().unwrap(), "{key}");
+        }
         let arrivals = arrivals(&s);
         assert_eq!(
-            row[4].parse::<f64>().unwrap(),
+            f(row, "arrival_spread"),
             arrivals.iter().copied().fold(f64::MIN, f64::max) - arrivals.iter().copied().fold(f64::MAX, f64::min)
         );
     }
@@ -108,11 +121,11 @@ fn a_huge_sweep_streams_its_rows_in_bounded_memory_and_keeps_them_when_interrupt
             .spawn()
             .unwrap(),
     );
-    let csv = out.join("sweep.csv");
+    let csv = out.join("runs.csv");
     let lines = || std::fs::read_to_string(&csv).map_or(0, |s| s.lines().count());
     let started = std::time::Instant::now();
     while lines() < 200 {
-        assert!(started.elapsed().as_secs() < 60, "rows reach sweep.csv as runs finish");
+        assert!(started.elapsed().as_secs() < 60, "rows reach runs.csv as runs finish");
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
     let status = std::fs::read_to_string(format!("/proc/{}/status", sweep.0.id())).unwrap();
@@ -140,15 +153,15 @@ fn a_huge_sweep_streams_its_rows_in_bounded_memory_and_keeps_them_when_interrupt
     let seeds: Vec<u64> = text
         .lines()
         .skip(1)
-        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
         .collect();
     assert_eq!(
         seeds.len() as u64,
         done,
-        "every finished run is in sweep.csv, and only those"
+        "every finished run is in runs.csv, and only those"
     );
     assert!(seeds.iter().copied().eq(1..=done), "rows in grid order, none missing");
-    assert_eq!(summary["values"][0]["runs"].as_u64(), Some(done));
+    assert_eq!(summary["points"][0]["runs"].as_u64(), Some(done));
     assert!(
         stdout.contains(&format!("interrupted: {done} of 2000000 runs done")),
         "{stdout}"
@@ -170,8 +183,8 @@ fn any_key_can_be_swept() {
         dir.to_str().unwrap(),
     ]));
     assert!(String::from_utf8_lossy(&o.stdout).contains("comms.delay"));
-    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
-    assert!(csv.starts_with("comms.delay,seed,"));
+    let csv = std::fs::read_to_string(dir.join("runs.csv")).unwrap();
+    assert!(csv.starts_with("run,comms.delay,seed,status,"));
     assert_eq!(csv.lines().count(), 1 + 4);
     let o = tcpf(&[
         "sweep",
@@ -208,13 +221,11 @@ fn a_threshold_sweep_shows_messages_traded_for_coordination() {
         dir.to_str().unwrap(),
     ]));
     print!("{}", String::from_utf8_lossy(&o.stdout));
-    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = csv
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
-        .collect();
-    let (error, rate, last) = (|r: &Vec<f64>| r[2], |r: &Vec<f64>| r[6], |r: &Vec<f64>| r[7]);
+    let rows = common::csv_rows(&dir.join("runs.csv"));
+    let get = |r: &std::collections::BTreeMap<String, String>, k: &str| r[k].parse::<f64>().unwrap();
+    let error = |r: &std::collections::BTreeMap<String, String>| get(r, "max_coordination_error");
+    let rate = |r: &std::collections::BTreeMap<String, String>| get(r, "messages_per_vehicle_s");
+    let last = |r: &std::collections::BTreeMap<String, String>| get(r, "last_arrival");
     // docs/LINKS.md, to the places it prints: δ = 0 sends at every instant (10 a second), as
     // periodic sending does; 0.02 s cuts that twentyfold at the same error; 0.5 s costs
     // coordination, and moves the arrival.
@@ -226,7 +237,7 @@ fn a_threshold_sweep_shows_messages_traded_for_coordination() {
         assert!(
             printed(rate(row), r) && printed(error(row), e) && printed(last(row), a),
             "threshold {}: {} broadcasts per vehicle and second, error {} s, last arrival {} s",
-            row[0],
+            row["comms.threshold"],
             rate(row),
             error(row),
             last(row)
@@ -347,7 +358,7 @@ fn a_sweep_says_what_it_could_not_average() {
     ]));
     let printed = String::from_utf8_lossy(&o.stdout);
     let summary = json(&short.join("sweep.json"));
-    let (all, lossy) = (&summary["values"][0], &summary["values"][1]);
+    let (all, lossy) = (&summary["points"][0], &summary["points"][1]);
     assert_eq!((all["runs"].as_u64(), all["arrived"].as_u64()), (Some(10), Some(10)));
     let arrived = lossy["arrived"].as_u64().unwrap();
     assert!(
@@ -361,7 +372,7 @@ fn a_sweep_says_what_it_could_not_average() {
         )),
         "{printed}"
     );
-    let last = all["last_arrival"]["mean"].as_f64().unwrap();
+    let last = all["metrics"]["last_arrival"]["mean"].as_f64().unwrap();
     assert!(
         (last - 55.467).abs() < 0.01,
         "without loss, case (d)'s fleet arrives as case (b)'s, at 55.467 s: {last}"
@@ -383,7 +394,7 @@ fn a_sweep_says_what_it_could_not_average() {
         "periodic sending has no threshold"
     );
     let words = dir.join("words");
-    let o = ok(tcpf(&[
+    ok(tcpf(&[
         "sweep",
         &config("paper/b-current"),
         "--param",
@@ -393,8 +404,11 @@ fn a_sweep_says_what_it_could_not_average() {
         "--out",
         words.to_str().unwrap(),
     ]));
-    assert!(String::from_utf8_lossy(&o.stdout).contains("no plots: the values of comms.trigger are not numbers"));
-    assert!(!words.join("sweep-error.svg").exists());
+    let bars = std::fs::read_to_string(words.join("sweep-error.svg")).unwrap();
+    assert!(
+        bars.contains("<rect") && bars.contains("\nperiodic\n") && bars.contains("\nevent\n"),
+        "a bar per value"
+    );
 
     let infeasible = dir.join("infeasible");
     let o = tcpf(&[
@@ -408,7 +422,7 @@ fn a_sweep_says_what_it_could_not_average() {
         infeasible.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("value 4: infeasible plan"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("planner.clearance = 4: infeasible plan"));
     assert!(
         !infeasible.exists(),
         "nothing written, so the same --out can be used again"
@@ -434,11 +448,11 @@ fn a_table_absent_from_the_file_can_be_swept_key_by_key() {
         dir.to_str().unwrap(),
     ]));
     let summary = json(&dir.join("sweep.json"));
-    let delivered: Vec<f64> = summary["values"]
+    let delivered: Vec<f64> = summary["points"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|v| v["delivered_fraction"]["mean"].as_f64().unwrap())
+        .map(|v| v["metrics"]["delivered_fraction"]["mean"].as_f64().unwrap())
         .collect();
     assert!(
         delivered[0] > delivered[1],
@@ -463,7 +477,7 @@ fn a_sweep_of_one_value_plots_its_point() {
     ]));
     let svg = std::fs::read_to_string(dir.join("sweep-error.svg")).unwrap();
     assert!(svg.contains("<circle"), "the mean at loss 0.5 is marked");
-    assert!(svg.contains("mean over 1 seed\n"), "one seed, singular");
+    assert!(svg.contains("mean of 1 seed\n"), "one seed, singular");
 }
 
 /// A sweep's directory says what made it: the mission of its first value (`mission.toml`, the
@@ -488,7 +502,7 @@ fn a_sweeps_directory_says_what_made_it() {
     let (said, toml) = as_run.split_once('\n').unwrap();
     assert_eq!(
         said,
-        "# The mission of the sweep's first value, loss = 0; sweep.json has every value."
+        "# The mission of the sweep's first grid point, comms.loss = 0; sweep.json has the grid."
     );
     assert!(toml.contains("kc = 0.4") && toml.contains("loss = 0.0"), "{toml}");
     common::assert_provenance(&json(&dir.join("sweep.json"))["provenance"], &args, toml);

@@ -459,8 +459,8 @@ fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
     );
     let failed = &summary["failed_runs"][0];
     assert_eq!(
-        (&failed["value"], &failed["seed"]),
-        (&serde_json::json!("0"), &serde_json::json!(1))
+        (&failed["point"], &failed["seed"]),
+        (&serde_json::json!("comms.loss = 0"), &serde_json::json!(1))
     );
     assert!(failed["failure"].as_str().unwrap().starts_with(why), "{failed}");
     let run = std::path::PathBuf::from(failed["run_dir"].as_str().unwrap());
@@ -468,16 +468,24 @@ fn a_sweep_of_fleets_goes_on_past_a_failed_run_and_names_it() {
     let failed_run: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
     assert!(failure(&failed_run).starts_with(why), "{failed_run}");
-    // The statistics are those of the run that was done.
-    let values = summary["values"].as_array().unwrap();
-    assert_eq!(values.len(), 1, "{summary}");
+    // The statistics are those of the run that was done; the failed one is counted, no more.
+    let points = summary["points"].as_array().unwrap();
+    let counts: Vec<_> = points
+        .iter()
+        .map(|p| (&p["values"], &p["runs"], &p["failed"]))
+        .collect();
+    let j = |v| serde_json::json!(v);
     assert_eq!(
-        (&values[0]["value"], &values[0]["runs"]),
-        (&serde_json::json!("0.5"), &serde_json::json!(1))
+        counts,
+        [(&j(["0"]), &j(1), &j(1)), (&j(["0.5"]), &j(1), &j(0))],
+        "{summary}"
     );
-    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 2, "a header and the run done: {csv}");
-    assert!(csv.lines().nth(1).unwrap().starts_with("0.5,1,"), "{csv}");
+    assert_eq!(points[0]["metrics"]["max_coordination_error"], serde_json::Value::Null);
+    let csv = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "the failed run and the run done: {csv}");
+    assert_eq!(rows[0], "0,0,1,failed,,,,,,,,,", "{csv}");
+    assert!(rows[1].starts_with("1,0.5,1,arrived,"), "{csv}");
 }
 
 /// A fleet of a sweep whose world cannot listen fails as it starts: named, and the sweep goes on.
@@ -499,11 +507,11 @@ fn a_sweep_of_fleets_goes_on_past_a_world_that_could_not_start() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
     let failed = &summary["failed_runs"][0];
-    assert_eq!(failed["value"], "0", "{summary}");
+    assert_eq!(failed["point"], "comms.loss = 0", "{summary}");
     let why = failed["failure"].as_str().unwrap();
     assert!(why.contains("the world exited (code 1) as it started"), "{why}");
     assert_eq!(
-        (&summary["done_runs"], &summary["values"][0]["value"]),
+        (&summary["done_runs"], &summary["points"][1]["values"][0]),
         (&serde_json::json!(1), &serde_json::json!("0.5"))
     );
     assert_eq!(summary["gave_up"], false);
@@ -1732,7 +1740,7 @@ fn a_sweep_of_real_fleets_matches_the_in_process_sweep() {
         args.insert(1, &mission);
         let o = Command::new(env!("CARGO_BIN_EXE_tcpf")).args(&args).output().unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        std::fs::read_to_string(out.join("sweep.csv")).unwrap()
+        std::fs::read_to_string(out.join("runs.csv")).unwrap()
     };
     let processes = sweep(&["--processes"], &dir.join("p"));
     assert_eq!(processes, sweep(&[], &dir.join("i")));

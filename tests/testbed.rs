@@ -480,7 +480,7 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let simulated: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(sweep.join("sweep.json")).unwrap()).unwrap();
-    let band = &simulated["values"][0]["max_coordination_error"];
+    let band = &simulated["points"][0]["metrics"]["max_coordination_error"];
     let (min, max, mean) = (
         band["min"].as_f64().unwrap(),
         band["max"].as_f64().unwrap(),

@@ -1,11 +1,12 @@
-//! `tcpf sweep`: one mission over a grid of (value, seed), as in-process runs in parallel over
-//! the cores or as real fleets one after the other. Rows go to sweep.csv in grid order as soon
-//! as they are known; what they become is `tcpf_report::sweep`.
+//! `tcpf sweep`: one mission over a grid of (point, seed), as in-process runs in parallel over
+//! the cores or as real fleets one after the other. Rows go to runs.csv in run order as soon as
+//! they are known; what they become is `tcpf_report::sweep`.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc;
+use std::time::Instant;
 
 use anyhow::{anyhow, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -13,117 +14,133 @@ use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 use tcpf_report::rundir::RunDir;
+use tcpf_report::sweep::grid::split_values;
+use tcpf_report::sweep::{Design, FailedRun, Grid, Param, Row, Sweep, GIVE_UP};
 
 use crate::launcher::RunFailed;
-use tcpf_report::sweep::{FailedRun, Row, Sweep, GIVE_UP};
 
-/// The runs of a sweep: every value's mission, each with seeds 1..=`seeds`. Run `k` is value
-/// `k / seeds` with seed `k % seeds + 1`; a mission is made for a run only when it starts.
-pub struct Grid {
-    pub values: Vec<(String, Mission)>,
-    pub seeds: u64,
+/// The runs of a sweep: its grid, and the mission of every grid point (seed aside: a run's
+/// mission is its point's with the run's seed, made only when it starts).
+pub struct Runs {
+    pub grid: Grid,
+    pub missions: Vec<Mission>,
 }
 
-impl Grid {
-    fn runs(&self) -> Result<u64> {
-        (self.values.len() as u64).checked_mul(self.seeds).ok_or_else(|| {
-            anyhow!(
-                "{} values × {} seeds: too many runs to count",
-                self.values.len(),
-                self.seeds
-            )
-        })
-    }
-
-    fn run(&self, k: u64) -> (usize, u64, Mission) {
-        let v = (k / self.seeds) as usize;
-        let seed = k % self.seeds + 1;
-        let mut mission = self.values[v].1.clone();
+impl Runs {
+    fn mission(&self, k: u64) -> (u64, Mission) {
+        let (point, seed) = self.grid.run(k);
+        let mut mission = self.missions[point as usize].clone();
         mission.mission.seed = seed;
-        (v, seed, mission)
+        (point, mission)
     }
 
-    /// One plan per value: the plan does not depend on the seed.
+    /// One plan per grid point: the plan does not depend on the seed.
     pub fn plans(&self) -> Result<Vec<Plan>> {
-        self.values
+        self.missions
             .iter()
-            .map(|(value, mission)| {
-                crate::planning::plan(mission).map_err(|e| anyhow!("value {value}: infeasible plan: {e}"))
+            .enumerate()
+            .map(|(p, mission)| {
+                crate::planning::plan(mission)
+                    .map_err(|e| anyhow!("{}: infeasible plan: {e}", self.grid.label(p as u64)))
             })
             .collect()
     }
 }
 
-/// The key a sweep sets, and its values, as `--param KEY=V1,V2,...` or `--loss V1,V2,...` gave
-/// them: checked against each other, the `--set`s beside them (`sets`) and the number of seeds.
-pub struct Swept {
-    pub key: String,
-    /// The column that names it in the sweep's tables.
-    pub column: String,
-    pub values: Vec<String>,
-}
-
-impl Swept {
-    /// Why a sweep cannot be run, if it cannot: bad input, said before anything is written.
-    pub fn parse(param: Option<&str>, loss: &[String], sets: &[String], seeds: u64) -> Result<Swept, String> {
-        let bad = |m: String| Err(m);
-        let (key, column, values): (String, String, Vec<String>) = match param {
-            Some(p) => {
-                let Some((k, v)) = p.split_once('=') else {
-                    return bad(format!("--param {p}: expected KEY=V1,V2,..."));
-                };
-                let values = v.split(',').map(|s| s.trim().to_string()).collect();
-                (k.trim().into(), k.trim().into(), values)
-            }
-            None => (
-                "comms.loss".into(),
-                "loss".into(),
-                loss.iter().map(|s| s.trim().to_string()).collect(),
-            ),
+/// The keys a sweep sets and their values, from `--param KEY=V1,V2,...` (any number of them) and
+/// `--loss V1,V2,...` (`--param comms.loss=...`), checked against each other and the `--set`s
+/// beside them (`sets`), with the seeds. Why a sweep cannot be run, if it cannot: bad input,
+/// said before anything is written.
+pub fn parse_grid(
+    params: &[String],
+    loss: &[String],
+    sets: &[String],
+    seeds: u64,
+    seed_start: u64,
+) -> Result<Grid, String> {
+    let mut grid = Grid {
+        params: Vec::new(),
+        seeds,
+        seed_start,
+    };
+    if !loss.is_empty() {
+        grid.params.push(Param {
+            key: "comms.loss".into(),
+            values: loss.iter().map(|s| s.trim().to_string()).collect(),
+        });
+    }
+    for p in params {
+        let Some((k, v)) = p.split_once('=') else {
+            return Err(format!("--param {p}: expected KEY=V1,V2,..."));
         };
-        if values.iter().any(|v| v.is_empty()) {
-            return bad(format!("{key}: an empty value in {}", values.join(",")));
+        let key = k.trim().to_string();
+        if let Some(twice) = grid.params.iter().find(|q| q.key == key) {
+            let said = if twice.key == "comms.loss" && !loss.is_empty() {
+                "--loss and --param both sweep comms.loss".to_string()
+            } else {
+                format!("--param {key} is given twice")
+            };
+            return Err(format!("{said}: give its values once, as one list"));
         }
-        // The `--set` that names `k`, if one does.
-        let set_of = |k: &str| {
-            sets.iter()
-                .find(|s| s.split_once('=').is_some_and(|(set, _)| set.trim() == k))
-        };
-        if key == "mission.seed" || set_of("mission.seed").is_some() {
-            return bad(
-                "mission.seed: the sweep gives each run its seed (--seeds N: 1 to N); sweep or set another key".into(),
-            );
+        grid.params.push(Param {
+            key,
+            values: split_values(v).map_err(|e| format!("--param {}", e))?,
+        });
+    }
+    // The `--set` that names `k`, if one does.
+    let set_of = |k: &str| {
+        sets.iter()
+            .find(|s| s.split_once('=').is_some_and(|(set, _)| set.trim() == k))
+    };
+    if grid.params.iter().any(|p| p.key == "mission.seed") || set_of("mission.seed").is_some() {
+        return Err(
+            "mission.seed: the sweep gives each run its seed (--seeds N, --seed-start S: S to S + N − 1); sweep or set another key"
+                .into(),
+        );
+    }
+    if seed_start.checked_add(seeds - 1).is_none() {
+        return Err(format!(
+            "--seed-start {seed_start} --seeds {seeds}: the last seed is past 2^64"
+        ));
+    }
+    for p in &grid.params {
+        if p.values.iter().any(String::is_empty) {
+            return Err(format!("{}: an empty value in {}", p.key, p.values.join(",")));
         }
-        // Runs are counted, and written in sweep.json, as integers JSON keeps exact.
-        if (values.len() as u64)
-            .checked_mul(seeds)
-            .is_none_or(|runs| runs > 1 << 53)
-        {
-            return bad(format!(
-                "--seeds {seeds}: {} values × {seeds} seeds are more runs than a sweep counts (2^53)",
-                values.len()
-            ));
-        }
-        if let Some(set) = set_of(&key) {
-            return bad(format!("--set {set}: {key} is the key the sweep sets, value by value"));
-        }
-        if let Some(v) = values.iter().find(|v| v.starts_with('[') || v.ends_with(']')) {
-            return bad(format!(
-                "{key}: {v} is part of an array, and an array cannot be swept: the values are split at commas"
+        if let Some(set) = set_of(&p.key) {
+            return Err(format!(
+                "--set {set}: {} is a key the sweep sets, value by value",
+                p.key
             ));
         }
         // "0" and "0.0" are one number: the same runs twice.
         let same =
             |a: &str, b: &str| a == b || matches!((a.parse::<f64>(), b.parse::<f64>()), (Ok(x), Ok(y)) if x == y);
-        if let Some((v, w)) = values
+        if let Some((v, w)) = p
+            .values
             .iter()
             .enumerate()
-            .find_map(|(i, v)| values[..i].iter().find(|w| same(v, w)).map(|w| (v, w)))
+            .find_map(|(i, v)| p.values[..i].iter().find(|w| same(v, w)).map(|w| (v, w)))
         {
-            return bad(format!("{key}: the value {v} is swept twice ({w} and {v})"));
+            return Err(format!("{}: the value {v} is swept twice ({w} and {v})", p.key));
         }
-        Ok(Swept { key, column, values })
     }
+    // Runs are counted, and written in sweep.json, as integers JSON keeps exact.
+    let runs = grid
+        .params
+        .iter()
+        .try_fold(seeds, |n, p| n.checked_mul(p.values.len() as u64));
+    if runs.is_none_or(|runs| runs > 1 << 53) {
+        return Err(format!(
+            "--seeds {seeds}: {} grid points × {seeds} seeds are more runs than a sweep counts (2^53)",
+            grid.params
+                .iter()
+                .map(|p| p.values.len().to_string())
+                .collect::<Vec<_>>()
+                .join(" × ")
+        ));
+    }
+    Ok(grid)
 }
 
 fn progress(total: u64) -> ProgressBar {
@@ -134,31 +151,48 @@ fn progress(total: u64) -> ProgressBar {
     bar
 }
 
-/// Every run in-process, spread over `threads` threads, each row pushed into `sweep` in grid
-/// order. Returns whether a signal cut the sweep short (the rows finished are kept).
-pub fn run_in_process(grid: &Grid, plans: &[Plan], threads: usize, sweep: &mut Sweep) -> Result<bool> {
-    let runs = grid.runs()?;
+/// Whether run `k` is one this sweep runs now: its shard's, and not kept from before.
+fn to_run(design: &Design, kept: &BTreeSet<u64>, k: u64) -> bool {
+    design.holds(k) && !kept.contains(&k)
+}
+
+/// Every run of the sweep's share in-process, spread over `jobs` threads, each row pushed into
+/// `sweep` in run order. Returns whether a signal cut the sweep short (the rows finished are
+/// kept).
+pub fn run_in_process(runs: &Runs, plans: &[Plan], jobs: usize, sweep: &mut Sweep) -> Result<bool> {
+    let total = runs.grid.runs();
+    let kept = sweep.kept();
+    let design = sweep.design().clone();
+    let todo = design.planned() - kept.len() as u64;
     // A signal (Ctrl-C, SIGTERM, SIGHUP but under nohup): the sweep starts no new run.
     let stop = tcpf_bus::signals::stop_flag()?;
     let next = AtomicU64::new(0);
-    let bar = progress(runs);
-    let (tx, rx) = mpsc::sync_channel::<(u64, Row)>(threads.max(1) * 4);
+    let bar = progress(todo);
+    let dt = |point: u64| runs.missions[point as usize].mission.control_period;
+    type Done = (u64, Option<(Row, std::time::Duration)>);
+    let (tx, rx) = mpsc::sync_channel::<Done>(jobs.max(1) * 4);
     let written = std::thread::scope(|s| -> Result<()> {
-        for _ in 0..threads.max(1) {
+        for _ in 0..jobs.max(1) {
             let tx = tx.clone();
             let (next, stop) = (&next, &stop);
+            let (design, kept) = (&design, &kept);
+            let wanted = |k| to_run(design, kept, k);
             s.spawn(move || loop {
                 if stop.load(Ordering::Relaxed) {
                     break;
                 }
                 let k = next.fetch_add(1, Ordering::Relaxed);
-                if k >= runs {
+                if k >= total {
                     break;
                 }
-                let (v, seed, mission) = grid.run(k);
-                let results = Fleet::new(&mission, &plans[v]).run(|_, _| {});
-                let row = Row::new(&grid.values[v].0, seed, &results, mission.mission.control_period);
-                if tx.send((k, row)).is_err() {
+                // Another shard's run, or one done before: passed over, in order.
+                let done = wanted(k).then(|| {
+                    let started = Instant::now();
+                    let (point, mission) = runs.mission(k);
+                    let results = Fleet::new(&mission, &plans[point as usize]).run(|_, _| {});
+                    (Row::new(&runs.grid, k, &results, dt(point)), started.elapsed())
+                });
+                if tx.send((k, done)).is_err() {
                     break;
                 }
             });
@@ -167,75 +201,98 @@ pub fn run_in_process(grid: &Grid, plans: &[Plan], threads: usize, sweep: &mut S
         // Rows arrive in the order runs finish; hold the few that overtook an earlier run.
         let mut early = BTreeMap::new();
         let mut due = 0;
-        for (k, row) in rx {
-            early.insert(k, row);
-            while let Some(row) = early.remove(&due) {
-                sweep.push(&row)?;
-                bar.inc(1);
+        for (k, done) in rx {
+            early.insert(k, done);
+            while let Some(done) = early.remove(&due) {
+                if let Some((row, wall)) = done {
+                    sweep.push(&row, Some(wall))?;
+                    bar.inc(1);
+                }
                 due += 1;
             }
         }
         Ok(())
     });
     // A signal after the last run cut nothing short.
-    let cut_short = stop.load(Ordering::Relaxed) && bar.position() < runs;
+    let cut_short = stop.load(Ordering::Relaxed) && bar.position() < todo;
     bar.finish_and_clear();
     written?;
     Ok(cut_short)
 }
 
-/// Every run as a real fleet of processes, one after the other, each with its run directory; a
-/// run that fails is put in the sweep's failed runs. Returns whether a signal cut the sweep short.
-pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, sweep: &mut Sweep) -> Result<bool> {
-    let runs = grid.runs()?;
+/// Every run of the sweep's share as a real fleet of processes, one after the other, each with
+/// its run directory; a run that fails is a failed row. Returns whether a signal cut the sweep
+/// short.
+pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut Sweep) -> Result<bool> {
+    let kept = sweep.kept();
+    let bar = progress(sweep.design().planned() - kept.len() as u64);
     // A signal between two runs (each run handles its own while it lasts) starts no new one.
     let stop = tcpf_bus::signals::stop_flag()?;
-    let bar = progress(runs);
-    for k in 0..runs {
+    for k in 0..runs.grid.runs() {
+        if !to_run(sweep.design(), &kept, k) {
+            continue;
+        }
         if stop.load(Ordering::Relaxed) {
             bar.finish_and_clear();
             return Ok(true);
         }
-        let (v, seed, mission) = grid.run(k);
-        let value = &grid.values[v].0;
-        let name = format!("{}-seed{seed}", value.replace(['/', ' ', '"'], "_"));
-        let dir = RunDir::create(Some(&out.join("runs").join(&name)), &mission)?;
-        let summary =
-            match crate::launcher::run(&mission, &plans[v], &dir, exe, crate::launcher::Options::default()).await {
-                // Stopped as its world started: the sweep is cut short there, as by any interrupt.
-                Err(e) if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() => {
+        let (point, mission) = runs.mission(k);
+        let seed = mission.mission.seed;
+        let label = runs.grid.label(point);
+        let name = format!(
+            "{}-seed{seed}",
+            runs.grid
+                .values(point)
+                .join("_")
+                .replace(['/', ' ', '"', '\'', '[', ']', '{', '}', '=', ','], "_")
+        );
+        let dir = RunDir::create(Some(&sweep.dir().join("runs").join(&name)), &mission)?;
+        let started = Instant::now();
+        let summary = match crate::launcher::run(
+            &mission,
+            &plans[point as usize],
+            &dir,
+            exe,
+            crate::launcher::Options::default(),
+        )
+        .await
+        {
+            // Stopped as its world started: the sweep is cut short there, as by any interrupt.
+            Err(e) if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() => {
+                bar.finish_and_clear();
+                return Ok(true);
+            }
+            // A fleet that failed (its world killed, a role that could not be started) is a
+            // failed row, and the sweep goes on: the runs after it are as good as ever, and
+            // three failures in a row end it. Any other error (the run directory cannot be
+            // written, no port is free) would fail them all: it ends the sweep.
+            Err(e) => {
+                let failed = e.downcast::<RunFailed>()?;
+                let said = format!("run {name} failed: {failed}");
+                let run = FailedRun {
+                    run: k,
+                    point: label,
+                    seed,
+                    run_dir: failed.dir,
+                    failure: failed.why,
+                };
+                if sweep.fail(run)? {
                     bar.finish_and_clear();
-                    return Ok(true);
+                    tracing::error!("{said}; {GIVE_UP} runs in a row failed, and the sweep gives up");
+                    return Ok(false);
                 }
-                // A fleet that failed (its world killed, a role that could not be started) is
-                // named in the summary, and the sweep goes on: the runs after it are as good as
-                // ever, and three failures in a row end it. Any other error (the run directory
-                // cannot be written, no port is free) would fail them all: it ends the sweep.
-                Err(e) => {
-                    let failed = e.downcast::<RunFailed>()?;
-                    let said = format!("run {name} failed: {failed}");
-                    let run = FailedRun {
-                        value: value.clone(),
-                        seed,
-                        run_dir: failed.dir,
-                        failure: failed.why,
-                    };
-                    if sweep.fail(run) {
-                        bar.finish_and_clear();
-                        tracing::error!("{said}; {GIVE_UP} runs in a row failed, and the sweep gives up");
-                        return Ok(false);
-                    }
-                    bar.suspend(|| tracing::error!("{said}; the sweep goes on"));
-                    bar.inc(1);
-                    continue;
-                }
-                Ok(summary) => summary,
-            };
+                bar.suspend(|| tracing::error!("{said}; the sweep goes on"));
+                bar.inc(1);
+                continue;
+            }
+            Ok(summary) => summary,
+        };
         if summary.interrupted {
             bar.finish_and_clear();
             return Ok(true);
         }
-        sweep.push(&Row::new(value, seed, &summary.results, mission.mission.control_period))?;
+        let row = Row::new(&runs.grid, k, &summary.results, mission.mission.control_period);
+        sweep.push(&row, Some(started.elapsed()))?;
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -246,38 +303,53 @@ pub async fn run_processes(grid: &Grid, plans: &[Plan], out: &Path, exe: &Path, 
 mod tests {
     use super::*;
 
-    fn refused(param: Option<&str>, loss: &[&str], sets: &[&str], seeds: u64) -> String {
-        let loss: Vec<String> = loss.iter().map(|s| s.to_string()).collect();
-        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-        match Swept::parse(param, &loss, &sets, seeds) {
-            Ok(_) => panic!("{param:?} {loss:?} {sets:?} taken"),
+    fn strings(v: &[&str]) -> Vec<String> {
+        v.iter().map(|s| s.to_string()).collect()
+    }
+
+    fn refused(params: &[&str], loss: &[&str], sets: &[&str], seeds: u64) -> String {
+        match parse_grid(&strings(params), &strings(loss), &strings(sets), seeds, 1) {
+            Ok(_) => panic!("{params:?} {loss:?} {sets:?} taken"),
             Err(e) => e,
         }
     }
 
     #[test]
-    fn a_sweep_names_its_key_and_values_or_says_what_it_cannot_sweep() {
-        let loss = Swept::parse(None, &["0".into(), " 0.2".into()], &[], 5).unwrap();
-        assert_eq!((loss.key.as_str(), loss.column.as_str()), ("comms.loss", "loss"));
-        assert_eq!(loss.values, ["0", "0.2"]);
-        let gain = Swept::parse(Some("coord.k_c = 0.1,0.5"), &[], &["comms.loss=0.1".into()], 1).unwrap();
-        assert_eq!((gain.key.as_str(), gain.values.len()), ("coord.k_c", 2));
+    fn a_grid_names_its_keys_and_values_or_says_what_it_cannot_sweep() {
+        let loss = parse_grid(&[], &strings(&["0", " 0.2"]), &[], 5, 1).unwrap();
+        assert_eq!(loss.params[0].key, "comms.loss");
+        assert_eq!(loss.params[0].values, ["0", "0.2"]);
+        let grid = parse_grid(
+            &strings(&["comms.delay = 0,1", "comms.topology=ring,complete"]),
+            &strings(&["0", "0.3", "0.6"]),
+            &strings(&["coord.k_c=0.1"]),
+            5,
+            11,
+        )
+        .unwrap();
+        let keys: Vec<&str> = grid.params.iter().map(|p| p.key.as_str()).collect();
+        assert_eq!(keys, ["comms.loss", "comms.delay", "comms.topology"]);
+        assert_eq!((grid.runs(), grid.seed_start), (60, 11));
         assert_eq!(
-            refused(Some("coord.k_c"), &[], &[], 1),
+            refused(&["coord.k_c"], &[], &[], 1),
             "--param coord.k_c: expected KEY=V1,V2,..."
         );
-        assert!(refused(Some("a=1,,2"), &[], &[], 1).contains("an empty value"));
-        assert!(refused(Some("mission.seed=1,2"), &[], &[], 1).starts_with("mission.seed: the sweep gives"));
-        assert!(refused(None, &["0.1"], &["mission.seed=3"], 1).starts_with("mission.seed"));
-        assert!(refused(None, &["0.1", "0.2"], &[], 1 << 53).contains("more runs than a sweep counts"));
+        assert!(refused(&["a=1,,2"], &[], &[], 1).contains("an empty value"));
+        assert!(refused(&["mission.seed=1,2"], &[], &[], 1).starts_with("mission.seed: the sweep gives"));
+        assert!(refused(&[], &["0.1"], &["mission.seed=3"], 1).starts_with("mission.seed"));
+        assert!(refused(&[], &["0.1", "0.2"], &[], 1 << 53).contains("more runs than a sweep counts"));
         assert_eq!(
-            refused(None, &["0.1"], &["comms.loss=0.3"], 1),
-            "--set comms.loss=0.3: comms.loss is the key the sweep sets, value by value"
+            refused(&[], &["0.1"], &["comms.loss=0.3"], 1),
+            "--set comms.loss=0.3: comms.loss is a key the sweep sets, value by value"
         );
-        assert!(refused(Some("comms.link=[1,2]"), &[], &[], 1).contains("an array cannot be swept"));
+        assert!(refused(&["comms.loss=0.1"], &["0.2"], &[], 1).starts_with("--loss and --param both sweep comms.loss"));
+        assert!(refused(&["a=1", "a=2"], &[], &[], 1).starts_with("--param a is given twice"));
+        assert!(refused(&["comms.link=[1,2"], &[], &[], 1).contains("left open"));
         assert_eq!(
-            refused(None, &["0", "0.0"], &[], 1),
+            refused(&[], &["0", "0.0"], &[], 1),
             "comms.loss: the value 0.0 is swept twice (0 and 0.0)"
         );
+        let tables = parse_grid(&strings(&["comms.edges=[[1,2]],[[1,2],[2,3]]"]), &[], &[], 1, 1).unwrap();
+        assert_eq!(tables.params[0].values, ["[[1,2]]", "[[1,2],[2,3]]"]);
     }
 }

@@ -3,6 +3,7 @@
 //! sweep's summaries, and `run.mcap` with its live twin for Foxglove. Changing a report rebuilds this crate, not Zenoh.
 
 pub mod live;
+pub mod pdf;
 pub mod plots;
 pub mod report;
 pub mod rundir;

@@ -31,6 +31,10 @@ pub struct Chart<'a> {
     pub dots: Vec<Series>,
     /// Start the y axis at zero (counts and rates, whose small wobbles are not a trend).
     pub y_from_zero: bool,
+    /// Fault windows along x (time), shaded; one of no width is a line.
+    pub windows: Vec<(f64, f64)>,
+    /// Arrows: (from, to, label), e.g. the water current on a map.
+    pub arrows: Vec<((f64, f64), (f64, f64), String)>,
 }
 
 impl<'a> Chart<'a> {
@@ -47,7 +51,15 @@ impl<'a> Chart<'a> {
             markers: Vec::new(),
             dots: Vec::new(),
             y_from_zero: false,
+            windows: Vec::new(),
+            arrows: Vec::new(),
         }
+    }
+
+    /// The chart with `windows` (start, end) shaded: faults on a time axis.
+    pub fn with_windows(mut self, windows: &[(f64, f64)]) -> Chart<'a> {
+        self.windows = windows.to_vec();
+        self
     }
 
     fn bounds(&self) -> ((f64, f64), (f64, f64)) {
@@ -56,7 +68,8 @@ impl<'a> Chart<'a> {
             .iter()
             .flat_map(|s| s.points.iter().map(|p| p.0))
             .chain(self.bands.iter().flat_map(|b| b.1.iter().map(|p| p.0)))
-            .chain(self.dots.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+            .chain(self.dots.iter().flat_map(|s| s.points.iter().map(|p| p.0)))
+            .chain(self.arrows.iter().flat_map(|a| [a.0 .0, a.1 .0]));
         let ys = self
             .series
             .iter()
@@ -65,7 +78,8 @@ impl<'a> Chart<'a> {
             .chain(self.levels.iter().map(|l| l.0))
             .chain(self.bands.iter().flat_map(|b| b.1.iter().flat_map(|p| [p.1, p.2])))
             .chain(self.markers.iter().map(|m| m.1))
-            .chain(self.dots.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+            .chain(self.dots.iter().flat_map(|s| s.points.iter().map(|p| p.1)))
+            .chain(self.arrows.iter().flat_map(|a| [a.0 .1, a.1 .1]));
         let range = |it: &mut dyn Iterator<Item = f64>| {
             let (lo, hi) = it
                 .filter(|v| v.is_finite())
@@ -126,6 +140,46 @@ impl<'a> Chart<'a> {
             .y_desc(self.y_label)
             .light_line_style(RGBColor(235, 235, 235))
             .draw()?;
+        let shown = self
+            .windows
+            .iter()
+            .filter(|w| w.1 >= x.0 && w.0 <= x.1)
+            .map(|w| (w.0.max(x.0), w.1.min(x.1)));
+        for (k, (start, end)) in shown.enumerate() {
+            let shade = RGBColor(200, 0, 0);
+            let drawn = if end - start > 1e-9 {
+                chart.draw_series(std::iter::once(Rectangle::new(
+                    [(start, y.0), (end, y.1)],
+                    shade.mix(0.1).filled(),
+                )))?
+            } else {
+                chart.draw_series(DashedLineSeries::new(
+                    vec![(start, y.0), (start, y.1)],
+                    4,
+                    3,
+                    shade.stroke_width(1),
+                ))?
+            };
+            if k == 0 {
+                drawn
+                    .label("fault window")
+                    .legend(move |(a, b)| Rectangle::new([(a, b - 5), (a + 16, b + 5)], shade.mix(0.2).filled()));
+            }
+        }
+        for (from, to, label) in &self.arrows {
+            let grey = RGBColor(90, 90, 90);
+            let (dx, dy) = (to.0 - from.0, to.1 - from.1);
+            // The head: two strokes back from the tip at ±25°, a quarter of the shaft long.
+            let head = |turn: f64| {
+                let (c, s) = (turn.cos(), turn.sin());
+                (to.0 - 0.25 * (c * dx - s * dy), to.1 - 0.25 * (s * dx + c * dy))
+            };
+            chart.draw_series([
+                PathElement::new(vec![*from, *to], grey.stroke_width(2)),
+                PathElement::new(vec![head(0.44), *to, head(-0.44)], grey.stroke_width(2)),
+            ])?;
+            chart.draw_series(std::iter::once(Text::new(label.clone(), *from, ("sans-serif", 12))))?;
+        }
         for (k, (name, band)) in self.bands.iter().enumerate() {
             let color = Palette99::pick(k).mix(0.2);
             let mut outline: Vec<(f64, f64)> = band.iter().map(|p| (p.0, p.2)).collect();
@@ -177,7 +231,7 @@ impl<'a> Chart<'a> {
             chart.draw_series(std::iter::once(Circle::new((*px, *py), 5, BLACK.stroke_width(2))))?;
             chart.draw_series(std::iter::once(Text::new(name.clone(), (*px, *py), ("sans-serif", 12))))?;
         }
-        if !self.series.is_empty() || !self.levels.is_empty() || !self.dots.is_empty() {
+        if !self.series.is_empty() || !self.levels.is_empty() || !self.dots.is_empty() || !self.windows.is_empty() {
             chart
                 .configure_series_labels()
                 .background_style(WHITE.mix(0.8))

@@ -209,6 +209,42 @@ pub fn write(dir: &Path) -> Result<()> {
 
 /// What made the run, and the mission's main parameters, on the first screen: enough to tell runs
 /// apart, and to make one again (`mission.toml` beside this page holds the mission whole).
+/// The run's fault windows (shaded on every time plot), each with the time the fleet took to
+/// be back in step after it (MODEL D16a); and the error's rms and integral.
+fn fault_table(html: &mut String, summary: &Summary) {
+    let r = &summary.results;
+    let _ = write!(
+        html,
+        "<table id=\"faults\"><tr><th>rms coordination error (s)</th><th>∫ coordination error dt (s²)</th></tr><tr><td>{}</td><td>{}</td></tr></table>",
+        number(r.rms_coordination_error, 3),
+        number(r.integral_coordination_error, 3)
+    );
+    if r.faults.is_empty() {
+        return;
+    }
+    let _ = write!(
+        html,
+        "<table id=\"fault-windows\"><tr><th>fault</th><th>from (s)</th><th>to (s)</th><th>back within {} s of γ after (s)</th></tr>",
+        tcpf_core::metrics::RESYNC_WITHIN
+    );
+    for f in &r.faults {
+        let kind = match f.kind {
+            tcpf_core::metrics::FaultKind::Outage => "outage",
+            tcpf_core::metrics::FaultKind::Lost => "vehicle lost",
+        };
+        let back = f
+            .resync_time
+            .map_or("never, before the run ended".to_string(), |t| number(t, 2));
+        let _ = write!(
+            html,
+            "<tr><td>{kind}</td><td>{}</td><td>{}</td><td>{back}</td></tr>",
+            number(f.start, 2),
+            number(f.end, 2)
+        );
+    }
+    html.push_str("</table>\n");
+}
+
 fn provenance_table(html: &mut String, mission: &Mission, summary: &Summary) {
     let p = &summary.provenance;
     let or_dash = |s: String| if s.is_empty() { "–".to_string() } else { s };
@@ -317,13 +353,13 @@ fn pairs(mission: &Mission, ids: &[u32]) -> (Pairs, Pairs) {
 
 /// What a dynamic vehicle did (MODEL D22): its velocity through the water, side-slip and turn
 /// rate, and its thrusters' commands against the dead zone and full thrust, and their forces.
-fn dynamic_figures(tracks: &BTreeMap<u32, Track>, figures: &mut Vec<(&str, String, String)>) {
+fn dynamic_figures(tracks: &BTreeMap<u32, Track>, faults: &[(f64, f64)], figures: &mut Vec<(&str, String, String)>) {
     let dynamic: Vec<(&u32, &Track)> = tracks.iter().filter(|(_, t)| t.is_dynamic()).collect();
     if dynamic.is_empty() {
         return;
     }
     let per_vehicle = |title: &'static str, y: &'static str, columns: &[(&str, &str)]| {
-        let mut chart = Chart::new(title, "t (s)", y);
+        let mut chart = Chart::new(title, "t (s)", y).with_windows(faults);
         for (id, tr) in &dynamic {
             for (column, name) in columns {
                 chart.series.push(Series {
@@ -387,11 +423,11 @@ fn dynamic_figures(tracks: &BTreeMap<u32, Track>, figures: &mut Vec<(&str, Strin
 }
 
 /// Broadcasts per vehicle over time, and every message of every link, delivered or lost.
-fn message_figures(messages: &[Message], figures: &mut Vec<(&str, String, String)>) {
+fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Vec<(&str, String, String)>) {
     if messages.is_empty() {
         return;
     }
-    let mut sent = Chart::new("γ messages sent", "t (s)", "broadcasts so far");
+    let mut sent = Chart::new("γ messages sent", "t (s)", "broadcasts so far").with_windows(&faults);
     let mut senders: BTreeMap<u32, Vec<(f64, f64)>> = BTreeMap::new();
     let mut last: BTreeMap<u32, u64> = BTreeMap::new();
     for m in messages {
@@ -430,7 +466,7 @@ fn message_figures(messages: &[Message], figures: &mut Vec<(&str, String, String
     links.dedup();
     let row = |m: &Message| links.iter().position(|l| *l == (m.from, m.to)).unwrap_or(0) as f64 + 1.0;
     let stride = every(messages.len());
-    let mut marks = Chart::new("γ messages per directed link", "t (s)", "link");
+    let mut marks = Chart::new("γ messages per directed link", "t (s)", "link").with_windows(&faults);
     for (name, delivered) in [("lost", false), ("delivered", true)] {
         marks.dots.push(Series {
             name: name.into(),
@@ -463,6 +499,8 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
     let (all, linked) = pairs(mission, &ids);
     let t_f = summary.results.t_f;
     let mut figures: Vec<(&str, String, String)> = Vec::new();
+    // Every time plot shades the run's fault windows (MODEL D16a).
+    let faults: Vec<(f64, f64)> = summary.results.faults.iter().map(|f| (f.start, f.end)).collect();
 
     let mut paths = Chart::new("Paths, with time along them", "x (m)", "y (m)");
     paths.equal_axes = true;
@@ -487,13 +525,32 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         paths.markers.push((v.start[0], v.start[1], format!("start {}", v.id)));
         paths.markers.push((v.goal[0], v.goal[1], format!("goal {}", v.id)));
     }
+    let current = &mission.current;
+    if current.speed > 0.0 {
+        // Above the fleet's starts and goals, a fifth of their extent long: where it points.
+        let ends = mission.vehicles.iter().flat_map(|v| [v.start, v.goal]);
+        let (lo, hi) = ends.fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
+            ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
+        });
+        let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1.0);
+        let centre = (0.5 * (lo[0] + hi[0]), hi[1] + 0.15 * extent);
+        let half = (
+            0.1 * extent * current.direction.cos(),
+            0.1 * extent * current.direction.sin(),
+        );
+        paths.arrows.push((
+            (centre.0 - half.0, centre.1 - half.1),
+            (centre.0 + half.0, centre.1 + half.1),
+            format!("current {} m/s", current.speed),
+        ));
+    }
     figures.push((
         "paths",
-        "Paths (the paper's Fig. 4): labels give the time in s.".into(),
+        "Paths (the paper's Fig. 4), x east and y north at equal scale: labels give the time in s; the grey arrow is the water current.".into(),
         paths.svg(900, 600),
     ));
 
-    let mut gaps = Chart::new("Coordination error |γi − γj|", "t (s)", "|γi − γj| (s)");
+    let mut gaps = Chart::new("Coordination error |γi − γj|", "t (s)", "|γi − γj| (s)").with_windows(&faults);
     let shown = if linked.is_empty() { &all } else { &linked };
     let error = |a: u32, b: u32| {
         tracks[&a]
@@ -521,7 +578,7 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         gaps.svg(900, 400),
     ));
 
-    let mut distance = Chart::new("Distance between vehicles", "t (s)", "distance (m)");
+    let mut distance = Chart::new("Distance between vehicles", "t (s)", "distance (m)").with_windows(&faults);
     let apart = |a: u32, b: u32| {
         let (ta, tb) = (&tracks[&a], &tracks[&b]);
         (0..ta.t.len().min(tb.t.len())).map(|k| (ta.x[k] - tb.x[k]).hypot(ta.y[k] - tb.y[k]))
@@ -560,8 +617,8 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         distance.svg(900, 400),
     ));
 
-    let mut speeds = Chart::new("Speed through the water", "t (s)", "v (m/s)");
-    let mut cross = Chart::new("Cross-track error", "t (s)", "y_e (m)");
+    let mut speeds = Chart::new("Speed through the water", "t (s)", "v (m/s)").with_windows(&faults);
+    let mut cross = Chart::new("Cross-track error", "t (s)", "y_e (m)").with_windows(&faults);
     for (id, tr) in tracks {
         speeds.series.push(Series {
             name: format!("vehicle {id}"),
@@ -583,7 +640,7 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         cross.svg(900, 400),
     ));
 
-    dynamic_figures(tracks, &mut figures);
+    dynamic_figures(tracks, &faults, &mut figures);
 
     let links = &summary.results.links;
     let names: Vec<String> = links.iter().map(|l| format!("{}→{}", l.from, l.to)).collect();
@@ -602,7 +659,7 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         "Messages delivered and dropped on each directed link.".into(),
         link_chart,
     ));
-    message_figures(messages, &mut figures);
+    message_figures(messages, &faults, &mut figures);
 
     let mut html = String::new();
     let title = format!("tcpf run: {}", summary.mission);
@@ -626,6 +683,7 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         number(summary.wall_time_s, 3),
     );
     provenance_table(&mut html, mission, summary);
+    fault_table(&mut html, summary);
     for warning in &summary.warnings {
         let _ = writeln!(
             html,

@@ -514,3 +514,19 @@ pub fn assert_provenance(p: &Value, args: &[&str], mission_toml: &str) -> String
     assert_eq!(p["mission_digest"], digest.as_str());
     command.join(" ")
 }
+
+/// The rows of a CSV file with a header (`runs.csv`, `aggregate.csv`), each by column name.
+pub fn csv_rows(file: &Path) -> Vec<std::collections::BTreeMap<String, String>> {
+    let mut reader = csv::Reader::from_path(file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    reader
+        .records()
+        .map(|r| {
+            header
+                .iter()
+                .cloned()
+                .zip(r.unwrap().iter().map(String::from))
+                .collect()
+        })
+        .collect()
+}
