@@ -6,6 +6,9 @@ use plotters::prelude::*;
 /// A shaded band: its name and (x, low, high) points.
 pub type Band = (String, Vec<(f64, f64, f64)>);
 
+/// An arrow on a chart: from, to, and its label at its tail.
+pub type Arrow = ((f64, f64), (f64, f64), String);
+
 /// One named line of a chart.
 pub struct Series {
     pub name: String,
@@ -34,7 +37,7 @@ pub struct Chart<'a> {
     /// Fault windows along x (time), shaded; one of no width is a line.
     pub windows: Vec<(f64, f64)>,
     /// Arrows: (from, to, label), e.g. the water current on a map.
-    pub arrows: Vec<((f64, f64), (f64, f64), String)>,
+    pub arrows: Vec<Arrow>,
 }
 
 impl<'a> Chart<'a> {

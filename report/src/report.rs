@@ -427,7 +427,7 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
     if messages.is_empty() {
         return;
     }
-    let mut sent = Chart::new("γ messages sent", "t (s)", "broadcasts so far").with_windows(&faults);
+    let mut sent = Chart::new("γ messages sent", "t (s)", "broadcasts so far").with_windows(faults);
     let mut senders: BTreeMap<u32, Vec<(f64, f64)>> = BTreeMap::new();
     let mut last: BTreeMap<u32, u64> = BTreeMap::new();
     for m in messages {
@@ -466,7 +466,7 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
     links.dedup();
     let row = |m: &Message| links.iter().position(|l| *l == (m.from, m.to)).unwrap_or(0) as f64 + 1.0;
     let stride = every(messages.len());
-    let mut marks = Chart::new("γ messages per directed link", "t (s)", "link").with_windows(&faults);
+    let mut marks = Chart::new("γ messages per directed link", "t (s)", "link").with_windows(faults);
     for (name, delivered) in [("lost", false), ("delivered", true)] {
         marks.dots.push(Series {
             name: name.into(),
