@@ -507,3 +507,509 @@ fn a_sweeps_directory_says_what_made_it() {
     assert!(toml.contains("kc = 0.4") && toml.contains("loss = 0.0"), "{toml}");
     common::assert_provenance(&json(&dir.join("sweep.json"))["provenance"], &args, toml);
 }
+
+/// The grid of the fault study every test below runs: loss × delay × 5 seeds, case (b).
+const GRID: [&str; 8] = [
+    "--loss",
+    "0,0.3,0.6",
+    "--param",
+    "comms.delay=0,1",
+    "--seeds",
+    "5",
+    "--seed-start",
+    "1",
+];
+
+/// `tcpf sweep` of case (b) over `GRID` with `extra` flags into `out`.
+fn grid_sweep(out: &Path, extra: &[&str]) -> Output {
+    let mission = config("paper/b-current");
+    let mut args = vec!["sweep", mission.as_str()];
+    args.extend(GRID);
+    args.extend(extra);
+    args.extend(["--out", out.to_str().unwrap()]);
+    ok(tcpf(&args))
+}
+
+/// The tables of a sweep's directory, which every way of running the sweep must write alike.
+fn tables(dir: &Path) -> (Vec<u8>, Vec<u8>) {
+    (
+        std::fs::read(dir.join("runs.csv")).unwrap(),
+        std::fs::read(dir.join("aggregate.csv")).unwrap(),
+    )
+}
+
+/// `tcpf sweep merge` of `shards` into `out`.
+fn merge(shards: &[std::path::PathBuf], out: &Path) -> Output {
+    let mut args = vec!["sweep".to_string(), "merge".into()];
+    args.extend(shards.iter().map(|s| s.display().to_string()));
+    args.extend(["--out".into(), out.display().to_string()]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    ok(tcpf(&args))
+}
+
+/// A 3 × 2 × 5 study is one command: 30 rows, 6 aggregate rows, one curve per delay, and a
+/// directory that says what made it and makes it again from its own files.
+#[test]
+fn a_grid_of_loss_by_delay_by_seeds_is_one_command_that_runs_again_from_its_own_files() {
+    let dir = scratch("grid");
+    let out = dir.join("sweep");
+    let o = grid_sweep(&out, &[]);
+    let printed = String::from_utf8_lossy(&o.stdout);
+    let rows = common::csv_rows(&out.join("runs.csv"));
+    assert_eq!(rows.len(), 30);
+    let keys: Vec<(&str, &str, &str)> = rows
+        .iter()
+        .map(|r| (r["comms.loss"].as_str(), r["comms.delay"].as_str(), r["seed"].as_str()))
+        .collect();
+    assert_eq!(keys[0], ("0", "0", "1"));
+    assert_eq!(
+        keys[7],
+        ("0", "1", "3"),
+        "the last key fastest, each point through its seeds"
+    );
+    assert_eq!(keys[29], ("0.6", "1", "5"));
+    assert!(rows.iter().all(|r| r["status"] == "arrived"));
+    let aggregate = common::csv_rows(&out.join("aggregate.csv"));
+    assert_eq!(aggregate.len(), 6);
+    // Each aggregate row is the statistics of its five rows.
+    for a in &aggregate {
+        let errors: Vec<f64> = rows
+            .iter()
+            .filter(|r| r["comms.loss"] == a["comms.loss"] && r["comms.delay"] == a["comms.delay"])
+            .map(|r| r["max_coordination_error"].parse().unwrap())
+            .collect();
+        let n = errors.len() as f64;
+        let mean = errors.iter().sum::<f64>() / n;
+        let sd = (errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let got = |k: &str| a[&format!("max_coordination_error_{k}")].parse::<f64>().unwrap();
+        assert_eq!((a["runs"].as_str(), got("n")), ("5", 5.0));
+        assert!(
+            (got("mean") - mean).abs() < 1e-12 && (got("sd") - sd).abs() < 1e-12,
+            "{a:?}"
+        );
+        // t(0.975, 4) = 2.776.
+        assert!(
+            (got("ci95") - 2.776 * sd / 5f64.sqrt()).abs() < 1e-3 * sd.max(1e-9),
+            "{a:?}"
+        );
+    }
+    // Loss costs coordination; a compensated delay of 1 s barely does (MODEL §6).
+    let mean = |loss: &str, delay: &str| -> f64 {
+        let a = aggregate
+            .iter()
+            .find(|a| a["comms.loss"] == loss && a["comms.delay"] == delay)
+            .unwrap();
+        a["max_coordination_error_mean"].parse().unwrap()
+    };
+    assert!((mean("0", "0") - 0.362).abs() < 0.001 && mean("0.6", "0") > 2.0 * mean("0", "0"));
+    assert!((mean("0", "1") - 0.356).abs() < 0.001);
+    // One curve per delay, a marker at each sampled loss, SVG and PDF.
+    let svg = std::fs::read_to_string(out.join("sweep-error.svg")).unwrap();
+    assert!(svg.contains("\ndelay = 0\n") && svg.contains("\ndelay = 1\n"), "{svg}");
+    assert_eq!(svg.matches("<circle").count(), 6 + 2, "6 means and 2 legend markers");
+    assert!(std::fs::read(out.join("sweep-error.pdf"))
+        .unwrap()
+        .starts_with(b"%PDF-"));
+    let clearance = std::fs::read_to_string(out.join("sweep-clearance.svg")).unwrap();
+    assert!(clearance.contains("required E = 1 m"), "the requirement line");
+    // Provenance: the mission as run, the command, the version.
+    let summary = json(&out.join("sweep.json"));
+    let toml = std::fs::read_to_string(out.join("mission.toml")).unwrap();
+    let (_, toml) = toml.split_once('\n').unwrap();
+    let mission = config("paper/b-current");
+    let mut args = vec!["sweep", mission.as_str()];
+    args.extend(GRID);
+    args.extend(["--out", out.to_str().unwrap()]);
+    common::assert_provenance(&summary["provenance"], &args, toml);
+    // Made again from its own files, by the command it printed.
+    let rerun = std::fs::read_to_string(out.join("rerun.sh")).unwrap();
+    assert!(
+        printed.contains(&format!("again: {}/rerun.sh DIR", out.display())),
+        "{printed}"
+    );
+    assert!(rerun.contains("--param comms.loss=0,0.3,0.6 --param comms.delay=0,1 --seeds 5 --seed-start 1"));
+    let again = dir.join("again");
+    let o = Command::new(out.join("rerun.sh"))
+        .arg(&again)
+        .env("TCPF", env!("CARGO_BIN_EXE_tcpf"))
+        .output()
+        .unwrap();
+    ok(o);
+    assert!(tables(&again) == tables(&out), "the same runs.csv and aggregate.csv");
+    assert_eq!(
+        std::fs::read(again.join("mission.toml")).unwrap(),
+        std::fs::read(out.join("mission.toml")).unwrap()
+    );
+}
+
+/// Shards are the sweep: 1, 3 or 7 of them, merged, write its tables byte for byte; a shard
+/// lost and run again with --resume, or one cut short, comes back.
+#[test]
+fn shards_merged_are_the_sweep_and_a_lost_shard_comes_back_with_resume() {
+    let dir = scratch("shards");
+    let whole = dir.join("whole");
+    grid_sweep(&whole, &[]);
+    for k in [1, 3, 7] {
+        let shards: Vec<_> = (1..=k).map(|i| dir.join(format!("k{k}/shard-{i}"))).collect();
+        for (i, shard) in shards.iter().enumerate() {
+            grid_sweep(shard, &["--shard", &format!("{}/{k}", i + 1)]);
+        }
+        let rows: usize = shards.iter().map(|s| common::csv_rows(&s.join("runs.csv")).len()).sum();
+        assert_eq!(rows, 30, "each run in one shard");
+        let merged = dir.join(format!("k{k}/merged"));
+        merge(&shards, &merged);
+        assert!(tables(&merged) == tables(&whole), "{k} shards merged");
+        if k == 3 {
+            // The merge refuses what is not whole, and says how to make it whole.
+            let o = tcpf(&[
+                "sweep",
+                "merge",
+                shards[0].to_str().unwrap(),
+                shards[2].to_str().unwrap(),
+                "--out",
+                dir.join("k3/partial").to_str().unwrap(),
+            ]);
+            assert_eq!(o.status.code(), Some(2));
+            let said = String::from_utf8_lossy(&o.stderr);
+            assert!(
+                said.contains("10 of the sweep's 30 runs are in none of these directories (the first: run 1, comms.loss = 0, comms.delay = 0, seed 2)")
+                    && said.contains("--resume"),
+                "{said}"
+            );
+        }
+        if k == 7 {
+            // Shard 4 lost: rerun with --resume into its directory.
+            std::fs::remove_dir_all(&shards[3]).unwrap();
+            grid_sweep(&shards[3], &["--shard", "4/7", "--resume"]);
+            // Shard 6 cut short: two of its rows gone.
+            let csv = std::fs::read_to_string(shards[5].join("runs.csv")).unwrap();
+            let kept: Vec<&str> = csv
+                .lines()
+                .enumerate()
+                .filter(|(n, _)| *n != 2 && *n != 4)
+                .map(|(_, l)| l)
+                .collect();
+            std::fs::write(shards[5].join("runs.csv"), kept.join("\n") + "\n").unwrap();
+            let o = grid_sweep(&shards[5], &["--shard", "6/7", "--resume"]);
+            assert!(String::from_utf8_lossy(&o.stdout).contains("sweep directory"));
+            let merged = dir.join("k7/merged-again");
+            merge(&shards, &merged);
+            assert!(tables(&merged) == tables(&whole), "7 shards, two of them resumed");
+        }
+    }
+    // --resume of another sweep's directory is refused, and nothing in it changes.
+    let before = tables(&whole);
+    let mission = config("paper/b-current");
+    let o = tcpf(&[
+        "sweep",
+        &mission,
+        "--loss",
+        "0,0.3",
+        "--seeds",
+        "5",
+        "--resume",
+        "--out",
+        whole.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("it holds another sweep"));
+    assert!(tables(&whole) == before);
+}
+
+/// Stops a cluster that `tests/slurm/cluster` started, however the test ends.
+struct Cluster(std::path::PathBuf);
+
+impl Drop for Cluster {
+    fn drop(&mut self) {
+        let _ = Command::new(cluster_script()).arg("stop").arg(&self.0).status();
+    }
+}
+
+fn cluster_script() -> String {
+    format!("{}/tests/slurm/cluster", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The study as a Slurm job array on a one-node cluster of its own (munged, slurmctld and
+/// slurmd on loopback), three array tasks each running its shard, then merged: the sweep's
+/// tables, byte for byte.
+#[test]
+fn a_sweep_as_a_slurm_job_array_merges_into_the_sweep() {
+    let dir = scratch("slurm");
+    let whole = dir.join("whole");
+    grid_sweep(&whole, &[]);
+    let cluster = Cluster(dir.join("cluster"));
+    let started = Command::new(cluster_script())
+        .arg("start")
+        .arg(&cluster.0)
+        .output()
+        .unwrap();
+    let conf = String::from_utf8_lossy(&started.stdout).trim().to_string();
+    assert!(
+        started.status.success(),
+        "{}{}",
+        conf,
+        String::from_utf8_lossy(&started.stderr)
+    );
+    // The job script of docs/EXPERIMENTS.md, with this build's tcpf.
+    let job = dir.join("study.sbatch");
+    std::fs::write(
+        &job,
+        format!(
+            "#!/bin/sh\n#SBATCH --array=1-3\n#SBATCH --cpus-per-task=1\nexec \"$TCPF\" sweep {} {} --jobs 1 --shard \"$SLURM_ARRAY_TASK_ID/3\" --out \"shards/$SLURM_ARRAY_TASK_ID\"\n",
+            config("paper/b-current"),
+            GRID.join(" ")
+        ),
+    )
+    .unwrap();
+    let o = Command::new("sbatch")
+        .args(["--wait", "--output=task-%a.out"])
+        .arg("--chdir")
+        .arg(&dir)
+        .arg(&job)
+        .env("SLURM_CONF", &conf)
+        .env("TCPF", env!("CARGO_BIN_EXE_tcpf"))
+        .output()
+        .unwrap();
+    let logs = || {
+        (1..=3)
+            .map(|i| std::fs::read_to_string(dir.join(format!("task-{i}.out"))).unwrap_or_default())
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert!(
+        o.status.success(),
+        "{}{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+        logs()
+    );
+    let shards: Vec<_> = (1..=3).map(|i| dir.join(format!("shards/{i}"))).collect();
+    for s in &shards {
+        assert!(s.join("runs.csv").is_file(), "{}: {}", s.display(), logs());
+    }
+    let merged = dir.join("merged");
+    merge(&shards, &merged);
+    assert!(tables(&merged) == tables(&whole), "the job array's shards merged");
+}
+
+/// The same study under GNU parallel, two shards at a time.
+#[test]
+fn a_sweep_under_gnu_parallel_merges_into_the_sweep() {
+    let dir = scratch("parallel");
+    let whole = dir.join("whole");
+    grid_sweep(&whole, &[]);
+    let o = Command::new("parallel")
+        .args(["-j2", "--halt", "now,fail=1"])
+        .arg(format!(
+            "{} sweep {} {} --jobs 1 --shard {{}}/4 --out {}/shard-{{}}",
+            env!("CARGO_BIN_EXE_tcpf"),
+            config("paper/b-current"),
+            GRID.join(" "),
+            dir.display()
+        ))
+        .args([":::", "1", "2", "3", "4"])
+        .output()
+        .unwrap();
+    ok(o);
+    let shards: Vec<_> = (1..=4).map(|i| dir.join(format!("shard-{i}"))).collect();
+    let merged = dir.join("merged");
+    merge(&shards, &merged);
+    assert!(tables(&merged) == tables(&whole));
+}
+
+/// After configs/outage.toml's 20 s outage the fleet is back within 0.1 s of γ (MODEL D16a) at
+/// the time telemetry.csv shows, as summary.json, the sweep's runs.csv and the report say.
+#[test]
+fn the_resync_after_an_outage_is_what_the_telemetry_shows() {
+    let dir = scratch("resync");
+    let run = dir.join("run");
+    ok(tcpf(&[
+        "run",
+        &config("outage"),
+        "--in-process",
+        "--out",
+        run.to_str().unwrap(),
+    ]));
+    // γ of each vehicle per tick, from telemetry.csv.
+    let rows = common::csv_rows(&run.join("telemetry.csv"));
+    let mut gammas: std::collections::BTreeMap<u64, Vec<f64>> = Default::default();
+    for r in &rows {
+        gammas
+            .entry(r["tick"].parse().unwrap())
+            .or_default()
+            .push(r["gamma"].parse().unwrap());
+    }
+    let dt = 0.01;
+    let back = gammas
+        .iter()
+        .map(|(tick, g)| (*tick as f64 * dt, (g[0] - g[1]).abs()))
+        .find(|(t, e)| *t >= 30.0 && *e <= 0.1)
+        .map(|(t, _)| t - 30.0)
+        .unwrap();
+    let summary = json(&run.join("summary.json"));
+    let fault = &summary["faults"][0];
+    assert_eq!(
+        (fault["kind"].as_str(), fault["start"].as_f64(), fault["end"].as_f64()),
+        (Some("outage"), Some(10.0), Some(30.0))
+    );
+    let resync = fault["resync_time"].as_f64().unwrap();
+    eprintln!("back in step {resync} s after the outage (telemetry: {back} s)");
+    assert!((resync - back).abs() < 1e-9, "{resync} vs {back}");
+    assert!((resync - 11.61).abs() < 0.005, "MODEL D16a prints 11.61 s: {resync}");
+    // The error integral and rms are those of the telemetry's samples too.
+    let first = summary["vehicles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["arrival_time"].as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min);
+    let integral: f64 = gammas
+        .iter()
+        .filter(|(tick, _)| **tick > 0 && (**tick as f64) * dt <= first)
+        .map(|(_, g)| (g[0] - g[1]).abs() * dt)
+        .sum();
+    let reported = summary["integral_coordination_error"].as_f64().unwrap();
+    assert!((reported - integral).abs() < 0.05, "{reported} vs {integral}");
+    // The report marks the window on its time plots and lists it.
+    let html = std::fs::read_to_string(run.join("report.html")).unwrap();
+    assert!(html.contains("<table id=\"fault-windows\">") && html.contains("<td>11.61</td>"));
+    assert!(html.matches("fault window").count() >= 3, "on every time plot");
+    // The sweep has it per run.
+    let sweep = dir.join("sweep");
+    ok(tcpf(&[
+        "sweep",
+        &config("outage"),
+        "--loss",
+        "0",
+        "--seeds",
+        "1",
+        "--out",
+        sweep.to_str().unwrap(),
+    ]));
+    let row = &common::csv_rows(&sweep.join("runs.csv"))[0];
+    assert_eq!(row["resync_time"].parse::<f64>().unwrap(), resync);
+    assert!(sweep.join("sweep-resync.svg").is_file());
+}
+
+/// A categorical key (the topology of a fleet of four) draws a bar per value in every figure.
+#[test]
+fn a_categorical_sweep_draws_bars_per_metric() {
+    let dir = scratch("topology");
+    let lanes = ok(tcpf(&["gen", "lanes", "--vehicles", "4", "--loss", "0.3"]));
+    let mission = dir.join("lanes.toml");
+    std::fs::write(&mission, &lanes.stdout).unwrap();
+    let out = dir.join("sweep");
+    ok(tcpf(&[
+        "sweep",
+        mission.to_str().unwrap(),
+        "--param",
+        "comms.topology=ring,complete,line",
+        "--seeds",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    for figure in [
+        "sweep-error",
+        "sweep-rms",
+        "sweep-clearance",
+        "sweep-arrival",
+        "sweep-messages",
+    ] {
+        let svg = std::fs::read_to_string(out.join(format!("{figure}.svg"))).unwrap();
+        for topology in ["ring", "complete", "line"] {
+            assert!(
+                svg.contains(&format!("\n{topology}\n")),
+                "{figure}: {topology} under its bar"
+            );
+        }
+        assert!(svg.matches("<rect").count() >= 3, "{figure}: a bar per topology");
+        assert!(out.join(format!("{figure}.pdf")).is_file());
+    }
+    let error = |t: &str| {
+        common::csv_rows(&out.join("aggregate.csv"))
+            .into_iter()
+            .find(|a| a["comms.topology"] == t)
+            .map(|a| a["max_coordination_error_mean"].parse::<f64>().unwrap())
+            .unwrap()
+    };
+    assert!(
+        error("line") > error("complete"),
+        "a line of four coordinates worse than all pairs"
+    );
+}
+
+/// The sweep's page renders in a real browser with every figure, and each figure is shot to
+/// `target/tmp/screenshots/` for a reader to look at: the grid's (one curve per delay) and a
+/// categorical sweep's (bars), and the report of a run with an outage (its fault window).
+#[test]
+fn the_sweeps_figures_render_in_a_real_browser() {
+    let dir = scratch("sweep-browser");
+    let shots = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("screenshots");
+    std::fs::create_dir_all(&shots).unwrap();
+    let grid = dir.join("grid");
+    grid_sweep(&grid, &[]);
+    let page = format!("file://{}", grid.join("sweep.html").display());
+    let dom = String::from_utf8_lossy(&chromium(&["--dump-dom", &page]).stdout).to_string();
+    for id in [
+        "sweep-error",
+        "sweep-rms",
+        "sweep-clearance",
+        "sweep-arrival",
+        "sweep-messages",
+    ] {
+        let start = dom
+            .find(&format!("id=\"{id}\""))
+            .unwrap_or_else(|| panic!("figure {id} missing from the rendered page"));
+        let figure = &dom[start..start + dom[start..].find("</figure>").unwrap()];
+        assert!(
+            figure.matches("<circle").count() >= 6,
+            "{id}: a marker per sampled loss"
+        );
+    }
+    let topology = dir.join("topology");
+    let lanes = ok(tcpf(&["gen", "lanes", "--vehicles", "4", "--loss", "0.3"]));
+    let mission = dir.join("lanes.toml");
+    std::fs::write(&mission, &lanes.stdout).unwrap();
+    ok(tcpf(&[
+        "sweep",
+        mission.to_str().unwrap(),
+        "--param",
+        "comms.topology=ring,complete,line",
+        "--loss",
+        "0.1,0.5",
+        "--seeds",
+        "3",
+        "--out",
+        topology.to_str().unwrap(),
+    ]));
+    let outage = dir.join("outage");
+    ok(tcpf(&[
+        "run",
+        &config("outage"),
+        "--in-process",
+        "--out",
+        outage.to_str().unwrap(),
+    ]));
+    for (source, name, size) in [
+        (grid.join("sweep-error.svg"), "grid-error.png", "600,340"),
+        (grid.join("sweep-clearance.svg"), "grid-clearance.png", "600,340"),
+        (topology.join("sweep-error.svg"), "topology-error.png", "600,340"),
+        (outage.join("report.html"), "outage-report.png", "1000,2000"),
+    ] {
+        let shot = shots.join(name);
+        let _ = std::fs::remove_file(&shot);
+        let o = chromium(&[
+            &format!("--window-size={size}"),
+            &format!("--screenshot={}", shot.display()),
+            &format!("file://{}", source.display()),
+        ]);
+        let bytes = std::fs::metadata(&shot).map(|m| m.len()).unwrap_or(0);
+        assert!(
+            bytes > 10_000,
+            "{name}: a screenshot with something on it ({bytes} bytes): {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        eprintln!("screenshot: {}", shot.display());
+    }
+}

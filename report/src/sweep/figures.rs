@@ -126,7 +126,11 @@ fn short(key: &str) -> &str {
 /// Says in `table` what cannot be drawn.
 pub fn write(out: &Path, summary: &SweepSummary, band: Band, table: &mut String) -> Result<String> {
     let grid = &summary.design.grid;
-    let xs: Option<Vec<f64>> = grid.params[0].values.iter().map(|v| v.parse::<f64>().ok()).collect();
+    // Seeds alone (a bench's sweep) have no axis to draw against.
+    let Some(first) = grid.params.first() else {
+        return Ok(String::new());
+    };
+    let xs: Option<Vec<f64>> = first.values.iter().map(|v| v.parse::<f64>().ok()).collect();
     let families = families(summary);
     let mut html = String::new();
     for (metric, file, level) in plotted(summary) {
@@ -262,7 +266,15 @@ fn lines(summary: &SweepSummary, families: &[Family], xs: &[f64], plot: &Plot) -
                 }
                 let mut outline: Vec<(f64, f64)> = points.iter().map(|(x, s)| (*x, band.of(s).1)).collect();
                 outline.extend(points.iter().rev().map(|(x, s)| (*x, band.of(s).0)));
-                chart.draw_series(std::iter::once(Polygon::new(outline, c.mix(0.15).filled())))?;
+                chart.draw_series(std::iter::once(Polygon::new(outline, c.mix(0.12).filled())))?;
+                // Its edges in its colour: overlapping bands stay told apart.
+                for edge in [0, 1] {
+                    let side = points.iter().map(|(x, s)| {
+                        let (lo, hi) = band.of(s);
+                        (*x, if edge == 0 { lo } else { hi })
+                    });
+                    chart.draw_series(LineSeries::new(side, c.mix(0.5).stroke_width(1)))?;
+                }
                 chart.draw_series(LineSeries::new(
                     points.iter().map(|(x, s)| (*x, s.mean)),
                     c.stroke_width(2),

@@ -324,6 +324,13 @@ impl Sweep {
         };
         let mut sweep = Sweep::create(Some(out), &mission, provenance, design)?;
         sweep.keep(rows.into_values())?;
+        // The shards' wall times, as they measured them (a shard run before has none).
+        for dir in dirs {
+            let walls = std::fs::read_to_string(dir.join("wall_times.csv")).unwrap_or_default();
+            for line in walls.lines().skip(1) {
+                writeln!(sweep.walls, "{line}")?;
+            }
+        }
         Ok(sweep)
     }
 
