@@ -487,11 +487,11 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
                 "sweep",
                 &mission,
                 "--param",
-                "vehicle.1.start=[0,0],[0,1]",
+                "vehicle.1.start=[0,0],[0,1",
                 "--seeds",
                 "1",
             ],
-            "an array cannot be swept",
+            "vehicle.1.start=[0,0],[0,1: a quote, bracket or brace is left open",
         ),
         (
             vec!["run", &mission, "--clock", "realtime", "--time-scale", "0"],
@@ -574,7 +574,7 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
                 "--seeds",
                 "1",
             ],
-            "comms.loss is the key the sweep sets",
+            "comms.loss is a key the sweep sets",
         ),
         (
             vec!["sweep", &mission, "--loss", "0,,0.5", "--seeds", "1"],

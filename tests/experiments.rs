@@ -197,9 +197,25 @@ fn any_key_can_be_swept() {
         dir.join("typo").to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(2), "a typo in the swept key is bad input");
+    // A list is one value: two starts of vehicle 1, two grid points.
+    let starts = dir.join("starts");
+    ok(tcpf(&[
+        "sweep",
+        &config("paper/b-current"),
+        "--param",
+        "vehicle.1.start=[0,0],[0,1]",
+        "--seeds",
+        "1",
+        "--out",
+        starts.to_str().unwrap(),
+    ]));
+    let rows = common::csv_rows(&starts.join("runs.csv"));
+    let values: Vec<&str> = rows.iter().map(|r| r["vehicle.1.start"].as_str()).collect();
+    assert_eq!(values, ["[0,0]", "[0,1]"]);
+    assert_ne!(rows[0]["min_clearance"], rows[1]["min_clearance"], "the start moved");
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(
-        stderr.contains("--param comms.dealy=0,1 (the value 0): unknown field `dealy`") && !stderr.contains("--set"),
+        stderr.contains("--param comms.dealy (the value 0): unknown field `dealy`") && !stderr.contains("--set"),
         "the sweep's flag is named: {stderr}"
     );
 }
@@ -889,6 +905,34 @@ fn the_resync_after_an_outage_is_what_the_telemetry_shows() {
     let row = &common::csv_rows(&sweep.join("runs.csv"))[0];
     assert_eq!(row["resync_time"].parse::<f64>().unwrap(), resync);
     assert!(sweep.join("sweep-resync.svg").is_file());
+
+    // configs/acoustic.toml: the lanes bow apart beyond the modems' 20 m; the window is the span
+    // in which telemetry.csv has them farther apart than that.
+    let acoustic = dir.join("acoustic");
+    ok(tcpf(&[
+        "run",
+        &config("acoustic"),
+        "--in-process",
+        "--out",
+        acoustic.to_str().unwrap(),
+    ]));
+    let mut at: std::collections::BTreeMap<u64, Vec<(f64, f64)>> = Default::default();
+    for r in common::csv_rows(&acoustic.join("telemetry.csv")) {
+        at.entry(r["tick"].parse().unwrap())
+            .or_default()
+            .push((r["x"].parse().unwrap(), r["y"].parse().unwrap()));
+    }
+    let beyond: Vec<f64> = at
+        .iter()
+        .filter(|(_, p)| (p[0].0 - p[1].0).hypot(p[0].1 - p[1].1) > 20.0)
+        .map(|(tick, _)| *tick as f64 * dt)
+        .collect();
+    let summary = json(&acoustic.join("summary.json"));
+    let window = &summary["faults"][0];
+    assert_eq!(window["kind"], "out_of_range", "{summary}");
+    assert_eq!(window["start"].as_f64(), beyond.first().copied());
+    assert!((window["end"].as_f64().unwrap() - (beyond.last().unwrap() + dt)).abs() < 1e-9);
+    eprintln!("out of range from {} s to {} s", window["start"], window["end"]);
 }
 
 /// A categorical key (the topology of a fleet of four) draws a bar per value in every figure.

@@ -137,11 +137,9 @@ impl Recording {
         let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
         let dt = mission.mission.control_period;
         let machine = match mission.mission.clock {
-            ClockKind::Lockstep => {
-                Machine::Lockstep(Recorder::new(&ids, t_f, dt).with_outages(&mission.outage_windows()))
-            }
+            ClockKind::Lockstep => Machine::Lockstep(Recorder::new(&ids, t_f, dt).with_faults(mission)),
             ClockKind::Realtime => Machine::Realtime {
-                sampler: Sampler::new(&ids, &mission.graph(), t_f, dt).with_outages(&mission.outage_windows()),
+                sampler: Sampler::new(&ids, &mission.graph(), t_f, dt).with_faults(mission),
                 beats: None,
                 control_period: dt,
             },

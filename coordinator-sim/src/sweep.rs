@@ -82,10 +82,8 @@ pub fn parse_grid(
             };
             return Err(format!("{said}: give its values once, as one list"));
         }
-        grid.params.push(Param {
-            key,
-            values: split_values(v).map_err(|e| format!("--param {}", e))?,
-        });
+        let values = split_values(v).map_err(|e| format!("--param {key}={e}"))?;
+        grid.params.push(Param { key, values });
     }
     // The `--set` that names `k`, if one does.
     let set_of = |k: &str| {

@@ -108,6 +108,12 @@ pub enum FaultKind {
     /// The world gave up on a vehicle: the window closes as it opens, and the rest of the fleet
     /// coordinates without it from then on.
     Lost,
+    /// A vehicle whose agent was away (no command of it for a sampled row, realtime) and came
+    /// back: the window runs from the first row without its command to the first with it.
+    Rejoined,
+    /// A link of the graph whose vehicles are farther apart than its acoustic range (D21), for
+    /// as long as any is: nothing crosses it.
+    OutOfRange,
 }
 
 /// A fault window, and how long after its end the fleet's coordination error took to come back
@@ -160,6 +166,13 @@ pub struct Metrics {
     /// ∫ e dt, ∫ e² dt and the time they span, on [0, first arrival].
     integral: (f64, f64, f64),
     faults: Vec<FaultWindow>,
+    /// The links with an acoustic range, as (vehicle, vehicle, range), and since when one of
+    /// them has been out of it.
+    ranges: Vec<(usize, usize, f64)>,
+    out_of_range_since: Option<f64>,
+    /// Per vehicle, whether a command of it has been recorded, and since when it has had none.
+    commanded: Vec<bool>,
+    away_since: Vec<Option<f64>>,
 }
 
 /// max |γ_i − γ_j| over pairs of live vehicles (a lost vehicle's γ is frozen: it coordinates
@@ -225,7 +238,53 @@ impl Metrics {
             order: Vec::with_capacity(ids.len()),
             integral: (0.0, 0.0, 0.0),
             faults: Vec::new(),
+            ranges: Vec::new(),
+            out_of_range_since: None,
+            commanded: vec![false; ids.len()],
+            away_since: vec![None; ids.len()],
         }
+    }
+
+    /// The mission's fault windows known before the run (its outages), and its links' ranges.
+    pub fn with_faults(self, mission: &crate::mission::Mission) -> Metrics {
+        let mut m = self.with_outages(&mission.outage_windows());
+        if mission.control.coordination {
+            for (from, tos) in mission.graph() {
+                for to in tos {
+                    let range = crate::links::LinkSpec::of(mission, from, to).range;
+                    if let (Some(i), Some(j), Some(r)) = (m.ids.position(from), m.ids.position(to), range) {
+                        m.ranges.push((i, j, r));
+                    }
+                }
+            }
+        }
+        m
+    }
+
+    /// Opens or closes the out-of-range window at `t` as the links' ends move.
+    fn track_range(&mut self, t: f64, positions: &[[f64; 2]]) {
+        let apart = |(i, j, r): &(usize, usize, f64)| {
+            (positions[*i][0] - positions[*j][0]).hypot(positions[*i][1] - positions[*j][1]) > *r
+        };
+        let out = self.ranges.iter().any(apart);
+        match (out, self.out_of_range_since) {
+            (true, None) => self.out_of_range_since = Some(t),
+            (false, Some(start)) => {
+                self.out_of_range_since = None;
+                self.add_fault(FaultWindow {
+                    kind: FaultKind::OutOfRange,
+                    start,
+                    end: t,
+                    resync_time: None,
+                });
+            }
+            _ => {}
+        }
+    }
+
+    fn add_fault(&mut self, window: FaultWindow) {
+        let k = self.faults.partition_point(|f| f.start <= window.start);
+        self.faults.insert(k, window);
     }
 
     /// The outages of the mission's links, joined where they overlap (`union`).
@@ -247,16 +306,37 @@ impl Metrics {
             if self.lost[n].is_none() {
                 // Lost before the tick being recorded: since the last tick recorded.
                 let at = self.previous_tick.map_or(0.0, |k| k as f64 * self.dt);
-                let window = FaultWindow {
+                self.add_fault(FaultWindow {
                     kind: FaultKind::Lost,
                     start: at,
                     end: at,
                     resync_time: None,
-                };
-                let k = self.faults.partition_point(|f| f.start <= at);
-                self.faults.insert(k, window);
+                });
             }
             self.lost[n] = Some(reason);
+            // Its absence ends in its loss, which is the window.
+            self.away_since[n] = None;
+        }
+    }
+
+    /// Opens a vehicle's window when its agent's commands stop (it is not lost, and commanded
+    /// before), and closes it when they come back.
+    fn track_agents(&mut self, t: f64, commands: &[Option<Command>]) {
+        for (n, c) in commands.iter().enumerate() {
+            match (c.is_some(), self.away_since[n]) {
+                (true, Some(start)) => {
+                    self.away_since[n] = None;
+                    self.add_fault(FaultWindow {
+                        kind: FaultKind::Rejoined,
+                        start,
+                        end: t,
+                        resync_time: None,
+                    });
+                }
+                (false, None) if self.commanded[n] && self.lost[n].is_none() => self.away_since[n] = Some(t),
+                _ => {}
+            }
+            self.commanded[n] |= c.is_some();
         }
     }
 
@@ -300,6 +380,10 @@ impl Metrics {
         let live = |n: usize| commands[n].is_some();
         let now = spread(&gammas, &positions, &mut self.order, live);
         self.to_last = (self.to_last.0.max(now.0), self.to_last.1.min(now.1));
+        if !self.ranges.is_empty() {
+            self.track_range(t, &positions);
+        }
+        self.track_agents(t, commands);
         for f in self.faults.iter_mut() {
             if f.resync_time.is_none() && t >= f.end && now.0 <= RESYNC_WITHIN {
                 f.resync_time = Some(t - f.end);
@@ -359,6 +443,26 @@ impl Metrics {
         self.ticks += 1;
     }
 
+    /// The windows so far; one still open (a link out of range at the end) ends with the run,
+    /// and the fleet was not back in step after it.
+    fn faults(&self) -> Vec<FaultWindow> {
+        let mut faults = self.faults.clone();
+        if let Some(start) = self.out_of_range_since {
+            let end = self.previous_tick.map_or(start, |k| k as f64 * self.dt);
+            let k = faults.partition_point(|f| f.start <= start);
+            faults.insert(
+                k,
+                FaultWindow {
+                    kind: FaultKind::OutOfRange,
+                    start,
+                    end,
+                    resync_time: None,
+                },
+            );
+        }
+        faults
+    }
+
     /// The error `e` held over the `span` up to this row (rectangles: the rows are the samples).
     fn integrate(&mut self, e: f64, span: f64) {
         self.integral.0 += e * span;
@@ -406,7 +510,7 @@ impl Metrics {
                 span => (self.integral.1 / span).sqrt(),
             },
             integral_coordination_error: self.integral.0,
-            faults: self.faults.clone(),
+            faults: self.faults(),
         }
     }
 }
@@ -565,6 +669,97 @@ mod tests {
         assert_eq!(lost.kind, FaultKind::Lost);
         assert!((lost.start - 1.99).abs() < 1e-9 && lost.start == lost.end, "{lost:?}");
         assert!((lost.resync_time.unwrap() - 2.01).abs() < 1e-9, "{lost:?}");
+    }
+
+    #[test]
+    fn a_link_beyond_its_range_is_a_window_from_when_it_leaves_to_when_it_is_back() {
+        use crate::msg::{State, PROTOCOL_VERSION};
+        let dt = 0.5;
+        let mut m = Metrics::new(&[1, 2], 100.0, dt);
+        m.ranges.push((0, 1, 15.0));
+        // 10 m apart, 20 m from t = 2 to t = 4, then 10 m again; γ 0.5 apart until t = 5.
+        let apart = |t: f64| if (2.0..4.0).contains(&t) { 20.0 } else { 10.0 };
+        for k in 0..=20u64 {
+            let t = k as f64 * dt;
+            let state = |id: u32, y: f64| State {
+                version: PROTOCOL_VERSION,
+                tick: k,
+                id,
+                t,
+                position: [0.0, y],
+                heading: 0.0,
+                sideslip: 0.0,
+                sideslip_rate: 0.0,
+                current: [0.0, 0.0],
+                dynamics: None,
+            };
+            let gap = if t < 5.0 { 0.5 } else { 0.0 };
+            m.record(
+                k,
+                &[state(1, 0.0), state(2, apart(t))],
+                &[
+                    Some(crate::fixtures::command_at(1, k, t)),
+                    Some(crate::fixtures::command_at(2, k, t + gap)),
+                ],
+            );
+        }
+        let r = m.results();
+        assert_eq!(r.faults.len(), 1, "{:?}", r.faults);
+        let w = r.faults[0];
+        assert_eq!(
+            (w.kind, w.start, w.end, w.resync_time),
+            (FaultKind::OutOfRange, 2.0, 4.0, Some(1.0))
+        );
+        // Out of range at the end: the window ends with the run, never back in step.
+        let mut m = Metrics::new(&[1, 2], 100.0, dt);
+        m.ranges.push((0, 1, 5.0));
+        m.track_range(1.0, &[[0.0, 0.0], [0.0, 10.0]]);
+        m.previous_tick = Some(6);
+        assert_eq!(m.results().faults[0].end, 3.0);
+        assert_eq!(m.results().resync_time(), Some(f64::INFINITY));
+    }
+
+    #[test]
+    fn an_agent_away_and_back_is_a_window_and_one_lost_is_not_away() {
+        let dt = 0.01;
+        let mut m = Metrics::new(&[1, 2, 3], 100.0, dt);
+        use crate::msg::{State, PROTOCOL_VERSION};
+        let state = |id: u32, tick: u64| State {
+            version: PROTOCOL_VERSION,
+            tick,
+            id,
+            t: tick as f64 * dt,
+            position: [0.0, 10.0 * id as f64],
+            heading: 0.0,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: [0.0, 0.0],
+            dynamics: None,
+        };
+        for k in 0..=400u64 {
+            let t = k as f64 * dt;
+            if k == 300 {
+                m.mark_lost(3, LossReason::Gone);
+            }
+            // Vehicle 2's agent is away from 1 s to 2 s, 0.3 s behind when back, in step at 2.5 s;
+            // vehicle 3's goes at 2.5 s and is lost at 3 s.
+            let two = (!(1.0..2.0).contains(&t)).then(|| {
+                let behind = if (2.0..2.5).contains(&t) { 0.3 } else { 0.0 };
+                crate::fixtures::command_at(2, k, t - behind)
+            });
+            let three = (t < 2.5).then(|| crate::fixtures::command_at(3, k, t));
+            m.record(
+                k,
+                &[state(1, k), state(2, k), state(3, k)],
+                &[Some(crate::fixtures::command_at(1, k, t)), two, three],
+            );
+        }
+        let r = m.results();
+        let kinds: Vec<FaultKind> = r.faults.iter().map(|f| f.kind).collect();
+        assert_eq!(kinds, [FaultKind::Rejoined, FaultKind::Lost], "{:?}", r.faults);
+        let back = r.faults[0];
+        assert_eq!((back.start, back.end), (1.0, 2.0));
+        assert!((back.resync_time.unwrap() - 0.5).abs() < 1e-9, "{back:?}");
     }
 
     #[test]

@@ -487,9 +487,9 @@ pub struct Sampler {
 }
 
 impl Sampler {
-    /// Measures the outages of the mission as fault windows (`Metrics::with_outages`).
-    pub fn with_outages(mut self, windows: &[(f64, f64)]) -> Sampler {
-        self.metrics = self.metrics.with_outages(windows);
+    /// Measures the mission's fault windows (`Metrics::with_faults`).
+    pub fn with_faults(mut self, mission: &crate::mission::Mission) -> Sampler {
+        self.metrics = self.metrics.with_faults(mission);
         self
     }
 

@@ -35,9 +35,9 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Measures the outages of the mission as fault windows (`Metrics::with_outages`).
-    pub fn with_outages(mut self, windows: &[(f64, f64)]) -> Recorder {
-        self.metrics = self.metrics.with_outages(windows);
+    /// Measures the mission's fault windows (`Metrics::with_faults`).
+    pub fn with_faults(mut self, mission: &crate::mission::Mission) -> Recorder {
+        self.metrics = self.metrics.with_faults(mission);
         self
     }
 

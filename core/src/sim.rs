@@ -41,8 +41,7 @@ impl Fleet {
             .collect();
         Fleet {
             world: WorldNode::new(mission, &paths),
-            recorder: Recorder::new(&ids, plan.t_f, mission.mission.control_period)
-                .with_outages(&mission.outage_windows()),
+            recorder: Recorder::new(&ids, plan.t_f, mission.mission.control_period).with_faults(mission),
             live: vec![true; agents.len()],
             agents,
             listeners,

@@ -231,6 +231,8 @@ fn fault_table(html: &mut String, summary: &Summary) {
         let kind = match f.kind {
             tcpf_core::metrics::FaultKind::Outage => "outage",
             tcpf_core::metrics::FaultKind::Lost => "vehicle lost",
+            tcpf_core::metrics::FaultKind::OutOfRange => "link out of range",
+            tcpf_core::metrics::FaultKind::Rejoined => "agent away, then back",
         };
         let back = f
             .resync_time
