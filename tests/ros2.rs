@@ -54,11 +54,16 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
         .collect();
     let odometry_hash = seen["hashes"]["nav_msgs/msg/Odometry"].as_str().unwrap();
     let clock_hash = seen["hashes"]["rosgraph_msgs/msg/Clock"].as_str().unwrap();
+    let vector_hash = seen["hashes"]["geometry_msgs/msg/Vector3Stamped"].as_str().unwrap();
+    let vector = |topic: &str| format!("0/tcpf/{topic}/geometry_msgs::msg::dds_::Vector3Stamped_/{vector_hash}");
     assert_eq!(
         keys,
         [
             format!("0/clock/rosgraph_msgs::msg::dds_::Clock_/{clock_hash}"),
+            vector("coordination"),
+            vector("vehicle_1/gamma"),
             format!("0/tcpf/vehicle_1/odom/nav_msgs::msg::dds_::Odometry_/{odometry_hash}"),
+            vector("vehicle_2/gamma"),
             format!("0/tcpf/vehicle_2/odom/nav_msgs::msg::dds_::Odometry_/{odometry_hash}"),
         ]
     );
@@ -71,9 +76,16 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
         .map(|t| t.as_str().unwrap())
         .collect();
     let kinds = |kind: &str| tokens.iter().filter(|t| t.split('/').nth(5) == Some(kind)).count();
-    assert_eq!((kinds("NN"), kinds("MP"), tokens.len()), (1, 3, 4), "{tokens:?}");
+    assert_eq!((kinds("NN"), kinds("MP"), tokens.len()), (1, 6, 7), "{tokens:?}");
     assert!(tokens.iter().any(|t| t.ends_with("/NN/%/%tcpf/world")), "{tokens:?}");
-    for topic in ["%clock", "%tcpf%vehicle_1%odom", "%tcpf%vehicle_2%odom"] {
+    for topic in [
+        "%clock",
+        "%tcpf%vehicle_1%odom",
+        "%tcpf%vehicle_2%odom",
+        "%tcpf%vehicle_1%gamma",
+        "%tcpf%vehicle_2%gamma",
+        "%tcpf%coordination",
+    ] {
         assert!(
             tokens
                 .iter()
@@ -113,6 +125,36 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
             );
             assert_eq!(o["tilt"], serde_json::json!([0.0, 0.0, 0.0]));
         }
+    }
+
+    // γ, γ̇ and γ − t of each vehicle, tick by tick: its γ is the telemetry's, to the bit.
+    for id in ["1", "2"] {
+        let mine: Vec<&BTreeMap<String, String>> = rows.iter().filter(|r| r["id"] == id).collect();
+        let gamma = seen["vectors"][&format!("vehicle_{id}/gamma")].as_array().unwrap();
+        assert_eq!(gamma.len(), mine.len(), "vehicle {id}");
+        for (v, row) in gamma.iter().zip(&mine) {
+            let f = |k: &str| row[k].parse::<f64>().unwrap();
+            assert_eq!(num(&v["x"]), f("gamma"), "vehicle {id}, tick {}", row["tick"]);
+            assert_eq!(num(&v["z"]), f("gamma") - f("t"), "vehicle {id}, tick {}", row["tick"]);
+            assert!(num(&v["y"]) > 0.0, "γ̇ > 0 at tick {}", row["tick"]);
+            assert_eq!(v["frame"].as_str(), Some(&*format!("vehicle_{id}")));
+        }
+    }
+    // The fleet's: the coordination error and the distance between the two, from the telemetry.
+    let coordination = seen["vectors"]["coordination"].as_array().unwrap();
+    let (one, two): (Vec<_>, Vec<_>) = rows.iter().partition(|r| r["id"] == "1");
+    assert_eq!(coordination.len(), one.len());
+    for ((c, a), b) in coordination.iter().zip(&one).zip(&two) {
+        let f = |r: &BTreeMap<String, String>, k: &str| r[k].parse::<f64>().unwrap();
+        assert_eq!(
+            num(&c["x"]),
+            (f(a, "gamma") - f(b, "gamma")).abs(),
+            "tick {}",
+            a["tick"]
+        );
+        let apart = (f(a, "x") - f(b, "x")).hypot(f(a, "y") - f(b, "y"));
+        assert_eq!(num(&c["y"]), apart, "tick {}", a["tick"]);
+        assert_eq!(c["frame"].as_str(), Some("map"));
     }
 
     // /clock: the fleet's simulated time, tick by tick.

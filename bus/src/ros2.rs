@@ -31,9 +31,12 @@ impl Topic {
     }
 }
 
-/// The world as the ROS 2 node `/tcpf/world`: every vehicle's odometry and, in lockstep, `/clock`.
+/// The world as the ROS 2 node `/tcpf/world`: every vehicle's odometry and coordination state,
+/// the fleet's, and, in lockstep, `/clock`.
 pub struct World {
     odometry: Vec<(u32, Topic)>,
+    gamma: Vec<(u32, Topic)>,
+    coordination: Topic,
     clock: Option<Topic>,
     _node: LivelinessToken,
 }
@@ -65,6 +68,11 @@ impl World {
         for &id in ids {
             odometry.push((id, topic(ros2::odometry_topic(id), ros2::ODOMETRY).await?));
         }
+        let mut gamma = Vec::with_capacity(ids.len());
+        for &id in ids {
+            gamma.push((id, topic(ros2::gamma_topic(id), ros2::VECTOR3_STAMPED).await?));
+        }
+        let coordination = topic(ros2::coordination_topic(), ros2::VECTOR3_STAMPED).await?;
         // Last: a tool that sees the node in the graph sees every topic of it.
         let node = session
             .liveliness()
@@ -73,13 +81,15 @@ impl World {
             .map_err(|e| anyhow!("cannot declare the ROS 2 node: {e}"))?;
         Ok(World {
             odometry,
+            gamma,
+            coordination,
             clock,
             _node: node,
         })
     }
 
     /// Publishes the fleet at `stamp`: `/clock`, then each vehicle's odometry from its state and
-    /// the command it holds.
+    /// the command it holds and, if it holds one, its coordination state, then the fleet's.
     pub fn put<'a>(
         &mut self,
         fleet: impl Iterator<Item = (&'a State, Option<&'a Command>)>,
@@ -88,12 +98,17 @@ impl World {
         if let Some(clock) = &mut self.clock {
             clock.put(ros2::clock(stamp), stamp)?;
         }
-        for (state, command) in fleet {
+        let fleet: Vec<(&State, Option<&Command>)> = fleet.collect();
+        for &(state, command) in &fleet {
             if let Some((_, topic)) = self.odometry.iter_mut().find(|(id, _)| *id == state.id) {
                 topic.put(Odometry::of(state, command, stamp).cdr(), stamp)?;
             }
+            let gamma = self.gamma.iter_mut().find(|(id, _)| *id == state.id);
+            if let (Some((_, topic)), Some(command)) = (gamma, command) {
+                topic.put(ros2::gamma(state, command, stamp), stamp)?;
+            }
         }
-        Ok(())
+        self.coordination.put(ros2::coordination(&fleet, stamp), stamp)
     }
 }
 

@@ -27,6 +27,12 @@ pub const CLOCK: Type = Type {
     hash: "RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564",
 };
 
+pub const VECTOR3_STAMPED: Type = Type {
+    name: "geometry_msgs/msg/Vector3Stamped",
+    dds: "geometry_msgs::msg::dds_::Vector3Stamped_",
+    hash: "RIHS01_d4829622288cbb443886e7ea94ea5671a3b1be6bab4ad04224432a65f7d7887a",
+};
+
 /// The namespace of every node and topic of the fleet.
 pub const NAMESPACE: &str = "/tcpf";
 
@@ -46,6 +52,16 @@ pub fn body_frame(id: u32) -> String {
 /// The odometry topic of vehicle `id`.
 pub fn odometry_topic(id: u32) -> String {
     format!("{NAMESPACE}/vehicle_{id}/odom")
+}
+
+/// The coordination state of vehicle `id` (`gamma`).
+pub fn gamma_topic(id: u32) -> String {
+    format!("{NAMESPACE}/vehicle_{id}/gamma")
+}
+
+/// The fleet's coordination state (`coordination`).
+pub fn coordination_topic() -> String {
+    format!("{NAMESPACE}/coordination")
 }
 
 /// Where the RMW publishes `topic` (a fully qualified name) of type `ty` on `domain`: the
@@ -180,6 +196,43 @@ pub fn clock(stamp: Stamp) -> Vec<u8> {
     let mut cdr = Cdr::new();
     cdr.time(stamp);
     cdr.0
+}
+
+/// geometry_msgs/msg/Vector3Stamped of `v` at `stamp` in `frame`.
+fn vector3(stamp: Stamp, frame: &str, v: [f64; 3]) -> Vec<u8> {
+    let mut cdr = Cdr::new();
+    cdr.header(stamp, frame);
+    cdr.f64s(&v);
+    cdr.0
+}
+
+/// A vehicle's coordination state, in its body frame's name: x its γ_i (s), y its γ̇_i, z how
+/// far γ_i is ahead of the fleet's time (γ_i − t, s; negative: behind the plan's timing).
+pub fn gamma(state: &State, command: &Command, stamp: Stamp) -> Vec<u8> {
+    vector3(
+        stamp,
+        &body_frame(state.id),
+        [command.gamma, command.gamma_dot, command.gamma - state.t],
+    )
+}
+
+/// The fleet's coordination state, in `map`: x the coordination error max |γ_i − γ_j| over the
+/// vehicles with a command (a lost one coordinates with nobody), y the smallest distance
+/// between two vehicles (m; infinite for one), z the fleet's mean γ_i − t (s).
+pub fn coordination(fleet: &[(&State, Option<&Command>)], stamp: Stamp) -> Vec<u8> {
+    let gammas: Vec<f64> = fleet.iter().filter_map(|(_, c)| c.map(|c| c.gamma)).collect();
+    let (lo, hi) = gammas.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &g| {
+        (lo.min(g), hi.max(g))
+    });
+    let error = if lo < hi { hi - lo } else { 0.0 };
+    let mut closest = f64::INFINITY;
+    for (k, (a, _)) in fleet.iter().enumerate() {
+        for (b, _) in &fleet[k + 1..] {
+            closest = closest.min((a.position[0] - b.position[0]).hypot(a.position[1] - b.position[1]));
+        }
+    }
+    let lag = fleet.iter().filter_map(|(s, c)| c.map(|c| c.gamma - s.t)).sum::<f64>() / gammas.len().max(1) as f64;
+    vector3(stamp, MAP_FRAME, [error, closest, lag])
 }
 
 /// Vehicle `id`'s motion as a ROS 2 user expects of odometry: its pose in `map`, and its velocity
@@ -371,5 +424,32 @@ mod tests {
         );
         assert_eq!((f(88 + 288), f(96 + 288), f(128 + 288)), (0.25, 0.5, -0.125));
         assert_eq!(b.len(), HEADER + 136 + 288 + 288);
+    }
+
+    /// The three doubles at the end of a Vector3Stamped.
+    fn vector(cdr: &[u8]) -> [f64; 3] {
+        let at = cdr.len() - 24;
+        std::array::from_fn(|k| f64::from_le_bytes(cdr[at + 8 * k..at + 8 * k + 8].try_into().unwrap()))
+    }
+
+    #[test]
+    fn the_coordination_state_leaves_out_a_vehicle_with_no_command() {
+        let mut a = state(0.0, 0.0, [0.0, 0.0]);
+        let mut b = a;
+        let mut lost = a;
+        (a.id, b.id, lost.id) = (1, 2, 3);
+        (b.position, lost.position) = ([6.0, 0.0], [3.0, -3.5]);
+        let (ca, cb) = (
+            crate::fixtures::command_at(1, 10, 0.3),
+            crate::fixtures::command_at(2, 10, 0.05),
+        );
+        let stamp = Stamp::from_seconds(0.1);
+        // γ 0.3 and 0.05 at t = 0.1; the third vehicle, lost, has no γ but is still in the way.
+        let v = vector(&coordination(&[(&a, Some(&ca)), (&b, Some(&cb)), (&lost, None)], stamp));
+        assert!((v[0] - 0.25).abs() < 1e-15 && (v[2] - 0.075).abs() < 1e-15, "{v:?}");
+        assert_eq!(v[1], 0.5, "the lost vehicle is 0.5 m from vehicle 1");
+        assert_eq!(vector(&gamma(&a, &ca, stamp)), [0.3, 1.0, 0.3 - 0.1]);
+        let alone = vector(&coordination(&[(&a, Some(&ca))], stamp));
+        assert_eq!((alone[0], alone[1]), (0.0, f64::INFINITY), "a fleet of one");
     }
 }

@@ -18,7 +18,8 @@ import zenoh
 from rosbags.typesys import Stores, get_typestore
 
 TYPES = {"nav_msgs::msg::dds_::Odometry_": "nav_msgs/msg/Odometry",
-         "rosgraph_msgs::msg::dds_::Clock_": "rosgraph_msgs/msg/Clock"}
+         "rosgraph_msgs::msg::dds_::Clock_": "rosgraph_msgs/msg/Clock",
+         "geometry_msgs::msg::dds_::Vector3Stamped_": "geometry_msgs/msg/Vector3Stamped"}
 
 
 def main():
@@ -55,7 +56,7 @@ def main():
         subscriber.undeclare()
         end.undeclare()
 
-    problems, odometry, clock, sequences = [], {}, [], {}
+    problems, odometry, clock, sequences, vectors = [], {}, [], {}, {}
     for key, payload, attachment in samples:
         parts = key.split("/")
         dds, hash_ = parts[-2], parts[-1]
@@ -76,6 +77,13 @@ def main():
         if name.endswith("Clock"):
             clock.append(stamp)
             continue
+        if name.endswith("Vector3Stamped"):
+            # Its topic without the namespace: vehicle_1/gamma, coordination.
+            v = message.vector
+            vectors.setdefault("/".join(parts[2:-2]), []).append({
+                "stamp": stamp, "frame": message.header.frame_id,
+                "x": repr(v.x), "y": repr(v.y), "z": repr(v.z)})
+            continue
         pose, twist = message.pose.pose, message.twist.twist
         q = pose.orientation
         odometry.setdefault(parts[2], []).append({
@@ -88,7 +96,7 @@ def main():
         if seq != list(range(1, len(seq) + 1)):
             problems.append(f"{key}: sequence numbers {seq[:5]}... are not 1, 2, 3 without a gap")
     json.dump({"problems": problems, "hashes": hashes, "tokens": tokens, "clock": clock,
-               "odometry": odometry, "keys": sorted(sequences)}, open(out, "w"))
+               "odometry": odometry, "vectors": vectors, "keys": sorted(sequences)}, open(out, "w"))
 
 
 if __name__ == "__main__":
