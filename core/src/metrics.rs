@@ -182,7 +182,12 @@ pub struct Metrics {
 /// monotonic, so the largest rounded |γ_i − γ_j| is that of the largest and smallest γ; and a
 /// pair whose x (or y) alone are `best` apart or more is never closer than `best` (hypot ≥ |dx|).
 /// The sweep runs along the axis the fleet spreads most along: lanes side by side share their x.
-fn spread(gammas: &[f64], positions: &[[f64; 2]], order: &mut Vec<usize>, live: impl Fn(usize) -> bool) -> (f64, f64) {
+pub(crate) fn spread(
+    gammas: &[f64],
+    positions: &[[f64; 2]],
+    order: &mut Vec<usize>,
+    live: impl Fn(usize) -> bool,
+) -> (f64, f64) {
     let (lo, hi) = (0..gammas.len())
         .filter(|&n| live(n))
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), n| {

@@ -220,18 +220,12 @@ pub fn gamma(state: &State, command: &Command, stamp: Stamp) -> Vec<u8> {
 /// vehicles with a command (a lost one coordinates with nobody), y the smallest distance
 /// between two vehicles (m; infinite for one), z the fleet's mean γ_i − t (s).
 pub fn coordination(fleet: &[(&State, Option<&Command>)], stamp: Stamp) -> Vec<u8> {
-    let gammas: Vec<f64> = fleet.iter().filter_map(|(_, c)| c.map(|c| c.gamma)).collect();
-    let (lo, hi) = gammas.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &g| {
-        (lo.min(g), hi.max(g))
-    });
-    let error = if lo < hi { hi - lo } else { 0.0 };
-    let mut closest = f64::INFINITY;
-    for (k, (a, _)) in fleet.iter().enumerate() {
-        for (b, _) in &fleet[k + 1..] {
-            closest = closest.min((a.position[0] - b.position[0]).hypot(a.position[1] - b.position[1]));
-        }
-    }
-    let lag = fleet.iter().filter_map(|(s, c)| c.map(|c| c.gamma - s.t)).sum::<f64>() / gammas.len().max(1) as f64;
+    // The metrics' own spread (D16), so that x is the error a run's summary reports.
+    let gammas: Vec<f64> = fleet.iter().map(|(_, c)| c.map_or(0.0, |c| c.gamma)).collect();
+    let positions: Vec<[f64; 2]> = fleet.iter().map(|(s, _)| s.position).collect();
+    let (error, closest) = crate::metrics::spread(&gammas, &positions, &mut Vec::new(), |n| fleet[n].1.is_some());
+    let commanded = fleet.iter().filter(|(_, c)| c.is_some()).count();
+    let lag = fleet.iter().filter_map(|(s, c)| c.map(|c| c.gamma - s.t)).sum::<f64>() / commanded.max(1) as f64;
     vector3(stamp, MAP_FRAME, [error, closest, lag])
 }
 
