@@ -935,13 +935,20 @@ fn the_resync_after_an_outage_is_what_the_telemetry_shows() {
     eprintln!("out of range from {} s to {} s", window["start"], window["end"]);
 }
 
+/// `tcpf gen lanes` of four vehicles at loss 0.3, written into `dir`: a fleet whose topology
+/// matters.
+fn four_lanes(dir: &Path) -> std::path::PathBuf {
+    let lanes = ok(tcpf(&["gen", "lanes", "--vehicles", "4", "--loss", "0.3"]));
+    let mission = dir.join("lanes.toml");
+    std::fs::write(&mission, &lanes.stdout).unwrap();
+    mission
+}
+
 /// A categorical key (the topology of a fleet of four) draws a bar per value in every figure.
 #[test]
 fn a_categorical_sweep_draws_bars_per_metric() {
     let dir = scratch("topology");
-    let lanes = ok(tcpf(&["gen", "lanes", "--vehicles", "4", "--loss", "0.3"]));
-    let mission = dir.join("lanes.toml");
-    std::fs::write(&mission, &lanes.stdout).unwrap();
+    let mission = four_lanes(&dir);
     let out = dir.join("sweep");
     ok(tcpf(&[
         "sweep",
@@ -1012,9 +1019,7 @@ fn the_sweeps_figures_render_in_a_real_browser() {
         );
     }
     let topology = dir.join("topology");
-    let lanes = ok(tcpf(&["gen", "lanes", "--vehicles", "4", "--loss", "0.3"]));
-    let mission = dir.join("lanes.toml");
-    std::fs::write(&mission, &lanes.stdout).unwrap();
+    let mission = four_lanes(&dir);
     ok(tcpf(&[
         "sweep",
         mission.to_str().unwrap(),

@@ -245,6 +245,17 @@ impl<'a> Chart<'a> {
     }
 }
 
+/// The name of the category centred on `x` (category c sits at x = c), or nothing between two:
+/// what a bar chart's axis writes under each group of bars.
+pub fn category_at(categories: &[String], x: f64) -> String {
+    let c = x.round();
+    categories
+        .get(c as usize)
+        .filter(|_| c >= 0.0 && (x - c).abs() < 1e-6)
+        .cloned()
+        .unwrap_or_default()
+}
+
 /// Grouped bars: per category, one bar per named value, each category named under its bars.
 pub fn bars(
     title: &str,
@@ -273,14 +284,7 @@ pub fn bars(
                 .configure_mesh()
                 .disable_x_mesh()
                 .x_labels(n)
-                .x_label_formatter(&|x| {
-                    let c = x.round();
-                    categories
-                        .get(c as usize)
-                        .filter(|_| c >= 0.0 && (x - c).abs() < 1e-6)
-                        .cloned()
-                        .unwrap_or_default()
-                })
+                .x_label_formatter(&|x| category_at(categories, *x))
                 .x_desc(x_label)
                 .y_desc(y_label)
                 .draw()?;

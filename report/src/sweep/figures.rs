@@ -195,6 +195,30 @@ fn legend(area: &Area, entries: &[(String, Option<RGBColor>)], band: Band) -> Re
     Ok(())
 }
 
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    SVGBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// A figure's last marks: the requirement line across `x`, if the figure has one, then the
+/// legend of `entries` and it beside the plot.
+fn finish(
+    chart: &mut Chart,
+    x: (f64, f64),
+    level: Option<&Level>,
+    mut entries: Vec<(String, Option<RGBColor>)>,
+    side: &Area,
+    band: Band,
+) -> Result<(), Box<dyn std::error::Error>> {
+    if let Some((y, name)) = level {
+        let style = ShapeStyle::from(&BLACK).stroke_width(1);
+        chart.draw_series(DashedLineSeries::new(vec![(x.0, *y), (x.1, *y)], 6, 4, style))?;
+        entries.push((name.clone(), None));
+    }
+    legend(side, &entries, band)
+}
+
 fn axis_range(lo: f64, hi: f64, from_zero: bool) -> (f64, f64) {
     let lo = if from_zero { lo.min(0.0) } else { lo };
     if !(lo.is_finite() && hi.is_finite()) {
@@ -282,12 +306,7 @@ fn lines(summary: &SweepSummary, families: &[Family], xs: &[f64], plot: &Plot) -
                 chart.draw_series(points.iter().map(|(x, s)| Circle::new((*x, s.mean), 3, c.filled())))?;
                 entries.push((f.name.clone(), Some(c)));
             }
-            if let Some((y, name)) = level {
-                let style = ShapeStyle::from(&BLACK).stroke_width(1);
-                chart.draw_series(DashedLineSeries::new(vec![(x0, *y), (x1, *y)], 6, 4, style))?;
-                entries.push((name.clone(), None));
-            }
-            legend(&side, &entries, band)?;
+            finish(&mut chart, (x0, x1), level, entries, &side, band)?;
             root.present()?;
             Ok(())
         };
@@ -329,14 +348,7 @@ fn bars(summary: &SweepSummary, families: &[Family], plot: &Plot) -> String {
                 .configure_mesh()
                 .disable_x_mesh()
                 .x_labels(n)
-                .x_label_formatter(&|x| {
-                    let c = x.round();
-                    categories
-                        .get(c as usize)
-                        .filter(|_| c >= 0.0 && (x - c).abs() < 1e-6)
-                        .cloned()
-                        .unwrap_or_default()
-                })
+                .x_label_formatter(&|x| crate::plots::category_at(categories, *x))
                 .x_desc(summary.design.grid.params[0].key.as_str())
                 .y_desc(unit)
                 .label_style((FONT, 13))
@@ -365,17 +377,7 @@ fn bars(summary: &SweepSummary, families: &[Family], plot: &Plot) -> String {
                 }
                 entries.push((f.name.clone(), Some(c)));
             }
-            if let Some((y, name)) = level {
-                let style = ShapeStyle::from(&BLACK).stroke_width(1);
-                chart.draw_series(DashedLineSeries::new(
-                    vec![(-0.5, *y), (n as f64 - 0.5, *y)],
-                    6,
-                    4,
-                    style,
-                ))?;
-                entries.push((name.clone(), None));
-            }
-            legend(&side, &entries, band)?;
+            finish(&mut chart, (-0.5, n as f64 - 0.5), level, entries, &side, band)?;
             root.present()?;
             Ok(())
         };
