@@ -223,8 +223,8 @@ pub enum Command {
         /// More than the agents' stale timeout.
         #[arg(long, default_value = waits::COMMAND_S, value_parser = command_timeout, allow_hyphen_values = true, conflicts_with = "in_process")]
         command_timeout: Duration,
-        /// Speak ROS 2 (rmw_zenoh) on this domain beside tcpf's own protocol: each vehicle's
-        /// odometry and, in lockstep, /clock, seen by ROS 2 tools (docs/ROS2.md).
+        /// Speak ROS 2 (rmw_zenoh) on this domain beside tcpf's own protocol, over the mission's
+        /// [ros2] domain: the world and every agent as ROS 2 nodes (docs/ROS2.md).
         #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain(), conflicts_with = "in_process")]
         ros2: Option<u32>,
         /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
@@ -319,8 +319,9 @@ pub enum Command {
         /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
         #[arg(long, default_value = waits::COMMAND_S, value_parser = seconds, allow_hyphen_values = true)]
         command_timeout: Duration,
-        /// Speak ROS 2 (rmw_zenoh) on this domain beside tcpf's own protocol: each vehicle's
-        /// odometry and, in lockstep, /clock, seen by ROS 2 tools (docs/ROS2.md).
+        /// Speak ROS 2 (rmw_zenoh) on this domain beside tcpf's own protocol, over the mission's
+        /// [ros2] domain: the node /tcpf/world, with odometry, paths, coordination, links and, in
+        /// lockstep, /clock; it takes the odometry of a vehicle a ROS 2 node plays (docs/ROS2.md).
         #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain())]
         ros2: Option<u32>,
     },
@@ -351,6 +352,10 @@ pub enum Command {
         /// Seconds after which a silent neighbour stops being counted.
         #[arg(long, default_value = waits::STALE_S, value_parser = seconds, allow_hyphen_values = true)]
         stale_timeout: Duration,
+        /// Speak ROS 2 (rmw_zenoh) on this domain, over the mission's [ros2] domain: the node
+        /// /tcpf/agent_<id>, its commands on /tcpf/vehicle_<id>/cmd (docs/ROS2.md).
+        #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain())]
+        ros2: Option<u32>,
     },
 }
 

@@ -232,12 +232,16 @@ fn main() -> ExitCode {
             id,
             startup_timeout,
             stale_timeout,
+            ros2,
         } => roles::agent(
             &clocked(&role.mission, &role.clock),
             &role.zenoh,
             id,
-            startup_timeout,
-            stale_timeout,
+            tcpf_agent::Options {
+                startup_timeout,
+                stale_timeout,
+                ros2,
+            },
         ),
     };
     match outcome {

@@ -71,8 +71,7 @@ pub fn agent(
     args: &MissionArgs,
     zenoh: &ZenohArgs,
     id: u32,
-    startup_timeout: Duration,
-    stale_timeout: Duration,
+    options: tcpf_agent::Options,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     if !mission.vehicles.iter().any(|v| v.id == id) {
@@ -81,10 +80,6 @@ pub fn agent(
             args.file.display()
         )));
     }
-    let options = tcpf_agent::Options {
-        startup_timeout,
-        stale_timeout,
-    };
     let exit = role(tcpf_agent::run(&mission, id, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
         exit == tcpf_agent::Exit::Ended,

@@ -44,6 +44,12 @@ pub fn run(
     if !in_process && !realtime {
         launcher::launcher_runtime();
     }
+    if in_process && mission.ros2.is_some() {
+        eprintln!(
+            "{}: its [ros2] is for a fleet of processes; this run is in-process and speaks no ROS 2",
+            args.file.display()
+        );
+    }
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     live_free(options.live)?;

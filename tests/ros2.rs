@@ -55,20 +55,29 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     let odometry_hash = seen["hashes"]["nav_msgs/msg/Odometry"].as_str().unwrap();
     let clock_hash = seen["hashes"]["rosgraph_msgs/msg/Clock"].as_str().unwrap();
     let vector_hash = seen["hashes"]["geometry_msgs/msg/Vector3Stamped"].as_str().unwrap();
+    let twist_hash = seen["hashes"]["geometry_msgs/msg/Twist"].as_str().unwrap();
+    let path_hash = seen["hashes"]["nav_msgs/msg/Path"].as_str().unwrap();
     let vector = |topic: &str| format!("0/tcpf/{topic}/geometry_msgs::msg::dds_::Vector3Stamped_/{vector_hash}");
+    let twist = |id: u32| format!("0/tcpf/vehicle_{id}/cmd/geometry_msgs::msg::dds_::Twist_/{twist_hash}");
+    let path = |id: u32| format!("0/tcpf/vehicle_{id}/path/nav_msgs::msg::dds_::Path_/{path_hash}");
     assert_eq!(
         keys,
         [
             format!("0/clock/rosgraph_msgs::msg::dds_::Clock_/{clock_hash}"),
             vector("coordination"),
+            vector("links/from_1_to_2"),
+            vector("links/from_2_to_1"),
+            twist(1),
             vector("vehicle_1/gamma"),
             format!("0/tcpf/vehicle_1/odom/nav_msgs::msg::dds_::Odometry_/{odometry_hash}"),
+            twist(2),
             vector("vehicle_2/gamma"),
             format!("0/tcpf/vehicle_2/odom/nav_msgs::msg::dds_::Odometry_/{odometry_hash}"),
         ]
     );
 
-    // The graph: the node /tcpf/world, and one publisher per topic.
+    // The graph: the nodes /tcpf/world, /tcpf/agent_1 and /tcpf/agent_2, and one publisher per
+    // topic: the world's eight and two paths, each agent's commands.
     let tokens: Vec<&str> = seen["tokens"]
         .as_array()
         .unwrap()
@@ -76,21 +85,88 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
         .map(|t| t.as_str().unwrap())
         .collect();
     let kinds = |kind: &str| tokens.iter().filter(|t| t.split('/').nth(5) == Some(kind)).count();
-    assert_eq!((kinds("NN"), kinds("MP"), tokens.len()), (1, 6, 7), "{tokens:?}");
-    assert!(tokens.iter().any(|t| t.ends_with("/NN/%/%tcpf/world")), "{tokens:?}");
+    assert_eq!((kinds("NN"), kinds("MP"), tokens.len()), (3, 12, 15), "{tokens:?}");
+    for node in ["world", "agent_1", "agent_2"] {
+        assert!(
+            tokens.iter().any(|t| t.ends_with(&format!("/NN/%/%tcpf/{node}"))),
+            "{node}: {tokens:?}"
+        );
+    }
+    let published = |node: &str, topic: &str, qos: &str| {
+        tokens
+            .iter()
+            .any(|t| t.contains(&format!("/MP/%/%tcpf/{node}/{topic}/")) && t.ends_with(qos))
+    };
     for topic in [
         "%clock",
         "%tcpf%vehicle_1%odom",
         "%tcpf%vehicle_2%odom",
         "%tcpf%vehicle_1%gamma",
         "%tcpf%vehicle_2%gamma",
+        "%tcpf%links%from_1_to_2",
+        "%tcpf%links%from_2_to_1",
         "%tcpf%coordination",
     ] {
+        assert!(published("world", topic, "/1:2:1,10:,:,:,,"), "{topic}: {tokens:?}");
+    }
+    for id in [1, 2] {
+        let latched = published("world", &format!("%tcpf%vehicle_{id}%path"), "/1:1:1,10:,:,:,,");
+        assert!(latched, "vehicle {id}'s path, transient local: {tokens:?}");
+        let commands = published(
+            &format!("agent_{id}"),
+            &format!("%tcpf%vehicle_{id}%cmd"),
+            "/1:2:1,10:,:,:,,",
+        );
+        assert!(commands, "agent {id}'s commands: {tokens:?}");
+    }
+
+    // Each path, to a subscriber that came after it was published: the detection token and
+    // the cached sample of a transient-local publisher; the poses where and when the plan puts
+    // the vehicle, from its start at γ = 0 to its goal at t_f.
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let t_f = summary["t_f"].as_f64().unwrap();
+    let adv: Vec<&str> = seen["adv"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_str().unwrap())
+        .collect();
+    assert_eq!(adv.len(), 2, "{adv:?}");
+    for (id, start, goal) in [(1, [0.0, 0.0], [10.0, 10.0]), (2, [0.0, 5.0], [15.0, 10.0])] {
         assert!(
-            tokens
+            adv[id - 1].starts_with(&format!("{}/@adv/pub/", path(id as u32))),
+            "{adv:?}"
+        );
+        let p = &seen["paths"][&format!("vehicle_{id}")];
+        assert_eq!(p["frame"], "map");
+        let poses = p["poses"].as_array().unwrap();
+        assert_eq!(poses.len(), (t_f / 0.1).ceil() as usize + 1, "vehicle {id}");
+        let pose = |k: usize| -> Vec<f64> {
+            poses[k]
+                .as_array()
+                .unwrap()
                 .iter()
-                .any(|t| t.contains(&format!("/MP/%/%tcpf/world/{topic}/"))),
-            "{topic}: {tokens:?}"
+                .map(|v| v.as_f64().unwrap())
+                .collect()
+        };
+        let (first, last) = (pose(0), pose(poses.len() - 1));
+        assert!(first[..2] == [0.0, 0.0] && (first[2] - start[0]).abs() < 1e-9 && (first[3] - start[1]).abs() < 1e-9);
+        assert!(
+            (last[0] + last[1] * 1e-9 - t_f).abs() < 1e-9,
+            "the last pose at t_f: {last:?}"
+        );
+        assert!(
+            (last[2] - goal[0]).abs() < 1e-6 && (last[3] - goal[1]).abs() < 1e-6,
+            "{last:?}"
+        );
+        assert!(
+            first[4].abs() < 1e-9 && last[4].abs() < 1e-9,
+            "heading along x at both ends"
+        );
+        let stamp = pose(10);
+        assert!(
+            (stamp[0] + stamp[1] * 1e-9 - 1.0).abs() < 1e-9,
+            "a pose every 0.1 s of γ"
         );
     }
 
@@ -155,6 +231,41 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
         let apart = (f(a, "x") - f(b, "x")).hypot(f(a, "y") - f(b, "y"));
         assert_eq!(num(&c["y"]), apart, "tick {}", a["tick"]);
         assert_eq!(c["frame"].as_str(), Some("map"));
+    }
+
+    // Each agent's commands, as a ROS 2 node playing the vehicle takes them: its speed and yaw
+    // rate, the telemetry's, command by command.
+    for id in ["1", "2"] {
+        let mine: Vec<&BTreeMap<String, String>> = rows.iter().filter(|r| r["id"] == id).collect();
+        let commands = seen["twists"][&format!("vehicle_{id}")].as_array().unwrap();
+        assert_eq!(commands.len(), mine.len(), "vehicle {id}");
+        for (c, row) in commands.iter().zip(&mine) {
+            let f = |k: &str| row[k].parse::<f64>().unwrap();
+            assert_eq!(
+                (num(&c[0]), num(&c[1])),
+                (f("v"), f("r")),
+                "vehicle {id}, tick {}",
+                row["tick"]
+            );
+        }
+    }
+    // Each link's γ messages, sent, delivered and lost so far: at the end, the summary's.
+    for link in summary["links"].as_array().unwrap() {
+        let topic = format!("links/from_{}_to_{}", link["from"], link["to"]);
+        let counts = seen["vectors"][&topic].as_array().unwrap();
+        let last = counts.last().unwrap();
+        let sent = link["sent"].as_f64().unwrap();
+        assert_eq!(counts.len() as f64, sent, "{topic}: a sample per message judged");
+        assert_eq!(
+            (num(&last["x"]), num(&last["y"]), num(&last["z"])),
+            (
+                sent,
+                link["delivered"].as_f64().unwrap(),
+                link["dropped"].as_f64().unwrap()
+            ),
+            "{topic}"
+        );
+        assert_eq!(last["frame"], "map");
     }
 
     // /clock: the fleet's simulated time, tick by tick.

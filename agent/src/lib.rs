@@ -13,7 +13,7 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
     answered, ask_clock, await_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, subscribe_with,
-    Outlet, Presence, Received, Rejected,
+    Outlet, Presence, RealtimeReport, Received, Rejected,
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
@@ -21,6 +21,7 @@ use tcpf_core::membership::{AgentStartup, Peer, StaleCheck, StaleTimer, StartupC
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
 use tcpf_core::realtime::RealtimeAgent;
+use tcpf_core::ros2::Stamp;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
 use zenoh::pubsub::Subscriber;
@@ -47,6 +48,8 @@ pub struct Options {
     pub startup_timeout: Duration,
     /// A live neighbour whose γ has not come for this long stops being counted.
     pub stale_timeout: Duration,
+    /// The ROS 2 domain to speak rmw_zenoh on (`--ros2`), over the mission's `[ros2]`.
+    pub ros2: Option<u32>,
 }
 
 /// Why the agent stopped.
@@ -93,6 +96,7 @@ struct Queued {
     gammas: Receiver<Received<Gamma>>,
     commands: Outlet,
     gamma_out: Outlet,
+    ros2: Option<tcpf_bus::ros2::Agent>,
 }
 
 /// Where the vehicle's states and the neighbours' γ go, and whence the agent's messages leave.
@@ -128,6 +132,8 @@ struct Feed {
 
 struct Fed {
     node: AgentNode,
+    /// The agent as a ROS 2 node, and the control period its commands' stamps count in.
+    ros2: Option<(tcpf_bus::ros2::Agent, f64)>,
     /// Until the loop starts (the node's neighbours and rejoining known), what came, in order.
     held: Option<Vec<(String, Input)>>,
     /// How long the node has been waiting for a neighbour's γ.
@@ -182,6 +188,10 @@ impl Feed {
         while let Some(command) = fed.node.command() {
             warn_if_not_finite(self.id, &command);
             self.sent(self.commands.put_now(&command));
+            if let Some((ros2, period)) = &mut fed.ros2 {
+                // Lockstep: simulated time, as the world's stamps and /clock.
+                self.sent(ros2.put(&command, Stamp::from_seconds(command.tick as f64 * *period)));
+            }
         }
         let waiting = fed.node.waiting();
         fed.stale.note(waiting, self.monotonic.now());
@@ -246,6 +256,10 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let agent = Agent::new(mission, id, path);
     let neighbours: Vec<u32> = agent.neighbours().collect();
 
+    let ros2 = match mission.ros2(options.ros2) {
+        Some(config) => Some(tcpf_bus::ros2::Agent::declare(&session, &config, id, !realtime).await?),
+        None => None,
+    };
     let mut subscribers = Vec::new();
     let inbound = if realtime {
         let (s1, states) = subscribe::<State>(&session, &keys.state(id), &rejected).await?;
@@ -260,6 +274,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             gammas,
             commands: Outlet::for_clock(&session, keys.cmd(id), true).await?,
             gamma_out: Outlet::gamma(&session, keys.gamma(id), true).await?,
+            ros2,
         };
         Inbound::Queued(Box::new(queued))
     } else {
@@ -268,6 +283,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             id,
             fed: Mutex::new(Fed {
                 node: AgentNode::new(agent),
+                ros2: ros2.map(|r| (r, mission.mission.control_period)),
                 held: Some(Vec::new()),
                 stale: StaleTimer::new(options.stale_timeout),
                 stopped: false,
@@ -620,6 +636,10 @@ impl Shell {
                         }
                         warn_if_not_finite(id, &action.command);
                         queued.commands.put(&action.command).await?;
+                        if let Some(ros2) = &mut queued.ros2 {
+                            let t = action.command.tick as f64 * mission.mission.control_period;
+                            ros2.put(&action.command, Stamp::from_seconds(clock.epoch + t / clock.time_scale))?;
+                        }
                     }
                 }
                 Some(s) = queued.states.recv() => {
@@ -672,7 +692,11 @@ impl Shell {
             id,
             &self.rejected,
             &Timing::default(),
-            Some((timing, published)),
+            Some(RealtimeReport {
+                timing,
+                published,
+                played: Vec::new(),
+            }),
         )
         .await?;
         Ok(exit)

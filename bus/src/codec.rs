@@ -63,7 +63,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x08, 0xac, 0x02, 0x02, 0x01,
+            0x09, 0xac, 0x02, 0x02, 0x01,
             0, 0, 0, 0, 0, 0, 0x08, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
@@ -72,14 +72,14 @@ mod tests {
         ];
         assert_eq!(encode(&g), bytes);
         let silent = Gamma { sample: None, ..g };
-        assert_eq!(encode(&silent), [0x08, 0xac, 0x02, 0x02, 0x00]);
+        assert_eq!(encode(&silent), [0x09, 0xac, 0x02, 0x02, 0x00]);
         let loss = Loss {
             version: PROTOCOL_VERSION,
             id: 2,
             tick: 300,
             reason: LossReason::Silent,
         };
-        assert_eq!(encode(&loss), [0x08, 0x02, 0xac, 0x02, 0x01]);
+        assert_eq!(encode(&loss), [0x09, 0x02, 0xac, 0x02, 0x01]);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
@@ -90,7 +90,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x08, 0x01,
+            0x09, 0x01,
             0, 0, 0, 0, 0, 0, 0x24, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0xac, 0x02, 0x05,

@@ -1,15 +1,24 @@
-//! The world's ROS 2 side (`--ros2 DOMAIN`): rmw_zenoh's publishers and graph tokens on the
-//! fleet's own session, so that ROS 2 nodes on the same Zenoh network (rmw_zenoh, or any
-//! implementation of its wire format) see the fleet with no bridge. What the bytes are is
-//! `tcpf_core::ros2`'s; this moves them.
+//! The fleet's ROS 2 side (`--ros2`, `[ros2]`): rmw_zenoh's publishers, subscriptions and graph
+//! tokens on each role's own session, so that ROS 2 nodes on the same Zenoh network (rmw_zenoh,
+//! or any implementation of its wire format) see the fleet, and play its vehicles, with no
+//! bridge. What the bytes are is `tcpf_core::ros2`'s; this moves them.
+
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, Result};
+use tcpf_core::mission::Ros2Config;
 use tcpf_core::msg::{Command, State};
-use tcpf_core::ros2::{self, Odometry, Stamp, Type};
+use tcpf_core::path::GeneralizedPath;
+use tcpf_core::ros2::{self, Entity, LinkCounts, Node, Odometry, Stamp, Type};
+use tokio::sync::mpsc;
 use zenoh::liveliness::LivelinessToken;
-use zenoh::pubsub::Publisher;
+use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::CongestionControl;
+use zenoh::query::Queryable;
 use zenoh::{Session, Wait};
+
+use crate::typed::{enqueue, queue, Received, Rejected};
 
 /// One ROS 2 publisher: its Zenoh publisher, the sequence number of its next sample, its GID.
 struct Topic {
@@ -20,76 +29,279 @@ struct Topic {
 }
 
 impl Topic {
-    fn put(&mut self, payload: Vec<u8>, stamp: Stamp) -> Result<()> {
+    /// Publishes `payload` with the attachment the RMW reads, and returns that attachment.
+    fn put(&mut self, payload: Vec<u8>, stamp: Stamp) -> Result<[u8; 33]> {
         let attachment = ros2::attachment(self.sequence, stamp.nanos(), self.gid);
         self.sequence += 1;
         self.publisher
             .put(payload)
             .attachment(attachment.to_vec())
             .wait()
-            .map_err(|e| anyhow!("publish on {}: {e}", self.publisher.key_expr()))
+            .map_err(|e| anyhow!("publish on {}: {e}", self.publisher.key_expr()))?;
+        Ok(attachment)
     }
 }
 
-/// The world as the ROS 2 node `/tcpf/world`: every vehicle's odometry and coordination state,
-/// the fleet's, and, in lockstep, `/clock`.
-pub struct World {
-    odometry: Vec<(u32, Topic)>,
-    gamma: Vec<(u32, Topic)>,
-    coordination: Topic,
-    clock: Option<Topic>,
-    _node: LivelinessToken,
+/// A latched publisher's last sample and its attachment, for the late subscribers who ask.
+type LastSample = Arc<Mutex<Option<(Vec<u8>, [u8; 33])>>>;
+
+/// A transient-local publisher as rmw_zenoh makes one with Zenoh's advanced publisher, built from
+/// plain Zenoh: it keeps its last sample and answers a late subscriber's query for it on
+/// `<key>/@adv/pub/<zid>/uhlc/_`, where a token says it is there.
+struct Latched {
+    topic: Topic,
+    last: LastSample,
+    _cache: Queryable<()>,
+    _detection: LivelinessToken,
 }
 
-/// The node's name in `ros2 node list` (under `ros2::NAMESPACE`).
-const NODE: &str = "world";
+impl Latched {
+    fn put(&mut self, payload: Vec<u8>, stamp: Stamp) -> Result<()> {
+        let attachment = self.topic.put(payload.clone(), stamp)?;
+        *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some((payload, attachment));
+        Ok(())
+    }
+}
 
-impl World {
-    /// Declares the node and its publishers on `domain`: odometry of every vehicle of `ids`, and
-    /// `/clock` when the fleet's time is simulated (`lockstep`). In lockstep a publication waits
-    /// for a slow subscriber, as the fleet's own messages do; in realtime it is dropped instead.
-    pub async fn declare(session: &Session, domain: u32, ids: &[u32], lockstep: bool) -> Result<World> {
-        let zid = session.zid().to_string();
-        let congestion = if lockstep {
-            CongestionControl::Block
-        } else {
-            CongestionControl::Drop
-        };
-        let mut entity = 0;
-        let mut topic = |name: String, ty: Type| {
-            entity += 1;
-            declare(session, domain, &zid, entity, name, ty, congestion)
-        };
-        let clock = match lockstep {
-            true => Some(topic("/clock".to_string(), ros2::CLOCK).await?),
-            false => None,
-        };
-        let mut odometry = Vec::with_capacity(ids.len());
-        for &id in ids {
-            odometry.push((id, topic(ros2::odometry_topic(id), ros2::ODOMETRY).await?));
+/// A node as it is declared: its session and names, and the entity id of what it declares next.
+struct Declaring<'a> {
+    session: &'a Session,
+    ros2: &'a Ros2Config,
+    zid: String,
+    name: String,
+    next: u32,
+    congestion: CongestionControl,
+}
+
+impl<'a> Declaring<'a> {
+    /// Node `name` of the session's first (and only) ROS 2 context. In lockstep a publication
+    /// waits for a slow subscriber, as the fleet's own messages do; in realtime it is dropped.
+    fn new(session: &'a Session, ros2: &'a Ros2Config, name: String, lockstep: bool) -> Declaring<'a> {
+        Declaring {
+            session,
+            ros2,
+            zid: session.zid().to_string(),
+            name,
+            next: 0,
+            congestion: if lockstep {
+                CongestionControl::Block
+            } else {
+                CongestionControl::Drop
+            },
         }
-        let mut gamma = Vec::with_capacity(ids.len());
-        for &id in ids {
-            gamma.push((id, topic(ros2::gamma_topic(id), ros2::VECTOR3_STAMPED).await?));
+    }
+
+    fn node(&self) -> Node<'_> {
+        Node {
+            zid: &self.zid,
+            id: 0,
+            name: &self.name,
         }
-        let coordination = topic(ros2::coordination_topic(), ros2::VECTOR3_STAMPED).await?;
-        // Last: a tool that sees the node in the graph sees every topic of it.
-        let node = session
+    }
+
+    /// The token of the next entity, `kind` on `topic`.
+    fn token(&mut self, kind: Entity, topic: &str, ty: &Type, qos: &str) -> String {
+        self.next += 1;
+        self.ros2.entity_token(&self.node(), self.next, kind, topic, ty, qos)
+    }
+
+    async fn declare_token(&self, token: String, what: &str) -> Result<LivelinessToken> {
+        self.session
             .liveliness()
-            .declare_token(ros2::node_token(domain, &zid, 0, NODE))
+            .declare_token(token)
             .await
-            .map_err(|e| anyhow!("cannot declare the ROS 2 node: {e}"))?;
-        Ok(World {
-            odometry,
-            gamma,
-            coordination,
-            clock,
-            _node: node,
+            .map_err(|e| anyhow!("cannot declare the ROS 2 {what}: {e}"))
+    }
+
+    async fn publisher(&mut self, topic: String, ty: Type, qos: &str) -> Result<Topic> {
+        let key = self.ros2.data_key(&topic, &ty);
+        let publisher = self
+            .session
+            .declare_publisher(key.clone())
+            .congestion_control(self.congestion)
+            .await
+            .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
+        let token = self.token(Entity::Publisher, &topic, &ty, qos);
+        let gid = ros2::gid(&token);
+        Ok(Topic {
+            publisher,
+            sequence: 1,
+            gid,
+            _token: self.declare_token(token, &format!("publisher of {topic}")).await?,
         })
     }
 
-    /// Publishes the fleet at `stamp`: `/clock`, then each vehicle's odometry from its state and
-    /// the command it holds and, if it holds one, its coordination state, then the fleet's.
+    async fn latched(&mut self, topic: String, ty: Type) -> Result<Latched> {
+        let key = self.ros2.data_key(&topic, &ty);
+        let topic = self.publisher(topic, ty, ros2::QOS_TRANSIENT_LOCAL).await?;
+        let adv = format!("{key}/@adv/pub/{}/uhlc/_", self.zid);
+        let last: LastSample = Arc::default();
+        let held = last.clone();
+        let cache = self
+            .session
+            .declare_queryable(adv.clone())
+            .callback(move |query| {
+                let last = held.lock().unwrap_or_else(|e| e.into_inner()).clone();
+                if let Some((payload, attachment)) = last {
+                    // The sample under the topic's own key: the subscriber's query accepts any.
+                    if let Err(e) = query.reply(key.clone(), payload).attachment(attachment.to_vec()).wait() {
+                        tracing::debug!("a late subscriber of {key} asked and was not answered: {e}");
+                    }
+                }
+            })
+            .await
+            .map_err(|e| anyhow!("cannot serve the history of {adv}: {e}"))?;
+        Ok(Latched {
+            topic,
+            last,
+            _cache: cache,
+            _detection: self.declare_token(adv, "transient-local publisher").await?,
+        })
+    }
+
+    /// A subscription to `topic` whose samples go to `tx` as `(id, payload)`.
+    async fn subscription(
+        &mut self,
+        topic: String,
+        ty: Type,
+        id: u32,
+        tx: mpsc::Sender<Received<(u32, Vec<u8>)>>,
+        rejected: &Rejected,
+    ) -> Result<(Subscriber<()>, LivelinessToken)> {
+        let key = self.ros2.data_key(&topic, &ty);
+        let overflowed = rejected.clone();
+        let subscriber = self
+            .session
+            .declare_subscriber(key.clone())
+            .callback(move |sample| {
+                let payload = sample.payload().to_bytes().into_owned();
+                enqueue(&tx, sample.key_expr().as_str(), (id, payload), &overflowed);
+            })
+            .await
+            .map_err(|e| anyhow!("cannot subscribe to {key}: {e}"))?;
+        let token = self.token(Entity::Subscription, &topic, &ty, ros2::QOS);
+        Ok((
+            subscriber,
+            self.declare_token(token, &format!("subscription of {topic}")).await?,
+        ))
+    }
+
+    /// The node's own token, last: a tool that sees the node sees every topic of it.
+    async fn done(self) -> Result<LivelinessToken> {
+        let token = self.ros2.node_token(&self.node());
+        self.declare_token(token, &format!("node {}", self.name)).await
+    }
+}
+
+/// The fleet as the world knows it, for its ROS 2 node.
+pub struct Fleet<'a> {
+    pub ids: &'a [u32],
+    /// The vehicles the world integrates: every other is played by another program, perhaps a
+    /// ROS 2 node, whose odometry the world listens to.
+    pub simulated: &'a [u32],
+    /// Every directed link of the communication graph, (from, to).
+    pub links: &'a [(u32, u32)],
+    pub lockstep: bool,
+}
+
+/// The world as the ROS 2 node `world`: the odometry of the vehicles it simulates, every
+/// vehicle's planned path and coordination state, each link's γ messages, the fleet's
+/// coordination and, in lockstep, `/clock`; and a subscription to the odometry of each vehicle a
+/// ROS 2 node may play.
+pub struct World {
+    odometry: BTreeMap<u32, Topic>,
+    gamma: BTreeMap<u32, Topic>,
+    paths: BTreeMap<u32, Latched>,
+    links: BTreeMap<(u32, u32), Topic>,
+    counts: LinkCounts,
+    coordination: Topic,
+    clock: Option<Topic>,
+    _played: Vec<(Subscriber<()>, LivelinessToken)>,
+    _node: LivelinessToken,
+}
+
+/// Odometry of played vehicles as it arrives, `(id, CDR)`, for the world's loop to decode.
+pub type PlayedOdometry = mpsc::Receiver<Received<(u32, Vec<u8>)>>;
+
+impl World {
+    /// Declares the node and its topics, and the receiver of the played vehicles' odometry.
+    pub async fn declare(
+        session: &Session,
+        ros2: &Ros2Config,
+        fleet: &Fleet<'_>,
+        rejected: &Rejected,
+    ) -> Result<(World, PlayedOdometry)> {
+        let mut node = Declaring::new(session, ros2, "world".into(), fleet.lockstep);
+        let clock = match fleet.lockstep {
+            true => Some(node.publisher("/clock".into(), ros2::CLOCK, ros2::QOS).await?),
+            false => None,
+        };
+        let mut odometry = BTreeMap::new();
+        for &id in fleet.simulated {
+            odometry.insert(
+                id,
+                node.publisher(ros2.odometry_topic(id), ros2::ODOMETRY, ros2::QOS)
+                    .await?,
+            );
+        }
+        let mut gamma = BTreeMap::new();
+        let mut paths = BTreeMap::new();
+        for &id in fleet.ids {
+            gamma.insert(
+                id,
+                node.publisher(ros2.gamma_topic(id), ros2::VECTOR3_STAMPED, ros2::QOS)
+                    .await?,
+            );
+            paths.insert(id, node.latched(ros2.path_topic(id), ros2::PATH).await?);
+        }
+        let mut links = BTreeMap::new();
+        for &(from, to) in fleet.links {
+            let topic = ros2.link_topic(from, to);
+            links.insert(
+                (from, to),
+                node.publisher(topic, ros2::VECTOR3_STAMPED, ros2::QOS).await?,
+            );
+        }
+        let coordination = node
+            .publisher(ros2.coordination_topic(), ros2::VECTOR3_STAMPED, ros2::QOS)
+            .await?;
+        let (tx, played_odometry) = queue();
+        let mut played = Vec::new();
+        for &id in fleet.ids.iter().filter(|id| !fleet.simulated.contains(id)) {
+            let topic = ros2.odometry_topic(id);
+            played.push(
+                node.subscription(topic, ros2::ODOMETRY, id, tx.clone(), rejected)
+                    .await?,
+            );
+        }
+        let world = World {
+            odometry,
+            gamma,
+            paths,
+            links,
+            counts: LinkCounts::default(),
+            coordination,
+            clock,
+            _played: played,
+            _node: node.done().await?,
+        };
+        Ok((world, played_odometry))
+    }
+
+    /// Publishes each vehicle's planned path once, each pose stamped `stamp_of(γ)`: kept for
+    /// subscribers that come later.
+    pub fn put_paths(&mut self, paths: &[(u32, GeneralizedPath)], stamp_of: impl Fn(f64) -> Stamp) -> Result<()> {
+        for (id, path) in paths {
+            if let Some(latched) = self.paths.get_mut(id) {
+                latched.put(ros2::path(path, &stamp_of), stamp_of(0.0))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Publishes the fleet at `stamp`: `/clock`, then each vehicle's odometry (of those it
+    /// simulates) from its state and the command it holds and, if it holds one, its coordination
+    /// state and the links that command reports on, then the fleet's coordination.
     pub fn put<'a>(
         &mut self,
         fleet: impl Iterator<Item = (&'a State, Option<&'a Command>)>,
@@ -100,45 +312,42 @@ impl World {
         }
         let fleet: Vec<(&State, Option<&Command>)> = fleet.collect();
         for &(state, command) in &fleet {
-            if let Some((_, topic)) = self.odometry.iter_mut().find(|(id, _)| *id == state.id) {
+            if let Some(topic) = self.odometry.get_mut(&state.id) {
                 topic.put(Odometry::of(state, command, stamp).cdr(), stamp)?;
             }
-            let gamma = self.gamma.iter_mut().find(|(id, _)| *id == state.id);
-            if let (Some((_, topic)), Some(command)) = (gamma, command) {
+            let Some(command) = command else { continue };
+            if let Some(topic) = self.gamma.get_mut(&state.id) {
                 topic.put(ros2::gamma(state, command, stamp), stamp)?;
             }
+            for (link, counts) in self.counts.count(command) {
+                if let Some(topic) = self.links.get_mut(&link) {
+                    topic.put(ros2::link(counts, stamp), stamp)?;
+                }
+            }
         }
-        self.coordination.put(ros2::coordination(&fleet, stamp), stamp)
+        self.coordination.put(ros2::coordination(&fleet, stamp), stamp)?;
+        Ok(())
     }
 }
 
-/// A publisher of `topic` as entity `entity` of the node, with its graph token.
-async fn declare(
-    session: &Session,
-    domain: u32,
-    zid: &str,
-    entity: u32,
-    topic: String,
-    ty: Type,
-    congestion: CongestionControl,
-) -> Result<Topic> {
-    let key = ros2::data_key(domain, &topic, &ty);
-    let publisher = session
-        .declare_publisher(key.clone())
-        .congestion_control(congestion)
-        .await
-        .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
-    let token = ros2::publisher_token(domain, zid, 0, entity, NODE, &topic, &ty);
-    let gid = ros2::gid(&token);
-    let token = session
-        .liveliness()
-        .declare_token(token)
-        .await
-        .map_err(|e| anyhow!("cannot declare the ROS 2 publisher of {topic}: {e}"))?;
-    Ok(Topic {
-        publisher,
-        sequence: 1,
-        gid,
-        _token: token,
-    })
+/// The agent of a vehicle as the ROS 2 node `agent_<id>`: its commands on the vehicle's `cmd`,
+/// which a ROS 2 node playing the vehicle (or its driver, remapped) follows.
+pub struct Agent {
+    command: Topic,
+    _node: LivelinessToken,
+}
+
+impl Agent {
+    pub async fn declare(session: &Session, ros2: &Ros2Config, id: u32, lockstep: bool) -> Result<Agent> {
+        let mut node = Declaring::new(session, ros2, format!("agent_{id}"), lockstep);
+        let command = node.publisher(ros2.command_topic(id), ros2::TWIST, ros2::QOS).await?;
+        Ok(Agent {
+            command,
+            _node: node.done().await?,
+        })
+    }
+
+    pub fn put(&mut self, command: &Command, stamp: Stamp) -> Result<()> {
+        self.command.put(ros2::twist(command), stamp).map(|_| ())
+    }
 }

@@ -10,7 +10,7 @@ use anyhow::{anyhow, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tcpf_core::lockstep::{Reject, Timing};
-use tcpf_core::msg::{Checked, Clock, PathMsg, PeriodTiming, Rejections, Report};
+use tcpf_core::msg::{Checked, Clock, PathMsg, PeriodTiming, Player, Rejections, Report};
 use tcpf_core::path::GeneralizedPath;
 use tokio::sync::{mpsc, oneshot};
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -565,8 +565,16 @@ pub async fn answered(answer: &mut Option<ClockAnswer>) -> Result<Clock> {
     }
 }
 
+/// What a realtime role adds to its exit report: how it kept its period, the γ it published
+/// (an agent), the vehicles it left to others (the world).
+pub struct RealtimeReport {
+    pub timing: PeriodTiming,
+    pub published: u64,
+    pub played: Vec<(u32, Player)>,
+}
+
 /// Tells the recorder who this process was, what it refused and, in realtime, how it kept its
-/// period and how many γ it published.
+/// period, how many γ it published and who played the vehicles it did not simulate.
 pub async fn report(
     session: &Session,
     keys: &Keys,
@@ -574,17 +582,23 @@ pub async fn report(
     id: u32,
     rejected: &Rejected,
     timing: &Timing,
-    realtime: Option<(PeriodTiming, u64)>,
+    realtime: Option<RealtimeReport>,
 ) -> Result<()> {
-    let (realtime, published) = realtime.map_or((None, 0), |(t, p)| (Some(t), p));
     rejected.flush();
-    let report = Report {
+    let base = Report {
         rejected: rejected.totals(),
         stale_timeouts: timing.stale_timeouts,
         late_gammas: timing.late_gammas.clone(),
-        timing: realtime,
-        published,
         ..Report::new(role, id, std::process::id())
+    };
+    let report = match realtime {
+        Some(r) => Report {
+            timing: Some(r.timing),
+            published: r.published,
+            played: r.played,
+            ..base
+        },
+        None => base,
     };
     let what = format!("the exit report of {role} {id}");
     crate::handover::hand_over(session, keys, keys.report(role, id), &report, &what).await?;

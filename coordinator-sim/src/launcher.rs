@@ -501,8 +501,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     if restart {
         world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
     }
+    let mut agent_args = common.clone();
     if let Some(domain) = ros2 {
         world_args.extend(["--ros2".to_string(), domain.to_string()]);
+        agent_args.extend(["--ros2".to_string(), domain.to_string()]);
     }
     // The world is the run's router: every other process, this one too, is its client. The
     // planner plans while the world starts (a client, it waits for the world to listen): the
@@ -552,7 +554,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         // Listed as before the world routed: the planner, the world, the agents.
         children.swap(0, 1);
         for v in &mission.vehicles {
-            children.push(spawn(exe, dir, Role::Agent, Some(v.id), &common, lockstep)?);
+            children.push(spawn(exe, dir, Role::Agent, Some(v.id), &agent_args, lockstep)?);
         }
         anyhow::Ok(())
     }

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::links::LinkStats;
-use crate::msg::{Command, LossReason, State};
+use crate::msg::{Command, LossReason, Player, State};
 use crate::roster::Roster;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -23,6 +23,9 @@ pub struct VehicleSummary {
     /// A dynamic vehicle's thrusters over the run (MODEL D22); absent for a kinematic vehicle.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thrusters: Option<Thrusters>,
+    /// Who played the vehicle, if the world did not simulate it (realtime `--vehicles`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub played_by: Option<Player>,
 }
 
 /// How hard a dynamic vehicle's thrusters worked, from the commands its states report: per
@@ -502,6 +505,7 @@ impl Metrics {
                         lost_reason: lost,
                         gamma_sent,
                         thrusters,
+                        played_by: None,
                     },
                 )
                 .collect(),

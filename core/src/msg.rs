@@ -13,7 +13,7 @@ use crate::path::GeneralizedPath;
 /// agent received but saw overtaken (`PeriodTiming::overtaken`). 6: the lockstep world's
 /// `TickRecord`, which recorders take instead of every state and command. 8: a dynamic vehicle's
 /// velocity and thrusters in `State::dynamics`, the fed-forward acceleration in `Command::accel`.
-pub const PROTOCOL_VERSION: u16 = 8;
+pub const PROTOCOL_VERSION: u16 = 9;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -551,6 +551,18 @@ pub struct Report {
     pub timing: Option<PeriodTiming>,
     /// Realtime agents: the γ messages published (with a sample).
     pub published: u64,
+    /// Realtime world: the vehicles it did not simulate, and who played each.
+    pub played: Vec<(u32, Player)>,
+}
+
+/// Who played a vehicle the world did not simulate (`tcpf world --vehicles`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Player {
+    /// Another program, on the fleet's own protocol: its states on `state/<id>`.
+    Process,
+    /// A ROS 2 node, through its odometry (docs/ROS2.md).
+    Ros2,
 }
 
 impl Report {
@@ -566,6 +578,7 @@ impl Report {
             late_gammas: Vec::new(),
             timing: None,
             published: 0,
+            played: Vec::new(),
         }
     }
 }

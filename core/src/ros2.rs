@@ -4,7 +4,11 @@
 //! that RMW's from its 0.2.4 (ROS 2 Jazzy; Kilted's 0.6 and Rolling's are the same). Bytes only:
 //! the world's shell puts them on the bus.
 
+use crate::lockstep::Reject;
+use crate::mission::{Mission, Ros2Config};
 use crate::msg::{Command, State};
+use crate::path::GeneralizedPath;
+use std::collections::BTreeMap;
 
 /// A ROS 2 message type: its name, the name the RMW puts in keys, and its RIHS01 type hash
 /// (REP 2011), which is part of every key: with a wrong one, nobody hears.
@@ -33,64 +37,132 @@ pub const VECTOR3_STAMPED: Type = Type {
     hash: "RIHS01_d4829622288cbb443886e7ea94ea5671a3b1be6bab4ad04224432a65f7d7887a",
 };
 
-/// The namespace of every node and topic of the fleet.
-pub const NAMESPACE: &str = "/tcpf";
+pub const TWIST: Type = Type {
+    name: "geometry_msgs/msg/Twist",
+    dds: "geometry_msgs::msg::dds_::Twist_",
+    hash: "RIHS01_9c45bf16fe0983d80e3cfe750d6835843d265a9a6c46bd2e609fcddde6fb8d2a",
+};
+
+pub const PATH: Type = Type {
+    name: "nav_msgs/msg/Path",
+    dds: "nav_msgs::msg::dds_::Path_",
+    hash: "RIHS01_1957a5bb3cee5da65c4e52e52b65a93df227efce4c20f8458b36e73066ca334b",
+};
 
 /// The inertial frame of every pose (REP 105's `map`: x east, y north, z up; yaw
 /// counter-clockwise from x, as the mission's headings are).
 pub const MAP_FRAME: &str = "map";
 
-/// The QoS every publisher declares: reliable, volatile, keep last 10 (rclcpp's default), the
-/// durability written out, since the RMW's 0.2.0-0.2.2 read an empty one as transient local.
+/// The QoS of a publisher or subscription: reliable, keep last 10 (rclcpp's default), and
+/// volatile, or transient local for what a late subscriber must still get. The durability is
+/// written out, since the RMW's 0.2.0-0.2.2 read an empty one as transient local.
 pub const QOS: &str = "1:2:1,10:,:,:,,";
+pub const QOS_TRANSIENT_LOCAL: &str = "1:1:1,10:,:,:,,";
 
 /// A vehicle's body frame (REP 103: x forward, y left, z up).
 pub fn body_frame(id: u32) -> String {
     format!("vehicle_{id}")
 }
 
-/// The odometry topic of vehicle `id`.
-pub fn odometry_topic(id: u32) -> String {
-    format!("{NAMESPACE}/vehicle_{id}/odom")
+/// What an entity of the graph is, as its liveliness token says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Entity {
+    Publisher,
+    Subscription,
 }
 
-/// The coordination state of vehicle `id` (`gamma`).
-pub fn gamma_topic(id: u32) -> String {
-    format!("{NAMESPACE}/vehicle_{id}/gamma")
+/// The fleet's names in the ROS 2 graph of its domain: every topic and node under its namespace
+/// but `/clock`, which ROS 2 nodes with `use_sim_time` look for at the root.
+impl Ros2Config {
+    fn topic(&self, rest: &str) -> String {
+        match self.namespace.as_str() {
+            "/" => format!("/{rest}"),
+            ns => format!("{ns}/{rest}"),
+        }
+    }
+
+    /// The odometry of vehicle `id`.
+    pub fn odometry_topic(&self, id: u32) -> String {
+        self.topic(&format!("vehicle_{id}/odom"))
+    }
+
+    /// The commands of vehicle `id`: what a ROS 2 node playing it follows.
+    pub fn command_topic(&self, id: u32) -> String {
+        self.topic(&format!("vehicle_{id}/cmd"))
+    }
+
+    /// The planned path of vehicle `id`.
+    pub fn path_topic(&self, id: u32) -> String {
+        self.topic(&format!("vehicle_{id}/path"))
+    }
+
+    /// The coordination state of vehicle `id`.
+    pub fn gamma_topic(&self, id: u32) -> String {
+        self.topic(&format!("vehicle_{id}/gamma"))
+    }
+
+    /// The γ messages of the directed link from `from` to `to`.
+    pub fn link_topic(&self, from: u32, to: u32) -> String {
+        self.topic(&format!("links/from_{from}_to_{to}"))
+    }
+
+    /// The fleet's coordination state.
+    pub fn coordination_topic(&self) -> String {
+        self.topic("coordination")
+    }
+
+    /// Where the RMW publishes `topic` (a fully qualified name) of type `ty`: the domain, the
+    /// topic without its leading slash, its inner slashes kept as chunks.
+    pub fn data_key(&self, topic: &str, ty: &Type) -> String {
+        format!("{}/{}/{}/{}", self.domain, topic.trim_matches('/'), ty.dds, ty.hash)
+    }
+
+    /// The liveliness token that makes `node` part of the graph: `ros2 node list` shows it
+    /// while the token lives.
+    pub fn node_token(&self, node: &Node) -> String {
+        format!(
+            "@ros2_lv/{}/{}/{}/{}/NN/%/{}/{}",
+            self.domain,
+            node.zid,
+            node.id,
+            node.id,
+            mangled(&self.namespace),
+            node.name
+        )
+    }
+
+    /// The liveliness token of a publisher or subscription of `node` (its entity `id`) on
+    /// `topic` with QoS `qos`: `ros2 topic list` shows the topic while it lives.
+    pub fn entity_token(&self, node: &Node, id: u32, kind: Entity, topic: &str, ty: &Type, qos: &str) -> String {
+        let kind = match kind {
+            Entity::Publisher => "MP",
+            Entity::Subscription => "MS",
+        };
+        format!(
+            "@ros2_lv/{}/{}/{}/{id}/{kind}/%/{}/{}/{}/{}/{}/{qos}",
+            self.domain,
+            node.zid,
+            node.id,
+            mangled(&self.namespace),
+            node.name,
+            mangled(topic),
+            ty.dds,
+            ty.hash
+        )
+    }
 }
 
-/// The fleet's coordination state (`coordination`).
-pub fn coordination_topic() -> String {
-    format!("{NAMESPACE}/coordination")
-}
-
-/// Where the RMW publishes `topic` (a fully qualified name) of type `ty` on `domain`: the
-/// topic without its leading slash, its inner slashes kept as chunks.
-pub fn data_key(domain: u32, topic: &str, ty: &Type) -> String {
-    format!("{domain}/{}/{}/{}", topic.trim_matches('/'), ty.dds, ty.hash)
+/// A node of the graph: the Zenoh session it lives in, its entity id there, its name.
+#[derive(Debug, Clone, Copy)]
+pub struct Node<'a> {
+    pub zid: &'a str,
+    pub id: u32,
+    pub name: &'a str,
 }
 
 /// A name in a liveliness token: the RMW writes every `/` as `%`, the root as `%`.
 fn mangled(name: &str) -> String {
     name.replace('/', "%")
-}
-
-/// The liveliness token that makes node `node` of `NAMESPACE` (entity `nid` of session `zid`)
-/// part of the ROS 2 graph of `domain`: `ros2 node list` shows it while the token lives.
-pub fn node_token(domain: u32, zid: &str, nid: u32, node: &str) -> String {
-    format!("@ros2_lv/{domain}/{zid}/{nid}/{nid}/NN/%/{}/{node}", mangled(NAMESPACE))
-}
-
-/// The liveliness token of a publisher (entity `id` of node `nid`) of `topic`: `ros2 topic list`
-/// shows the topic while it lives.
-pub fn publisher_token(domain: u32, zid: &str, nid: u32, id: u32, node: &str, topic: &str, ty: &Type) -> String {
-    format!(
-        "@ros2_lv/{domain}/{zid}/{nid}/{id}/MP/%/{}/{node}/{}/{}/{}/{QOS}",
-        mangled(NAMESPACE),
-        mangled(topic),
-        ty.dds,
-        ty.hash
-    )
 }
 
 /// A publisher's GID as the RMW makes it: the XXH3 128-bit hash of its liveliness token, low
@@ -283,6 +355,264 @@ impl Odometry {
     }
 }
 
+/// geometry_msgs/msg/Twist of a command, what a ROS 2 node playing the vehicle follows: linear.x
+/// the speed through the water v along the vehicle's flow heading ψ_B + β (m/s), angular.z the
+/// yaw rate r (rad/s), counter-clockwise.
+pub fn twist(command: &Command) -> Vec<u8> {
+    let mut cdr = Cdr::new();
+    cdr.f64s(&[command.v, 0.0, 0.0, 0.0, 0.0, command.r]);
+    cdr.0
+}
+
+/// Spacing of a published path's poses in γ, s of planned time: 10 poses a second is smoother
+/// than any vehicle's turn and a few hundred poses a path.
+pub const PATH_STEP: f64 = 0.1;
+
+/// nav_msgs/msg/Path of a vehicle's generalized path on γ ∈ [0, t_f], a pose every
+/// `PATH_STEP`: each pose where the plan puts the vehicle at time γ, heading along the path, and
+/// stamped with that time (`stamp_of(γ)`), so a pose says where and when.
+pub fn path(path: &GeneralizedPath, stamp_of: impl Fn(f64) -> Stamp) -> Vec<u8> {
+    let t_f = path.t_f();
+    let n = (t_f / PATH_STEP).ceil() as u32;
+    let mut cdr = Cdr::new();
+    cdr.header(stamp_of(0.0), MAP_FRAME);
+    cdr.u32(n + 1);
+    for k in 0..=n {
+        let gamma = (f64::from(k) * PATH_STEP).min(t_f);
+        let at = path.at(gamma);
+        let (sin, cos) = (at.heading / 2.0).sin_cos();
+        cdr.header(stamp_of(gamma), MAP_FRAME);
+        cdr.f64s(&[at.position.x, at.position.y, 0.0, 0.0, 0.0, sin, cos]);
+    }
+    cdr.0
+}
+
+/// A directed link's γ messages so far, as the receiver's commands judged them: x sent (judged at
+/// a communication instant), y delivered, z lost, in `map`. Counts only grow: a ROS 2 plot shows
+/// the link's losses pile up, and their slope is its rate.
+pub fn link(counts: LinkCount, stamp: Stamp) -> Vec<u8> {
+    vector3(
+        stamp,
+        MAP_FRAME,
+        [
+            counts.sent as f64,
+            counts.delivered as f64,
+            (counts.sent - counts.delivered) as f64,
+        ],
+    )
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LinkCount {
+    pub sent: u64,
+    pub delivered: u64,
+}
+
+/// Every link's counts, from the commands that report them (each command's receptions), each
+/// command once however often the world hands it over (a realtime world holds one for ticks).
+#[derive(Debug, Default)]
+pub struct LinkCounts {
+    counted: BTreeMap<u32, u64>,
+    links: BTreeMap<(u32, u32), LinkCount>,
+}
+
+impl LinkCounts {
+    /// The links `command` reports on, as (from, to) with their counts after it; none if it was
+    /// counted already.
+    pub fn count(&mut self, command: &Command) -> Vec<((u32, u32), LinkCount)> {
+        if self.counted.get(&command.id).is_some_and(|&tick| tick >= command.tick) {
+            return Vec::new();
+        }
+        self.counted.insert(command.id, command.tick);
+        command
+            .receptions
+            .iter()
+            .map(|r| {
+                let link = (r.from, command.id);
+                let c = self.links.entry(link).or_default();
+                c.sent += 1;
+                c.delivered += u64::from(r.delivered);
+                (link, *c)
+            })
+            .collect()
+    }
+}
+
+/// Classic CDR as it arrives: the encapsulation header (little-endian only: the RMW writes the
+/// host's order, and ROS 2 runs on little-endian machines), then values aligned as `Cdr` writes
+/// them.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+/// A payload that is not the message its key says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Malformed;
+
+impl<'a> Reader<'a> {
+    fn new(bytes: &'a [u8]) -> Result<Reader<'a>, Malformed> {
+        match bytes {
+            [0x00, 0x01, _, _, ..] => Ok(Reader { bytes, at: HEADER }),
+            _ => Err(Malformed),
+        }
+    }
+
+    fn take<const N: usize>(&mut self) -> Result<[u8; N], Malformed> {
+        while !(self.at - HEADER).is_multiple_of(N) {
+            self.at += 1;
+        }
+        let end = self.at + N;
+        let taken = self.bytes.get(self.at..end).ok_or(Malformed)?;
+        self.at = end;
+        Ok(taken.try_into().expect("N bytes"))
+    }
+
+    fn u32(&mut self) -> Result<u32, Malformed> {
+        self.take::<4>().map(u32::from_le_bytes)
+    }
+
+    fn f64(&mut self) -> Result<f64, Malformed> {
+        self.take::<8>().map(f64::from_le_bytes)
+    }
+
+    fn f64s<const N: usize>(&mut self) -> Result<[f64; N], Malformed> {
+        let mut out = [0.0; N];
+        for v in &mut out {
+            *v = self.f64()?;
+        }
+        Ok(out)
+    }
+
+    fn string(&mut self) -> Result<&'a str, Malformed> {
+        let n = self.u32()? as usize;
+        let end = self.at.checked_add(n).ok_or(Malformed)?;
+        let bytes = self.bytes.get(self.at..end).ok_or(Malformed)?;
+        self.at = end;
+        match bytes.split_last() {
+            Some((0, text)) => std::str::from_utf8(text).map_err(|_| Malformed),
+            _ => Err(Malformed),
+        }
+    }
+
+    fn stamp(&mut self) -> Result<Stamp, Malformed> {
+        let sec = self.u32()? as i32;
+        Ok(Stamp {
+            sec,
+            nanosec: self.u32()?,
+        })
+    }
+}
+
+impl Odometry {
+    /// The odometry a ROS 2 node publishes for vehicle `id` (nav_msgs/msg/Odometry): its header's
+    /// stamp, its pose's position and yaw, its twist (in its child frame, the body's, as REP 105
+    /// has it). What else it says (frames, z, covariances) the fleet does not use.
+    pub fn from_cdr(id: u32, bytes: &[u8]) -> Result<Odometry, Malformed> {
+        let mut r = Reader::new(bytes)?;
+        let stamp = r.stamp()?;
+        r.string()?;
+        r.string()?;
+        let [x, y, _] = r.f64s::<3>()?;
+        let [qx, qy, qz, qw] = r.f64s::<4>()?;
+        r.f64s::<36>()?;
+        let [vx, vy, _] = r.f64s::<3>()?;
+        let [_, _, yaw_rate] = r.f64s::<3>()?;
+        r.f64s::<36>()?;
+        Ok(Odometry {
+            id,
+            stamp,
+            position: [x, y],
+            // The yaw of a quaternion, whatever its norm (REP 103's z-y-x order).
+            yaw: (2.0 * (qw * qz + qx * qy)).atan2(1.0 - 2.0 * (qy * qy + qz * qz)),
+            velocity: [vx, vy],
+            yaw_rate,
+        })
+    }
+}
+
+/// Vehicles played by ROS 2 nodes, as the fleet sees them: each one's odometry made the `State`
+/// its agent and the recorders take from a vehicle of the world's own (docs/ROS2.md).
+#[derive(Debug, Clone)]
+pub struct Played {
+    /// The water current, inertial frame, m/s: the mission's, which the node need not know.
+    current: [f64; 2],
+    /// The fleet's t = 0 as the stamps count time, s; and how many simulated seconds a stamp's
+    /// second is.
+    epoch: f64,
+    time_scale: f64,
+    control_period: f64,
+    /// Per vehicle, the tick of its newest state.
+    newest: BTreeMap<u32, u64>,
+}
+
+/// Why a played vehicle's odometry made no state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refused {
+    /// Not a nav_msgs/msg/Odometry in CDR.
+    Malformed,
+    Reject(Reject),
+}
+
+impl Played {
+    /// The vehicles of `mission`'s fleet whose clock began at Unix time `epoch` (realtime).
+    pub fn new(mission: &Mission, epoch: f64) -> Played {
+        let (sin, cos) = mission.current.direction.sin_cos();
+        Played {
+            current: [mission.current.speed * cos, mission.current.speed * sin],
+            epoch,
+            time_scale: mission.mission.time_scale,
+            control_period: mission.mission.control_period,
+            newest: BTreeMap::new(),
+        }
+    }
+
+    /// The state of vehicle `id` that its node's odometry `cdr` says: refused if it is no
+    /// odometry, or older than one already taken (a newer one of the same tick replaces it).
+    pub fn on_odometry(&mut self, id: u32, cdr: &[u8]) -> Result<State, Refused> {
+        let odometry = Odometry::from_cdr(id, cdr).map_err(|Malformed| Refused::Malformed)?;
+        let state = self.state(&odometry).map_err(Refused::Reject)?;
+        if self.newest.get(&id).is_some_and(|&tick| tick > state.tick) {
+            return Err(Refused::Reject(Reject::Past));
+        }
+        self.newest.insert(id, state.tick);
+        Ok(state)
+    }
+
+    /// Whether a node played vehicle `id`: its odometry made a state.
+    pub fn heard(&self, id: u32) -> bool {
+        self.newest.contains_key(&id)
+    }
+
+    /// The state odometry `o` says: the tick its stamp falls on and its pose. The vehicle is
+    /// taken as the kinematic vehicle of MODEL §2 without side-slip (ψ_F = ψ_B), as a vehicle of
+    /// another program is (docs/PROTOCOL.md): a twist says β only as well as the vehicle knows the
+    /// current, and a driver that leaves it zero would turn the current into a false β. Refused:
+    /// odometry stamped before the fleet's t = 0, or not finite.
+    fn state(&self, o: &Odometry) -> Result<State, Reject> {
+        let t = (o.stamp.nanos() as f64 * 1e-9 - self.epoch) * self.time_scale;
+        if ![o.position[0], o.position[1], o.yaw, t].iter().all(|v| v.is_finite()) {
+            return Err(Reject::NonFinite);
+        }
+        if t < -self.control_period / 2.0 {
+            return Err(Reject::Past);
+        }
+        let tick = (t / self.control_period).round() as u64;
+        Ok(State {
+            version: crate::msg::PROTOCOL_VERSION,
+            tick,
+            id: o.id,
+            t: tick as f64 * self.control_period,
+            position: o.position,
+            heading: o.yaw,
+            sideslip: 0.0,
+            sideslip_rate: 0.0,
+            current: self.current,
+            dynamics: None,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -291,22 +621,58 @@ mod tests {
     #[test]
     fn keys_and_tokens_are_the_rmws() {
         let zid = "5af83680cf352c29b0a98954d16a5470";
-        let topic = odometry_topic(1);
+        let fleet = Ros2Config::on(0);
+        let topic = fleet.odometry_topic(1);
         assert_eq!(
-            data_key(0, &topic, &ODOMETRY),
+            fleet.data_key(&topic, &ODOMETRY),
             "0/tcpf/vehicle_1/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0"
         );
         assert_eq!(
-            data_key(7, "/clock", &CLOCK),
+            Ros2Config::on(7).data_key("/clock", &CLOCK),
             "7/clock/rosgraph_msgs::msg::dds_::Clock_/RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564"
         );
+        let world = Node {
+            zid,
+            id: 0,
+            name: "world",
+        };
         assert_eq!(
-            node_token(0, zid, 0, "world"),
+            fleet.node_token(&world),
             "@ros2_lv/0/5af83680cf352c29b0a98954d16a5470/0/0/NN/%/%tcpf/world"
         );
         assert_eq!(
-            publisher_token(0, zid, 0, 3, "world", &topic, &ODOMETRY),
+            fleet.entity_token(&world, 3, Entity::Publisher, &topic, &ODOMETRY, QOS),
             "@ros2_lv/0/5af83680cf352c29b0a98954d16a5470/0/3/MP/%/%tcpf/world/%tcpf%vehicle_1%odom/nav_msgs::msg::dds_::Odometry_/RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0/1:2:1,10:,:,:,,"
+        );
+        let lab = Ros2Config {
+            domain: 4,
+            namespace: "/lab/fleet_1".into(),
+        };
+        let agent = Node {
+            zid,
+            id: 2,
+            name: "agent_1",
+        };
+        assert_eq!(lab.command_topic(1), "/lab/fleet_1/vehicle_1/cmd");
+        assert_eq!(
+            lab.entity_token(&agent, 5, Entity::Subscription, &lab.command_topic(1), &TWIST, QOS),
+            "@ros2_lv/4/5af83680cf352c29b0a98954d16a5470/2/5/MS/%/%lab%fleet_1/agent_1/%lab%fleet_1%vehicle_1%cmd/geometry_msgs::msg::dds_::Twist_/RIHS01_9c45bf16fe0983d80e3cfe750d6835843d265a9a6c46bd2e609fcddde6fb8d2a/1:2:1,10:,:,:,,"
+        );
+        let root = Ros2Config {
+            domain: 0,
+            namespace: "/".into(),
+        };
+        assert_eq!(
+            (root.link_topic(2, 1), root.path_topic(3), root.coordination_topic()),
+            (
+                "/links/from_2_to_1".into(),
+                "/vehicle_3/path".into(),
+                "/coordination".into()
+            )
+        );
+        assert_eq!(
+            root.node_token(&world),
+            "@ros2_lv/0/5af83680cf352c29b0a98954d16a5470/0/0/NN/%/%/world"
         );
     }
 
@@ -445,5 +811,160 @@ mod tests {
         assert_eq!(vector(&gamma(&a, &ca, stamp)), [0.3, 1.0, 0.3 - 0.1]);
         let alone = vector(&coordination(&[(&a, Some(&ca))], stamp));
         assert_eq!((alone[0], alone[1]), (0.0, f64::INFINITY), "a fleet of one");
+    }
+
+    #[test]
+    fn a_twist_carries_the_speed_and_yaw_rate() {
+        let b = twist(&command(0.75, -0.125));
+        let f: Vec<f64> = b[HEADER..]
+            .chunks(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!((b.len(), f), (HEADER + 48, vec![0.75, 0.0, 0.0, 0.0, 0.0, -0.125]));
+    }
+
+    #[test]
+    fn odometry_reads_back_what_it_writes_and_refuses_what_it_is_not() {
+        let o = Odometry {
+            id: 2,
+            stamp: Stamp {
+                sec: 12,
+                nanosec: 340_000_000,
+            },
+            position: [3.5, -1.25],
+            yaw: 2.5,
+            velocity: [0.5, 0.125],
+            yaw_rate: 0.0625,
+        };
+        let back = Odometry::from_cdr(2, &o.cdr()).unwrap();
+        assert!((back.yaw - 2.5).abs() < 1e-12, "{back:?}");
+        assert_eq!(Odometry { yaw: 2.5, ..back }, o);
+        // A yaw past ±π comes back as the same heading.
+        let back = Odometry::from_cdr(2, &Odometry { yaw: -3.0, ..o }.cdr()).unwrap();
+        assert!((back.yaw + 3.0).abs() < 1e-12);
+        let bytes = o.cdr();
+        assert_eq!(
+            Odometry::from_cdr(2, &bytes[..bytes.len() - 1]),
+            Err(Malformed),
+            "cut short"
+        );
+        assert_eq!(Odometry::from_cdr(2, &[]), Err(Malformed));
+        let mut big_endian = bytes.clone();
+        big_endian[1] = 0;
+        assert_eq!(Odometry::from_cdr(2, &big_endian), Err(Malformed));
+        let mut unterminated = bytes;
+        unterminated[HEADER + 12 + 3] = b'!';
+        assert_eq!(
+            Odometry::from_cdr(2, &unterminated),
+            Err(Malformed),
+            "a frame without its NUL"
+        );
+    }
+
+    #[test]
+    fn a_played_vehicles_odometry_is_the_state_of_the_tick_its_stamp_falls_on() {
+        let (mut mission, _, _) = crate::fixtures::case_b();
+        mission.mission.time_scale = 5.0;
+        let mut played = Played::new(&mission, 1_000.0);
+        let o = Odometry {
+            id: 2,
+            stamp: Stamp::from_seconds(1_002.000_6),
+            position: [1.0, 2.0],
+            yaw: 0.5,
+            velocity: [0.0, 0.0],
+            yaw_rate: 0.0,
+        };
+        assert!(!played.heard(2));
+        // 2.0006 wall seconds at 5x: t = 10.003 s, tick 1000 to the nearest period.
+        let s = played.on_odometry(2, &o.cdr()).unwrap();
+        assert_eq!(
+            (s.id, s.tick, s.t, s.position, s.heading),
+            (2, 1000, 10.0, [1.0, 2.0], 0.5)
+        );
+        // Case (b)'s current, 0.1 m/s towards π.
+        assert!(
+            (s.current[0] + 0.1).abs() < 1e-15 && s.current[1].abs() < 1e-15,
+            "{:?}",
+            s.current
+        );
+        assert_eq!((s.sideslip, s.dynamics), (0.0, None));
+        assert!(crate::msg::Checked::finite(&s) && played.heard(2));
+        let at = |t: f64| Odometry {
+            stamp: Stamp::from_seconds(t),
+            ..o
+        };
+        assert_eq!(
+            played.on_odometry(2, &at(1_002.0).cdr()).map(|s| s.tick),
+            Ok(1000),
+            "the same tick again"
+        );
+        assert_eq!(
+            played.on_odometry(2, &at(1_001.0).cdr()),
+            Err(Refused::Reject(Reject::Past))
+        );
+        assert_eq!(
+            played.on_odometry(3, &at(999.0).cdr()),
+            Err(Refused::Reject(Reject::Past)),
+            "before t = 0"
+        );
+        let nan = Odometry {
+            position: [f64::NAN, 0.0],
+            ..o
+        };
+        assert_eq!(
+            played.on_odometry(2, &nan.cdr()),
+            Err(Refused::Reject(Reject::NonFinite))
+        );
+        assert_eq!(played.on_odometry(2, &[0, 1, 0, 0, 7]), Err(Refused::Malformed));
+        assert!(!played.heard(3));
+    }
+
+    #[test]
+    fn links_count_each_command_once() {
+        let mut counts = LinkCounts::default();
+        let heard = |tick, delivered| Command {
+            receptions: vec![crate::msg::Reception { from: 1, delivered }],
+            ..crate::fixtures::command_at(2, tick, 0.0)
+        };
+        assert_eq!(
+            counts.count(&heard(10, true)),
+            vec![((1, 2), LinkCount { sent: 1, delivered: 1 })]
+        );
+        assert_eq!(counts.count(&heard(10, true)), vec![], "the same command held again");
+        let after = counts.count(&heard(20, false));
+        assert_eq!(after, vec![((1, 2), LinkCount { sent: 2, delivered: 1 })]);
+        assert_eq!(vector(&link(after[0].1, Stamp::from_seconds(0.2))), [2.0, 1.0, 1.0]);
+        assert_eq!(
+            counts.count(&crate::fixtures::command_at(2, 21, 0.0)),
+            vec![],
+            "no instant"
+        );
+    }
+
+    /// nav_msgs/msg/Path: its header, the pose count, then each pose's header (stamp and frame)
+    /// and pose, 8-aligned, every 0.1 s of γ up to t_f exactly.
+    #[test]
+    fn a_path_is_where_and_when_the_plan_puts_the_vehicle() {
+        let (_, paths, t_f) = crate::fixtures::case_b();
+        let b = path(&paths[0].1, Stamp::from_seconds);
+        let mut r = Reader::new(&b).unwrap();
+        assert_eq!(
+            (r.stamp().unwrap(), r.string().unwrap()),
+            (Stamp::from_seconds(0.0), "map")
+        );
+        let n = r.u32().unwrap() as usize;
+        assert_eq!(n, (t_f / PATH_STEP).ceil() as usize + 1);
+        for k in 0..n {
+            let gamma = (k as f64 * PATH_STEP).min(t_f);
+            let at = paths[0].1.at(gamma);
+            assert_eq!(
+                (r.stamp().unwrap(), r.string().unwrap()),
+                (Stamp::from_seconds(gamma), "map")
+            );
+            let [x, y, z, qx, qy, qz, qw] = r.f64s::<7>().unwrap();
+            assert_eq!([x, y, z, qx, qy], [at.position.x, at.position.y, 0.0, 0.0, 0.0]);
+            assert!((2.0 * qz.atan2(qw) - at.heading).abs() < 1e-12);
+        }
+        assert_eq!(r.at, b.len(), "nothing after the last pose");
     }
 }

@@ -418,6 +418,13 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         }
         _ => {}
     }
+    for r in reports.iter().filter(|r| r.role == Role::World.as_str()) {
+        for &(id, player) in &r.played {
+            if let Some(v) = results.vehicles.iter_mut().find(|v| v.id == id) {
+                v.played_by = Some(player);
+            }
+        }
+    }
     let agent_reports = || reports.iter().filter(|r| r.role == Role::Agent.as_str());
     for r in agent_reports() {
         for &(from, n) in &r.late_gammas {

@@ -22,7 +22,7 @@ import threading
 import time
 import tomllib
 
-VERSION = 8
+VERSION = 9
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
 # The longest a vehicle holds its agent's last command, in simulated seconds (the world's

@@ -18,7 +18,9 @@ import zenoh
 from rosbags.typesys import Stores, get_typestore
 
 TYPES = {"nav_msgs::msg::dds_::Odometry_": "nav_msgs/msg/Odometry",
+         "nav_msgs::msg::dds_::Path_": "nav_msgs/msg/Path",
          "rosgraph_msgs::msg::dds_::Clock_": "rosgraph_msgs/msg/Clock",
+         "geometry_msgs::msg::dds_::Twist_": "geometry_msgs/msg/Twist",
          "geometry_msgs::msg::dds_::Vector3Stamped_": "geometry_msgs/msg/Vector3Stamped"}
 
 
@@ -26,11 +28,16 @@ def main():
     config_file, mission, domain, out = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
     store = get_typestore(Stores.ROS2_JAZZY)
     hashes = {name: store.hash_rihs01(name) for name in TYPES.values()}
-    samples, ended, last = [], threading.Event(), [time.monotonic()]
+    samples, ended, started, last = [], threading.Event(), threading.Event(), [time.monotonic()]
 
     def on_sample(sample):
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
-        samples.append((str(sample.key_expr), sample.payload.to_bytes(), attachment))
+        key = str(sample.key_expr)
+        # A path is published once, maybe before this subscription: it is asked for below.
+        if "::Path_/" not in key:
+            samples.append((key, sample.payload.to_bytes(), attachment))
+        if "::Clock_/" in key:
+            started.set()
         last[0] = time.monotonic()
 
     with zenoh.open(zenoh.Config.from_file(config_file)) as session:
@@ -46,6 +53,18 @@ def main():
             time.sleep(0.1)
         # A recorder's token: the world starts once it is here, so nothing is missed.
         recorder = session.liveliness().declare_token(f"tcpf/{mission}/alive/record/77")
+        if not started.wait(60):
+            sys.exit("watch.py: the run did not start within 60 s")
+        # Under way: every node of the fleet is in the graph, and a subscriber that comes now
+        # gets each planned path as rmw_zenoh's transient-local subscriber asks for it.
+        tokens = [str(r.ok.key_expr) for r in session.liveliness().get(f"@ros2_lv/{domain}/**") if r.ok]
+        adv = sorted(str(r.ok.key_expr) for r in session.liveliness().get(f"{domain}/**/@adv/pub/**") if r.ok)
+        latched = {}
+        for key in sorted({t.split("/@adv/")[0] for t in adv}):
+            for r in session.get(f"{key}/@adv/**?_max=1", accept_replies=zenoh.ReplyKeyExpr.ANY):
+                if r.ok:
+                    latched.setdefault(str(r.ok.key_expr), []).append(
+                        (r.ok.payload.to_bytes(), r.ok.attachment.to_bytes() if r.ok.attachment else None))
         if not ended.wait(120):
             sys.exit("watch.py: the run did not end within 120 s")
         # The world publishes a tick's ROS 2 samples before it announces the end; wait for the
@@ -56,7 +75,17 @@ def main():
         subscriber.undeclare()
         end.undeclare()
 
-    problems, odometry, clock, sequences, vectors = [], {}, [], {}, {}
+    problems, odometry, clock, sequences, vectors, twists, paths = [], {}, [], {}, {}, {}, {}
+    for key, replies in latched.items():
+        if len(replies) != 1:
+            problems.append(f"{key}: {len(replies)} replies to a late subscriber, not its one path")
+        payload, attachment = replies[0]
+        if attachment is None or len(attachment) != 33:
+            problems.append(f"{key}: the cached path has no rmw_zenoh attachment")
+        message = store.deserialize_cdr(payload, TYPES[key.split("/")[-2]])
+        paths[key.split("/")[2]] = {"frame": message.header.frame_id, "poses": [
+            [p.header.stamp.sec, p.header.stamp.nanosec, p.pose.position.x, p.pose.position.y,
+             2.0 * math.atan2(p.pose.orientation.z, p.pose.orientation.w)] for p in message.poses]}
     for key, payload, attachment in samples:
         parts = key.split("/")
         dds, hash_ = parts[-2], parts[-1]
@@ -72,13 +101,16 @@ def main():
         sequence = int.from_bytes(attachment[0:8], "little", signed=True)
         sequences.setdefault(key, []).append(sequence)
         message = store.deserialize_cdr(payload, name)
+        if name.endswith("Twist"):
+            twists.setdefault(parts[2], []).append([repr(message.linear.x), repr(message.angular.z)])
+            continue
         stamp = [message.clock.sec, message.clock.nanosec] if name.endswith("Clock") else [
             message.header.stamp.sec, message.header.stamp.nanosec]
         if name.endswith("Clock"):
             clock.append(stamp)
             continue
         if name.endswith("Vector3Stamped"):
-            # Its topic without the namespace: vehicle_1/gamma, coordination.
+            # Its topic without the namespace: vehicle_1/gamma, links/from_1_to_2, coordination.
             v = message.vector
             vectors.setdefault("/".join(parts[2:-2]), []).append({
                 "stamp": stamp, "frame": message.header.frame_id,
@@ -96,7 +128,8 @@ def main():
         if seq != list(range(1, len(seq) + 1)):
             problems.append(f"{key}: sequence numbers {seq[:5]}... are not 1, 2, 3 without a gap")
     json.dump({"problems": problems, "hashes": hashes, "tokens": tokens, "clock": clock,
-               "odometry": odometry, "vectors": vectors, "keys": sorted(sequences)}, open(out, "w"))
+               "odometry": odometry, "vectors": vectors, "twists": twists, "paths": paths,
+               "adv": adv, "keys": sorted(sequences)}, open(out, "w"))
 
 
 if __name__ == "__main__":

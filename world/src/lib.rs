@@ -7,23 +7,27 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
+use std::collections::BTreeMap;
 use tcpf_bus::claim::claim;
 use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
+use tcpf_bus::codec::Invalid;
 use tcpf_bus::handover::{self, hand_over};
 use tcpf_bus::keys::{Keys, Role};
+use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
     fetch_paths, linger, linger_within, presence, report, say_now, subscribe, subscribe_with, ClockServer, Outlet,
-    Presence, Received, Rejected,
+    Presence, RealtimeReport, Received, Rejected,
 };
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, PROTOCOL_VERSION};
+use tcpf_core::msg::{Player, State};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
-use tcpf_core::ros2::Stamp;
+use tcpf_core::ros2::{Played, Refused, Stamp};
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
@@ -45,7 +49,7 @@ pub struct Options {
     pub rejoin_timeout: Option<Duration>,
     /// Realtime: the vehicles this world simulates; the others are played by other processes.
     pub vehicles: Option<Vec<u32>>,
-    /// The ROS 2 domain to speak rmw_zenoh on, if any.
+    /// The ROS 2 domain to speak rmw_zenoh on (`--ros2`), over the mission's `[ros2]`.
     pub ros2: Option<u32>,
 }
 
@@ -84,8 +88,26 @@ struct Shell {
     outlets: Arc<Vec<Outlet>>,
     end_out: Arc<Outlet>,
     clock: Arc<ClockServer>,
-    /// Realtime: the fleet as ROS 2 nodes see it (`--ros2`).
-    ros2: Option<tcpf_bus::ros2::World>,
+    /// Realtime: the fleet as ROS 2 nodes see it, and the vehicles they may play.
+    ros2: Option<Ros2Side>,
+}
+
+/// The next odometry of a vehicle a ROS 2 node plays; never, without ROS 2.
+async fn played_odometry(ros2: &mut Option<Ros2Side>) -> Option<Received<(u32, Vec<u8>)>> {
+    match ros2 {
+        Some(ros2) => ros2.odometry.recv().await,
+        None => std::future::pending().await,
+    }
+}
+
+/// The realtime world's ROS 2 node, and what it heard of the vehicles played by ROS 2 nodes.
+struct Ros2Side {
+    node: tcpf_bus::ros2::World,
+    odometry: PlayedOdometry,
+    /// Per vehicle the world does not simulate, where its states go once a node plays it.
+    outlets: BTreeMap<u32, Outlet>,
+    /// The last state of each vehicle a node played.
+    played: BTreeMap<u32, State>,
 }
 
 /// Where the agents' commands go.
@@ -297,10 +319,33 @@ async fn serve(
         outlets.push(Outlet::for_clock(session, keys.state(id), realtime).await?);
     }
     let outlets = Arc::new(outlets);
-    let mut ros2 = match options.ros2 {
-        Some(domain) => Some(tcpf_bus::ros2::World::declare(session, domain, ids, !realtime).await?),
+    let links = mission.directed_links();
+    let fleet = tcpf_bus::ros2::Fleet {
+        ids,
+        simulated: &simulated,
+        links: &links,
+        lockstep: !realtime,
+    };
+    let mut ros2 = match mission.ros2(options.ros2) {
+        Some(config) => {
+            let (node, odometry) = tcpf_bus::ros2::World::declare(session, &config, &fleet, &rejected).await?;
+            let mut outlets = BTreeMap::new();
+            for &id in ids.iter().filter(|id| !simulated.contains(id)) {
+                outlets.insert(id, Outlet::for_clock(session, keys.state(id), realtime).await?);
+            }
+            Some(Ros2Side {
+                node,
+                odometry,
+                outlets,
+                played: BTreeMap::new(),
+            })
+        }
         None => None,
     };
+    if let Some(ros2) = ros2.as_mut().filter(|_| !realtime) {
+        // Lockstep: simulated time from 0, as every stamp.
+        ros2.node.put_paths(&paths, Stamp::from_seconds)?;
+    }
     let end_out = Arc::new(Outlet::last_words(session, keys.end()).await?);
     let clock = Arc::new(ClockServer::declare(session, keys).await?);
     let (_commands, inbound) = if realtime {
@@ -322,7 +367,7 @@ async fn serve(
                 },
                 deadlines: Deadlines::new(options.command_timeout, options.rejoin_timeout, monotonic.now()),
                 over: false,
-                ros2: ros2.take(),
+                ros2: ros2.take().map(|r| r.node),
             }),
             session: session.clone(),
             keys: keys.clone(),
@@ -560,6 +605,12 @@ impl Shell {
         self.clock.set(clock);
         let fleet = FleetClock::new(&clock, mission.mission.control_period);
         let period = fleet.period().as_secs_f64();
+        // The wall clock of the fleet's epoch: simulated time runs time_scale times faster.
+        let stamp_of = |t: f64| Stamp::from_seconds(clock.epoch + t / mission.mission.time_scale);
+        let mut played = Played::new(mission, clock.epoch);
+        if let Some(ros2) = &mut self.ros2 {
+            ros2.node.put_paths(paths, stamp_of)?;
+        }
         for (outlet, state) in self.outlets.iter().zip(node.states()) {
             outlet.put(state).await?;
         }
@@ -577,15 +628,25 @@ impl Shell {
                         outlet.put(state).await?;
                     }
                     if let Some(ros2) = &mut self.ros2 {
-                        // The wall clock of the fleet's epoch: simulated time runs time_scale
-                        // times faster than it.
                         let t = node.tick() as f64 * mission.mission.control_period;
-                        let stamp = Stamp::from_seconds(clock.epoch + t / mission.mission.time_scale);
-                        ros2.put(node.states().iter().map(|s| (s, node.command_of(s.id))), stamp)?;
+                        let fleet = node.states().iter().chain(ros2.played.values());
+                        ros2.node.put(fleet.map(|s| (s, node.command_of(s.id))), stamp_of(t))?;
                     }
                 }
                 Some(c) = commands.recv() => {
                     self.rejected.check(&c.key, c.message.id, || node.on_command(c.message, fleet.horizon()));
+                }
+                Some(o) = played_odometry(&mut self.ros2) => {
+                    let (id, cdr) = &o.message;
+                    match (played.on_odometry(*id, cdr), &mut self.ros2) {
+                        (Ok(state), Some(ros2)) => {
+                            ros2.outlets[id].put(&state).await?;
+                            ros2.played.insert(*id, state);
+                        }
+                        (Ok(_), None) => {}
+                        (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
+                        (Err(Refused::Reject(why)), _) => self.rejected.reject(why, &o.key),
+                    }
                 }
                 Some(p) = self.presence.recv() => {
                     if p.role == Role::Agent && ids.contains(&p.id) {
@@ -623,7 +684,24 @@ impl Shell {
             0,
             &self.rejected,
             &Timing::default(),
-            Some((timing, 0)),
+            Some(RealtimeReport {
+                timing,
+                published: 0,
+                played: ids
+                    .iter()
+                    .filter(|id| !simulated.contains(id))
+                    .map(|&id| {
+                        (
+                            id,
+                            if played.heard(id) {
+                                Player::Ros2
+                            } else {
+                                Player::Process
+                            },
+                        )
+                    })
+                    .collect(),
+            }),
         )
         .await?;
         Ok(exit)

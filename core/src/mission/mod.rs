@@ -40,8 +40,33 @@ pub struct Mission {
     /// The vehicle every `[[vehicle]]` is unless it says otherwise (MODEL D22).
     #[serde(default, skip_serializing_if = "VehicleModelConfig::is_kinematic_default")]
     pub vehicle_model: VehicleModelConfig,
+    /// Where the fleet appears in the ROS 2 graph, when it speaks rmw_zenoh (docs/ROS2.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ros2: Option<Ros2Config>,
     #[serde(rename = "vehicle")]
     pub vehicles: Vec<VehicleConfig>,
+}
+
+/// `[ros2]`: the domain (`ROS_DOMAIN_ID`) and namespace of the fleet's nodes and topics. A
+/// mission with the table speaks ROS 2 when it runs as processes; `--ros2 DOMAIN` overrides its
+/// domain, or speaks ROS 2 with the default namespace for a mission without it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ros2Config {
+    #[serde(default)]
+    pub domain: u32,
+    #[serde(default = "defaults::namespace")]
+    pub namespace: String,
+}
+
+impl Ros2Config {
+    /// Domain `domain`, the default namespace.
+    pub fn on(domain: u32) -> Ros2Config {
+        Ros2Config {
+            domain,
+            namespace: defaults::namespace(),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -461,6 +486,9 @@ mod defaults {
     pub fn loss_bad() -> f64 {
         1.0
     }
+    pub fn namespace() -> String {
+        "/tcpf".into()
+    }
 }
 
 /// The digest of a mission as its `mission.toml` reads (`Mission::digest`): FNV-1a of the text.
@@ -517,9 +545,33 @@ impl Mission {
         self.comms.outages.iter().map(|o| (o.start, o.end)).collect()
     }
 
+    /// How the fleet speaks ROS 2, if it does: `--ros2 DOMAIN` (`cli_domain`) over `[ros2]`.
+    pub fn ros2(&self, cli_domain: Option<u32>) -> Option<Ros2Config> {
+        match (cli_domain, &self.ros2) {
+            (Some(domain), Some(table)) => Some(Ros2Config {
+                domain,
+                ..table.clone()
+            }),
+            (Some(domain), None) => Some(Ros2Config::on(domain)),
+            (None, table) => table.clone(),
+        }
+    }
+
     /// The undirected communication graph: each vehicle's neighbours in ascending id order.
     pub fn graph(&self) -> Graph {
         graph::build(self)
+    }
+
+    /// Every directed link of the graph as (from, to), by receiver then sender, in id order.
+    pub fn directed_links(&self) -> Vec<(u32, u32)> {
+        let ids: Vec<u32> = self.vehicles.iter().map(|v| v.id).collect();
+        let mut links: Vec<(u32, u32)> = neighbour_lists(&self.graph(), &ids)
+            .iter()
+            .zip(&ids)
+            .flat_map(|(from, &to)| from.iter().map(move |&j| (j, to)))
+            .collect();
+        links.sort_by_key(|&(from, to)| (to, from));
+        links
     }
 }
 
@@ -845,6 +897,47 @@ goal_velocity = [0.75, 0.0]
             e.to_string().starts_with("configs/x.toml:8: key `planner.tf_mx`"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_ros2_table_names_the_fleet_in_the_graph_and_the_flag_overrides_its_domain() {
+        let plain = parse("m.toml", PAPER, &[]).unwrap();
+        assert_eq!(plain.ros2(None), None, "no table, no flag: no ROS 2");
+        assert_eq!(plain.ros2(Some(3)), Some(Ros2Config::on(3)));
+        assert_eq!(Ros2Config::on(3).namespace, "/tcpf");
+        let text = format!("{PAPER}\n[ros2]\ndomain = 7\nnamespace = \"/lab/fleet_1\"\n");
+        let m = parse("m.toml", &text, &[]).unwrap();
+        let table = Ros2Config {
+            domain: 7,
+            namespace: "/lab/fleet_1".into(),
+        };
+        assert_eq!(m.ros2(None), Some(table.clone()));
+        assert_eq!(
+            m.ros2(Some(0)).map(|r| (r.domain, r.namespace)),
+            Some((0, table.namespace.clone()))
+        );
+        assert_eq!(
+            parse("m.toml", &m.to_toml(), &[]).unwrap().ros2,
+            Some(table),
+            "written back"
+        );
+        assert!(!plain.to_toml().contains("ros2"), "a mission without it writes none");
+        for bad in ["tcpf", "/tcpf/", "/1fleet", "/a//b", "/a-b", ""] {
+            let e = parse("m.toml", &text.replace("/lab/fleet_1", bad), &[]).unwrap_err();
+            assert_eq!(e.key.as_deref(), Some("ros2.namespace"), "{bad}: {e}");
+            assert_eq!(e.line, Some(30), "{bad}: {e}");
+        }
+        assert!(
+            parse("m.toml", &text.replace("/lab/fleet_1", "/"), &[]).is_ok(),
+            "the root"
+        );
+        let e = parse("m.toml", &text.replace("domain = 7", "domain = 233"), &[]).unwrap_err();
+        assert!(
+            e.to_string().contains("ros2.domain") && e.message.contains("0 to 232"),
+            "{e}"
+        );
+        let e = parse("m.toml", &text.replace("domain = 7", "domian = 7"), &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("ros2.domian"), "{e}");
     }
 
     #[test]

@@ -27,6 +27,9 @@ pub const MAX_TIME_SCALE: f64 = 1000.0;
 /// period is no duration a computer can wait (5e-324 made it infinite).
 pub const MIN_TIME_SCALE: f64 = 0.001;
 
+/// ROS 2's domain ids: 0 to 232.
+pub const MAX_ROS2_DOMAIN: u32 = 232;
+
 pub(super) type Invalid = (Vec<Seg>, String);
 
 fn key(section: &str, k: &str) -> Vec<Seg> {
@@ -52,6 +55,21 @@ fn num(x: f64) -> String {
     } else {
         format!("{x}")
     }
+}
+
+/// A fully qualified ROS 2 namespace (ROS 2's rules for names): the root, or tokens after
+/// slashes, every node and topic name of the fleet begins with it.
+fn ros2_namespace_ok(ns: &str) -> bool {
+    ns == "/"
+        || ns.strip_prefix('/').is_some_and(|rest| {
+            rest.split('/').all(|token| {
+                token
+                    .chars()
+                    .next()
+                    .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                    && token.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            })
+        })
 }
 
 fn finite(path: Vec<Seg>, values: &[f64]) -> Result<(), Invalid> {
@@ -352,6 +370,18 @@ impl Mission {
             }
         }
         self.validate_graph()?;
+        if let Some(ros2) = &self.ros2 {
+            check(
+                ros2.domain <= MAX_ROS2_DOMAIN,
+                key("ros2", "domain"),
+                format!("must be a ROS 2 domain id, 0 to {MAX_ROS2_DOMAIN}"),
+            )?;
+            check(
+                ros2_namespace_ok(&ros2.namespace),
+                key("ros2", "namespace"),
+                "must be a ROS 2 namespace: \"/\", or \"/\" and names joined by \"/\", each of letters, digits and '_', not beginning with a digit (\"/tcpf\", \"/lab/fleet_1\")",
+            )?;
+        }
         // Fleet-wide link keys first, so that a bad one is not blamed on a link that inherits it.
         // Both come after the edges, since link overrides are checked against the graph.
         self.validate_links()?;
