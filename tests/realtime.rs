@@ -5,13 +5,13 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    arrivals, assert_none_left, config, credential, credentialed, descendants, failure, fleet, kill, listening, paper,
-    record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing, wait_until_simulated, without_command,
-    Launch, Reaper,
+    arrivals, assert_none_left, config, credential, descendants, failure, fleet, fleet_without_vehicle_2, kill, logged,
+    paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing, wait_until_simulated,
+    without_command, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -156,45 +156,6 @@ fn a_medusa_fleet_in_realtime_arrives_as_in_lockstep() {
     let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
     assert!(telemetry.lines().next().unwrap().contains(",surge,sway,yaw_rate,beta,"));
     assert_none_left(&realtime);
-}
-
-/// A child logging into `logs/NAME.log`.
-fn logged(logs: &Path, name: &str, program: &str, args: &[&str]) -> Child {
-    let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
-    Command::new(program)
-        .args(args)
-        .stdout(Stdio::from(log.try_clone().unwrap()))
-        .stderr(Stdio::from(log))
-        .spawn()
-        .unwrap()
-}
-
-/// Case (b) by hand, its world simulating vehicle 1 alone (`--vehicles 1`): the planner, the
-/// world and both agents, `settings` given to each, logging into `logs`. Returns them and the
-/// endpoint; playing vehicle 2, and recording, is the caller's.
-fn fleet_without_vehicle_2(mission: &str, logs: &Path, settings: &[&str]) -> (Vec<Reaper>, String) {
-    std::fs::create_dir_all(logs).unwrap();
-    let tcpf = env!("CARGO_BIN_EXE_tcpf");
-    let role = |name: &str, args: &[&str]| {
-        let args = credentialed(&[args, settings].concat());
-        logged(logs, name, tcpf, &args.iter().map(String::as_str).collect::<Vec<_>>())
-    };
-    let (planner, endpoint) = listening(|e| role("planner", &["planner", mission, "-l", e]));
-    let e = endpoint.as_str();
-    let mut fleet = vec![
-        Reaper(planner),
-        Reaper(role(
-            "world",
-            &["world", mission, "-e", e, "--recorders", "1", "--vehicles", "1"],
-        )),
-    ];
-    for id in ["1", "2"] {
-        fleet.push(Reaper(role(
-            &format!("agent-{id}"),
-            &["agent", mission, "--id", id, "-e", e],
-        )));
-    }
-    (fleet, endpoint)
 }
 
 #[test]

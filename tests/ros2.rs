@@ -5,9 +5,12 @@ mod common;
 
 use std::collections::BTreeMap;
 use std::process::Command;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use common::{assert_same_run, fleet, paper, run_in_process, scratch, Launch};
+use common::{
+    arrivals, assert_same_run, credential, fleet, fleet_without_vehicle_2, kill, logged, paper, pid_of, record_by_hand,
+    run_in_process, scratch, summary, Launch, Reaper,
+};
 use serde_json::Value;
 
 /// A telemetry row's numbers as written, by column name.
@@ -280,4 +283,138 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     // Speaking ROS 2 changes nothing of the run.
     run_in_process(&paper("b-current"), &dir.join("i"), &[]);
     assert_same_run(&out, &dir.join("i"));
+}
+
+/// A ROS 2 node of another implementation (Python: eclipse-zenoh and rosbags) plays vehicle 2 of
+/// case (b) in realtime at time scale 5, beside a world that simulates vehicle 1 alone: it takes
+/// its start from the planned path, follows vehicle 2's commands and publishes its odometry, in
+/// the domain and namespace of the mission's `[ros2]`. Both vehicles arrive together, and the
+/// summary says who played vehicle 2.
+#[test]
+fn a_ros2_node_plays_a_vehicle_beside_the_one_the_world_simulates() {
+    let _fleet = fleet();
+    let dir = scratch("ros2-vehicle");
+    let mission = dir.join("mission.toml");
+    let table = "\n[ros2]\ndomain = 5\nnamespace = \"/lab/fleet_1\"\n";
+    std::fs::write(&mission, std::fs::read_to_string(paper("b-current")).unwrap() + table).unwrap();
+    let mission = mission.to_str().unwrap();
+    let clock = ["--clock", "realtime", "--time-scale", "5"];
+    let logs = dir.join("logs");
+    let (_fleet, endpoint) = fleet_without_vehicle_2(mission, &logs, &clock);
+    let played = dir.join("vehicle.json");
+    let script = format!("{}/tests/ros2/vehicle.py", env!("CARGO_MANIFEST_DIR"));
+    // Case (b)'s current: 0.1 m/s towards π.
+    let (cx, cy) = (0.1 * std::f64::consts::PI.cos(), 0.1 * std::f64::consts::PI.sin());
+    let node_args = [
+        script.as_str(),
+        &endpoint,
+        credential().to_str().unwrap(),
+        "5",
+        "/lab/fleet_1",
+        "2",
+        "5",
+        "0.01",
+        &cx.to_string(),
+        &cy.to_string(),
+        played.to_str().unwrap(),
+    ];
+    let mut vehicle = Reaper(logged(&logs, "vehicle", "python3", &node_args));
+    let out = dir.join("run");
+    let recorded = record_by_hand(mission, &endpoint, &out).args(clock).output().unwrap();
+    let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
+    assert!(
+        recorded.status.success(),
+        "{}\nvehicle.py: {}\nworld: {}",
+        common::text(&recorded),
+        log("vehicle"),
+        log("world")
+    );
+    let s = summary(&out);
+    let a = arrivals(&s);
+    let error = s["max_coordination_error"].as_f64().unwrap();
+    assert!(error < 1.0, "coordination error {error:.3} s; arrivals {a:?}");
+    assert!((a[0] - a[1]).abs() < 1.0, "arrivals {a:?}");
+    assert_eq!(s["vehicles"][1]["played_by"], "ros2", "{}", s["vehicles"]);
+    assert!(s["vehicles"][0].get("played_by").is_none(), "{}", s["vehicles"]);
+    assert!(log("world").contains("simulating vehicles [1]"), "{}", log("world"));
+    // The node left once the world had left the graph.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while vehicle.0.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < deadline, "vehicle.py did not stop once the world left");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(vehicle.0.wait().unwrap().success(), "{}", log("vehicle"));
+    let node: Value = serde_json::from_str(&std::fs::read_to_string(&played).unwrap()).unwrap();
+    assert_eq!(
+        node["start"],
+        serde_json::json!([0.0, 5.0]),
+        "the path's first pose: {node}"
+    );
+    assert!(node["world_seen"] == true && node["world_gone"] == true, "{node}");
+    // At 5x a period is 2 ms of wall time: a run of some 11 s is thousands of each.
+    let (commands, published) = (node["commands"].as_u64().unwrap(), node["published"].as_u64().unwrap());
+    assert!(commands > 1000 && published > 1000, "{node}");
+    // Nothing it sent was refused, and the world held vehicle 2's states as its own.
+    assert_eq!(s["rejected_messages"], 0, "{}", s["rejections"]);
+    let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
+    assert!(telemetry.lines().filter(|l| l.split(',').nth(2) == Some("2")).count() > 1000);
+}
+
+/// Each agent is a node of the ROS 2 graph, and one killed leaves it within 2 s: Zenoh takes
+/// its liveliness tokens away once its session is gone.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_killed_agent_leaves_the_ros2_graph_within_2_s() {
+    let _fleet = fleet();
+    let dir = scratch("ros2-kill");
+    let out = dir.join("run");
+    let launch = Launch::start(&paper("b-current"), &out, &["--ros2", "4", "--clock", "realtime"]);
+    launch.wait_for("endpoint", "tcp/");
+    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
+        .await
+        .unwrap();
+    let graph = || async {
+        let replies = session.liveliness().get("@ros2_lv/4/**").await.unwrap();
+        let mut tokens = Vec::new();
+        while let Ok(reply) = replies.recv_async().await {
+            if let Ok(sample) = reply.result() {
+                tokens.push(sample.key_expr().to_string());
+            }
+        }
+        tokens
+    };
+    let of = |tokens: &[String], node: &str| {
+        tokens
+            .iter()
+            .filter(|t| t.contains(&format!("/%/%tcpf/{node}")))
+            .count()
+    };
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let before = loop {
+        let tokens = graph().await;
+        if of(&tokens, "agent_2") == 2 && of(&tokens, "agent_1") == 2 && of(&tokens, "world") > 0 {
+            break tokens;
+        }
+        assert!(Instant::now() < deadline, "the fleet's nodes: {tokens:?}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    let agent = pid_of(launch.child.id(), "agent 2", |args| {
+        args.get(1) == Some(&&b"agent"[..]) && args.windows(2).any(|w| w == [&b"--id"[..], &b"2"[..]])
+    });
+    kill("-9", agent);
+    let killed = Instant::now();
+    let after = loop {
+        let tokens = graph().await;
+        if of(&tokens, "agent_2") == 0 {
+            break tokens;
+        }
+        assert!(
+            killed.elapsed() < Duration::from_secs(2),
+            "agent 2 is still in the graph: {tokens:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    eprintln!("agent 2 left the graph {:?} after SIGKILL", killed.elapsed());
+    assert_eq!(of(&after, "agent_1"), 2, "{after:?}");
+    assert_eq!(of(&after, "world"), of(&before, "world"), "{after:?}");
+    session.close().await.unwrap();
 }

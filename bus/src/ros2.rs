@@ -64,22 +64,22 @@ impl Latched {
 }
 
 /// A node as it is declared: its session and names, and the entity id of what it declares next.
-struct Declaring<'a> {
-    session: &'a Session,
-    ros2: &'a Ros2Config,
+struct Declaring {
+    session: Session,
+    ros2: Ros2Config,
     zid: String,
     name: String,
     next: u32,
     congestion: CongestionControl,
 }
 
-impl<'a> Declaring<'a> {
+impl Declaring {
     /// Node `name` of the session's first (and only) ROS 2 context. In lockstep a publication
     /// waits for a slow subscriber, as the fleet's own messages do; in realtime it is dropped.
-    fn new(session: &'a Session, ros2: &'a Ros2Config, name: String, lockstep: bool) -> Declaring<'a> {
+    fn new(session: &Session, ros2: &Ros2Config, name: String, lockstep: bool) -> Declaring {
         Declaring {
-            session,
-            ros2,
+            session: session.clone(),
+            ros2: ros2.clone(),
             zid: session.zid().to_string(),
             name,
             next: 0,
@@ -187,7 +187,7 @@ impl<'a> Declaring<'a> {
     }
 
     /// The node's own token, last: a tool that sees the node sees every topic of it.
-    async fn done(self) -> Result<LivelinessToken> {
+    async fn done(&self) -> Result<LivelinessToken> {
         let token = self.ros2.node_token(&self.node());
         self.declare_token(token, &format!("node {}", self.name)).await
     }
@@ -216,7 +216,10 @@ pub struct World {
     counts: LinkCounts,
     coordination: Topic,
     clock: Option<Topic>,
+    /// The vehicles other programs play, whose odometry the world may take.
+    others: Vec<u32>,
     _played: Vec<(Subscriber<()>, LivelinessToken)>,
+    node: Declaring,
     _node: LivelinessToken,
 }
 
@@ -224,13 +227,8 @@ pub struct World {
 pub type PlayedOdometry = mpsc::Receiver<Received<(u32, Vec<u8>)>>;
 
 impl World {
-    /// Declares the node and its topics, and the receiver of the played vehicles' odometry.
-    pub async fn declare(
-        session: &Session,
-        ros2: &Ros2Config,
-        fleet: &Fleet<'_>,
-        rejected: &Rejected,
-    ) -> Result<(World, PlayedOdometry)> {
+    /// Declares the node and its topics.
+    pub async fn declare(session: &Session, ros2: &Ros2Config, fleet: &Fleet<'_>) -> Result<World> {
         let mut node = Declaring::new(session, ros2, "world".into(), fleet.lockstep);
         let clock = match fleet.lockstep {
             true => Some(node.publisher("/clock".into(), ros2::CLOCK, ros2::QOS).await?),
@@ -265,16 +263,8 @@ impl World {
         let coordination = node
             .publisher(ros2.coordination_topic(), ros2::VECTOR3_STAMPED, ros2::QOS)
             .await?;
-        let (tx, played_odometry) = queue();
-        let mut played = Vec::new();
-        for &id in fleet.ids.iter().filter(|id| !fleet.simulated.contains(id)) {
-            let topic = ros2.odometry_topic(id);
-            played.push(
-                node.subscription(topic, ros2::ODOMETRY, id, tx.clone(), rejected)
-                    .await?,
-            );
-        }
-        let world = World {
+        let token = node.done().await?;
+        Ok(World {
             odometry,
             gamma,
             paths,
@@ -282,10 +272,32 @@ impl World {
             counts: LinkCounts::default(),
             coordination,
             clock,
-            _played: played,
-            _node: node.done().await?,
-        };
-        Ok((world, played_odometry))
+            others: fleet
+                .ids
+                .iter()
+                .copied()
+                .filter(|id| !fleet.simulated.contains(id))
+                .collect(),
+            _played: Vec::new(),
+            node,
+            _node: token,
+        })
+    }
+
+    /// Subscribes to the odometry of every vehicle the world does not simulate, once the run's
+    /// clock has started: what a ROS 2 node playing one publishes before then is no state of
+    /// the run.
+    pub async fn listen(&mut self, rejected: &Rejected) -> Result<PlayedOdometry> {
+        let (tx, played_odometry) = queue();
+        for &id in &self.others {
+            let topic = self.node.ros2.odometry_topic(id);
+            let subscription = self
+                .node
+                .subscription(topic, ros2::ODOMETRY, id, tx.clone(), rejected)
+                .await?;
+            self._played.push(subscription);
+        }
+        Ok(played_odometry)
     }
 
     /// Publishes each vehicle's planned path once, each pose stamped `stamp_of(γ)`: kept for

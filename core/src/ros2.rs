@@ -4,7 +4,6 @@
 //! that RMW's from its 0.2.4 (ROS 2 Jazzy; Kilted's 0.6 and Rolling's are the same). Bytes only:
 //! the world's shell puts them on the bus.
 
-use crate::lockstep::Reject;
 use crate::mission::{Mission, Ros2Config};
 use crate::msg::{Command, State};
 use crate::path::GeneralizedPath;
@@ -551,7 +550,11 @@ pub struct Played {
 pub enum Refused {
     /// Not a nav_msgs/msg/Odometry in CDR.
     Malformed,
-    Reject(Reject),
+    NonFinite,
+    /// Stamped before the fleet's t = 0: a vehicle's odometry flows before the run starts.
+    Early,
+    /// Older than one already taken (overtaken on the way).
+    Stale,
 }
 
 impl Played {
@@ -571,9 +574,9 @@ impl Played {
     /// odometry, or older than one already taken (a newer one of the same tick replaces it).
     pub fn on_odometry(&mut self, id: u32, cdr: &[u8]) -> Result<State, Refused> {
         let odometry = Odometry::from_cdr(id, cdr).map_err(|Malformed| Refused::Malformed)?;
-        let state = self.state(&odometry).map_err(Refused::Reject)?;
+        let state = self.state(&odometry)?;
         if self.newest.get(&id).is_some_and(|&tick| tick > state.tick) {
-            return Err(Refused::Reject(Reject::Past));
+            return Err(Refused::Stale);
         }
         self.newest.insert(id, state.tick);
         Ok(state)
@@ -589,13 +592,13 @@ impl Played {
     /// another program is (docs/PROTOCOL.md): a twist says β only as well as the vehicle knows the
     /// current, and a driver that leaves it zero would turn the current into a false β. Refused:
     /// odometry stamped before the fleet's t = 0, or not finite.
-    fn state(&self, o: &Odometry) -> Result<State, Reject> {
+    fn state(&self, o: &Odometry) -> Result<State, Refused> {
         let t = (o.stamp.nanos() as f64 * 1e-9 - self.epoch) * self.time_scale;
         if ![o.position[0], o.position[1], o.yaw, t].iter().all(|v| v.is_finite()) {
-            return Err(Reject::NonFinite);
+            return Err(Refused::NonFinite);
         }
         if t < -self.control_period / 2.0 {
-            return Err(Reject::Past);
+            return Err(Refused::Early);
         }
         let tick = (t / self.control_period).round() as u64;
         Ok(State {
@@ -898,23 +901,17 @@ mod tests {
             Ok(1000),
             "the same tick again"
         );
-        assert_eq!(
-            played.on_odometry(2, &at(1_001.0).cdr()),
-            Err(Refused::Reject(Reject::Past))
-        );
+        assert_eq!(played.on_odometry(2, &at(1_001.0).cdr()), Err(Refused::Stale));
         assert_eq!(
             played.on_odometry(3, &at(999.0).cdr()),
-            Err(Refused::Reject(Reject::Past)),
+            Err(Refused::Early),
             "before t = 0"
         );
         let nan = Odometry {
             position: [f64::NAN, 0.0],
             ..o
         };
-        assert_eq!(
-            played.on_odometry(2, &nan.cdr()),
-            Err(Refused::Reject(Reject::NonFinite))
-        );
+        assert_eq!(played.on_odometry(2, &nan.cdr()), Err(Refused::NonFinite));
         assert_eq!(played.on_odometry(2, &[0, 1, 0, 0, 7]), Err(Refused::Malformed));
         assert!(!played.heard(3));
     }

@@ -530,3 +530,42 @@ pub fn csv_rows(file: &Path) -> Vec<std::collections::BTreeMap<String, String>> 
         })
         .collect()
 }
+
+/// A child logging into `logs/NAME.log`.
+pub fn logged(logs: &Path, name: &str, program: &str, args: &[&str]) -> Child {
+    let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
+    Command::new(program)
+        .args(args)
+        .stdout(Stdio::from(log.try_clone().unwrap()))
+        .stderr(Stdio::from(log))
+        .spawn()
+        .unwrap()
+}
+
+/// Case (b) by hand, its world simulating vehicle 1 alone (`--vehicles 1`): the planner, the
+/// world and both agents, `settings` given to each, logging into `logs`. Returns them and the
+/// endpoint; playing vehicle 2, and recording, is the caller's.
+pub fn fleet_without_vehicle_2(mission: &str, logs: &Path, settings: &[&str]) -> (Vec<Reaper>, String) {
+    std::fs::create_dir_all(logs).unwrap();
+    let tcpf = env!("CARGO_BIN_EXE_tcpf");
+    let role = |name: &str, args: &[&str]| {
+        let args = credentialed(&[args, settings].concat());
+        logged(logs, name, tcpf, &args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let (planner, endpoint) = listening(|e| role("planner", &["planner", mission, "-l", e]));
+    let e = endpoint.as_str();
+    let mut fleet = vec![
+        Reaper(planner),
+        Reaper(role(
+            "world",
+            &["world", mission, "-e", e, "--recorders", "1", "--vehicles", "1"],
+        )),
+    ];
+    for id in ["1", "2"] {
+        fleet.push(Reaper(role(
+            &format!("agent-{id}"),
+            &["agent", mission, "--id", id, "-e", e],
+        )));
+    }
+    (fleet, endpoint)
+}

@@ -95,15 +95,19 @@ struct Shell {
 /// The next odometry of a vehicle a ROS 2 node plays; never, without ROS 2.
 async fn played_odometry(ros2: &mut Option<Ros2Side>) -> Option<Received<(u32, Vec<u8>)>> {
     match ros2 {
-        Some(ros2) => ros2.odometry.recv().await,
-        None => std::future::pending().await,
+        Some(Ros2Side {
+            odometry: Some(odometry),
+            ..
+        }) => odometry.recv().await,
+        _ => std::future::pending().await,
     }
 }
 
 /// The realtime world's ROS 2 node, and what it heard of the vehicles played by ROS 2 nodes.
 struct Ros2Side {
     node: tcpf_bus::ros2::World,
-    odometry: PlayedOdometry,
+    /// Once the run has started.
+    odometry: Option<PlayedOdometry>,
     /// Per vehicle the world does not simulate, where its states go once a node plays it.
     outlets: BTreeMap<u32, Outlet>,
     /// The last state of each vehicle a node played.
@@ -328,14 +332,14 @@ async fn serve(
     };
     let mut ros2 = match mission.ros2(options.ros2) {
         Some(config) => {
-            let (node, odometry) = tcpf_bus::ros2::World::declare(session, &config, &fleet, &rejected).await?;
+            let node = tcpf_bus::ros2::World::declare(session, &config, &fleet).await?;
             let mut outlets = BTreeMap::new();
             for &id in ids.iter().filter(|id| !simulated.contains(id)) {
                 outlets.insert(id, Outlet::for_clock(session, keys.state(id), realtime).await?);
             }
             Some(Ros2Side {
                 node,
-                odometry,
+                odometry: None,
                 outlets,
                 played: BTreeMap::new(),
             })
@@ -610,6 +614,7 @@ impl Shell {
         let mut played = Played::new(mission, clock.epoch);
         if let Some(ros2) = &mut self.ros2 {
             ros2.node.put_paths(paths, stamp_of)?;
+            ros2.odometry = Some(ros2.node.listen(&self.rejected).await?);
         }
         for (outlet, state) in self.outlets.iter().zip(node.states()) {
             outlet.put(state).await?;
@@ -645,7 +650,10 @@ impl Shell {
                         }
                         (Ok(_), None) => {}
                         (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
-                        (Err(Refused::Reject(why)), _) => self.rejected.reject(why, &o.key),
+                        (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
+                        // Odometry flows before the run starts, and may be overtaken: neither is
+                        // wrong, and neither is a state of the run.
+                        (Err(Refused::Early | Refused::Stale), _) => {}
                     }
                 }
                 Some(p) = self.presence.recv() => {
