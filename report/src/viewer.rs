@@ -33,7 +33,9 @@ use tcpf_core::path::GeneralizedPath;
 
 use crate::live::{ChannelInfo, Live};
 
-const FRAME: &str = "world";
+/// REP 105's `map`, the frame of the fleet's ROS 2 topics too (docs/ROS2.md): a Foxglove layout
+/// shows a recorded run and a live ROS 2 connection alike.
+const FRAME: &str = tcpf_core::ros2::MAP_FRAME;
 /// Seconds of γ between two poses of a drawn path.
 const PATH_STEP: f64 = 0.5;
 
@@ -120,7 +122,7 @@ fn nanos(t: f64) -> u64 {
 }
 
 /// What `run.mcap` says of its times and frames (its `tcpf` metadata).
-const FRAMES: &str = "ENU (x east, y north, metres), as ROS's REP 103; headings and yaw counter-clockwise from x, in radians; the current's direction is where the water flows to";
+const FRAMES: &str = "ENU (x east, y north, metres), as ROS's REP 103, in frame map (REP 105); headings and yaw counter-clockwise from x, in radians; the current's direction is where the water flows to";
 
 fn stamp(t: f64) -> Timestamp {
     let ns = nanos(t);

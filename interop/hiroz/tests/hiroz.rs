@@ -1,0 +1,413 @@
+//! ROS 2 nodes of another implementation than tcpf's own: hiroz (ZettaScale's ROS 2 over Zenoh in
+//! Rust, with the rmw_zenoh key format) subscribes to a lockstep fleet on sim time, and plays
+//! vehicle 2 of a realtime fleet whose world simulates vehicle 1. The tcpf binary is
+//! `$TCPF_BIN` (by default the workspace's release build); each test kills what it started.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use hiroz::context::{ZContext, ZContextBuilder};
+use hiroz::qos::{QosDurability, QosProfile};
+use hiroz::Builder;
+use hiroz_msgs::builtin_interfaces::Time;
+use hiroz_msgs::geometry_msgs::{Point, Pose, PoseWithCovariance, Quaternion, Twist, TwistWithCovariance, Vector3};
+use hiroz_msgs::nav_msgs::{Odometry, Path as RosPath};
+use hiroz_msgs::rosgraph_msgs::Clock;
+use hiroz_msgs::std_msgs::Header;
+use serde_json::Value;
+
+fn repo(path: &str) -> String {
+    format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tcpf_bin() -> String {
+    std::env::var("TCPF_BIN").unwrap_or_else(|_| repo("target/release/tcpf"))
+}
+
+/// A fresh directory of this test's own.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tcpf-hiroz-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A child killed, with its own children, when dropped.
+struct Reaper(Child);
+
+impl Drop for Reaper {
+    fn drop(&mut self) {
+        // Its children first: `tcpf run` stops its roles on SIGTERM, not on SIGKILL.
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.0.id().to_string()])
+            .stderr(Stdio::null())
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while self.0.try_wait().ok().flatten().is_none() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn spawn(logs: &Path, name: &str, args: &[&str]) -> Reaper {
+    let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
+    let child = Command::new(tcpf_bin())
+        .args(args)
+        .stdout(Stdio::from(log.try_clone().unwrap()))
+        .stderr(Stdio::from(log))
+        .spawn()
+        .unwrap();
+    Reaper(child)
+}
+
+fn wait_for(file: &Path, text: &str, limit: Duration) {
+    let deadline = Instant::now() + limit;
+    while !std::fs::read_to_string(file).unwrap_or_default().contains(text) {
+        assert!(Instant::now() < deadline, "{} never said {text:?}", file.display());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn wait_exit(child: &mut Reaper, limit: Duration) -> std::process::ExitStatus {
+    let deadline = Instant::now() + limit;
+    loop {
+        if let Some(status) = child.0.try_wait().unwrap() {
+            return status;
+        }
+        assert!(Instant::now() < deadline, "still running after {limit:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn free_endpoint() -> String {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    format!("tcp/127.0.0.1:{port}")
+}
+
+fn seconds(t: &Time) -> f64 {
+    f64::from(t.sec) + f64::from(t.nanosec) * 1e-9
+}
+
+fn telemetry(dir: &Path) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect()
+}
+
+fn summary(dir: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
+/// An odometry as heard: its child frame, stamp (s) and position.
+type Heard = (String, f64, f64, f64);
+
+/// A lockstep case (b) with `--ros2 6`, held for one more recorder: a hiroz node subscribes to
+/// `/clock` and to both vehicles' odometry, then a recorder's token lets the run start. It hears
+/// every tick's time in order and every odometry, stamped with the tick's time and placed as
+/// the telemetry says.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_hiroz_node_on_sim_time_hears_every_tick_and_every_odometry() {
+    let dir = scratch("sim-time");
+    let out = dir.join("run");
+    let mission = repo("configs/paper/b-current.toml");
+    let args = [
+        "run",
+        &mission,
+        "--out",
+        out.to_str().unwrap(),
+        "--ros2",
+        "6",
+        "--recorders",
+        "1",
+    ];
+    let mut run = spawn(&dir, "run", &args);
+    wait_for(&out.join("endpoint"), "tcp/", Duration::from_secs(60));
+    let ctx = ZContextBuilder::default()
+        .with_config_file(out.join("zenoh.json5"))
+        .with_domain_id(6)
+        .build()
+        .unwrap();
+    let node = ctx.create_node("hiroz_probe").build().unwrap();
+    let clock: Arc<Mutex<Vec<f64>>> = Arc::default();
+    let heard = clock.clone();
+    let _clock = node
+        .create_sub::<Clock>("/clock")
+        .build_with_callback(move |c: Clock| heard.lock().unwrap().push(seconds(&c.clock)))
+        .unwrap();
+    let odometry: Arc<Mutex<Vec<Heard>>> = Arc::default();
+    let mut subscriptions = Vec::new();
+    for id in [1, 2] {
+        let heard = odometry.clone();
+        let sub = node
+            .create_sub::<Odometry>(&format!("/tcpf/vehicle_{id}/odom"))
+            .build_with_callback(move |o: Odometry| {
+                let p = &o.pose.pose.position;
+                heard
+                    .lock()
+                    .unwrap()
+                    .push((o.child_frame_id.clone(), seconds(&o.header.stamp), p.x, p.y));
+            })
+            .unwrap();
+        subscriptions.push(sub);
+    }
+    // The recorder the run waits for: once it is here, the first tick comes.
+    let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
+        .await
+        .unwrap();
+    let token = session
+        .liveliness()
+        .declare_token("tcpf/paper-b-current/alive/record/78")
+        .await
+        .unwrap();
+    assert!(
+        wait_exit(&mut run, Duration::from_secs(120)).success(),
+        "{}",
+        std::fs::read_to_string(dir.join("run.log")).unwrap()
+    );
+    // The world publishes a tick's samples before it announces the end: give the last a moment.
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    token.undeclare().await.unwrap();
+    session.close().await.unwrap();
+
+    let rows = telemetry(&out);
+    let ticks = rows.iter().filter(|r| r[2] == "1").count();
+    let clock = clock.lock().unwrap().clone();
+    assert_eq!(clock.len(), ticks, "a /clock sample per tick");
+    for (k, t) in clock.iter().enumerate() {
+        assert!((t - k as f64 * 0.01).abs() < 1e-9, "tick {k} at {t}");
+    }
+    let odometry = odometry.lock().unwrap().clone();
+    let received = odometry.len() as f64 / rows.len() as f64;
+    assert!(
+        received >= 0.99,
+        "{} of {} odometry samples ({received:.4})",
+        odometry.len(),
+        rows.len()
+    );
+    for row in &rows {
+        let (t, x, y): (f64, f64, f64) = (
+            row[1].parse().unwrap(),
+            row[3].parse().unwrap(),
+            row[4].parse().unwrap(),
+        );
+        let frame = format!("vehicle_{}", row[2]);
+        let o = odometry.iter().find(|o| o.0 == frame && (o.1 - t).abs() < 1e-9);
+        let o = o.unwrap_or_else(|| panic!("no odometry of {frame} stamped {t}"));
+        assert_eq!((o.2, o.3), (x, y), "{frame} at t = {t}");
+        assert!(
+            clock.iter().any(|c| (c - o.1).abs() < 1e-9),
+            "stamped with a tick of /clock"
+        );
+    }
+}
+
+/// What the hiroz node playing a vehicle knows: its pose, and the command it follows.
+#[derive(Clone, Copy, Default)]
+struct Body {
+    x: f64,
+    y: f64,
+    yaw: f64,
+    v: f64,
+    r: f64,
+}
+
+/// Plays vehicle `id` in namespace `/tcpf` until `stop`: its start from the planned path
+/// (transient local), then every `period` of wall time the kinematics of docs/MODEL.md §2 over
+/// `period × time_scale` of simulated time in `current`, its odometry stamped with the wall clock.
+/// Returns the commands it heard and the odometry it published.
+fn play(ctx: &ZContext, id: u32, time_scale: f64, period: f64, current: [f64; 2], stop: &Mutex<bool>) -> (u64, u64) {
+    let node = ctx.create_node(format!("hiroz_vehicle_{id}")).build().unwrap();
+    let latched = QosProfile {
+        durability: QosDurability::TransientLocal,
+        ..Default::default()
+    };
+    let path = node
+        .create_sub::<RosPath>(&format!("/tcpf/vehicle_{id}/path"))
+        .with_qos(latched)
+        .build()
+        .unwrap();
+    let first = path
+        .recv_timeout(Duration::from_secs(60))
+        .expect("the planned path")
+        .poses[0]
+        .pose
+        .clone();
+    let q = &first.orientation;
+    let body = Arc::new(Mutex::new(Body {
+        x: first.position.x,
+        y: first.position.y,
+        yaw: 2.0 * q.z.atan2(q.w),
+        ..Body::default()
+    }));
+    let commands = Arc::new(Mutex::new(0u64));
+    let (steer, heard) = (body.clone(), commands.clone());
+    let _commands = node
+        .create_sub::<Twist>(&format!("/tcpf/vehicle_{id}/cmd"))
+        .build_with_callback(move |t: Twist| {
+            let mut b = steer.lock().unwrap();
+            (b.v, b.r) = (t.linear.x, t.angular.z);
+            *heard.lock().unwrap() += 1;
+        })
+        .unwrap();
+    let odometry = node
+        .create_pub::<Odometry>(&format!("/tcpf/vehicle_{id}/odom"))
+        .build()
+        .unwrap();
+    let mut published = 0;
+    let mut last = std::time::SystemTime::now();
+    while !*stop.lock().unwrap() {
+        let now = std::time::SystemTime::now();
+        let h = now.duration_since(last).unwrap().as_secs_f64() * time_scale;
+        last = now;
+        let b = {
+            let mut b = body.lock().unwrap();
+            // Exact for v and r held over the step: ψ is linear in time.
+            let half = 0.5 * b.r * h;
+            let sinc = if half == 0.0 { 1.0 } else { half.sin() / half };
+            let mid = b.yaw + half;
+            b.x += h * (b.v * sinc * mid.cos() + current[0]);
+            b.y += h * (b.v * sinc * mid.sin() + current[1]);
+            b.yaw = (b.yaw + b.r * h).sin().atan2((b.yaw + b.r * h).cos());
+            *b
+        };
+        let stamp = now.duration_since(std::time::UNIX_EPOCH).unwrap();
+        let message = Odometry {
+            header: Header {
+                stamp: Time {
+                    sec: stamp.as_secs() as i32,
+                    nanosec: stamp.subsec_nanos(),
+                },
+                frame_id: "map".into(),
+            },
+            child_frame_id: format!("vehicle_{id}"),
+            pose: PoseWithCovariance {
+                pose: Pose {
+                    position: Point { x: b.x, y: b.y, z: 0.0 },
+                    orientation: Quaternion {
+                        x: 0.0,
+                        y: 0.0,
+                        z: (b.yaw / 2.0).sin(),
+                        w: (b.yaw / 2.0).cos(),
+                    },
+                },
+                ..Default::default()
+            },
+            twist: TwistWithCovariance {
+                twist: Twist {
+                    linear: Vector3 { x: b.v, y: 0.0, z: 0.0 },
+                    angular: Vector3 { x: 0.0, y: 0.0, z: b.r },
+                },
+                ..Default::default()
+            },
+        };
+        odometry.publish(&message).unwrap();
+        published += 1;
+        let spent = std::time::SystemTime::now().duration_since(now).unwrap_or_default();
+        std::thread::sleep(Duration::from_secs_f64(period).saturating_sub(spent));
+    }
+    let heard = *commands.lock().unwrap();
+    (heard, published)
+}
+
+/// Case (b) in realtime at time scale 5, by hand: the world simulates vehicle 1 (`--vehicles 1`)
+/// and a hiroz node plays vehicle 2. Both arrive, with a coordination error under 1 s, and the
+/// summary names vehicle 2 as played by a ROS 2 node.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() {
+    let dir = scratch("plays");
+    let mission = repo("configs/paper/b-current.toml");
+    let key = dir.join("fleet.key");
+    let made = Command::new(tcpf_bin())
+        .args(["credential", key.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(made.status.success(), "{made:?}");
+    let credential = key.to_str().unwrap();
+    let endpoint = free_endpoint();
+    let e = endpoint.as_str();
+    let clock = ["--clock", "realtime", "--time-scale", "5", "--credential", credential];
+    let role = |name: &str, args: &[&str]| spawn(&dir, name, &[args, &clock].concat());
+    let _planner = role("planner", &["planner", &mission, "-l", e]);
+    let _world = role(
+        "world",
+        &[
+            "world",
+            &mission,
+            "-e",
+            e,
+            "--recorders",
+            "1",
+            "--vehicles",
+            "1",
+            "--ros2",
+            "7",
+        ],
+    );
+    let _agent_1 = role("agent-1", &["agent", &mission, "--id", "1", "-e", e, "--ros2", "7"]);
+    let _agent_2 = role("agent-2", &["agent", &mission, "--id", "2", "-e", e, "--ros2", "7"]);
+    let (user, password) = {
+        let text = std::fs::read_to_string(&key).unwrap();
+        let (u, p) = text.trim().split_once(':').unwrap();
+        (u.to_string(), p.to_string())
+    };
+    // The planner is the router: the node connects once it listens.
+    let address = endpoint.trim_start_matches("tcp/").to_string();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while std::net::TcpStream::connect(&address).is_err() {
+        assert!(Instant::now() < deadline, "the planner does not listen at {address}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let ctx = ZContextBuilder::default()
+        .with_domain_id(7)
+        .with_mode("client")
+        .with_connect_endpoints([e])
+        .disable_multicast_scouting()
+        .with_json("transport/auth/usrpwd/user", user)
+        .with_json("transport/auth/usrpwd/password", password)
+        .build()
+        .unwrap();
+    let stop = Arc::new(Mutex::new(false));
+    let playing = {
+        let stop = stop.clone();
+        // Case (b)'s current: 0.1 m/s towards π.
+        let current = [0.1 * std::f64::consts::PI.cos(), 0.1 * std::f64::consts::PI.sin()];
+        std::thread::spawn(move || play(&ctx, 2, 5.0, 0.002, current, &stop))
+    };
+    let out = dir.join("run");
+    let mut record = role("record", &["record", &mission, "-e", e, "--out", out.to_str().unwrap()]);
+    let status = wait_exit(&mut record, Duration::from_secs(120));
+    *stop.lock().unwrap() = true;
+    let (commands, published) = playing.join().unwrap();
+    let log = |name: &str| std::fs::read_to_string(dir.join(format!("{name}.log"))).unwrap_or_default();
+    assert!(status.success(), "record: {}\nworld: {}", log("record"), log("world"));
+    let s = summary(&out);
+    let arrivals: Vec<f64> = s["vehicles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["arrival_time"].as_f64().unwrap())
+        .collect();
+    let error = s["max_coordination_error"].as_f64().unwrap();
+    assert!(error < 1.0, "coordination error {error:.3} s; arrivals {arrivals:?}");
+    assert!((arrivals[0] - arrivals[1]).abs() < 1.0, "arrivals {arrivals:?}");
+    assert_eq!(s["vehicles"][1]["played_by"], "ros2", "{}", s["vehicles"]);
+    assert!(s["vehicles"][0].get("played_by").is_none(), "{}", s["vehicles"]);
+    assert_eq!(s["rejected_messages"], 0, "{}", s["rejections"]);
+    assert!(
+        commands > 1000 && published > 1000,
+        "{commands} commands heard, {published} odometry published"
+    );
+    eprintln!(
+        "hiroz played vehicle 2: {commands} commands heard, {published} odometry published; arrivals {arrivals:?}, coordination error {error:.3} s"
+    );
+}
