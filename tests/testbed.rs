@@ -104,7 +104,7 @@ fn make_pki(dir: &Path, bed: &Testbed) {
     let status = Command::new("sh")
         .arg(repo("tests/testbed/pki.sh"))
         .arg(dir.join("pki"))
-        .args([names.as_str(), "shore", "vehicle-1", "vehicle-2"])
+        .args([names.as_str(), "shore", "vehicle-1", "vehicle-2", "observer"])
         .status()
         .expect("sh runs");
     assert!(status.success(), "tests/testbed/pki.sh failed (is openssl installed?)");
@@ -114,11 +114,17 @@ fn as_strs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
 }
 
-/// Case (b) on `bed`: router, planner, world and recorder on the shore, each agent on its
+/// `mission` (case (b)) on `bed`: router, planner, world and recorder on the shore, each agent on its
 /// vehicle's host (agent 2 first, then `before_agent_1`, then agent 1), every role a client of
 /// the router. Returns the recorder's run directory once it has exited.
-fn fleet(bed: &mut Testbed, dir: &Path, security: Security, before_agent_1: impl FnOnce(&mut Testbed)) -> PathBuf {
-    let recorder = start(bed, dir, security, &[], before_agent_1);
+fn fleet(
+    bed: &mut Testbed,
+    dir: &Path,
+    mission: &str,
+    security: Security,
+    before_agent_1: impl FnOnce(&mut Testbed),
+) -> PathBuf {
+    let recorder = start(bed, dir, mission, security, &[], before_agent_1);
     finish(bed, dir, recorder)
 }
 
@@ -126,11 +132,12 @@ fn fleet(bed: &mut Testbed, dir: &Path, security: Security, before_agent_1: impl
 fn start(
     bed: &mut Testbed,
     dir: &Path,
+    mission: &str,
     security: Security,
     clock: &[&str],
     before_agent_1: impl FnOnce(&mut Testbed),
 ) -> u32 {
-    let mission = paper("b-current");
+    let mission = mission.to_string();
     let log = |name: &str| dir.join(format!("{name}.log"));
     let shore_dir = host_dir(dir, "shore", "shore", "shore");
     bed.spawn(
@@ -198,10 +205,10 @@ fn finish(bed: &mut Testbed, dir: &Path, recorder: u32) -> PathBuf {
     dir.join("run")
 }
 
-/// The in-process run of case (b), the reference every fleet here must equal.
-fn reference(dir: &Path) -> PathBuf {
+/// The in-process run of `mission`, the reference every fleet here must equal.
+fn reference(dir: &Path, mission: &str) -> PathBuf {
     let out = dir.join("in-process");
-    run_in_process(&paper("b-current"), &out, &[]);
+    run_in_process(mission, &out, &[]);
     out
 }
 
@@ -210,8 +217,8 @@ fn case_b_on_a_shore_host_and_two_vehicle_hosts_is_the_in_process_run() {
     let _fleet = common::fleet();
     let dir = scratch("hosts");
     let mut bed = Testbed::new("plain", &["shore", "v1", "v2"]);
-    let out = fleet(&mut bed, &dir, Security::Plain, |_| {});
-    assert_same_run(&out, &reference(&dir));
+    let out = fleet(&mut bed, &dir, &paper("b-current"), Security::Plain, |_| {});
+    assert_same_run(&out, &reference(&dir, &paper("b-current")));
     assert_eq!(summary(&out)["completed"], true);
 }
 
@@ -235,7 +242,7 @@ fn with_mutual_tls_the_fleet_runs_and_a_process_without_a_certificate_cannot_joi
     let router = format!("quic/{}:{PORT}", bed.address("shore"));
     let mut intruder = None;
     let outsider_run = outsider.join("run");
-    let out = fleet(&mut bed, &dir, Security::Tls, |bed| {
+    let out = fleet(&mut bed, &dir, &paper("b-current"), Security::Tls, |bed| {
         let args = [
             "record",
             &paper("b-current"),
@@ -258,7 +265,7 @@ fn with_mutual_tls_the_fleet_runs_and_a_process_without_a_certificate_cannot_joi
     );
     assert!(said.contains("cannot open the Zenoh session"), "{said}");
     assert!(!outsider.join("run/telemetry.csv").exists() || summary(&outsider.join("run"))["ticks"] == 0);
-    assert_same_run(&out, &reference(&dir));
+    assert_same_run(&out, &reference(&dir, &paper("b-current")));
 }
 
 /// Over QUIC a connection closed at once drops what it has not yet delivered: each role stays
@@ -272,7 +279,7 @@ fn over_mutual_tls_every_role_of_a_realtime_fleet_reports_as_it_exits() {
     let mut bed = Testbed::new("tlsrep", &["shore", "v1", "v2"]);
     make_pki(&dir, &bed);
     let clock = ["--clock", "realtime", "--time-scale", "10"];
-    let recorder = start(&mut bed, &dir, Security::Tls, &clock, |_| {});
+    let recorder = start(&mut bed, &dir, &paper("b-current"), Security::Tls, &clock, |_| {});
     let s = summary(&finish(&mut bed, &dir, recorder));
     assert_eq!(s["completed"], true, "{s}");
     assert!(s["unreported"].is_null(), "every role reported: {}", s["unreported"]);
@@ -293,10 +300,14 @@ fn with_access_control_a_vehicle_can_steer_only_itself() {
     let mut bed = Testbed::new("acl", &["shore", "v1", "v2", "rogue"]);
     make_pki(&dir, &bed);
     let router = format!("quic/{}:{PORT}", bed.address("shore"));
-    let mission = paper("b-current");
+    // Case (b) speaking ROS 2 as well: the agents publish their commands through the router.
+    let mission = dir.join("mission.toml");
+    let table = "\n[ros2]\ndomain = 0\n";
+    std::fs::write(&mission, std::fs::read_to_string(paper("b-current")).unwrap() + table).unwrap();
+    let mission = mission.display().to_string();
     let vehicle = Security::Acl.config("vehicle");
-    let (mut rogue, mut intruder) = (None, None);
-    let out = fleet(&mut bed, &dir, Security::Acl, |bed| {
+    let (mut rogue, mut intruder, mut observer) = (None, None, None);
+    let out = fleet(&mut bed, &dir, &mission, Security::Acl, |bed| {
         // Beside the real agent 1: an agent 1 holding vehicle 2's certificate ...
         let home = host_dir(&dir, "rogue", "vehicle", "vehicle-2");
         let args = [
@@ -322,15 +333,25 @@ fn with_access_control_a_vehicle_can_steer_only_itself() {
             "8",
             "tcpf/paper-b-current/gamma/2",
             "tcpf/paper-b-current/cmd/2",
+            // As ROS 2 nodes too: vehicle 2's odometry, and its commands.
+            "0/tcpf/vehicle_2/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0",
+            "0/tcpf/vehicle_2/cmd/geometry_msgs::msg::dds_::Twist_/RIHS01_9c45bf16fe0983d80e3cfe750d6835843d265a9a6c46bd2e609fcddde6fb8d2a",
         ];
         intruder = Some(bed.spawn("rogue", &home, &dir.join("intruder.log"), "python3", &args));
-        common::wait_for_text(
-            &dir.join("intruder.log"),
-            "connected, publishing",
-            Duration::from_secs(30),
-        );
+        // On shore, an observer of the ROS 2 graph with a certificate of its own.
+        let home = host_dir(&dir, "observer", "vehicle", "observer");
+        let script = repo("tests/testbed/observer.py");
+        let seen = dir.join("observer.json").display().to_string();
+        let args = [script.as_str(), &vehicle, &router, "0", &seen];
+        observer = Some(bed.spawn("shore", &home, &dir.join("observer.log"), "python3", &args));
+        for (who, said) in [
+            ("intruder", "connected, publishing"),
+            ("observer", "connected, listening"),
+        ] {
+            common::wait_for_text(&dir.join(format!("{who}.log")), said, Duration::from_secs(30));
+        }
     });
-    assert_same_run(&out, &reference(&dir));
+    assert_same_run(&out, &reference(&dir, &mission));
     let s = summary(&out);
     assert_eq!(
         s["rejected_messages"], 0,
@@ -351,6 +372,25 @@ fn with_access_control_a_vehicle_can_steer_only_itself() {
     let _ = bed.wait(intruder.unwrap(), Duration::from_secs(30));
     let sent = std::fs::read_to_string(dir.join("intruder.log")).unwrap();
     assert!(sent.contains("messages sent"), "the intruder ran: {sent}");
+    // The observer heard the world's topics and each agent's commands, through the router, and
+    // nothing the intruder sent as vehicle 2, nor its own attempt to command vehicle 1.
+    let observed = bed.wait(observer.unwrap(), Duration::from_secs(30));
+    let log = std::fs::read_to_string(dir.join("observer.log")).unwrap_or_default();
+    assert!(observed.is_some_and(|s| s.success()), "{log}");
+    let seen: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("observer.json")).unwrap()).unwrap();
+    assert_eq!(seen["forged"], 0, "{seen}");
+    assert!(seen["world_seen"] == true && seen["world_gone"] == true, "{seen}");
+    let ticks = s["ticks"].as_u64().unwrap();
+    for topic in [
+        "tcpf/vehicle_1/cmd",
+        "tcpf/vehicle_2/cmd",
+        "tcpf/vehicle_1/odom",
+        "tcpf/vehicle_2/odom",
+    ] {
+        let n = seen["heard"][topic].as_u64().unwrap_or(0);
+        assert!(n > 0 && n <= ticks + 1, "{topic}: {n} of {ticks} ticks: {seen}");
+    }
 }
 
 #[test]
@@ -359,7 +399,7 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
     let dir = scratch("link-down");
     let mut bed = Testbed::new("down", &["shore", "v1", "v2"]);
     let clock = ["--clock", "realtime", "--time-scale", "2"];
-    let recorder = start(&mut bed, &dir, Security::Plain, &clock, |_| {});
+    let recorder = start(&mut bed, &dir, &paper("b-current"), Security::Plain, &clock, |_| {});
     let out = dir.join("run");
     wait_until_simulated(&out, 10.0);
     bed.link("v2", false);
@@ -402,7 +442,7 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
     let dir = scratch("real-loss");
     let mut bed = Testbed::new("loss", &["shore", "v1", "v2"]);
     let clock = ["--clock", "realtime", "--time-scale", "5"];
-    let recorder = start(&mut bed, &dir, Security::Udp, &clock, |_| {});
+    let recorder = start(&mut bed, &dir, &paper("b-current"), Security::Udp, &clock, |_| {});
     // Once the fleet is under way (its UDP links open at the start, and a lost handshake leaves
     // a session on TCP alone), the network loses 30 % of the datagrams vehicle 2's host sends:
     // its best-effort γ. Dropped where they arrive, at the shore: a drop in the sender's own

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """A process with a genuine certificate that publishes where its identity may not: on other
 vehicles' keys. Random bytes and well-formed commands and γ (encoded with the example vehicle's
-codec), for a bounded time and count. Used by tests/testbed.rs to check access control.
+codec), or ROS 2 samples, for a bounded time and count. Used by tests/testbed.rs to check access control.
 
     intruder.py ZENOH_JSON5 ENDPOINT SECONDS KEY...
 """
@@ -24,7 +24,11 @@ MAX_MESSAGES = 200_000
 
 
 def forged(key, rng):
-    """A message a genuine sender on `key` could have sent, with made-up values."""
+    """A message a genuine sender on `key` could have sent, with made-up values; on a ROS 2 key
+    (`<domain>/tcpf/vehicle_<id>/<topic>/<type>/<hash>`), CDR's header and a mark an observer
+    can tell."""
+    if "::" in key:
+        return b"\x00\x01\x00\x00intruder" + bytes(rng.randrange(256) for _ in range(rng.randrange(0, 64)))
     kind, ident = key.split("/")[-2:]
     tick = rng.randrange(0, 6000)
     if kind == "cmd":
@@ -52,7 +56,8 @@ def main():
         end = time.monotonic() + seconds
         while time.monotonic() < end and sent < MAX_MESSAGES:
             for key, publisher in zip(keys, publishers):
-                publisher.put(bytes(rng.randrange(256) for _ in range(rng.randrange(1, 64))))
+                junk = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 64)))
+                publisher.put(forged(key, rng) if "::" in key else junk)
                 publisher.put(forged(key, rng))
                 session.put(key, forged(key, rng))
                 sent += 3
