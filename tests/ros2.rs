@@ -337,6 +337,11 @@ fn a_ros2_node_plays_a_vehicle_beside_the_one_the_world_simulates() {
     assert_eq!(s["vehicles"][1]["played_by"], "ros2", "{}", s["vehicles"]);
     assert!(s["vehicles"][0].get("played_by").is_none(), "{}", s["vehicles"]);
     assert!(log("world").contains("simulating vehicles [1]"), "{}", log("world"));
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        report.contains("<th>played by</th>") && report.contains("<td>a ROS 2 node</td>"),
+        "the report's vehicles table says who played vehicle 2"
+    );
     // The node left once the world had left the graph.
     let deadline = Instant::now() + Duration::from_secs(10);
     while vehicle.0.try_wait().unwrap().is_none() {

@@ -456,7 +456,7 @@ pub async fn measure(
         tick / median(&routed)
     ));
     say(format!(
-        "lockstep tick with --ros2 (odometry and /clock, no ROS 2 subscriber): {:.1} µs; / without it: {:.2}",
+        "lockstep tick with --ros2 (the world and every agent as ROS 2 nodes, no subscriber): {:.1} µs; / without it: {:.2}",
         ros2.tick_wall_time_us,
         ros2.tick_wall_time_us / tick
     ));

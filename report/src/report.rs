@@ -10,6 +10,7 @@ use tcpf_core::dynamics::{DEAD_ZONE, FULL};
 use tcpf_core::links::LinkStats;
 use tcpf_core::metrics::Thrusters;
 use tcpf_core::mission::{self, Mission};
+use tcpf_core::msg::Player;
 
 use crate::plots::{bars, Chart, Series};
 use tcpf_core::summary::{Clock, RoleTiming, Summary};
@@ -700,17 +701,34 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
             escape(failure)
         );
     }
+    // Who played each vehicle, when the world did not simulate them all (realtime `--vehicles`).
+    let outside = summary.results.vehicles.iter().any(|v| v.played_by.is_some());
     html.push_str(
-        "<table id=\"vehicles\"><tr><th>vehicle</th><th>arrival (s)</th><th>arrival − t_f (s)</th><th>lost</th></tr>",
+        "<table id=\"vehicles\"><tr><th>vehicle</th><th>arrival (s)</th><th>arrival − t_f (s)</th><th>lost</th>",
     );
+    html.push_str(if outside { "<th>played by</th></tr>" } else { "</tr>" });
     for v in &summary.results.vehicles {
         let late = v.arrival_time.map_or("–".to_string(), |a| format!("{:+.3}", a - t_f));
         let _ = write!(
             html,
-            "<tr><td>{}</td><td>{}</td><td>{late}</td><td>{}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{late}</td><td>{}</td>",
             v.id,
             number(v.arrival_time, 3),
             v.lost
+        );
+        let player = match v.played_by {
+            None => "the world",
+            Some(Player::Process) => "another program",
+            Some(Player::Ros2) => "a ROS 2 node",
+        };
+        let _ = write!(
+            html,
+            "{}</tr>",
+            if outside {
+                format!("<td>{player}</td>")
+            } else {
+                String::new()
+            }
         );
     }
     html.push_str("</table>\n");
