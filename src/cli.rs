@@ -338,6 +338,10 @@ pub enum Command {
         /// Seconds to wait for the world.
         #[arg(long, default_value = waits::STARTUP_S, value_parser = seconds, allow_hyphen_values = true)]
         startup_timeout: Duration,
+        /// Publish what is recorded to ROS 2 (rmw_zenoh) on this domain, as the node
+        /// /tcpf/recorder: for a fleet whose world does not speak ROS 2 (docs/ROS2.md).
+        #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain())]
+        ros2: Option<u32>,
     },
     /// Role: the agent of one vehicle.
     Agent {

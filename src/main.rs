@@ -200,12 +200,14 @@ fn main() -> ExitCode {
             out,
             live,
             startup_timeout,
+            ros2,
         } => roles::record(
             &clocked(&role.mission, &role.clock),
             &role.zenoh,
             out.as_deref(),
             live,
             startup_timeout,
+            ros2,
         ),
         Command::World {
             role,

@@ -93,6 +93,7 @@ pub fn record(
     out: Option<&Path>,
     live: Option<SocketAddr>,
     startup_timeout: Duration,
+    ros2: Option<u32>,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
@@ -102,13 +103,14 @@ pub fn record(
     // leave behind half written.
     zenoh.config().map_err(role_failure)?;
     let dir = run_dir(out, &mission)?;
-    let summary = role(tcpf_coordinator::recording::record(
-        &mission,
-        &plan,
-        &dir,
-        zenoh,
+    // Only when asked: the world and agents speak ROS 2 for a mission with [ros2] already.
+    let options = tcpf_coordinator::recording::RecordOptions {
         live,
         startup_timeout,
+        ros2: ros2.and_then(|domain| mission.ros2(Some(domain))),
+    };
+    let summary = role(tcpf_coordinator::recording::record(
+        &mission, &plan, &dir, zenoh, options,
     ))?
     .map_err(|e| {
         // Nothing recorded (no session, no world, refused by the world's clock): the

@@ -27,6 +27,58 @@ fn num(v: &Value) -> f64 {
     v.as_str().map_or_else(|| v.as_f64().unwrap(), |s| s.parse().unwrap())
 }
 
+/// Runs tests/ros2/watch.py on a fleet that waits for one more recorder (`config` its Zenoh
+/// configuration, `domain` its ROS 2 domain) until the run ends; what it decoded, which it found
+/// nothing wrong with.
+fn watch(config: &std::path::Path, domain: &str, out: &std::path::Path) -> Value {
+    let script = format!("{}/tests/ros2/watch.py", env!("CARGO_MANIFEST_DIR"));
+    let o = Command::new("python3")
+        .arg(&script)
+        .arg(config)
+        .args(["paper-b-current", domain])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", common::text(&o));
+    let seen: Value = serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    assert_eq!(seen["problems"], serde_json::json!([]), "{}", seen["problems"]);
+    seen
+}
+
+/// Every odometry sample is a telemetry row: pose to the float, stamp its time, frames REP 105's.
+fn assert_odometry_is_the_telemetry(seen: &Value, rows: &[BTreeMap<String, String>]) {
+    for id in ["1", "2"] {
+        let mine: Vec<&BTreeMap<String, String>> = rows.iter().filter(|r| r["id"] == id).collect();
+        let odometry = seen["odometry"][&format!("vehicle_{id}")].as_array().unwrap();
+        assert_eq!(odometry.len(), mine.len(), "vehicle {id}");
+        for (o, row) in odometry.iter().zip(&mine) {
+            let f = |k: &str| row[k].parse::<f64>().unwrap();
+            assert_eq!(
+                (num(&o["x"]), num(&o["y"])),
+                (f("x"), f("y")),
+                "vehicle {id}, tick {}",
+                row["tick"]
+            );
+            let yaw = (num(&o["yaw"]) - f("heading") + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            assert!(
+                yaw.abs() < 1e-12,
+                "vehicle {id}, tick {}: yaw off by {yaw}",
+                row["tick"]
+            );
+            assert_eq!(num(&o["yaw_rate"]), f("r"), "vehicle {id}, tick {}", row["tick"]);
+            let stamp = &o["stamp"];
+            let t = stamp[0].as_f64().unwrap() + stamp[1].as_f64().unwrap() * 1e-9;
+            assert!((t - f("t")).abs() < 1e-9, "stamp {stamp} at t = {}", row["t"]);
+            assert_eq!(
+                (o["frame"].as_str(), o["child"].as_str()),
+                (Some("map"), Some(&*format!("vehicle_{id}")))
+            );
+            assert_eq!(o["tilt"], serde_json::json!([0.0, 0.0, 0.0]));
+        }
+    }
+}
+
 #[test]
 fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     let _fleet = fleet();
@@ -34,19 +86,8 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--ros2", "0", "--recorders", "1"]);
     launch.wait_for("endpoint", "tcp/");
-    let watched = dir.join("ros2.json");
-    let script = format!("{}/tests/ros2/watch.py", env!("CARGO_MANIFEST_DIR"));
-    let o = Command::new("python3")
-        .arg(&script)
-        .arg(out.join("zenoh.json5"))
-        .args(["paper-b-current", "0"])
-        .arg(&watched)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", common::text(&o));
+    let seen = watch(&out.join("zenoh.json5"), "0", &dir.join("ros2.json"));
     assert!(launch.wait(Duration::from_secs(60)).success());
-    let seen: Value = serde_json::from_str(&std::fs::read_to_string(&watched).unwrap()).unwrap();
-    assert_eq!(seen["problems"], serde_json::json!([]), "{}", seen["problems"]);
 
     // Every key carries the hash rosbags computes for its type, and rmw_zenoh's type name.
     let keys: Vec<&str> = seen["keys"]
@@ -175,36 +216,7 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
 
     // Row by row, the poses are the telemetry's, to the float.
     let rows = telemetry(&out);
-    for id in ["1", "2"] {
-        let mine: Vec<&BTreeMap<String, String>> = rows.iter().filter(|r| r["id"] == id).collect();
-        let odometry = seen["odometry"][&format!("vehicle_{id}")].as_array().unwrap();
-        assert_eq!(odometry.len(), mine.len(), "vehicle {id}");
-        for (o, row) in odometry.iter().zip(&mine) {
-            let f = |k: &str| row[k].parse::<f64>().unwrap();
-            assert_eq!(
-                (num(&o["x"]), num(&o["y"])),
-                (f("x"), f("y")),
-                "vehicle {id}, tick {}",
-                row["tick"]
-            );
-            let yaw = (num(&o["yaw"]) - f("heading") + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                - std::f64::consts::PI;
-            assert!(
-                yaw.abs() < 1e-12,
-                "vehicle {id}, tick {}: yaw off by {yaw}",
-                row["tick"]
-            );
-            assert_eq!(num(&o["yaw_rate"]), f("r"), "vehicle {id}, tick {}", row["tick"]);
-            let stamp = &o["stamp"];
-            let t = stamp[0].as_f64().unwrap() + stamp[1].as_f64().unwrap() * 1e-9;
-            assert!((t - f("t")).abs() < 1e-9, "stamp {stamp} at t = {}", row["t"]);
-            assert_eq!(
-                (o["frame"].as_str(), o["child"].as_str()),
-                (Some("map"), Some(&*format!("vehicle_{id}")))
-            );
-            assert_eq!(o["tilt"], serde_json::json!([0.0, 0.0, 0.0]));
-        }
-    }
+    assert_odometry_is_the_telemetry(&seen, &rows);
 
     // γ, γ̇ and γ − t of each vehicle, tick by tick: its γ is the telemetry's, to the bit.
     for id in ["1", "2"] {
@@ -319,6 +331,19 @@ fn a_ros2_node_plays_a_vehicle_beside_the_one_the_world_simulates() {
         played.to_str().unwrap(),
     ];
     let mut vehicle = Reaper(logged(&logs, "vehicle", "python3", &node_args));
+    // The world's node is in the graph once the agents are here: a recorder asked to speak
+    // ROS 2 too would publish every topic twice, and is refused, recording nothing.
+    common::wait_for_text(&logs.join("world.log"), "(2 of 2)", Duration::from_secs(60));
+    let twice = dir.join("twice");
+    let refused = record_by_hand(mission, &endpoint, &twice)
+        .args(clock)
+        .args(["--ros2", "5"])
+        .output()
+        .unwrap();
+    let said = common::text(&refused);
+    assert_eq!(refused.status.code(), Some(1), "{said}");
+    assert!(said.contains("speaks ROS 2 on domain 5 already"), "{said}");
+    assert!(!twice.exists(), "nothing recorded, no directory left: {said}");
     let out = dir.join("run");
     let recorded = record_by_hand(mission, &endpoint, &out).args(clock).output().unwrap();
     let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
@@ -422,4 +447,94 @@ async fn a_killed_agent_leaves_the_ros2_graph_within_2_s() {
     assert_eq!(of(&after, "agent_1"), 2, "{after:?}");
     assert_eq!(of(&after, "world"), of(&before, "world"), "{after:?}");
     session.close().await.unwrap();
+}
+
+/// A lockstep fleet started by hand without ROS 2, and `tcpf record --ros2 9`: the recorder
+/// publishes what it records as the node /tcpf/recorder, which watch.py (the fleet's second
+/// recorder) decodes as the telemetry, paths included.
+#[test]
+fn a_recorder_with_ros2_shows_a_fleet_that_speaks_none() {
+    let _fleet = fleet();
+    let dir = scratch("ros2-recorder");
+    let mission = paper("b-current");
+    let logs = dir.join("logs");
+    std::fs::create_dir_all(&logs).unwrap();
+    let tcpf = env!("CARGO_BIN_EXE_tcpf");
+    let role = |name: &str, args: &[&str]| {
+        let args = common::credentialed(args);
+        Reaper(logged(
+            &logs,
+            name,
+            tcpf,
+            &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        ))
+    };
+    let (planner, endpoint) = common::listening(|e| {
+        let args = common::credentialed(&["planner", &mission, "-l", e]);
+        logged(
+            &logs,
+            "planner",
+            tcpf,
+            &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        )
+    });
+    let e = endpoint.as_str();
+    let _fleet = [
+        Reaper(planner),
+        role("world", &["world", &mission, "-e", e, "--recorders", "2"]),
+        role("agent-1", &["agent", &mission, "--id", "1", "-e", e]),
+        role("agent-2", &["agent", &mission, "--id", "2", "-e", e]),
+    ];
+    let out = dir.join("run");
+    let mut recorder = role(
+        "record",
+        &[
+            "record",
+            &mission,
+            "-e",
+            e,
+            "--out",
+            out.to_str().unwrap(),
+            "--ros2",
+            "9",
+        ],
+    );
+    let config = dir.join("zenoh.json5");
+    let session = format!(
+        r#"{{ mode: "client", connect: {{ endpoints: ["{e}"] }}, scouting: {{ multicast: {{ enabled: false }} }}, transport: {{ auth: {{ usrpwd: {} }} }} }}"#,
+        common::usrpwd()
+    );
+    std::fs::write(&config, session).unwrap();
+    let seen = watch(&config, "9", &dir.join("ros2.json"));
+    let status = common::wait_exit(&mut recorder.0, Duration::from_secs(60), "the recorder");
+    let said = std::fs::read_to_string(logs.join("record.log")).unwrap_or_default();
+    assert_eq!(status, Some(0), "{said}");
+
+    let tokens: Vec<&str> = seen["tokens"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_str().unwrap())
+        .collect();
+    let kinds = |kind: &str| tokens.iter().filter(|t| t.split('/').nth(5) == Some(kind)).count();
+    assert_eq!((kinds("NN"), kinds("MP")), (1, 10), "{tokens:?}");
+    assert!(tokens.iter().any(|t| t.ends_with("/NN/%/%tcpf/recorder")), "{tokens:?}");
+    let rows = telemetry(&out);
+    assert_odometry_is_the_telemetry(&seen, &rows);
+    assert_eq!(
+        seen["clock"].as_array().unwrap().len(),
+        rows.len() / 2,
+        "a /clock per tick"
+    );
+    let path = &seen["paths"]["vehicle_2"]["poses"];
+    assert_eq!(
+        (path[0][2].as_f64(), path[0][3].as_f64()),
+        (Some(0.0), Some(5.0)),
+        "vehicle 2's start"
+    );
+    assert_eq!(
+        seen["twists"],
+        serde_json::json!({}),
+        "commands are the agents' to publish"
+    );
 }

@@ -204,7 +204,7 @@ pub struct Fleet<'a> {
     pub lockstep: bool,
 }
 
-/// The world as the ROS 2 node `world`: the odometry of the vehicles it simulates, every
+/// The world as the ROS 2 node `world` (or a recorder for a world that does not speak ROS 2): the odometry of the vehicles it simulates, every
 /// vehicle's planned path and coordination state, each link's γ messages, the fleet's
 /// coordination and, in lockstep, `/clock`; and a subscription to the odometry of each vehicle a
 /// ROS 2 node may play.
@@ -227,9 +227,9 @@ pub struct World {
 pub type PlayedOdometry = mpsc::Receiver<Received<(u32, Vec<u8>)>>;
 
 impl World {
-    /// Declares the node and its topics.
-    pub async fn declare(session: &Session, ros2: &Ros2Config, fleet: &Fleet<'_>) -> Result<World> {
-        let mut node = Declaring::new(session, ros2, "world".into(), fleet.lockstep);
+    /// Declares the node `name` (`world`, or `recorder` for `tcpf record --ros2`) and its topics.
+    pub async fn declare(session: &Session, ros2: &Ros2Config, fleet: &Fleet<'_>, name: &str) -> Result<World> {
+        let mut node = Declaring::new(session, ros2, name.into(), fleet.lockstep);
         let clock = match fleet.lockstep {
             true => Some(node.publisher("/clock".into(), ros2::CLOCK, ros2::QOS).await?),
             false => None,
@@ -362,4 +362,21 @@ impl Agent {
     pub fn put(&mut self, command: &Command, stamp: Stamp) -> Result<()> {
         self.command.put(ros2::twist(command), stamp).map(|_| ())
     }
+}
+
+/// Whether the node `name` of the fleet is in the graph of `ros2`'s domain now.
+pub async fn node_present(session: &Session, ros2: &Ros2Config, name: &str) -> Result<bool> {
+    let any = Node { zid: "*", id: 0, name };
+    let key = ros2.node_token(&any).replacen("/0/0/NN/", "/*/*/NN/", 1);
+    let replies = session
+        .liveliness()
+        .get(key.clone())
+        .await
+        .map_err(|e| anyhow!("cannot ask the ROS 2 graph for {key}: {e}"))?;
+    while let Ok(reply) = replies.recv_async().await {
+        if reply.result().is_ok() {
+            return Ok(true);
+        }
+    }
+    Ok(false)
 }

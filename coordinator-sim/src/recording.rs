@@ -12,7 +12,7 @@ use tcpf_bus::handover::take_over;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
 use tcpf_core::metrics::Results;
-use tcpf_core::mission::{ClockKind, Mission};
+use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::msg::{Command, End, Loss, Report, State, TickRecord};
 use tcpf_core::realtime::{Sampler, STATES_DUE_S};
 use tcpf_core::record::Recorder;
@@ -25,7 +25,9 @@ use zenoh::Session;
 
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
+use tcpf_core::path::GeneralizedPath;
 use tcpf_core::planner::Plan;
+use tcpf_core::ros2::Stamp;
 
 use crate::progress::Ticks;
 use tcpf_core::summary::{self, Closing, Mode, Recorded, Summary};
@@ -112,6 +114,56 @@ pub struct Recording {
     ticking: bool,
     /// The mission, clock and time scale the world's clock must have.
     expected: Expected,
+    /// `tcpf record --ros2`: the fleet as a ROS 2 node, for a world that does not speak it.
+    ros2: Option<Speaking>,
+}
+
+/// What `tcpf record --ros2` publishes of each tick it writes, as the node `recorder`: what a
+/// world with `--ros2` would, so that ROS 2 tools see a fleet started without it.
+struct Speaking {
+    node: tcpf_bus::ros2::World,
+    paths: Vec<(u32, GeneralizedPath)>,
+    /// Realtime: the fleet's epoch and time scale, once its clock has answered; lockstep: none,
+    /// stamps are simulated time.
+    wall: Option<(f64, f64)>,
+}
+
+impl Speaking {
+    fn stamp(&self, t: f64) -> Stamp {
+        stamp_at(self.wall, t)
+    }
+
+    fn put_paths(&mut self) -> Result<()> {
+        let wall = self.wall;
+        self.node.put_paths(&self.paths, |t| stamp_at(wall, t))
+    }
+}
+
+/// Fleet time `t` as ROS 2 stamps say it: simulated time in lockstep, the wall clock of the
+/// fleet's epoch in realtime (`wall`: epoch and time scale).
+fn stamp_at(wall: Option<(f64, f64)>, t: f64) -> Stamp {
+    match wall {
+        Some((epoch, scale)) => Stamp::from_seconds(epoch + t / scale),
+        None => Stamp::from_seconds(t),
+    }
+}
+
+/// Writes a tick of the telemetry and, with `--ros2`, publishes it.
+fn write_tick(
+    telemetry: &mut Telemetry,
+    ros2: &mut Option<Speaking>,
+    states: &[State],
+    commands: &[Option<Command>],
+) -> Result<()> {
+    telemetry.tick(states, commands)?;
+    match ros2 {
+        Some(r) => {
+            let stamp = r.stamp(states[0].t);
+            r.node
+                .put(states.iter().zip(commands).map(|(s, c)| (s, c.as_ref())), stamp)
+        }
+        None => Ok(()),
+    }
 }
 
 impl Recording {
@@ -164,7 +216,39 @@ impl Recording {
             clock: Some(clock),
             ticking: false,
             expected: Expected::of(mission),
+            ros2: None,
         })
+    }
+
+    /// Speaks ROS 2 as the node `recorder` (`tcpf record --ros2`), before the recorder's token
+    /// lets a lockstep world start: refused if the fleet's world speaks it already, as every
+    /// topic would be published twice.
+    pub async fn speak_ros2(&mut self, ros2: &Ros2Config, mission: &Mission, plan: &Plan) -> Result<()> {
+        if tcpf_bus::ros2::node_present(&self.session, ros2, "world").await? {
+            return Err(anyhow!(
+                "the fleet's world speaks ROS 2 on domain {} already (its --ros2 or [ros2]): a recorder with --ros2 would publish every topic again; leave --ros2 out",
+                ros2.domain
+            ));
+        }
+        let lockstep = mission.mission.clock == ClockKind::Lockstep;
+        let links = mission.directed_links();
+        let fleet = tcpf_bus::ros2::Fleet {
+            ids: &self.ids,
+            simulated: &self.ids,
+            links: &links,
+            lockstep,
+        };
+        let node = tcpf_bus::ros2::World::declare(&self.session, ros2, &fleet, "recorder").await?;
+        let mut speaking = Speaking {
+            node,
+            paths: plan.paths(),
+            wall: None,
+        };
+        if lockstep {
+            speaking.put_paths()?;
+        }
+        self.ros2 = Some(speaking);
+        Ok(())
     }
 
     /// Declares the recorder's token: the world, which waits for it, may start. Its id is
@@ -245,8 +329,8 @@ impl Recording {
             } => tokio::select! {
                 Some(beat) = async { beats.as_mut()?.1.recv().await }, if beats.is_some() => {
                     let mut failure = Ok(());
-                    let telemetry = &mut self.telemetry;
-                    sampler.sample(beat.tick, |states, commands| failure = telemetry.tick(states, commands));
+                    let (telemetry, ros2) = (&mut self.telemetry, &mut self.ros2);
+                    sampler.sample(beat.tick, |states, commands| failure = write_tick(telemetry, ros2, states, commands));
                     failure?;
                     if let Some(ids) = sampler.overdue_states() {
                         tracing::warn!(
@@ -260,6 +344,10 @@ impl Recording {
                     let clock = answer?;
                     check_clock("recorder", &self.expected, &clock)?;
                     self.telemetry.set_epoch(clock.epoch);
+                    if let Some(ros2) = &mut self.ros2 {
+                        ros2.wall = Some((clock.epoch, clock.time_scale));
+                        ros2.put_paths()?;
+                    }
                     let fleet = FleetClock::new(&clock, *control_period);
                     *beats = Some((fleet, metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64)));
                 }
@@ -288,10 +376,10 @@ impl Recording {
         // of another would write ticks it is then refused for. (On a task of its own, the
         // question leaves this step free to be dropped by its caller's select without loss.)
         if let (Machine::Lockstep(recorder), None) = (&mut self.machine, &self.clock) {
-            let telemetry = &mut self.telemetry;
+            let (telemetry, ros2) = (&mut self.telemetry, &mut self.ros2);
             recorder.drain(|states, commands| {
                 if failure.is_ok() {
-                    failure = telemetry.tick(states, commands);
+                    failure = write_tick(telemetry, ros2, states, commands);
                 }
             });
         }
@@ -364,8 +452,8 @@ impl Recording {
         let recorded = match &mut self.machine {
             Machine::Realtime { sampler, .. } => {
                 let mut written = Ok(());
-                let telemetry = &mut self.telemetry;
-                sampler.finish(|states, commands| written = telemetry.tick(states, commands));
+                let (telemetry, ros2) = (&mut self.telemetry, &mut self.ros2);
+                sampler.finish(|states, commands| written = write_tick(telemetry, ros2, states, commands));
                 written?;
                 Recorded::Realtime {
                     never_heard: sampler.never_heard(),
@@ -406,14 +494,25 @@ impl Recording {
 
 /// `tcpf record`: records a fleet started elsewhere (start the world with `--recorders 1`) until
 /// the world's end or a signal, and writes the run directory.
+/// How `tcpf record` records: `live` serves it to Foxglove, `ros2` to ROS 2 tools.
+pub struct RecordOptions {
+    pub live: Option<SocketAddr>,
+    pub startup_timeout: Duration,
+    pub ros2: Option<Ros2Config>,
+}
+
 pub async fn record(
     mission: &Mission,
     plan: &Plan,
     dir: &RunDir,
     zenoh: &ZenohArgs,
-    live: Option<SocketAddr>,
-    startup_timeout: Duration,
+    options: RecordOptions,
 ) -> Result<Summary> {
+    let RecordOptions {
+        live,
+        startup_timeout,
+        ros2,
+    } = options;
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission)?;
     dir.write_plan(plan)?;
@@ -430,6 +529,9 @@ pub async fn record(
     )
     .await
     .map_err(unrecorded)?;
+    if let Some(ros2) = &ros2 {
+        recording.speak_ros2(ros2, mission, plan).await.map_err(unrecorded)?;
+    }
     let keys = Keys::new(&mission.mission.name);
     let (_presence, mut presence) = presence(&session, &keys).await.map_err(unrecorded)?;
     recording.declare().await.map_err(unrecorded)?;

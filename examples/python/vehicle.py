@@ -477,14 +477,14 @@ def self_test():
     end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}]}
     clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12,
              "mission": 0x72b3548f8bc2f98c}
-    gamma_bytes = ("08ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+    gamma_bytes = ("09ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
                    "0000000000000040" "000000000000e0bf")
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("08ac020200"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("09ac020200"),
         "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300, mission=5))
-        == bytes.fromhex("0801" "0000000000002440" "000000000000f83f" "ac02" "05"),
+        == bytes.fromhex("0901" "0000000000002440" "000000000000f83f" "ac02" "05"),
         "u32 overflow refused": refused_as(version_id, varint(VERSION) + varint(2**32)) == "undecodable",
         "trailing byte refused": refused_as(COMMAND, encode(COMMAND, command) + b"\0") == "undecodable",
         "version 3 refused": refused_as(STATE, encode(STATE, dict(state, version=3))) == "wrong_version",

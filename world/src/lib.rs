@@ -3,11 +3,11 @@
 //! the clock) or `RealtimeWorld` in realtime (it integrates on a metronome with the freshest
 //! commands, and serves the wall-clock epoch everyone keeps time by).
 
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
-use std::collections::BTreeMap;
 use tcpf_bus::claim::claim;
 use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
 use tcpf_bus::codec::Invalid;
@@ -23,8 +23,7 @@ use tcpf_bus::typed::{
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, PROTOCOL_VERSION};
-use tcpf_core::msg::{Player, State};
+use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
 use tcpf_core::ros2::{Played, Refused, Stamp};
@@ -332,7 +331,7 @@ async fn serve(
     };
     let mut ros2 = match mission.ros2(options.ros2) {
         Some(config) => {
-            let node = tcpf_bus::ros2::World::declare(session, &config, &fleet).await?;
+            let node = tcpf_bus::ros2::World::declare(session, &config, &fleet, "world").await?;
             let mut outlets = BTreeMap::new();
             for &id in ids.iter().filter(|id| !simulated.contains(id)) {
                 outlets.insert(id, Outlet::for_clock(session, keys.state(id), realtime).await?);
