@@ -9,9 +9,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    arrivals, assert_none_left, config, credential, descendants, failure, fleet, fleet_without_vehicle_2, kill, logged,
-    paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing, wait_until_simulated,
-    without_command, Launch, Reaper,
+    arrivals, assert_none_left, assert_played_together, config, credential, descendants, failure, fleet,
+    fleet_without_vehicle_2, kill, logged, paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary,
+    timing, wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -184,26 +184,7 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     ));
     let out = dir.join("run");
     let recorded = record_by_hand(&mission, &endpoint, &out).args(clock).output().unwrap();
-    let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
-    assert!(
-        recorded.status.success(),
-        "{}\nvehicle.py: {}\nworld: {}",
-        common::text(&recorded),
-        log("vehicle"),
-        log("world")
-    );
-    let s = summary(&out);
-    let a = arrivals(&s);
-    let error = s["max_coordination_error"].as_f64().unwrap();
-    assert!(error < 1.0, "coordination error {error:.3} s; arrivals {a:?}");
-    assert!((a[0] - a[1]).abs() < 1.0, "arrivals {a:?}");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while vehicle.0.try_wait().unwrap().is_none() {
-        assert!(Instant::now() < deadline, "vehicle.py did not stop at the end");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    assert!(vehicle.0.wait().unwrap().success(), "{}", log("vehicle"));
-    assert!(log("world").contains("simulating vehicles [1]"), "{}", log("world"));
+    let s = assert_played_together(&recorded, &logs, &out, &mut vehicle);
     let world = timing(&s, "world", 0);
     assert!(
         world["without_command"].as_array().unwrap().iter().all(|v| v[0] != 2),

@@ -8,8 +8,8 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use common::{
-    arrivals, assert_same_run, credential, fleet, fleet_without_vehicle_2, kill, logged, paper, pid_of, record_by_hand,
-    run_in_process, scratch, summary, Launch, Reaper,
+    assert_played_together, assert_same_run, credential, fleet, fleet_without_vehicle_2, kill, logged, paper, pid_of,
+    record_by_hand, run_in_process, scratch, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -45,38 +45,57 @@ fn watch(config: &std::path::Path, domain: &str, out: &std::path::Path) -> Value
     seen
 }
 
-/// Every odometry sample is a telemetry row: pose to the float, stamp its time, frames REP 105's.
-fn assert_odometry_is_the_telemetry(seen: &Value, rows: &[BTreeMap<String, String>]) {
+/// Each vehicle's samples of `series` (`topic(id)` names them) beside its telemetry rows: as
+/// many, in order, each checked by `check(id, sample, row value of a column)`.
+fn each_row(
+    rows: &[BTreeMap<String, String>],
+    series: &Value,
+    topic: impl Fn(&str) -> String,
+    check: impl Fn(&str, &Value, &dyn Fn(&str) -> f64),
+) {
     for id in ["1", "2"] {
         let mine: Vec<&BTreeMap<String, String>> = rows.iter().filter(|r| r["id"] == id).collect();
-        let odometry = seen["odometry"][&format!("vehicle_{id}")].as_array().unwrap();
-        assert_eq!(odometry.len(), mine.len(), "vehicle {id}");
-        for (o, row) in odometry.iter().zip(&mine) {
-            let f = |k: &str| row[k].parse::<f64>().unwrap();
-            assert_eq!(
-                (num(&o["x"]), num(&o["y"])),
-                (f("x"), f("y")),
-                "vehicle {id}, tick {}",
-                row["tick"]
-            );
+        let samples = series[&topic(id)].as_array().unwrap();
+        assert_eq!(samples.len(), mine.len(), "vehicle {id}");
+        for (sample, row) in samples.iter().zip(&mine) {
+            check(id, sample, &|k: &str| row[k].parse::<f64>().unwrap());
+        }
+    }
+}
+
+/// The graph's liveliness tokens that watch.py found while the run was under way.
+fn graph(seen: &Value) -> Vec<&str> {
+    seen["tokens"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_str().unwrap())
+        .collect()
+}
+
+/// Every odometry sample is a telemetry row: pose to the float, stamp its time, frames REP 105's.
+fn assert_odometry_is_the_telemetry(seen: &Value, rows: &[BTreeMap<String, String>]) {
+    each_row(
+        rows,
+        &seen["odometry"],
+        |id| format!("vehicle_{id}"),
+        |id, o, f| {
+            let at = format!("vehicle {id} at t = {}", f("t"));
+            assert_eq!((num(&o["x"]), num(&o["y"])), (f("x"), f("y")), "{at}");
             let yaw = (num(&o["yaw"]) - f("heading") + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
                 - std::f64::consts::PI;
-            assert!(
-                yaw.abs() < 1e-12,
-                "vehicle {id}, tick {}: yaw off by {yaw}",
-                row["tick"]
-            );
-            assert_eq!(num(&o["yaw_rate"]), f("r"), "vehicle {id}, tick {}", row["tick"]);
+            assert!(yaw.abs() < 1e-12, "{at}: yaw off by {yaw}");
+            assert_eq!(num(&o["yaw_rate"]), f("r"), "{at}");
             let stamp = &o["stamp"];
             let t = stamp[0].as_f64().unwrap() + stamp[1].as_f64().unwrap() * 1e-9;
-            assert!((t - f("t")).abs() < 1e-9, "stamp {stamp} at t = {}", row["t"]);
+            assert!((t - f("t")).abs() < 1e-9, "{at}: stamp {stamp}");
             assert_eq!(
                 (o["frame"].as_str(), o["child"].as_str()),
                 (Some("map"), Some(&*format!("vehicle_{id}")))
             );
             assert_eq!(o["tilt"], serde_json::json!([0.0, 0.0, 0.0]));
-        }
-    }
+        },
+    );
 }
 
 #[test]
@@ -122,12 +141,7 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
 
     // The graph: the nodes /tcpf/world, /tcpf/agent_1 and /tcpf/agent_2, and one publisher per
     // topic: the world's eight and two paths, each agent's commands.
-    let tokens: Vec<&str> = seen["tokens"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| t.as_str().unwrap())
-        .collect();
+    let tokens = graph(&seen);
     let kinds = |kind: &str| tokens.iter().filter(|t| t.split('/').nth(5) == Some(kind)).count();
     assert_eq!((kinds("NN"), kinds("MP"), tokens.len()), (3, 12, 15), "{tokens:?}");
     for node in ["world", "agent_1", "agent_2"] {
@@ -219,18 +233,18 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     assert_odometry_is_the_telemetry(&seen, &rows);
 
     // γ, γ̇ and γ − t of each vehicle, tick by tick: its γ is the telemetry's, to the bit.
-    for id in ["1", "2"] {
-        let mine: Vec<&BTreeMap<String, String>> = rows.iter().filter(|r| r["id"] == id).collect();
-        let gamma = seen["vectors"][&format!("vehicle_{id}/gamma")].as_array().unwrap();
-        assert_eq!(gamma.len(), mine.len(), "vehicle {id}");
-        for (v, row) in gamma.iter().zip(&mine) {
-            let f = |k: &str| row[k].parse::<f64>().unwrap();
-            assert_eq!(num(&v["x"]), f("gamma"), "vehicle {id}, tick {}", row["tick"]);
-            assert_eq!(num(&v["z"]), f("gamma") - f("t"), "vehicle {id}, tick {}", row["tick"]);
-            assert!(num(&v["y"]) > 0.0, "γ̇ > 0 at tick {}", row["tick"]);
+    each_row(
+        &rows,
+        &seen["vectors"],
+        |id| format!("vehicle_{id}/gamma"),
+        |id, v, f| {
+            let at = format!("vehicle {id} at t = {}", f("t"));
+            assert_eq!(num(&v["x"]), f("gamma"), "{at}");
+            assert_eq!(num(&v["z"]), f("gamma") - f("t"), "{at}");
+            assert!(num(&v["y"]) > 0.0, "γ̇ > 0: {at}");
             assert_eq!(v["frame"].as_str(), Some(&*format!("vehicle_{id}")));
-        }
-    }
+        },
+    );
     // The fleet's: the coordination error and the distance between the two, from the telemetry.
     let coordination = seen["vectors"]["coordination"].as_array().unwrap();
     let (one, two): (Vec<_>, Vec<_>) = rows.iter().partition(|r| r["id"] == "1");
@@ -250,20 +264,19 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
 
     // Each agent's commands, as a ROS 2 node playing the vehicle takes them: its speed and yaw
     // rate, the telemetry's, command by command.
-    for id in ["1", "2"] {
-        let mine: Vec<&BTreeMap<String, String>> = rows.iter().filter(|r| r["id"] == id).collect();
-        let commands = seen["twists"][&format!("vehicle_{id}")].as_array().unwrap();
-        assert_eq!(commands.len(), mine.len(), "vehicle {id}");
-        for (c, row) in commands.iter().zip(&mine) {
-            let f = |k: &str| row[k].parse::<f64>().unwrap();
+    each_row(
+        &rows,
+        &seen["twists"],
+        |id| format!("vehicle_{id}"),
+        |id, c, f| {
             assert_eq!(
                 (num(&c[0]), num(&c[1])),
                 (f("v"), f("r")),
-                "vehicle {id}, tick {}",
-                row["tick"]
+                "vehicle {id} at t = {}",
+                f("t")
             );
-        }
-    }
+        },
+    );
     // Each link's γ messages, sent, delivered and lost so far: at the end, the summary's.
     for link in summary["links"].as_array().unwrap() {
         let topic = format!("links/from_{}_to_{}", link["from"], link["to"]);
@@ -346,34 +359,15 @@ fn a_ros2_node_plays_a_vehicle_beside_the_one_the_world_simulates() {
     assert!(!twice.exists(), "nothing recorded, no directory left: {said}");
     let out = dir.join("run");
     let recorded = record_by_hand(mission, &endpoint, &out).args(clock).output().unwrap();
-    let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
-    assert!(
-        recorded.status.success(),
-        "{}\nvehicle.py: {}\nworld: {}",
-        common::text(&recorded),
-        log("vehicle"),
-        log("world")
-    );
-    let s = summary(&out);
-    let a = arrivals(&s);
-    let error = s["max_coordination_error"].as_f64().unwrap();
-    assert!(error < 1.0, "coordination error {error:.3} s; arrivals {a:?}");
-    assert!((a[0] - a[1]).abs() < 1.0, "arrivals {a:?}");
+    let s = assert_played_together(&recorded, &logs, &out, &mut vehicle);
     assert_eq!(s["vehicles"][1]["played_by"], "ros2", "{}", s["vehicles"]);
     assert!(s["vehicles"][0].get("played_by").is_none(), "{}", s["vehicles"]);
-    assert!(log("world").contains("simulating vehicles [1]"), "{}", log("world"));
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(
         report.contains("<th>played by</th>") && report.contains("<td>a ROS 2 node</td>"),
         "the report's vehicles table says who played vehicle 2"
     );
-    // The node left once the world had left the graph.
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while vehicle.0.try_wait().unwrap().is_none() {
-        assert!(Instant::now() < deadline, "vehicle.py did not stop once the world left");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    assert!(vehicle.0.wait().unwrap().success(), "{}", log("vehicle"));
+    // The node left once the world had left the graph (assert_played_together waited for it).
     let node: Value = serde_json::from_str(&std::fs::read_to_string(&played).unwrap()).unwrap();
     assert_eq!(
         node["start"],
@@ -510,12 +504,7 @@ fn a_recorder_with_ros2_shows_a_fleet_that_speaks_none() {
     let said = std::fs::read_to_string(logs.join("record.log")).unwrap_or_default();
     assert_eq!(status, Some(0), "{said}");
 
-    let tokens: Vec<&str> = seen["tokens"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| t.as_str().unwrap())
-        .collect();
+    let tokens = graph(&seen);
     let kinds = |kind: &str| tokens.iter().filter(|t| t.split('/').nth(5) == Some(kind)).count();
     assert_eq!((kinds("NN"), kinds("MP")), (1, 10), "{tokens:?}");
     assert!(tokens.iter().any(|t| t.ends_with("/NN/%/%tcpf/recorder")), "{tokens:?}");

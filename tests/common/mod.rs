@@ -569,3 +569,34 @@ pub fn fleet_without_vehicle_2(mission: &str, logs: &Path, settings: &[&str]) ->
     }
     (fleet, endpoint)
 }
+
+/// A fleet by hand whose vehicle 2 another program played (`vehicle`, logging into
+/// `logs/vehicle.log`), recorded into `out` by `tcpf record`, which said `recorded`: the recording
+/// succeeded, both vehicles arrived within a second of each other with a coordination error under
+/// 1 s, and the program stopped by itself within 10 s of the end. The run's summary.
+pub fn assert_played_together(recorded: &Output, logs: &Path, out: &Path, vehicle: &mut Reaper) -> Value {
+    let log = |name: &str| std::fs::read_to_string(logs.join(format!("{name}.log"))).unwrap_or_default();
+    assert!(
+        recorded.status.success(),
+        "{}\nvehicle: {}\nworld: {}",
+        text(recorded),
+        log("vehicle"),
+        log("world")
+    );
+    let s = summary(out);
+    let a = arrivals(&s);
+    let error = s["max_coordination_error"].as_f64().unwrap();
+    assert!(error < 1.0, "coordination error {error:.3} s; arrivals {a:?}");
+    assert!((a[0] - a[1]).abs() < 1.0, "arrivals {a:?}");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while vehicle.0.try_wait().unwrap().is_none() {
+        assert!(
+            Instant::now() < deadline,
+            "the vehicle's program did not stop at the end"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(vehicle.0.wait().unwrap().success(), "{}", log("vehicle"));
+    assert!(log("world").contains("simulating vehicles [1]"), "{}", log("world"));
+    s
+}
