@@ -40,7 +40,7 @@ pub struct Mission {
     /// The vehicle every `[[vehicle]]` is unless it says otherwise (MODEL D22).
     #[serde(default, skip_serializing_if = "VehicleModelConfig::is_kinematic_default")]
     pub vehicle_model: VehicleModelConfig,
-    /// Where the fleet appears in the ROS 2 graph, when it speaks rmw_zenoh (docs/ROS2.md).
+    /// Where the fleet appears in the ROS 2 graph, when it speaks ROS 2 (docs/ROS2.md).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ros2: Option<Ros2Config>,
     #[serde(rename = "vehicle")]
