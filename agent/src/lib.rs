@@ -638,7 +638,7 @@ impl Shell {
                         queued.commands.put(&action.command).await?;
                         if let Some(ros2) = &mut queued.ros2 {
                             let t = action.command.tick as f64 * mission.mission.control_period;
-                            ros2.put(&action.command, Stamp::from_seconds(clock.epoch + t / clock.time_scale))?;
+                            ros2.put(&action.command, Stamp::of_fleet(clock, t))?;
                         }
                     }
                 }

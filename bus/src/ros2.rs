@@ -204,10 +204,10 @@ pub struct Fleet<'a> {
     pub lockstep: bool,
 }
 
-/// The world as the ROS 2 node `world` (or a recorder for a world that does not speak ROS 2): the odometry of the vehicles it simulates, every
-/// vehicle's planned path and coordination state, each link's γ messages, the fleet's
-/// coordination and, in lockstep, `/clock`; and a subscription to the odometry of each vehicle a
-/// ROS 2 node may play.
+/// The world as the ROS 2 node `world` (or a recorder, for a world that does not speak ROS 2):
+/// the odometry of the vehicles it simulates, every vehicle's planned path and coordination
+/// state, each link's γ messages, the fleet's coordination and, in lockstep, `/clock`; and a
+/// subscription to the odometry of each vehicle a ROS 2 node may play.
 pub struct World {
     odometry: BTreeMap<u32, Topic>,
     gamma: BTreeMap<u32, Topic>,
@@ -366,8 +366,7 @@ impl Agent {
 
 /// Whether the node `name` of the fleet is in the graph of `ros2`'s domain now.
 pub async fn node_present(session: &Session, ros2: &Ros2Config, name: &str) -> Result<bool> {
-    let any = Node { zid: "*", id: 0, name };
-    let key = ros2.node_token(&any).replacen("/0/0/NN/", "/*/*/NN/", 1);
+    let key = ros2.any_node_token(name);
     let replies = session
         .liveliness()
         .get(key.clone())

@@ -13,7 +13,7 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
-use tcpf_core::msg::{Command, End, Loss, Report, State, TickRecord};
+use tcpf_core::msg::{Clock, Command, End, Loss, Report, State, TickRecord};
 use tcpf_core::realtime::{Sampler, STATES_DUE_S};
 use tcpf_core::record::Recorder;
 use tcpf_core::watch::{Due, RecorderWaits};
@@ -123,29 +123,21 @@ pub struct Recording {
 struct Speaking {
     node: tcpf_bus::ros2::World,
     paths: Vec<(u32, GeneralizedPath)>,
-    /// Realtime: the fleet's epoch and time scale, once its clock has answered; lockstep: none,
-    /// stamps are simulated time.
-    wall: Option<(f64, f64)>,
+    /// Realtime: the fleet's clock, once it has answered; lockstep: none, stamps are simulated
+    /// time.
+    clock: Option<Clock>,
 }
 
 impl Speaking {
-    fn stamp(&self, t: f64) -> Stamp {
-        stamp_at(self.wall, t)
-    }
-
     fn put_paths(&mut self) -> Result<()> {
-        let wall = self.wall;
-        self.node.put_paths(&self.paths, |t| stamp_at(wall, t))
+        let clock = self.clock;
+        self.node.put_paths(&self.paths, |t| stamp_at(clock.as_ref(), t))
     }
 }
 
-/// Fleet time `t` as ROS 2 stamps say it: simulated time in lockstep, the wall clock of the
-/// fleet's epoch in realtime (`wall`: epoch and time scale).
-fn stamp_at(wall: Option<(f64, f64)>, t: f64) -> Stamp {
-    match wall {
-        Some((epoch, scale)) => Stamp::from_seconds(epoch + t / scale),
-        None => Stamp::from_seconds(t),
-    }
+/// Fleet time `t` as the fleet's stamps say it, before a realtime fleet's clock is known too.
+fn stamp_at(clock: Option<&Clock>, t: f64) -> Stamp {
+    clock.map_or_else(|| Stamp::from_seconds(t), |c| Stamp::of_fleet(c, t))
 }
 
 /// Writes a tick of the telemetry and, with `--ros2`, publishes it.
@@ -158,7 +150,7 @@ fn write_tick(
     telemetry.tick(states, commands)?;
     match ros2 {
         Some(r) => {
-            let stamp = r.stamp(states[0].t);
+            let stamp = stamp_at(r.clock.as_ref(), states[0].t);
             r.node
                 .put(states.iter().zip(commands).map(|(s, c)| (s, c.as_ref())), stamp)
         }
@@ -242,7 +234,7 @@ impl Recording {
         let mut speaking = Speaking {
             node,
             paths: plan.paths(),
-            wall: None,
+            clock: None,
         };
         if lockstep {
             speaking.put_paths()?;
@@ -345,7 +337,7 @@ impl Recording {
                     check_clock("recorder", &self.expected, &clock)?;
                     self.telemetry.set_epoch(clock.epoch);
                     if let Some(ros2) = &mut self.ros2 {
-                        ros2.wall = Some((clock.epoch, clock.time_scale));
+                        ros2.clock = Some(clock);
                         ros2.put_paths()?;
                     }
                     let fleet = FleetClock::new(&clock, *control_period);

@@ -5,7 +5,7 @@
 //! the world's shell puts them on the bus.
 
 use crate::mission::{Mission, Ros2Config};
-use crate::msg::{Command, State};
+use crate::msg::{Clock, Command, State};
 use crate::path::GeneralizedPath;
 use std::collections::BTreeMap;
 
@@ -130,6 +130,16 @@ impl Ros2Config {
         )
     }
 
+    /// A key expression of the token of the node `name` in any session: whether it is in the
+    /// graph.
+    pub fn any_node_token(&self, name: &str) -> String {
+        format!(
+            "@ros2_lv/{}/*/*/*/NN/%/{}/{name}",
+            self.domain,
+            mangled(&self.namespace)
+        )
+    }
+
     /// The liveliness token of a publisher or subscription of `node` (its entity `id`) on
     /// `topic` with QoS `qos`: `ros2 topic list` shows the topic while it lives.
     pub fn entity_token(&self, node: &Node, id: u32, kind: Entity, topic: &str, ty: &Type, qos: &str) -> String {
@@ -191,6 +201,16 @@ pub struct Stamp {
 }
 
 impl Stamp {
+    /// Fleet time `t` as the fleet's stamps say it (docs/ROS2.md, "Time"): simulated time on a
+    /// lockstep clock, the wall clock of the fleet's epoch on a realtime one, whose simulated
+    /// time runs `time_scale` times faster than the wall.
+    pub fn of_fleet(clock: &Clock, t: f64) -> Stamp {
+        match clock.realtime {
+            true => Stamp::from_seconds(clock.epoch + t / clock.time_scale),
+            false => Stamp::from_seconds(t),
+        }
+    }
+
     /// `t` seconds, to the nearest nanosecond.
     pub fn from_seconds(t: f64) -> Stamp {
         Stamp::from_nanos((t * 1e9).round() as i64)
@@ -541,8 +561,8 @@ pub struct Played {
     epoch: f64,
     time_scale: f64,
     control_period: f64,
-    /// Per vehicle, the tick of its newest state.
-    newest: BTreeMap<u32, u64>,
+    /// Per vehicle, its newest state.
+    newest: BTreeMap<u32, State>,
 }
 
 /// Why a played vehicle's odometry made no state.
@@ -575,16 +595,21 @@ impl Played {
     pub fn on_odometry(&mut self, id: u32, cdr: &[u8]) -> Result<State, Refused> {
         let odometry = Odometry::from_cdr(id, cdr).map_err(|Malformed| Refused::Malformed)?;
         let state = self.state(&odometry)?;
-        if self.newest.get(&id).is_some_and(|&tick| tick > state.tick) {
+        if self.newest.get(&id).is_some_and(|held| held.tick > state.tick) {
             return Err(Refused::Stale);
         }
-        self.newest.insert(id, state.tick);
+        self.newest.insert(id, state);
         Ok(state)
     }
 
     /// Whether a node played vehicle `id`: its odometry made a state.
     pub fn heard(&self, id: u32) -> bool {
         self.newest.contains_key(&id)
+    }
+
+    /// The newest state of each vehicle a node played, in id order.
+    pub fn states(&self) -> impl Iterator<Item = &State> {
+        self.newest.values()
     }
 
     /// The state odometry `o` says: the tick its stamp falls on and its pose. The vehicle is
@@ -677,6 +702,7 @@ mod tests {
             root.node_token(&world),
             "@ros2_lv/0/5af83680cf352c29b0a98954d16a5470/0/0/NN/%/%/world"
         );
+        assert_eq!(lab.any_node_token("world"), "@ros2_lv/4/*/*/*/NN/%/%lab%fleet_1/world");
     }
 
     #[test]
@@ -706,6 +732,25 @@ mod tests {
             }
         );
         assert_eq!(Stamp::from_seconds(1.25).nanos(), 1_250_000_000);
+        let mut fleet = Clock {
+            version: crate::msg::PROTOCOL_VERSION,
+            realtime: false,
+            time_scale: 5.0,
+            epoch: 1_000.0,
+            tick: 0,
+            mission: 0,
+        };
+        assert_eq!(
+            Stamp::of_fleet(&fleet, 10.0),
+            Stamp::from_seconds(10.0),
+            "lockstep: simulated time"
+        );
+        fleet.realtime = true;
+        assert_eq!(
+            Stamp::of_fleet(&fleet, 10.0),
+            Stamp::from_seconds(1_002.0),
+            "realtime at 5x"
+        );
         assert_eq!(
             clock(Stamp { sec: 2, nanosec: 5 }),
             [0, 1, 0, 0, 2, 0, 0, 0, 5, 0, 0, 0]
@@ -914,6 +959,8 @@ mod tests {
         assert_eq!(played.on_odometry(2, &nan.cdr()), Err(Refused::NonFinite));
         assert_eq!(played.on_odometry(2, &[0, 1, 0, 0, 7]), Err(Refused::Malformed));
         assert!(!played.heard(3));
+        let held: Vec<(u32, u64)> = played.states().map(|s| (s.id, s.tick)).collect();
+        assert_eq!(held, [(2, 1000)], "the newest state of each vehicle heard");
     }
 
     #[test]

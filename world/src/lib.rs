@@ -23,7 +23,7 @@ use tcpf_bus::typed::{
 use tcpf_core::lockstep::{Timing, WorldNode};
 use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, PROTOCOL_VERSION};
+use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
 use tcpf_core::ros2::{Played, Refused, Stamp};
@@ -102,15 +102,13 @@ async fn played_odometry(ros2: &mut Option<Ros2Side>) -> Option<Received<(u32, V
     }
 }
 
-/// The realtime world's ROS 2 node, and what it heard of the vehicles played by ROS 2 nodes.
+/// The realtime world's ROS 2 node, and where the states of vehicles played by ROS 2 nodes go.
 struct Ros2Side {
     node: tcpf_bus::ros2::World,
     /// Once the run has started.
     odometry: Option<PlayedOdometry>,
     /// Per vehicle the world does not simulate, where its states go once a node plays it.
     outlets: BTreeMap<u32, Outlet>,
-    /// The last state of each vehicle a node played.
-    played: BTreeMap<u32, State>,
 }
 
 /// Where the agents' commands go.
@@ -340,7 +338,6 @@ async fn serve(
                 node,
                 odometry: None,
                 outlets,
-                played: BTreeMap::new(),
             })
         }
         None => None,
@@ -608,8 +605,7 @@ impl Shell {
         self.clock.set(clock);
         let fleet = FleetClock::new(&clock, mission.mission.control_period);
         let period = fleet.period().as_secs_f64();
-        // The wall clock of the fleet's epoch: simulated time runs time_scale times faster.
-        let stamp_of = |t: f64| Stamp::from_seconds(clock.epoch + t / mission.mission.time_scale);
+        let stamp_of = |t: f64| Stamp::of_fleet(&clock, t);
         let mut played = Played::new(mission, clock.epoch);
         if let Some(ros2) = &mut self.ros2 {
             ros2.node.put_paths(paths, stamp_of)?;
@@ -633,7 +629,7 @@ impl Shell {
                     }
                     if let Some(ros2) = &mut self.ros2 {
                         let t = node.tick() as f64 * mission.mission.control_period;
-                        let fleet = node.states().iter().chain(ros2.played.values());
+                        let fleet = node.states().iter().chain(played.states());
                         ros2.node.put(fleet.map(|s| (s, node.command_of(s.id))), stamp_of(t))?;
                     }
                 }
@@ -643,10 +639,7 @@ impl Shell {
                 Some(o) = played_odometry(&mut self.ros2) => {
                     let (id, cdr) = &o.message;
                     match (played.on_odometry(*id, cdr), &mut self.ros2) {
-                        (Ok(state), Some(ros2)) => {
-                            ros2.outlets[id].put(&state).await?;
-                            ros2.played.insert(*id, state);
-                        }
+                        (Ok(state), Some(ros2)) => ros2.outlets[id].put(&state).await?,
                         (Ok(_), None) => {}
                         (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
                         (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
