@@ -1327,16 +1327,7 @@ fn router_knows(endpoint: &str, wanted: &[&str]) {
         let session = zenoh::open(config).await.unwrap();
         let deadline = Instant::now() + Duration::from_secs(30);
         loop {
-            let replies = session
-                .liveliness()
-                .get("tcpf/paper-b-current/alive/**")
-                .timeout(Duration::from_secs(5))
-                .await
-                .unwrap();
-            let mut known = Vec::new();
-            while let Ok(reply) = replies.recv_async().await {
-                known.extend(reply.result().ok().map(|s| s.key_expr().to_string()));
-            }
+            let known = common::tokens(&session, "tcpf/paper-b-current/alive/**").await;
             if wanted.iter().all(|w| known.iter().any(|k| k.ends_with(w))) {
                 break;
             }

@@ -263,14 +263,11 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
         gap >= 100,
         "vehicle 2 went without a command for {gap} periods: {world}"
     );
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while again.0.try_wait().unwrap().is_none() {
-        assert!(
-            Instant::now() < deadline,
-            "the agent started again did not stop at the end"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    common::wait_exit(
+        &mut again.0,
+        Duration::from_secs(10),
+        "the agent started again, at the end",
+    );
 }
 
 /// A testbed's shore planner is no vehicle: stopped once the fleet runs, the run goes on to its

@@ -396,16 +396,7 @@ async fn a_killed_agent_leaves_the_ros2_graph_within_2_s() {
     let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
         .await
         .unwrap();
-    let graph = || async {
-        let replies = session.liveliness().get("@ros2_lv/4/**").await.unwrap();
-        let mut tokens = Vec::new();
-        while let Ok(reply) = replies.recv_async().await {
-            if let Ok(sample) = reply.result() {
-                tokens.push(sample.key_expr().to_string());
-            }
-        }
-        tokens
-    };
+    let graph = || common::tokens(&session, "@ros2_lv/4/**");
     let of = |tokens: &[String], node: &str| {
         tokens
             .iter()

@@ -588,15 +588,27 @@ pub fn assert_played_together(recorded: &Output, logs: &Path, out: &Path, vehicl
     let error = s["max_coordination_error"].as_f64().unwrap();
     assert!(error < 1.0, "coordination error {error:.3} s; arrivals {a:?}");
     assert!((a[0] - a[1]).abs() < 1.0, "arrivals {a:?}");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while vehicle.0.try_wait().unwrap().is_none() {
-        assert!(
-            Instant::now() < deadline,
-            "the vehicle's program did not stop at the end"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    assert!(vehicle.0.wait().unwrap().success(), "{}", log("vehicle"));
+    let stopped = wait_exit(
+        &mut vehicle.0,
+        Duration::from_secs(10),
+        "the vehicle's program, at the end",
+    );
+    assert_eq!(stopped, Some(0), "{}", log("vehicle"));
     assert!(log("world").contains("simulating vehicles [1]"), "{}", log("world"));
     s
+}
+
+/// The liveliness tokens under `key` that `session` finds now (a query that waits at most 5 s).
+pub async fn tokens(session: &zenoh::Session, key: &str) -> Vec<String> {
+    let replies = session
+        .liveliness()
+        .get(key)
+        .timeout(Duration::from_secs(5))
+        .await
+        .unwrap();
+    let mut known = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        known.extend(reply.result().ok().map(|s| s.key_expr().to_string()));
+    }
+    known
 }
