@@ -174,13 +174,19 @@ async fn a_hiroz_node_on_sim_time_hears_every_tick_and_every_odometry() {
         "{}",
         std::fs::read_to_string(dir.join("run.log")).unwrap()
     );
-    // The world publishes a tick's samples before it announces the end: give the last a moment.
-    tokio::time::sleep(Duration::from_millis(500)).await;
     token.undeclare().await.unwrap();
     session.close().await.unwrap();
 
     let rows = telemetry(&out);
     let ticks = rows.iter().filter(|r| r[2] == "1").count();
+    // The last samples may still be on their way when the run has exited: wait until a /clock
+    // per tick and an odometry per row have come (or 10 s, after which the assertions below say
+    // what is missing).
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let all_here = || clock.lock().unwrap().len() >= ticks && odometry.lock().unwrap().len() >= rows.len();
+    while !all_here() && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
     let clock = clock.lock().unwrap().clone();
     assert_eq!(clock.len(), ticks, "a /clock sample per tick");
     for (k, t) in clock.iter().enumerate() {
