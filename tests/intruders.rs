@@ -120,6 +120,7 @@ fn samples() -> (State, Command, Gamma) {
             gamma_dot: 3.0,
             position: [0.0, 0.0],
         }),
+        busy: false,
     };
     (state, command, gamma)
 }

@@ -78,7 +78,8 @@ impl std::fmt::Display for Exit {
 /// What both clocks' loops work with.
 struct Shell {
     id: u32,
-    neighbours: Vec<u32>,
+    /// The vehicles whose γ this agent takes (`Agent::audible`), whose presence it follows.
+    audible: Vec<u32>,
     keys: Keys,
     session: Session,
     shutdown: Shutdown,
@@ -255,6 +256,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let path = paths?[0].1;
     let agent = Agent::new(mission, id, path);
     let neighbours: Vec<u32> = agent.neighbours().collect();
+    let audible: Vec<u32> = agent.audible().collect();
 
     let ros2 = match mission.ros2(options.ros2) {
         Some(config) => Some(tcpf_bus::ros2::Agent::declare(&session, &config, id, !realtime).await?),
@@ -265,7 +267,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         let (s1, states) = subscribe::<State>(&session, &keys.state(id), &rejected).await?;
         let (gamma_tx, gammas) = queue();
         subscribers.push(s1);
-        for &j in &neighbours {
+        for &j in &audible {
             subscribers.push(subscribe_into::<Gamma>(&session, &keys.gamma(j), &rejected, gamma_tx.clone()).await?);
         }
         let queued = Queued {
@@ -302,7 +304,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             })
             .await?,
         );
-        for &j in &neighbours {
+        for &j in &audible {
             let to = feed.clone();
             subscribers.push(
                 subscribe_with::<Gamma>(&session, &keys.gamma(j), &rejected, move |key, g| {
@@ -324,7 +326,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     // The world's token first: its clock is declared before it, so whether the run is under way
     // (the clock answers) is then known for sure.
     let monotonic = Monotonic::start();
-    let mut startup = AgentStartup::new(&neighbours, options.startup_timeout, monotonic.now());
+    let mut startup = AgentStartup::new(&audible, options.startup_timeout, monotonic.now());
     while !startup.fleet_here() {
         let wake = monotonic.at(startup.poll_timeout());
         let Some(arrived) = shutdown.unless(tokio::time::timeout_at(wake, presence.recv())).await else {
@@ -368,7 +370,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     });
     let mut shell = Shell {
         id,
-        neighbours: neighbours.clone(),
+        audible: audible.clone(),
         keys,
         session,
         shutdown,
@@ -426,7 +428,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                     return Ok(Exit::Orphaned);
                 }
                 let absent = startup.absent();
-                for &j in &neighbours {
+                for &j in &audible {
                     feed.with(|node| node.set_gone(j, absent.contains(&j)));
                 }
             }
@@ -548,7 +550,7 @@ impl Shell {
                     Role::Planner if !p.alive => {
                         tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
                     }
-                    Role::Agent if self.neighbours.contains(&p.id) => feed.with(|node| node.set_gone(p.id, !p.alive)),
+                    Role::Agent if self.audible.contains(&p.id) => feed.with(|node| node.set_gone(p.id, !p.alive)),
                     _ => {}
                 },
                 Some(e) = self.ends.recv() => match feed.with(|node| node.on_end(&e.message)) {

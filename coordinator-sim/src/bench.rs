@@ -37,6 +37,7 @@ fn probe(tick: u64) -> Gamma {
             gamma_dot: 1.0,
             position: [0.0, 0.0],
         }),
+        busy: false,
     }
 }
 

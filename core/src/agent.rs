@@ -6,8 +6,9 @@ use std::collections::VecDeque;
 
 use crate::coord;
 use crate::follow::{self, Gains};
-use crate::links::{Link, LinkSpec};
-use crate::mission::{BetaDot, Mission, PostArrival, Trigger, VehicleModelConfig};
+use crate::links::{Cause, Link, LinkSpec};
+use crate::mission::{BetaDot, Mission, ModemConfig, PostArrival, Trigger, VehicleModelConfig};
+use crate::modem::{power, Arrival, Receiver};
 use crate::msg::{Command, Gamma, Reception, Sample, State, PROTOCOL_VERSION};
 use crate::path::{GeneralizedPath, Vec2};
 
@@ -28,6 +29,97 @@ struct Tdma {
     slot_ticks: u64,
     vehicles: u64,
     position: u64,
+}
+
+/// A vehicle's half-duplex modem (D23): when it last transmitted, what it hears in the water,
+/// and the frames of its neighbours not yet judged.
+#[derive(Debug, Clone)]
+struct Acoustic {
+    /// The fleet's waveform: the airtime.
+    modem: ModemConfig,
+    /// Per audible vehicle, the modem its frames reach this one with, and the speed they travel.
+    senders: Vec<(u32, ModemConfig, f64)>,
+    last_sent: Option<f64>,
+    receiver: Receiver,
+    /// In the order sent, each judged at its tick.
+    pending: VecDeque<Pending>,
+}
+
+/// A neighbour's frame in the water, judged once its last bit is in (and every frame that could
+/// overlap it has been sent).
+#[derive(Debug, Clone)]
+struct Pending {
+    /// Index of its inbound link.
+    link: usize,
+    due: u64,
+    arrival: Arrival,
+    sample: Sample,
+    distance: f64,
+    /// What the link's own models (D12, D21) made of it, applied once it survives the physics.
+    verdict: Cause,
+    /// The link's draw for it.
+    u: f64,
+}
+
+impl Acoustic {
+    fn busy(&self, t: f64) -> bool {
+        self.last_sent.is_some_and(|s| t < s + self.modem.airtime())
+    }
+
+    /// The frame `sample` of vehicle `from` as it reaches this vehicle, at `here` when it was sent.
+    fn arrival(&self, from: u32, sample: &Sample, here: Vec2) -> Option<Arrival> {
+        let (_, modem, c) = self.senders.iter().find(|(j, ..)| *j == from)?;
+        let d = (Vec2::from(sample.position) - here).norm();
+        Some(Arrival {
+            from,
+            sent: sample.t,
+            start: sample.t + d / c,
+            power: power(modem.received_level(d)),
+        })
+    }
+
+    /// Every frame sent at this instant reaches this vehicle, at `here`, neighbour's or not.
+    fn hear(&mut self, inbox: &[Gamma], here: Vec2) {
+        for g in inbox {
+            if let Some(a) = g.sample.and_then(|s| self.arrival(g.from, &s, here)) {
+                self.receiver.hear(a);
+            }
+        }
+    }
+
+    /// Judges the frames due by `tick`, in the order sent: receptions for each, and the
+    /// delivered ones usable now.
+    fn judge(&mut self, tick: u64, t: f64, links: &mut [Inbound], receptions: &mut Vec<Reception>) {
+        let mut k = 0;
+        while k < self.pending.len() {
+            if self.pending[k].due > tick {
+                k += 1;
+                continue;
+            }
+            let p = self.pending.remove(k).expect("a frame is due");
+            let inbound = &mut links[p.link];
+            let modem = inbound.link.spec().modem.expect("a link with a modem");
+            let judged = self.receiver.judge(&modem, &p.arrival, p.u);
+            let cause = if judged.cause.delivered() {
+                p.verdict
+            } else {
+                judged.cause
+            };
+            receptions.push(Reception {
+                from: inbound.link.from,
+                delivered: cause.delivered(),
+                sent: p.sample.t,
+                distance: Some(p.distance),
+                sinr_db: judged.sinr_db,
+                cause,
+            });
+            if cause.delivered() {
+                inbound.in_flight.push_back((tick, p.sample));
+            }
+        }
+        let oldest = self.pending.iter().map(|p| p.arrival.start).fold(t, f64::min);
+        self.receiver.forget_before(oldest, self.modem.airtime());
+    }
 }
 
 impl Tdma {
@@ -66,6 +158,10 @@ pub struct Agent {
     hold_ticks: u64,
     /// Inbound links j→i, ascending j.
     links: Vec<Inbound>,
+    /// The vehicles whose γ messages this agent takes: its neighbours, or with a modem every
+    /// other vehicle, whose frames the water carries whatever the graph (D23).
+    audible: Vec<u32>,
+    acoustic: Option<Acoustic>,
     gamma: f64,
     /// γ̇ over the last control period: the rate a sample carries.
     gamma_dot: f64,
@@ -166,7 +262,27 @@ impl Agent {
             (Trigger::Periodic, Some(t)) => t.cycle_ticks(),
             (Trigger::Event, Some(t)) => silence + t.cycle_ticks(),
         };
+        // A modem busy with its last frame stays silent at the instants its airtime covers.
+        let hold_ticks = hold_ticks.max(k.modem.map_or(0, |m| whole_periods(m.airtime())));
         let neighbours = graph.get(&id).cloned().unwrap_or_default();
+        let audible: Vec<u32> = match k.modem {
+            Some(_) => graph.keys().copied().filter(|&j| j != id).collect(),
+            None => neighbours.clone(),
+        };
+        let acoustic = k.modem.map(|modem| Acoustic {
+            modem,
+            senders: audible
+                .iter()
+                .map(|&j| {
+                    let spec = LinkSpec::of(mission, j, id);
+                    let c = spec.sound_speed().expect("a modem's frames travel");
+                    (j, spec.modem.expect("a mission with a modem"), c)
+                })
+                .collect(),
+            last_sent: None,
+            receiver: Receiver::default(),
+            pending: VecDeque::new(),
+        });
         Agent {
             id,
             path,
@@ -195,6 +311,8 @@ impl Agent {
                     latest: None,
                 })
                 .collect(),
+            audible,
+            acoustic,
             gamma: 0.0,
             // On schedule, virtual time runs at the rate of time.
             gamma_dot: 1.0,
@@ -228,10 +346,16 @@ impl Agent {
         self.links.iter().map(|l| l.link.from)
     }
 
+    /// The vehicles whose γ messages this agent takes and, in lockstep, waits for: its
+    /// neighbours, or with a modem every other vehicle (D23).
+    pub fn audible(&self) -> impl Iterator<Item = u32> + '_ {
+        self.audible.iter().copied()
+    }
+
     /// Whether `tick`, the next after the last `step`, is a communication instant: a multiple of
     /// the period, or the first tick past one that a realtime agent skipped.
     pub fn is_comm_tick(&self, tick: u64) -> bool {
-        !self.links.is_empty()
+        !self.audible.is_empty()
             && (tick.is_multiple_of(self.comm_every)
                 || self
                     .last_tick
@@ -256,7 +380,9 @@ impl Agent {
                     || (self.gamma - estimate(last, t, self.compensate)).abs() > self.threshold
             }
         };
-        let sample = (in_slot && due).then_some(Sample {
+        // A trigger that fires while the modem still sends its last frame sends nothing (D23).
+        let busy = in_slot && due && self.acoustic.as_ref().is_some_and(|a| a.busy(t));
+        let sample = (in_slot && due && !busy).then_some(Sample {
             t,
             gamma: self.gamma,
             gamma_dot: self.gamma_dot,
@@ -264,12 +390,17 @@ impl Agent {
         });
         if let Some(s) = sample {
             self.sent = Some((tick, s));
+            if let Some(a) = &mut self.acoustic {
+                a.last_sent = Some(t);
+                a.receiver.transmitted(t);
+            }
         }
         Some(Gamma {
             version: PROTOCOL_VERSION,
             tick,
             from: self.id,
             sample,
+            busy,
         })
     }
 
@@ -287,19 +418,45 @@ impl Agent {
             let mut sum = None;
             let t = tick as f64 * self.dt;
             let here = Vec2::from(state.position);
-            for inbound in &mut self.links {
+            if let Some(a) = &mut self.acoustic {
+                a.hear(inbox, here);
+            }
+            for (n, inbound) in self.links.iter_mut().enumerate() {
                 let from = inbound.link.from;
-                let sample = inbox.iter().find(|m| m.from == from).and_then(|m| m.sample);
+                let message = inbox.iter().find(|m| m.from == from);
+                let sample = message.and_then(|m| m.sample);
                 let distance = sample.map(|s| (Vec2::from(s.position) - here).norm());
-                let delivered = inbound.link.transmit(t, distance);
-                if let Some(s) = sample {
-                    receptions.push(Reception { from, delivered });
-                    if delivered {
-                        let delay = inbound.link.spec().delay(distance.unwrap_or(0.0));
-                        let arrives = tick + in_ticks(delay, self.comm_period, self.comm_every);
-                        inbound.in_flight.push_back((arrives, s));
+                let verdict = inbound.link.transmit(t, distance);
+                let delay = inbound.link.spec().delay(distance.unwrap_or(0.0));
+                let arrives = tick + in_ticks(delay, self.comm_period, self.comm_every);
+                match (&mut self.acoustic, sample) {
+                    (None, Some(s)) => {
+                        receptions.push(Reception::of(from, verdict, s.t, distance));
+                        if verdict.delivered() {
+                            inbound.in_flight.push_back((arrives, s));
+                        }
                     }
+                    (Some(a), Some(s)) => {
+                        a.pending.push_back(Pending {
+                            link: n,
+                            due: arrives,
+                            arrival: a.arrival(from, &s, here).expect("a neighbour is audible"),
+                            sample: s,
+                            distance: distance.expect("a sample's distance"),
+                            verdict,
+                            u: inbound.link.phy_draw(),
+                        });
+                    }
+                    (Some(_), None) if message.is_some_and(|m| m.busy) => {
+                        receptions.push(Reception::of(from, Cause::Busy, t, None));
+                    }
+                    (_, None) => {}
                 }
+            }
+            if let Some(a) = &mut self.acoustic {
+                a.judge(tick, t, &mut self.links, &mut receptions);
+            }
+            for inbound in &mut self.links {
                 // Delays differ by distance, so a later message may overtake an earlier one.
                 while let Some(n) = inbound.in_flight.iter().position(|(at, _)| *at <= tick) {
                     let (at, s) = inbound.in_flight.remove(n).expect("found just now");

@@ -13,6 +13,7 @@ pub mod lockstep;
 pub mod membership;
 pub mod metrics;
 pub mod mission;
+pub mod modem;
 pub mod msg;
 pub mod path;
 pub mod pause;

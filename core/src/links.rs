@@ -3,11 +3,14 @@
 //! its own and the distance between the vehicles when it was sent. The stream is keyed by
 //! (mission seed, from, to) alone, so no other link and no ordering of events can change it.
 
+use std::collections::BTreeMap;
+
 use rand_chacha::rand_core::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::mission::Mission;
+use crate::mission::{Mission, ModemConfig};
+pub use crate::modem::Cause;
 
 /// How a link loses messages.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,7 +39,13 @@ pub struct LinkSpec {
     pub range: Option<f64>,
     pub loss_at_range: f64,
     pub sound_speed: Option<f64>,
+    /// The acoustic modems of D23, with this link's source and noise levels: the physics decides
+    /// every frame before any of the above.
+    pub modem: Option<ModemConfig>,
 }
+
+/// m/s: the speed of sound a modem's frames travel at unless `sound_speed` says otherwise (D23).
+pub const SOUND_SPEED: f64 = 1500.0;
 
 impl LinkSpec {
     /// The link j→i as `[comms]` declares it: defaults, then `[[comms.link]]` overrides.
@@ -65,18 +74,33 @@ impl LinkSpec {
             range: over.and_then(|o| o.range).or(c.range),
             loss_at_range: over.and_then(|o| o.loss_at_range).unwrap_or(c.loss_at_range),
             sound_speed: over.and_then(|o| o.sound_speed).or(c.sound_speed),
+            modem: c.modem.map(|m| ModemConfig {
+                source_level: over.and_then(|o| o.source_level).unwrap_or(m.source_level),
+                noise_level: over.and_then(|o| o.noise_level).unwrap_or(m.noise_level),
+                ..m
+            }),
         }
     }
 
-    /// s: how long a message sent across `distance` metres travels.
-    pub fn delay(&self, distance: f64) -> f64 {
-        self.delay + self.sound_speed.map_or(0.0, |c| distance / c)
+    /// m/s: how fast a message travels, if its travel counts at all.
+    pub fn sound_speed(&self) -> Option<f64> {
+        self.sound_speed.or(self.modem.map(|_| SOUND_SPEED))
     }
 
-    /// s: the longest any message on this link travels (validation bounds the propagation delay
-    /// by the range).
+    /// s: how long a message sent across `distance` metres travels, until its last bit is in
+    /// when a modem sends it (D21, D23).
+    pub fn delay(&self, distance: f64) -> f64 {
+        self.delay + self.sound_speed().map_or(0.0, |c| distance / c) + self.modem.map_or(0.0, |m| m.airtime())
+    }
+
+    /// s: the longest any message on this link travels: to the range, or with a modem to R₉₉,
+    /// beyond which hardly any frame survives (validation bounds the propagation delay by them).
     pub fn max_delay(&self) -> f64 {
-        self.delay(self.range.unwrap_or(0.0))
+        let reach = match self.modem {
+            Some(m) => m.range_at(0.99),
+            None => self.range.unwrap_or(0.0),
+        };
+        self.delay(reach)
     }
 }
 
@@ -87,21 +111,33 @@ pub struct Link {
     spec: LinkSpec,
     bad: bool,
     rng: ChaCha8Rng,
+    /// The modem's error draws (D23), a stream of their own so that a modem leaves the link's
+    /// other draws as they were.
+    phy: Option<ChaCha8Rng>,
+}
+
+fn stream(seed: u64, from: u32, to: u32, name: &[u8; 16]) -> ChaCha8Rng {
+    let mut key = [0u8; 32];
+    key[..8].copy_from_slice(&seed.to_le_bytes());
+    key[8..12].copy_from_slice(&from.to_le_bytes());
+    key[12..16].copy_from_slice(&to.to_le_bytes());
+    key[16..].copy_from_slice(name);
+    ChaCha8Rng::from_seed(key)
+}
+
+fn uniform(rng: &mut ChaCha8Rng) -> f64 {
+    (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
 }
 
 impl Link {
     pub fn new(seed: u64, from: u32, to: u32, spec: LinkSpec) -> Link {
-        let mut key = [0u8; 32];
-        key[..8].copy_from_slice(&seed.to_le_bytes());
-        key[8..12].copy_from_slice(&from.to_le_bytes());
-        key[12..16].copy_from_slice(&to.to_le_bytes());
-        key[16..].copy_from_slice(b"tcpf link loss\0\0");
         let mut link = Link {
             from,
             to,
+            phy: spec.modem.map(|_| stream(seed, from, to, b"tcpf link phy\0\0\0")),
             spec,
             bad: false,
-            rng: ChaCha8Rng::from_seed(key),
+            rng: stream(seed, from, to, b"tcpf link loss\0\0"),
         };
         // A bursty link starts where its chain spends its time, bad with the stationary
         // probability p_enter/(p_enter + p_leave): started good, a slow chain's run lost far less
@@ -123,14 +159,25 @@ impl Link {
     }
 
     fn uniform(&mut self) -> f64 {
-        (self.rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+        uniform(&mut self.rng)
     }
 
-    /// Advances the link to the communication instant t and says whether a message sent then
-    /// across `distance` (if one was sent) gets through. Called once per instant whether or not
+    /// The modem's uniform draw for the next frame sent on this link (D23): one per frame,
+    /// whatever becomes of it.
+    pub fn phy_draw(&mut self) -> f64 {
+        uniform(
+            self.phy
+                .as_mut()
+                .expect("a draw for a modem's frame on a link with a modem"),
+        )
+    }
+
+    /// Advances the link to the communication instant t and says what becomes of a message sent
+    /// then across `distance` (if one was sent): delivered, or the cause that lost it (an outage
+    /// named first, then the range, then the link's loss). Called once per instant whether or not
     /// a message was sent, and drawing the same number of numbers every time, so that the stream
     /// stays aligned with time.
-    pub fn transmit(&mut self, t: f64, distance: Option<f64>) -> bool {
+    pub fn transmit(&mut self, t: f64, distance: Option<f64>) -> Cause {
         let lost = match self.spec.loss {
             Loss::Bernoulli(p) => self.uniform() < p,
             Loss::Burst {
@@ -152,7 +199,58 @@ impl Link {
             }
             None => false,
         };
-        !lost && !out_of_reach && !self.spec.outages.iter().any(|&(start, end)| start <= t && t < end)
+        if self.spec.outages.iter().any(|&(start, end)| start <= t && t < end) {
+            Cause::Outage
+        } else if out_of_reach {
+            Cause::Range
+        } else if lost {
+            match self.spec.loss {
+                Loss::Bernoulli(_) => Cause::Loss,
+                Loss::Burst { .. } => Cause::Burst,
+            }
+        } else {
+            Cause::Delivered
+        }
+    }
+}
+
+/// A link's frames by what became of them, written as `{"delivered": 559, "half_duplex": 2}`
+/// (the causes that occurred).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(into = "BTreeMap<Cause, u64>", from = "BTreeMap<Cause, u64>")]
+pub struct Causes([u64; Cause::ALL.len()]);
+
+impl Causes {
+    pub fn add(&mut self, cause: Cause) {
+        self.0[cause as usize] += 1;
+    }
+
+    pub fn get(&self, cause: Cause) -> u64 {
+        self.0[cause as usize]
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.iter().all(|&n| n == 0)
+    }
+}
+
+impl From<Causes> for BTreeMap<Cause, u64> {
+    fn from(c: Causes) -> Self {
+        Cause::ALL
+            .iter()
+            .map(|&k| (k, c.get(k)))
+            .filter(|&(_, n)| n > 0)
+            .collect()
+    }
+}
+
+impl From<BTreeMap<Cause, u64>> for Causes {
+    fn from(m: BTreeMap<Cause, u64>) -> Self {
+        let mut c = Causes::default();
+        for (k, n) in m {
+            c.0[k as usize] = n;
+        }
+        c
     }
 }
 
@@ -161,9 +259,13 @@ impl Link {
 pub struct LinkStats {
     pub from: u32,
     pub to: u32,
+    /// Messages sent on the link and judged at the receiver (a modem's `busy` instants are none).
     pub sent: u64,
     pub delivered: u64,
     pub dropped: u64,
+    /// Every decision on the link by cause, `busy` instants included.
+    #[serde(default, skip_serializing_if = "Causes::is_empty")]
+    pub causes: Causes,
     /// Delivered γ that reached the agent after their instant, when a wall-clock rule had gone on
     /// without them: never used. Always 0 in-process.
     #[serde(default)]
@@ -179,6 +281,37 @@ pub struct LinkStats {
     pub overtaken: Option<u64>,
 }
 
+impl LinkStats {
+    /// The link `from` → `to` before any message.
+    pub fn new(from: u32, to: u32) -> LinkStats {
+        LinkStats {
+            from,
+            to,
+            sent: 0,
+            delivered: 0,
+            dropped: 0,
+            causes: Causes::default(),
+            unused: 0,
+            published: None,
+            overtaken: None,
+        }
+    }
+
+    /// Counts one decision of the receiver on this link.
+    pub fn count(&mut self, r: &crate::msg::Reception) {
+        self.causes.add(r.cause);
+        if r.cause == Cause::Busy {
+            return;
+        }
+        self.sent += 1;
+        if r.delivered {
+            self.delivered += 1;
+        } else {
+            self.dropped += 1;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -191,6 +324,7 @@ mod tests {
             range: None,
             loss_at_range: 0.0,
             sound_speed: None,
+            modem: None,
         }
     }
 
@@ -208,10 +342,11 @@ mod tests {
             range: None,
             loss_at_range: 0.0,
             sound_speed: None,
+            modem: None,
         };
         let mut l = Link::new(5, 1, 2, spec);
         let n = 200_000;
-        let lost: Vec<bool> = (0..n).map(|_| !l.transmit(0.0, None)).collect();
+        let lost: Vec<bool> = (0..n).map(|_| !l.transmit(0.0, None).delivered()).collect();
         let rate = lost.iter().filter(|x| **x).count() as f64 / n as f64;
         assert!(
             (rate - 0.2).abs() < 0.01,
@@ -243,7 +378,7 @@ mod tests {
         for seed in 0..seeds {
             let mut l = Link::new(seed, 1, 2, spec.clone());
             for k in 0..instants {
-                let gone = !l.transmit(0.1 * k as f64, None);
+                let gone = !l.transmit(0.1 * k as f64, None).delivered();
                 lost += gone as u64;
                 first += (gone && k == 0) as u64;
             }
@@ -262,7 +397,7 @@ mod tests {
             ..bernoulli(0.0)
         };
         let mut l = Link::new(5, 1, 2, spec);
-        let got: Vec<bool> = (0..30).map(|k| l.transmit(k as f64 * 0.1, None)).collect();
+        let got: Vec<bool> = (0..30).map(|k| l.transmit(k as f64 * 0.1, None).delivered()).collect();
         assert!(got[..10].iter().all(|x| *x) && got[10..20].iter().all(|x| !*x) && got[20..].iter().all(|x| *x));
     }
 
@@ -270,7 +405,7 @@ mod tests {
     fn a_links_sequence_does_not_depend_on_other_links() {
         let alone: Vec<bool> = {
             let mut l = Link::new(3, 1, 2, bernoulli(0.5));
-            (0..1000).map(|_| l.transmit(0.0, None)).collect()
+            (0..1000).map(|_| l.transmit(0.0, None).delivered()).collect()
         };
         let mut links = [
             Link::new(3, 7, 2, bernoulli(0.5)),
@@ -280,7 +415,7 @@ mod tests {
         let mut interleaved = Vec::new();
         for _ in 0..1000 {
             for l in links.iter_mut() {
-                let d = l.transmit(0.0, None);
+                let d = l.transmit(0.0, None).delivered();
                 if (l.from, l.to) == (1, 2) {
                     interleaved.push(d);
                 }
@@ -288,7 +423,7 @@ mod tests {
         }
         assert_eq!(alone, interleaved);
         let mut reverse = Link::new(3, 2, 1, bernoulli(0.5));
-        let other: Vec<bool> = (0..1000).map(|_| reverse.transmit(0.0, None)).collect();
+        let other: Vec<bool> = (0..1000).map(|_| reverse.transmit(0.0, None).delivered()).collect();
         assert_ne!(alone, other, "each direction has its own stream");
     }
 
@@ -297,7 +432,7 @@ mod tests {
         for p in [0.0, 0.3, 0.9, 1.0] {
             let mut l = Link::new(11, 1, 2, bernoulli(p));
             let n = 100_000;
-            let lost = (0..n).filter(|_| !l.transmit(0.0, None)).count() as f64 / n as f64;
+            let lost = (0..n).filter(|_| !l.transmit(0.0, None).delivered()).count() as f64 / n as f64;
             assert!((lost - p).abs() < 0.01, "p={p} measured {lost}");
         }
     }
@@ -313,7 +448,7 @@ mod tests {
         for (d, p) in [(0.0, 0.0), (50.0, 0.3), (100.0, 0.6), (100.5, 1.0), (400.0, 1.0)] {
             let mut l = Link::new(7, 1, 2, spec.clone());
             let n = 50_000;
-            let lost = (0..n).filter(|_| !l.transmit(0.0, Some(d))).count() as f64 / n as f64;
+            let lost = (0..n).filter(|_| !l.transmit(0.0, Some(d)).delivered()).count() as f64 / n as f64;
             assert!((lost - p).abs() < 0.01, "at {d} m: loss {p} expected, measured {lost}");
         }
         assert_eq!(spec.delay(300.0), 0.2, "300 m at 1500 m/s");
@@ -325,8 +460,8 @@ mod tests {
     fn seeds_change_the_stream() {
         let mut a = Link::new(1, 1, 2, bernoulli(0.5));
         let mut b = Link::new(2, 1, 2, bernoulli(0.5));
-        let sa: Vec<bool> = (0..64).map(|_| a.transmit(0.0, None)).collect();
-        let sb: Vec<bool> = (0..64).map(|_| b.transmit(0.0, None)).collect();
+        let sa: Vec<bool> = (0..64).map(|_| a.transmit(0.0, None).delivered()).collect();
+        let sb: Vec<bool> = (0..64).map(|_| b.transmit(0.0, None).delivered()).collect();
         assert_ne!(sa, sb);
     }
 }

@@ -291,7 +291,7 @@ impl AgentNode {
         if std::mem::take(&mut self.rejoining) {
             self.next_tick = state.tick;
             self.agent.rejoin(state.position);
-            self.stale.extend(self.agent.neighbours());
+            self.stale.extend(self.agent.audible());
         }
         Reject::tick(state.tick, self.next_tick)?;
         if let Some(first) = &self.state {
@@ -302,7 +302,7 @@ impl AgentNode {
     }
 
     pub fn on_gamma(&mut self, gamma: Gamma) -> Result<(), Reject> {
-        if !self.agent.neighbours().any(|j| j == gamma.from) {
+        if !self.agent.audible().any(|j| j == gamma.from) {
             return Err(Reject::NotANeighbour);
         }
         if self.lost.contains(&gamma.from) {
@@ -377,7 +377,7 @@ impl AgentNode {
         if lost.id == self.agent.id() {
             return Ok(true);
         }
-        if self.agent.neighbours().any(|j| j == lost.id) {
+        if self.agent.audible().any(|j| j == lost.id) {
             self.lost.insert(lost.id);
             self.gone.insert(lost.id);
         }
@@ -426,7 +426,7 @@ impl AgentNode {
             .map(|s| s.tick)
             .filter(|&k| self.agent.is_comm_tick(k));
         tick.into_iter().flat_map(move |k| {
-            self.agent.neighbours().filter(move |j| {
+            self.agent.audible().filter(move |j| {
                 !self.gone.contains(j)
                     && !self.stale.contains(j)
                     && !self.inbox.iter().any(|g| g.from == *j && g.tick == k)
@@ -555,7 +555,10 @@ mod tests {
         node.on_gamma(Gamma { from: 2, ..gamma }).unwrap();
         let command = node.command().expect("all in");
         let heard = |from: &[u32]| Command {
-            receptions: from.iter().map(|&from| Reception { from, delivered: true }).collect(),
+            receptions: from
+                .iter()
+                .map(|&from| Reception::of(from, crate::msg::Cause::Delivered, 0.0, None))
+                .collect(),
             ..command.clone()
         };
         assert_eq!(

@@ -1,11 +1,16 @@
 //! The metrics of MODEL §4 (D16), accumulated tick by tick from what the world measured and what
 //! the agents commanded, and the run summary.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
 use serde::{Deserialize, Serialize};
 
-use crate::links::LinkStats;
+use crate::links::{Cause, LinkStats};
+
+/// Broadcasts per vehicle remembered as counted: receivers at different distances judge one
+/// frame at different ticks (D23), never 64 frames apart (6.4 s of periodic sending, 9.6 km of
+/// sound).
+const COUNTED_BROADCASTS: usize = 64;
 use crate::msg::{Command, LossReason, Player, State};
 use crate::roster::Roster;
 
@@ -160,8 +165,8 @@ pub struct Metrics {
     to_last: (f64, f64),
     links: BTreeMap<(u32, u32), LinkStats>,
     gamma_sent: Vec<u64>,
-    /// Per vehicle, the last tick at which a broadcast of it was counted.
-    sent_at: Vec<Option<u64>>,
+    /// Per vehicle, the sending ticks of its newest broadcasts counted.
+    sent_at: Vec<VecDeque<u64>>,
     /// Per vehicle, its thrusters once a state has reported them.
     thrusters: Vec<Option<Thrusters>>,
     /// Vehicles by x, for the closest pair: a run allocates it once.
@@ -241,7 +246,7 @@ impl Metrics {
             to_last: (0.0, f64::INFINITY),
             links: BTreeMap::new(),
             gamma_sent: vec![0; ids.len()],
-            sent_at: vec![None; ids.len()],
+            sent_at: vec![VecDeque::new(); ids.len()],
             thrusters: vec![None; ids.len()],
             order: Vec::with_capacity(ids.len()),
             integral: (0.0, 0.0, 0.0),
@@ -421,28 +426,22 @@ impl Metrics {
         }
         for c in commands.iter().flatten() {
             for r in &c.receptions {
-                let s = self.links.entry((r.from, c.id)).or_insert(LinkStats {
-                    from: r.from,
-                    to: c.id,
-                    sent: 0,
-                    delivered: 0,
-                    dropped: 0,
-                    unused: 0,
-                    published: None,
-                    overtaken: None,
-                });
-                s.sent += 1;
-                // Each neighbour reports the same broadcast: count it once.
-                if let Some(n) = self.ids.position(r.from) {
-                    if self.sent_at[n] != Some(tick) {
-                        self.sent_at[n] = Some(tick);
+                self.links
+                    .entry((r.from, c.id))
+                    .or_insert_with(|| LinkStats::new(r.from, c.id))
+                    .count(r);
+                // Each neighbour reports the same broadcast, at its own tick when a modem judges
+                // it on arrival: count it once.
+                let sent = (r.sent / self.dt).round() as u64;
+                if let (Some(n), false) = (self.ids.position(r.from), r.cause == Cause::Busy) {
+                    let counted = &mut self.sent_at[n];
+                    if !counted.contains(&sent) {
+                        if counted.len() == COUNTED_BROADCASTS {
+                            counted.pop_front();
+                        }
+                        counted.push_back(sent);
                         self.gamma_sent[n] += 1;
                     }
-                }
-                if r.delivered {
-                    s.delivered += 1;
-                } else {
-                    s.dropped += 1;
                 }
             }
         }

@@ -6,6 +6,7 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::modem::Cause;
 use crate::path::GeneralizedPath;
 
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
@@ -13,7 +14,9 @@ use crate::path::GeneralizedPath;
 /// agent received but saw overtaken (`PeriodTiming::overtaken`). 6: the lockstep world's
 /// `TickRecord`, which recorders take instead of every state and command. 8: a dynamic vehicle's
 /// velocity and thrusters in `State::dynamics`, the fed-forward acceleration in `Command::accel`.
-pub const PROTOCOL_VERSION: u16 = 9;
+/// 9: who played each vehicle in `Report`. 10: a reception's sending instant, distance, SINR and
+/// cause, and `Gamma::busy` (the acoustic modem, D23).
+pub const PROTOCOL_VERSION: u16 = 10;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -69,11 +72,38 @@ impl Dynamics {
     }
 }
 
-/// One receiver-side decision on a γ message (MODEL D12).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+/// One receiver-side decision on a γ message (MODEL D12, D23).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Reception {
     pub from: u32,
     pub delivered: bool,
+    /// t_s, s: the instant the message was sent (or, `busy`, would have been).
+    pub sent: f64,
+    /// m: between sender and receiver at t_s; `None` for a frame never sent.
+    pub distance: Option<f64>,
+    /// dB: the frame's worst-case SINR at the receiver, where the modem's physics judged it.
+    pub sinr_db: Option<f64>,
+    /// `Delivered`, or why not.
+    pub cause: Cause,
+}
+
+impl Reception {
+    /// A decision of the link's own models (D12, D21) on a message sent at `sent` across
+    /// `distance`, or, `Busy`, on one a modem could not send.
+    pub fn of(from: u32, cause: Cause, sent: f64, distance: Option<f64>) -> Reception {
+        Reception {
+            from,
+            delivered: cause.delivered(),
+            sent,
+            distance,
+            sinr_db: None,
+            cause,
+        }
+    }
+
+    fn numbers(&self) -> [f64; 3] {
+        [self.sent, self.distance.unwrap_or(0.0), self.sinr_db.unwrap_or(0.0)]
+    }
 }
 
 /// Agent → world and recorder: the command of tick k and the agent's view that produced it.
@@ -128,13 +158,15 @@ pub struct Sample {
 
 /// Agent → neighbours at a communication instant: γ_i(t_k), or `None` when the sender's trigger
 /// (event, TDMA slot) did not fire. The empty message exists for the lockstep clock only, so that
-/// a neighbour knows it need not wait; it is not a transmission and no link sees it.
+/// a neighbour knows it need not wait; it is not a transmission and no link sees it, unless
+/// `busy` says that the trigger fired while the sender's modem still transmitted (D23).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Gamma {
     pub version: u16,
     pub tick: u64,
     pub from: u32,
     pub sample: Option<Sample>,
+    pub busy: bool,
 }
 
 /// World → recorders, in lockstep: a tick as the world closed it, its states and the command
@@ -221,7 +253,7 @@ impl Checked for Command {
             self.x_e,
             self.y_e,
             self.psi_e,
-        ])
+        ]) && self.receptions.iter().all(|r| all_finite(r.numbers()))
     }
 }
 

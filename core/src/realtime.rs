@@ -183,14 +183,14 @@ impl RealtimeAgent {
     /// A neighbour's γ: the newest since the last instant is kept. One without a sample is no
     /// transmission (lockstep's "nothing this instant"), so there is nothing to keep.
     pub fn on_gamma(&mut self, gamma: Gamma, horizon: u64) -> Result<(), Reject> {
-        if !self.agent.neighbours().any(|j| j == gamma.from) {
+        if !self.agent.audible().any(|j| j == gamma.from) {
             return Err(Reject::NotANeighbour);
         }
         if !gamma.finite() {
             return Err(Reject::NonFinite);
         }
         not_ahead(gamma.tick, horizon)?;
-        if gamma.sample.is_none() {
+        if gamma.sample.is_none() && !gamma.busy {
             return Ok(());
         }
         // A γ no newer than one already judged (reordered or repeated on the way) is of no use.
@@ -231,7 +231,10 @@ impl RealtimeAgent {
         }
         // What came between two instants is used at the next one.
         let instant = self.agent.is_comm_tick(tick);
-        let gamma = self.agent.broadcast(tick, &state).filter(|g| g.sample.is_some());
+        let gamma = self
+            .agent
+            .broadcast(tick, &state)
+            .filter(|g| g.sample.is_some() || g.busy);
         let command = self.agent.step(tick, &state, &self.inbox);
         if instant {
             for g in self.inbox.drain(..) {
@@ -690,6 +693,7 @@ impl Sampler {
 mod tests {
     use super::*;
     use crate::fixtures::case_b;
+    use crate::msg::Cause;
     use crate::msg::{Reception, Sample};
 
     /// Vehicle `id` at `position`, at rest, measured at `tick` of period `dt`.
@@ -815,6 +819,7 @@ mod tests {
                         gamma_dot: 1.0,
                         position: state.position,
                     }),
+                    busy: false,
                 };
                 assert_eq!(agents[1].on_gamma(gamma, horizon), Err(Reject::Future));
                 let command = Command {
@@ -1053,10 +1058,7 @@ mod tests {
         let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]);
         let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, m.mission.control_period);
         let stranger = Command {
-            receptions: vec![Reception {
-                from: 99,
-                delivered: true,
-            }],
+            receptions: vec![Reception::of(99, Cause::Delivered, 0.0, None)],
             ..crate::fixtures::command_at(1, 0, 0.0)
         };
         assert_eq!(world.on_command(stranger.clone(), HORIZON), Err(Reject::NotANeighbour));
@@ -1095,10 +1097,7 @@ mod tests {
         assert_eq!(sampler.on_command(command(2, 40, 0.4), HORIZON), Err(Reject::Past));
         // A command that comes already too old to hold is in one row, for its receptions.
         let late = Command {
-            receptions: vec![Reception {
-                from: 1,
-                delivered: true,
-            }],
+            receptions: vec![Reception::of(1, Cause::Delivered, 0.0, None)],
             ..command(2, 150, 1.5)
         };
         sampler.on_command(late, HORIZON).unwrap();
@@ -1130,13 +1129,8 @@ mod tests {
         two.on_state(state(2, instants[0]), HORIZON).unwrap();
         two.on_gamma(gamma(instants[0]), HORIZON).unwrap();
         let judged = two.act(instants[0], 0.0, 0.001, 0).unwrap().command.receptions;
-        assert_eq!(
-            judged,
-            vec![Reception {
-                from: 1,
-                delivered: true
-            }]
-        );
+        let heard: Vec<(u32, bool)> = judged.iter().map(|r| (r.from, r.delivered)).collect();
+        assert_eq!(heard, vec![(1, true)]);
         assert_eq!(two.timing().overtaken, vec![]);
         // Vehicle 2 wakes too late for its next instant: two of vehicle 1's γ are waiting.
         two.on_gamma(gamma(instants[1]), HORIZON).unwrap();

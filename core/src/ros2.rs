@@ -407,7 +407,7 @@ pub fn path(path: &GeneralizedPath, stamp_of: impl Fn(f64) -> Stamp) -> Vec<u8> 
 }
 
 /// A directed link's γ messages so far, as the receiver's commands judged them: x sent (judged at
-/// a communication instant), y delivered, z lost, in `map`. Counts only grow: a ROS 2 plot shows
+/// a communication instant; a modem's `busy` instants sent nothing), y delivered, z lost, in `map`. Counts only grow: a ROS 2 plot shows
 /// the link's losses pile up, and their slope is its rate.
 pub fn link(counts: LinkCount, stamp: Stamp) -> Vec<u8> {
     vector3(
@@ -446,6 +446,7 @@ impl LinkCounts {
         command
             .receptions
             .iter()
+            .filter(|r| r.cause != crate::msg::Cause::Busy)
             .map(|r| {
                 let link = (r.from, command.id);
                 let c = self.links.entry(link).or_default();
@@ -967,7 +968,16 @@ mod tests {
     fn links_count_each_command_once() {
         let mut counts = LinkCounts::default();
         let heard = |tick, delivered| Command {
-            receptions: vec![crate::msg::Reception { from: 1, delivered }],
+            receptions: vec![crate::msg::Reception::of(
+                1,
+                if delivered {
+                    crate::msg::Cause::Delivered
+                } else {
+                    crate::msg::Cause::Loss
+                },
+                0.0,
+                None,
+            )],
             ..crate::fixtures::command_at(2, tick, 0.0)
         };
         assert_eq!(

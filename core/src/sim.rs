@@ -16,7 +16,7 @@ pub struct Fleet {
     world: WorldNode,
     agents: Vec<AgentNode>,
     recorder: Recorder,
-    /// Per agent, the agents that hear its γ: its neighbours' subscriptions.
+    /// Per agent, the agents that hear its γ: the subscriptions of those it is audible to.
     listeners: Vec<Vec<usize>>,
     /// Agents the world still waits for.
     live: Vec<bool>,
@@ -35,7 +35,7 @@ impl Fleet {
             .iter()
             .map(|&j| {
                 (0..agents.len())
-                    .filter(|&i| agents[i].agent().neighbours().any(|n| n == j))
+                    .filter(|&i| agents[i].agent().audible().any(|n| n == j))
                     .collect()
             })
             .collect();

@@ -431,14 +431,8 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
             match results.links.iter_mut().find(|l| (l.from, l.to) == (from, r.id)) {
                 Some(link) => link.unused += n,
                 None => results.links.push(LinkStats {
-                    from,
-                    to: r.id,
-                    sent: 0,
-                    delivered: 0,
-                    dropped: 0,
                     unused: n,
-                    published: None,
-                    overtaken: None,
+                    ..LinkStats::new(from, r.id)
                 }),
             }
         }

@@ -12,7 +12,7 @@ pub const HEADER: &str = "tick,t,id,x,y,heading,gamma,v,r,v_d,x_e,y_e,psi_e\n";
 /// thruster the command, the motor and the force.
 pub const DYNAMIC_COLUMNS: &str = "surge,sway,yaw_rate,beta,command_1,command_2,motor_1,motor_2,thrust_1,thrust_2";
 
-pub const MESSAGES_HEADER: &str = "tick,t,from,to,delivered\n";
+pub const MESSAGES_HEADER: &str = "tick,t,from,to,delivered,sent_t,distance,sinr_db,cause\n";
 
 /// The header of a fleet's telemetry: with the dynamic columns when any vehicle is dynamic.
 pub fn header(dynamic: bool) -> String {
@@ -64,10 +64,24 @@ pub fn row(out: &mut String, s: &State, c: Option<&Command>, dynamic: bool) {
     out.push('\n');
 }
 
-/// Appends one row per γ message that reached vehicle `c.id`'s links at this tick: sent by
-/// `from`, delivered (1) or lost (0).
+/// Appends one row per γ message that vehicle `c.id`'s links decided on at this tick: sent by
+/// `from`, delivered (1) or lost (0), sent at `sent_t` across `distance` m, the SINR where a modem
+/// judged it and what became of it (D23). An unknown distance or SINR is an empty cell.
 pub fn messages(out: &mut String, s: &State, c: &Command) {
+    let cell = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
     for r in &c.receptions {
-        let _ = writeln!(out, "{},{},{},{},{}", s.tick, s.t, r.from, c.id, u8::from(r.delivered));
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{},{},{},{},{}",
+            s.tick,
+            s.t,
+            r.from,
+            c.id,
+            u8::from(r.delivered),
+            r.sent,
+            cell(r.distance),
+            cell(r.sinr_db),
+            r.cause.name()
+        );
     }
 }

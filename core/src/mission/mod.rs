@@ -267,6 +267,50 @@ pub struct CommsConfig {
     /// s: a shared medium; vehicles send in turn, one slot each, in ascending id order.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tdma_slot: Option<f64>,
+    /// Half-duplex acoustic modems whose physics decides every frame (D23).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub modem: Option<ModemConfig>,
+}
+
+/// `[comms.modem]`: every vehicle's acoustic modem (D23). The waveform (frequency, bandwidth,
+/// bit rate, frame, preamble) is the fleet's, since modems that talk share it, and so is the
+/// water's spreading; a `[[comms.link]]` may give the level a sender's frames leave with towards
+/// one receiver and the noise at that receiver.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModemConfig {
+    /// dB re 1 µPa at 1 m.
+    pub source_level: f64,
+    /// Carrier, kHz.
+    pub frequency: f64,
+    /// kHz.
+    pub bandwidth: f64,
+    /// bit/s.
+    pub bitrate: f64,
+    /// Bits of one γ frame, headers included.
+    pub frame_bits: f64,
+    /// s: detection preamble and guard.
+    pub preamble: f64,
+    /// Ambient noise spectral level, dB re 1 µPa²/Hz.
+    pub noise_level: f64,
+    /// k: 1 cylindrical, 1.5 practical, 2 spherical.
+    pub spreading: f64,
+}
+
+impl Default for ModemConfig {
+    fn default() -> Self {
+        // D23's table.
+        ModemConfig {
+            source_level: 170.0,
+            frequency: 25.0,
+            bandwidth: 5.0,
+            bitrate: 5000.0,
+            frame_bits: 256.0,
+            preamble: 0.1,
+            noise_level: 50.0,
+            spreading: 1.5,
+        }
+    }
 }
 
 /// Gilbert–Elliott loss: a two-state Markov chain per link, stepped once per communication
@@ -324,6 +368,12 @@ pub struct LinkOverride {
     pub loss_at_range: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sound_speed: Option<f64>,
+    /// dB re 1 µPa at 1 m: the level `from`'s frames reach `to` with (D23).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source_level: Option<f64>,
+    /// dB re 1 µPa²/Hz: the noise at `to` on this link (D23).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_level: Option<f64>,
 }
 
 impl Default for CommsConfig {
@@ -345,6 +395,7 @@ impl Default for CommsConfig {
             loss_at_range: 0.0,
             sound_speed: None,
             tdma_slot: None,
+            modem: None,
         }
     }
 }
