@@ -31,7 +31,9 @@ pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tcpf_core::msg::{Clock, Gamma, Loss, LossReason, Sample, State, TickRecord, PROTOCOL_VERSION};
+    use tcpf_core::msg::{
+        Cause, Clock, Gamma, Loss, LossReason, Reception, Sample, State, TickRecord, PROTOCOL_VERSION,
+    };
 
     fn state() -> State {
         State {
@@ -60,26 +62,30 @@ mod tests {
                 gamma_dot: 1.0,
                 position: [2.0, -0.5],
             }),
+            busy: false,
         };
         #[rustfmt::skip]
         let bytes = [
-            0x09, 0xac, 0x02, 0x02, 0x01,
+            0x0a, 0xac, 0x02, 0x02, 0x01,
             0, 0, 0, 0, 0, 0, 0x08, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
             0, 0, 0, 0, 0, 0, 0x00, 0x40,
             0, 0, 0, 0, 0, 0, 0xe0, 0xbf,
+            0x00,
         ];
         assert_eq!(encode(&g), bytes);
         let silent = Gamma { sample: None, ..g };
-        assert_eq!(encode(&silent), [0x09, 0xac, 0x02, 0x02, 0x00]);
+        assert_eq!(encode(&silent), [0x0a, 0xac, 0x02, 0x02, 0x00, 0x00]);
+        let busy = Gamma { busy: true, ..silent };
+        assert_eq!(encode(&busy), [0x0a, 0xac, 0x02, 0x02, 0x00, 0x01]);
         let loss = Loss {
             version: PROTOCOL_VERSION,
             id: 2,
             tick: 300,
             reason: LossReason::Silent,
         };
-        assert_eq!(encode(&loss), [0x09, 0x02, 0xac, 0x02, 0x01]);
+        assert_eq!(encode(&loss), [0x0a, 0x02, 0xac, 0x02, 0x01]);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
@@ -90,12 +96,38 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x09, 0x01,
+            0x0a, 0x01,
             0, 0, 0, 0, 0, 0, 0x24, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0xac, 0x02, 0x05,
         ];
         assert_eq!(encode(&clock), bytes);
+        let receptions = vec![
+            Reception {
+                from: 1,
+                delivered: false,
+                sent: 3.0,
+                distance: Some(1500.0),
+                sinr_db: Some(-2.5),
+                cause: Cause::Collision,
+            },
+            Reception::of(3, Cause::Busy, 3.0, None),
+        ];
+        #[rustfmt::skip]
+        let bytes = [
+            0x02,
+            0x01, 0x00,
+            0, 0, 0, 0, 0, 0, 0x08, 0x40,
+            0x01, 0, 0, 0, 0, 0, 0x70, 0x97, 0x40,
+            0x01, 0, 0, 0, 0, 0, 0, 0x04, 0xc0,
+            0x03,
+            0x03, 0x00,
+            0, 0, 0, 0, 0, 0, 0x08, 0x40,
+            0x00,
+            0x00,
+            0x01,
+        ];
+        assert_eq!(encode(&receptions), bytes, "a command's receptions, as its last field");
     }
 
     #[test]
@@ -167,6 +199,7 @@ mod tests {
                 gamma_dot: 1.0,
                 position: [0.0, 0.0],
             }),
+            busy: false,
         };
         assert_eq!(decode::<Gamma>(&encode(&g)), Err(Invalid::NonFinite));
     }

@@ -133,13 +133,17 @@ pub struct Command {
 }
 
 impl Command {
-    /// Whether each reception names a neighbour of this vehicle, and none twice: the links a
-    /// run's summary counts are made of them, and a forged one would invent a link.
+    /// Whether each reception names a neighbour of this vehicle, and no message twice: the links
+    /// a run's summary counts are made of them, and a forged one would invent a link. One
+    /// neighbour may appear more than once when a modem judges its frames on arrival (D23): a
+    /// frame sent earlier and further away falls due with a later instant's busy one.
     pub fn hears_only(&self, neighbours: &[u32]) -> bool {
-        self.receptions
-            .iter()
-            .enumerate()
-            .all(|(k, r)| neighbours.contains(&r.from) && !self.receptions[..k].iter().any(|q| q.from == r.from))
+        self.receptions.iter().enumerate().all(|(k, r)| {
+            neighbours.contains(&r.from)
+                && !self.receptions[..k]
+                    .iter()
+                    .any(|q| q.from == r.from && q.sent == r.sent)
+        })
     }
 }
 

@@ -22,7 +22,7 @@ import threading
 import time
 import tomllib
 
-VERSION = 9
+VERSION = 10
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
 # The longest a vehicle holds its agent's last command, in simulated seconds (the world's
@@ -44,15 +44,20 @@ def record(*fields):
 DYNAMICS = record(("surge", F), ("sway", F), ("yaw_rate", F), ("command", XY), ("motor", XY), ("thrust", XY))
 STATE = record(("version", U16), ("tick", U64), ("id", U32), ("t", F), ("position", XY), ("heading", F),
                ("sideslip", F), ("sideslip_rate", F), ("current", XY), ("dynamics", ("option", DYNAMICS)))
+# What became of a neighbour's γ frame: `cause` is "delivered" or why not (PROTOCOL.md, `Reception`).
+CAUSE = ("enum", ("delivered", "busy", "half_duplex", "collision", "noise", "loss", "burst", "outage", "range"))
+RECEPTION = record(("from", U32), ("delivered", BOOL), ("sent", F), ("distance", ("option", F)),
+                   ("sinr_db", ("option", F)), ("cause", CAUSE))
 COMMAND = record(("version", U16), ("tick", U64), ("id", U32), ("v", F), ("r", F), ("accel", F), ("hold", BOOL),
                  ("gamma", F), ("gamma_dot", F), ("v_d", F), ("x_e", F), ("y_e", F), ("psi_e", F),
-                 ("receptions", ("vec", record(("from", U32), ("delivered", BOOL)))))
+                 ("receptions", ("vec", RECEPTION)))
 LOST = record(("id", U32), ("tick", U64), ("reason", ("enum", ("gone", "silent"))))
 END = record(("version", U16), ("ticks", U64), ("lost", ("vec", LOST)))
 CLOCK = record(("version", U16), ("realtime", BOOL), ("time_scale", F), ("epoch", F), ("tick", U64), ("mission", U64))
-# For the self-test alone: PROTOCOL.md's worked example.
+# For the self-test (PROTOCOL.md's worked example) and tests/testbed/intruder.py: this vehicle sends no γ.
 GAMMA = record(("version", U16), ("tick", U64), ("from", U32),
-               ("sample", ("option", record(("t", F), ("gamma", F), ("gamma_dot", F), ("position", XY)))))
+               ("sample", ("option", record(("t", F), ("gamma", F), ("gamma_dot", F), ("position", XY)))),
+               ("busy", BOOL))
 
 
 def varint(n):
@@ -460,7 +465,7 @@ def run(args):
 
 
 def self_test():
-    """PROTOCOL.md's Gamma and Clock examples, round trips, varints and refusals."""
+    """PROTOCOL.md's Gamma, Clock and Reception examples, round trips, varints and refusals."""
     def refused_as(t, data):
         try:
             decode(t, data)
@@ -468,23 +473,42 @@ def self_test():
             return e.kind
 
     gamma = {"version": VERSION, "tick": 300, "from": 2,
-             "sample": {"t": 3.0, "gamma": 1.5, "gamma_dot": 1.0, "position": [2.0, -0.5]}}
+             "sample": {"t": 3.0, "gamma": 1.5, "gamma_dot": 1.0, "position": [2.0, -0.5]}, "busy": False}
     state = {"version": VERSION, "tick": 42, "id": 2, "t": 0.42, "position": [1.0, -2.5], "heading": 0.1,
              "sideslip": 0.0, "sideslip_rate": 0.0, "current": [-0.1, 0.0], "dynamics": None}
     command = {"version": VERSION, "tick": 7, "id": 2, "v": 0.5, "r": -0.1, "accel": 0.0, "hold": False, "gamma": 1.0,
                "gamma_dot": 1.1, "v_d": 0.5, "x_e": 0.01, "y_e": -0.2, "psi_e": 0.03,
-               "receptions": [{"from": 1, "delivered": True}, {"from": 3, "delivered": False}]}
+               "receptions": [
+                   {"from": 1, "delivered": True, "sent": 0.07, "distance": 212.5, "sinr_db": 18.25,
+                    "cause": "delivered"},
+                   {"from": 3, "delivered": False, "sent": 0.05, "distance": 830.0, "sinr_db": None,
+                    "cause": "loss"}]}
+    # PROTOCOL.md's receptions, as a Command ends.
+    receptions = [{"from": 1, "delivered": False, "sent": 3.0, "distance": 1500.0, "sinr_db": -2.5,
+                   "cause": "collision"},
+                  {"from": 3, "delivered": False, "sent": 3.0, "distance": None, "sinr_db": None, "cause": "busy"}]
     end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}]}
     clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12,
              "mission": 0x72b3548f8bc2f98c}
-    gamma_bytes = ("09ac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
-                   "0000000000000040" "000000000000e0bf")
+    gamma_bytes = ("0aac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+                   "0000000000000040" "000000000000e0bf" "00")
+    receptions_bytes = ("02"
+                        "0100" "0000000000000840" "01" "0000000000709740" "01" "00000000000004c0" "03"
+                        "0300" "0000000000000840" "00" "00" "01")
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("09ac020200"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("0aac02020000"),
+        "Gamma busy": encode(GAMMA, dict(gamma, sample=None, busy=True)) == bytes.fromhex("0aac02020001"),
         "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300, mission=5))
-        == bytes.fromhex("0901" "0000000000002440" "000000000000f83f" "ac02" "05"),
+        == bytes.fromhex("0a01" "0000000000002440" "000000000000f83f" "ac02" "05"),
+        "Reception example": encode(("vec", RECEPTION), receptions) == bytes.fromhex(receptions_bytes),
+        "the Command ends with its receptions": encode(COMMAND, dict(command, receptions=receptions))
+        .endswith(bytes.fromhex(receptions_bytes)),
+        "no such cause refused": refused_as(COMMAND, encode(COMMAND, command)[:-1] + b"\x09") == "undecodable",
+        "NaN in a reception refused":
+        refused_as(COMMAND, encode(COMMAND, dict(command, receptions=[dict(receptions[0], sinr_db=math.nan)])))
+        == "non_finite",
         "u32 overflow refused": refused_as(version_id, varint(VERSION) + varint(2**32)) == "undecodable",
         "trailing byte refused": refused_as(COMMAND, encode(COMMAND, command) + b"\0") == "undecodable",
         "version 3 refused": refused_as(STATE, encode(STATE, dict(state, version=3))) == "wrong_version",
@@ -508,7 +532,8 @@ def self_test():
     checks["skipped periods stop where the world's hold does"] = abs(ship.position[0] - 1.01) < 1e-12
     for n, hex_ in [(0, "00"), (127, "7f"), (128, "8001"), (300, "ac02"), (2**32, "8080808010")]:
         checks[f"varint {n}"] = encode(U64, n) == bytes.fromhex(hex_) and Reader(varint(n)).uint(64) == n
-    for t, m in [(STATE, state), (COMMAND, command), (END, end), (CLOCK, clock)]:
+    for t, m in [(STATE, state), (COMMAND, command), (END, end), (CLOCK, clock), (GAMMA, gamma),
+                 (GAMMA, dict(gamma, sample=None, busy=True)), (COMMAND, dict(command, receptions=receptions))]:
         checks[f"round trip {m}"] = decode(t, encode(t, m)) == m
     failed = [what for what, ok in checks.items() if not ok]
     print(f"self-test: {len(checks) - len(failed)} passed, {len(failed)} failed {failed or ''}".rstrip())

@@ -38,7 +38,7 @@ def forged(key, rng):
             "psi_e": 0.0, "receptions": []})
     return vehicle.encode(vehicle.GAMMA, {
         "version": vehicle.VERSION, "tick": tick, "from": int(ident),
-        "sample": {"t": tick * 0.01, "gamma": 50.0, "gamma_dot": 1.0, "position": [0.0, 0.0]}})
+        "sample": {"t": tick * 0.01, "gamma": 50.0, "gamma_dot": 1.0, "position": [0.0, 0.0]}, "busy": False})
 
 
 def main():

@@ -1155,6 +1155,63 @@ goal_velocity = [0.75, 0.0]
     }
 
     #[test]
+    fn a_modem_parses_with_d23s_defaults_and_bad_values_name_file_line_and_key() {
+        let modem = "[comms]\ntdma_slot = 0.5\n[comms.modem]\nsource_level = 160.0\n[[comms.link]]\nfrom = 2\nto = 1\nnoise_level = 60.0\n";
+        let text = PAPER.replace("[[vehicle]]\nid = 1", &format!("{modem}\n[[vehicle]]\nid = 1"));
+        let m = parse("m.toml", &text, &[]).unwrap();
+        let modem = m.comms.modem.expect("a modem");
+        assert_eq!(
+            modem,
+            ModemConfig {
+                source_level: 160.0,
+                ..ModemConfig::default()
+            }
+        );
+        assert_eq!(
+            (modem.frequency, modem.bitrate, modem.frame_bits, modem.spreading),
+            (25.0, 5000.0, 256.0, 1.5)
+        );
+        let link = crate::links::LinkSpec::of(&m, 2, 1).modem.unwrap();
+        assert_eq!(
+            (link.source_level, link.noise_level),
+            (160.0, 60.0),
+            "the link's noise, the fleet's level"
+        );
+        assert_eq!(parse("r.toml", &m.to_toml(), &[]).unwrap(), m, "round trip");
+        let line_of = |key: &str| text.lines().position(|l| l.starts_with(key)).unwrap() + 1;
+        let modem_line = line_of("source_level");
+        for (set, key, says) in [
+            ("comms.modem.bitrate=0", "comms.modem.bitrate", "> 0"),
+            ("comms.modem.frame_bits=256.5", "comms.modem.frame_bits", "whole number"),
+            ("comms.modem.spreading=7", "comms.modem.spreading", "between 0 and 4"),
+            ("comms.modem.preamble=-1", "comms.modem.preamble", "≥ 0"),
+            ("comms.modem.source_level=inf", "comms.modem.source_level", "finite"),
+            (
+                "comms.modem.bitrate=1",
+                "comms.modem.bitrate",
+                "not shorter than mission.max_duration",
+            ),
+            ("comms.range=100", "comms.range", "SINR"),
+        ] {
+            let e = parse("m.toml", &text, &[set.into()]).unwrap_err();
+            assert_eq!(e.key.as_deref(), Some(key), "{set}: {e}");
+            assert!(e.to_string().contains(says), "{set}: {e}");
+        }
+        let typo = text.replace("source_level = 160.0", "source_levle = 160.0");
+        let e = parse("m.toml", &typo, &[]).unwrap_err();
+        assert_eq!(e.line, Some(modem_line), "{e}");
+        assert!(e.to_string().contains("source_levle"), "{e}");
+        let ranged = text.replace("noise_level = 60.0", "range = 40.0");
+        let e = parse("m.toml", &ranged, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.link[0].range"), "{e}");
+        assert_eq!(e.line, Some(line_of("noise_level")), "{e}");
+        let without = text.replace("[comms.modem]\nsource_level = 160.0\n", "");
+        let e = parse("m.toml", &without, &[]).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("comms.link[0].noise_level"), "{e}");
+        assert!(e.to_string().contains("needs [comms.modem]"), "{e}");
+    }
+
+    #[test]
     fn link_models_parse_and_bad_values_name_the_key() {
         let links = "[comms]\ntrigger = \"event\"\nrange = 500.0\nloss_at_range = 0.4\nsound_speed = 1500.0\ntdma_slot = 1.0\n[[comms.link]]\nfrom = 2\nto = 1\nrange = 200.0\n";
         let text = PAPER.replace("[[vehicle]]\nid = 1", &format!("{links}\n[[vehicle]]\nid = 1"));

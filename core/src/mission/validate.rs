@@ -1,7 +1,7 @@
 //! Every value of a mission checked before anything uses it, with the key that holds it.
 
 use super::diagnostics::Seg;
-use super::{Endpoint, Mission, Trigger, VehicleModelConfig};
+use super::{Endpoint, Mission, ModemConfig, Trigger, VehicleModelConfig};
 
 /// The planner evaluates every t_f of [tf_min, tf_max] on a 0.01 s grid (D6): this many at most,
 /// a 200 s window, so that a plan takes a fraction of a second and tens of MB.
@@ -599,10 +599,22 @@ impl Mission {
                     || l.delay.is_some()
                     || l.range.is_some()
                     || l.loss_at_range.is_some()
-                    || l.sound_speed.is_some(),
+                    || l.sound_speed.is_some()
+                    || l.source_level.is_some()
+                    || l.noise_level.is_some(),
                 item("link", i, "from"),
-                "overrides nothing: give `loss`, `delay`, `range`, `loss_at_range` or `sound_speed`",
+                "overrides nothing: give `loss`, `delay`, `range`, `loss_at_range`, `sound_speed`, `source_level` or `noise_level`",
             )?;
+            for (name, level) in [("source_level", l.source_level), ("noise_level", l.noise_level)] {
+                if let Some(level) = level {
+                    check(
+                        k.modem.is_some(),
+                        item("link", i, name),
+                        "needs [comms.modem]: it is a level of the acoustic modem's physics (D23)",
+                    )?;
+                    finite(item("link", i, name), &[level])?;
+                }
+            }
             if let Some(p) = l.loss {
                 probability(item("link", i, "loss"), p)?;
                 check(
@@ -650,6 +662,9 @@ impl Mission {
             ),
         )?;
         self.validate_acoustic(k.range, k.loss_at_range, k.sound_speed, |name| key("comms", name))?;
+        if let Some(m) = &k.modem {
+            self.validate_modem(m)?;
+        }
         if let Some(slot) = k.tdma_slot {
             let ratio = slot / k.period;
             check(
@@ -668,6 +683,62 @@ impl Mission {
                     num(self.mission.max_duration)
                 ),
             )?;
+        }
+        Ok(())
+    }
+
+    /// `[comms.modem]` (D23): levels finite, the waveform's numbers positive, a frame shorter than
+    /// the run, and no hard range beside the physics that decides range by SINR.
+    fn validate_modem(&self, m: &ModemConfig) -> Result<(), Invalid> {
+        let at = |k: &str| ckey(&[Seg::Key("modem".into()), Seg::Key(k.into())]);
+        finite(at("source_level"), &[m.source_level])?;
+        finite(at("noise_level"), &[m.noise_level])?;
+        for (name, x, unit) in [
+            ("frequency", m.frequency, "kHz"),
+            ("bandwidth", m.bandwidth, "kHz"),
+            ("bitrate", m.bitrate, "bit/s"),
+            ("frame_bits", m.frame_bits, "bits"),
+        ] {
+            check(
+                x > 0.0 && x.is_finite(),
+                at(name),
+                format!("must be a finite number > 0 ({unit})"),
+            )?;
+        }
+        check(
+            m.frame_bits.fract() == 0.0,
+            at("frame_bits"),
+            "must be a whole number of bits",
+        )?;
+        check(
+            m.preamble >= 0.0 && m.preamble.is_finite(),
+            at("preamble"),
+            "must be a finite number ≥ 0 (s)",
+        )?;
+        check(
+            m.spreading >= 0.0 && m.spreading <= 4.0,
+            at("spreading"),
+            "must be between 0 and 4 (1 cylindrical, 1.5 practical, 2 spherical)",
+        )?;
+        check(
+            m.airtime() < self.mission.max_duration,
+            at("bitrate"),
+            format!(
+                "gives a frame of {} s, not shorter than mission.max_duration ({} s)",
+                num(m.airtime()),
+                num(self.mission.max_duration)
+            ),
+        )?;
+        let hard_edge = "the modem decides range by each frame's SINR (D23): a hard `range` or `loss_at_range` beside it would cut frames twice";
+        check(self.comms.range.is_none(), key("comms", "range"), hard_edge)?;
+        check(
+            self.comms.loss_at_range == 0.0,
+            key("comms", "loss_at_range"),
+            hard_edge,
+        )?;
+        for (i, l) in self.comms.links.iter().enumerate() {
+            check(l.range.is_none(), item("link", i, "range"), hard_edge)?;
+            check(l.loss_at_range.is_none(), item("link", i, "loss_at_range"), hard_edge)?;
         }
         Ok(())
     }
@@ -700,9 +771,9 @@ impl Mission {
                 "must be a finite number > 0 (m/s)",
             )?;
             check(
-                range.is_some(),
+                range.is_some() || self.comms.modem.is_some(),
                 path("sound_speed"),
-                "needs a `range`: the largest propagation delay, range / sound_speed, caps the coordination gain (D19)",
+                "needs a `range` or [comms.modem]: the largest propagation delay, to the range or to where the modem's frames fail, caps the coordination gain (D19)",
             )?;
             if let Some(r) = range {
                 let delay = r / c;
