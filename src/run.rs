@@ -22,6 +22,9 @@ pub fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
         );
     } else {
         say!("{}", table::plan(&plan));
+        for line in tcpf_core::modem::link_budget(&mission).into_iter().flatten() {
+            sayln!("{line}");
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

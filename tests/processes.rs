@@ -8,9 +8,10 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    alive, arrivals, assert_none_left, assert_same_run, child_of, config, credentialed, descendants, exited, failure,
-    fleet, kill, lanes, listening, paper, pid_of, processes, record_by_hand, run_in_process, scratch, stop_the_planner,
-    summary, usrpwd, wait_exit, wait_for_text, wait_until_simulated, went_on_without_its_planner, Launch, Reaper,
+    alive, arrivals, assert_none_left, assert_same_run, child_of, config, credentialed, csv_rows, descendants, exited,
+    failure, fleet, kill, lanes, listening, paper, pid_of, processes, record_by_hand, run_in_process, scratch,
+    stop_the_planner, summary, usrpwd, wait_exit, wait_for_text, wait_until_simulated, went_on_without_its_planner,
+    Launch, Reaper,
 };
 
 #[test]
@@ -65,6 +66,66 @@ fn each_link_model_runs_the_same_as_processes() {
             "{name}: γ broadcasts per vehicle {sent:?}, error {}",
             s["max_coordination_error"]
         );
+        assert_none_left(&s);
+    }
+}
+
+/// The acoustic modem (docs/LINKS.md) as processes: every agent hears every vehicle's frames,
+/// so lockstep waits for them all; the physics' decisions are the in-process run's, bit for bit.
+#[test]
+fn a_fleet_on_acoustic_modems_runs_the_same_as_processes() {
+    let _fleet = fleet();
+    let modem = config("acoustic-modem");
+    for (name, mission, extra) in [
+        ("tdma", modem.clone(), &[][..]),
+        ("half-duplex", modem, &["--set", "comms.tdma_slot=0.1"][..]),
+        (
+            "line-events",
+            config("ring5"),
+            &[
+                "--set",
+                "comms.modem={}",
+                "--set",
+                "comms.topology=\"line\"",
+                "--set",
+                "comms.trigger=\"event\"",
+            ][..],
+        ),
+    ] {
+        let dir = scratch(&format!("modem-{name}"));
+        let mut launch = Launch::start(&mission, &dir.join("p"), extra);
+        assert!(launch.wait(Duration::from_secs(300)).success(), "{name}");
+        run_in_process(&mission, &dir.join("i"), extra);
+        assert_same_run(&dir.join("p"), &dir.join("i"));
+        let rows = csv_rows(&dir.join("p/messages.csv"));
+        let mut causes = std::collections::BTreeMap::<String, u64>::new();
+        for r in &rows {
+            *causes.entry(r["cause"].clone()).or_default() += 1;
+            assert_eq!(r["delivered"] == "1", r["cause"] == "delivered", "{r:?}");
+            let (sent, judged) = (r["sent_t"].parse::<f64>().unwrap(), r["t"].parse::<f64>().unwrap());
+            match r["cause"].as_str() {
+                "busy" => assert_eq!(sent, judged, "never sent: {r:?}"),
+                _ => assert!(sent < judged, "judged when its last bit is in: {r:?}"),
+            }
+        }
+        let s = launch.summary();
+        eprintln!(
+            "{name}: frames by cause {causes:?}, error {}",
+            s["max_coordination_error"]
+        );
+        let summed: u64 = s["links"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|l| l["causes"].as_object().unwrap().values())
+            .map(|n| n.as_u64().unwrap())
+            .sum();
+        assert_eq!(summed as usize, rows.len(), "the summary counts every row by cause");
+        match name {
+            "tdma" => assert_eq!(causes.keys().collect::<Vec<_>>(), ["delivered"]),
+            "half-duplex" => assert_eq!(causes.keys().collect::<Vec<_>>(), ["half_duplex"]),
+            _ => assert!(causes.get("collision").is_some_and(|&n| n > 0), "{causes:?}"),
+        }
         assert_none_left(&s);
     }
 }

@@ -6,7 +6,7 @@
 
 use std::collections::VecDeque;
 
-use crate::mission::ModemConfig;
+use crate::mission::{Mission, ModemConfig, Trigger};
 
 /// dB/km: Thorp's absorption at `f` kHz (D23).
 pub fn thorp(f: f64) -> f64 {
@@ -82,6 +82,45 @@ impl ModemConfig {
         }
         0.5 * (lo + hi)
     }
+}
+
+/// What `tcpf plan` says of a mission's modems: the airtime, the distances at which an isolated
+/// frame fails one time in ten, two, … and the medium access that cannot work with them.
+pub fn link_budget(mission: &Mission) -> Option<Vec<String>> {
+    let m = mission.comms.modem?;
+    let k = &mission.comms;
+    let c = k.sound_speed.unwrap_or(crate::links::SOUND_SPEED);
+    let t = m.airtime();
+    let r99 = m.range_at(0.99);
+    let mut lines = vec![
+        format!(
+            "modem: airtime {t:.4} s ({} bits at {} bit/s after a {} s preamble), SNR {:.1} dB at 1 km",
+            m.frame_bits,
+            m.bitrate,
+            m.preamble,
+            m.snr(1000.0)
+        ),
+        format!(
+            "modem: an isolated frame fails 1 in 10 at R10 = {:.1} m, 1 in 2 at R50 = {:.1} m, 9 in 10 at R90 = {:.1} m, 99 in 100 at R99 = {r99:.1} m",
+            m.range_at(0.1),
+            m.range_at(0.5),
+            m.range_at(0.9)
+        ),
+    ];
+    if k.trigger == Trigger::Periodic && k.tdma_slot.is_none() && k.period < t {
+        lines.push(format!(
+            "warning: the periodic trigger (every {} s) is faster than the airtime ({t:.4} s): every other instant finds the modem busy, and every vehicle sends at once, each deaf to the others while it talks (half duplex)",
+            k.period
+        ));
+    }
+    if let Some(slot) = k.tdma_slot.filter(|&s| s < t + r99 / c) {
+        lines.push(format!(
+            "warning: TDMA slots of {slot} s are shorter than the airtime plus the propagation over R99 ({t:.4} + {:.4} = {:.4} s): a frame from afar may still arrive in the next vehicle's slot",
+            r99 / c,
+            t + r99 / c
+        ));
+    }
+    Some(lines)
 }
 
 /// Why a γ frame on a link was not delivered, or that it was (D23, and D12/D21 on top).
@@ -348,6 +387,39 @@ mod tests {
         // A frame far out of range is lost to noise.
         let far = arrival(2, 0.0, 5000.0, &m);
         assert_eq!(Receiver::default().judge(&m, &far, 0.999).cause, Cause::Noise);
+    }
+
+    #[test]
+    fn the_plan_names_the_airtime_the_ranges_and_medium_access_that_cannot_work() {
+        let paper = crate::fixtures::case_b().0;
+        assert_eq!(link_budget(&paper), None, "no modem, nothing to say");
+        let modem = Mission {
+            comms: crate::mission::CommsConfig {
+                modem: Some(defaults()),
+                ..paper.comms.clone()
+            },
+            ..paper.clone()
+        };
+        let lines = link_budget(&modem).unwrap().join("\n");
+        for says in [
+            "airtime 0.1512 s",
+            "R10 = 3626.7 m",
+            "R50 = 3830.7 m",
+            "R90 = 4010.9 m",
+            "faster than the airtime",
+        ] {
+            assert!(lines.contains(says), "{says}: {lines}");
+        }
+        let mut tdma = modem.clone();
+        tdma.comms.tdma_slot = Some(0.5);
+        let lines = link_budget(&tdma).unwrap().join("\n");
+        assert!(
+            lines.contains("TDMA slots of 0.5 s are shorter than the airtime plus the propagation over R99"),
+            "{lines}"
+        );
+        assert!(!lines.contains("faster than the airtime"), "{lines}");
+        tdma.comms.tdma_slot = Some(3.0);
+        assert_eq!(link_budget(&tdma).unwrap().len(), 2, "slots long enough: no warning");
     }
 
     #[test]

@@ -2,6 +2,7 @@
 
 use std::fmt::Write;
 
+use tcpf_core::links::Cause;
 use tcpf_core::planner::Plan;
 
 use tcpf_core::summary::Summary;
@@ -145,6 +146,14 @@ pub fn summary(summary: &Summary) -> String {
                 String::new()
             }
         );
+        let causes: Vec<String> = Cause::ALL
+            .iter()
+            .filter(|&&c| c != Cause::Delivered && l.causes.get(c) > 0)
+            .map(|&c| format!("{} {}", c.name(), l.causes.get(c)))
+            .collect();
+        if !causes.is_empty() {
+            let _ = writeln!(s, "  lost or never sent, by cause: {}", causes.join(", "));
+        }
     }
     if summary.rejected_messages > 0 {
         let kinds: Vec<String> = summary
