@@ -8,7 +8,7 @@ use crate::coord;
 use crate::follow::{self, Gains};
 use crate::links::{Cause, Link, LinkSpec};
 use crate::mission::{BetaDot, Mission, ModemConfig, PostArrival, Trigger, VehicleModelConfig};
-use crate::modem::{power, Arrival, Receiver};
+use crate::modem::{Arrival, Receiver};
 use crate::msg::{Command, Gamma, Reception, Sample, State, PROTOCOL_VERSION};
 use crate::path::{GeneralizedPath, Vec2};
 
@@ -74,14 +74,16 @@ impl Acoustic {
             from,
             sent: sample.t,
             start: sample.t + d / c,
-            power: power(modem.received_level(d)),
+            level: modem.received_level(d),
         })
     }
 
-    /// Every frame sent at this instant reaches this vehicle, at `here`, neighbour's or not.
+    /// Every frame sent at this instant reaches this vehicle, at `here`, neighbour's or not: heard
+    /// in the order of the senders' ids, whatever order the network brought them in.
     fn hear(&mut self, inbox: &[Gamma], here: Vec2) {
-        for g in inbox {
-            if let Some(a) = g.sample.and_then(|s| self.arrival(g.from, &s, here)) {
+        for &(from, ..) in &self.senders {
+            let sample = inbox.iter().find(|g| g.from == from).and_then(|g| g.sample);
+            if let Some(a) = sample.and_then(|s| self.arrival(from, &s, here)) {
                 self.receiver.hear(a);
             }
         }
@@ -181,7 +183,8 @@ pub struct Agent {
 /// Ticks for `seconds`, rounded up to whole communication periods: γ is used at communication
 /// instants only, so a delay or a heartbeat counts from one to the next.
 fn in_ticks(seconds: f64, period: f64, comm_every: u64) -> u64 {
-    (seconds / period - 1e-9).ceil().max(0.0) as u64 * comm_every
+    // Saturating: a forged position far away must not wrap a delay around to none.
+    ((seconds / period - 1e-9).ceil().max(0.0) as u64).saturating_mul(comm_every)
 }
 
 /// What a sample says of its sender's γ at time t: predicted from its age and rate (D19), or
@@ -265,9 +268,10 @@ impl Agent {
         // A modem busy with its last frame stays silent at the instants its airtime covers.
         let hold_ticks = hold_ticks.max(k.modem.map_or(0, |m| whole_periods(m.airtime())));
         let neighbours = graph.get(&id).cloned().unwrap_or_default();
+        // Without a link in the graph (no coordination) nobody sends, so nobody need be heard.
         let audible: Vec<u32> = match k.modem {
-            Some(_) => graph.keys().copied().filter(|&j| j != id).collect(),
-            None => neighbours.clone(),
+            Some(_) if graph.values().any(|n| !n.is_empty()) => graph.keys().copied().filter(|&j| j != id).collect(),
+            _ => neighbours.clone(),
         };
         let acoustic = k.modem.map(|modem| Acoustic {
             modem,
@@ -352,6 +356,11 @@ impl Agent {
         self.audible.iter().copied()
     }
 
+    /// Whether a modem sends this agent's γ: then a trigger may find it busy (D23).
+    pub fn has_modem(&self) -> bool {
+        self.acoustic.is_some()
+    }
+
     /// Whether `tick`, the next after the last `step`, is a communication instant: a multiple of
     /// the period, or the first tick past one that a realtime agent skipped.
     pub fn is_comm_tick(&self, tick: u64) -> bool {
@@ -428,7 +437,7 @@ impl Agent {
                 let distance = sample.map(|s| (Vec2::from(s.position) - here).norm());
                 let verdict = inbound.link.transmit(t, distance);
                 let delay = inbound.link.spec().delay(distance.unwrap_or(0.0));
-                let arrives = tick + in_ticks(delay, self.comm_period, self.comm_every);
+                let arrives = tick.saturating_add(in_ticks(delay, self.comm_period, self.comm_every));
                 match (&mut self.acoustic, sample) {
                     (None, Some(s)) => {
                         receptions.push(Reception::of(from, verdict, s.t, distance));

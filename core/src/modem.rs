@@ -187,8 +187,8 @@ pub struct Arrival {
     pub sent: f64,
     /// a, s: when its first bit reaches the receiver, t_s + d/c.
     pub start: f64,
-    /// µPa²: its received power.
-    pub power: f64,
+    /// dB re 1 µPa: its received level (a level, so that no distance or level makes it 0 or ∞).
+    pub level: f64,
 }
 
 /// What the physics made of one frame at one receiver.
@@ -231,14 +231,16 @@ impl Receiver {
                 cause: Cause::HalfDuplex,
             };
         }
+        // Summed in the order heard, which the agent keeps by sender id: the same bits in every
+        // process whatever order the network delivered the frames in.
         let interference: f64 = self
             .water
             .iter()
             .filter(|a| !(a.from == wanted.from && a.sent == wanted.sent) && overlaps(a.start))
-            .map(|a| a.power)
+            .map(|a| power(a.level))
             .sum();
-        let sinr = wanted.power / (power(modem.noise()) + interference);
-        let cause = if u >= modem.per(sinr) {
+        let sinr_db = wanted.level - db(power(modem.noise()) + interference);
+        let cause = if u >= modem.per(power(sinr_db)) {
             Cause::Delivered
         } else if interference > 0.0 {
             Cause::Collision
@@ -246,7 +248,7 @@ impl Receiver {
             Cause::Noise
         };
         Judgement {
-            sinr_db: Some(db(sinr)),
+            sinr_db: Some(sinr_db),
             cause,
         }
     }
@@ -316,7 +318,7 @@ mod tests {
             from,
             sent,
             start: sent + distance / 1500.0,
-            power: power(m.received_level(distance)),
+            level: m.received_level(distance),
         }
     }
 
@@ -332,7 +334,7 @@ mod tests {
                 from: 2,
                 sent: 0.0,
                 start: w.start,
-                power: power(m.received_level(other)),
+                level: m.received_level(other),
             });
             rx.judge(&m, &w, 1.0 - 1e-15)
         };
@@ -374,7 +376,7 @@ mod tests {
                 from: 3,
                 sent: start,
                 start,
-                power: 1e30,
+                level: 300.0,
             });
         }
         let alone = rx.judge(&m, &w, 0.5);
@@ -384,9 +386,15 @@ mod tests {
         rx.transmitted(w.start + t - 1e-6);
         assert_eq!(rx.judge(&m, &w, 1.0).cause, Cause::HalfDuplex);
         assert_eq!(rx.judge(&m, &w, 1.0).sinr_db, None);
-        // A frame far out of range is lost to noise.
+        // A frame far out of range is lost to noise, at an SINR that stays a number however far.
         let far = arrival(2, 0.0, 5000.0, &m);
         assert_eq!(Receiver::default().judge(&m, &far, 0.999).cause, Cause::Noise);
+        let beyond = arrival(2, 0.0, 1e6, &m);
+        let judged = Receiver::default().judge(&m, &beyond, 0.999);
+        assert!(
+            judged.sinr_db.is_some_and(|s| s.is_finite() && s < -6000.0),
+            "{judged:?}"
+        );
     }
 
     #[test]

@@ -190,7 +190,12 @@ impl RealtimeAgent {
             return Err(Reject::NonFinite);
         }
         not_ahead(gamma.tick, horizon)?;
-        if gamma.sample.is_none() && !gamma.busy {
+        // A busy instant is news only on a modem (D23), and never worth a frame still held.
+        let busy = gamma.busy && self.agent.has_modem();
+        if gamma.sample.is_none() && !busy {
+            return Ok(());
+        }
+        if gamma.sample.is_none() && self.inbox.iter().any(|g| g.from == gamma.from && g.sample.is_some()) {
             return Ok(());
         }
         // A γ no newer than one already judged (reordered or repeated on the way) is of no use.

@@ -1185,7 +1185,16 @@ goal_velocity = [0.75, 0.0]
             ("comms.modem.frame_bits=256.5", "comms.modem.frame_bits", "whole number"),
             ("comms.modem.spreading=7", "comms.modem.spreading", "between 0 and 4"),
             ("comms.modem.preamble=-1", "comms.modem.preamble", "≥ 0"),
-            ("comms.modem.source_level=inf", "comms.modem.source_level", "finite"),
+            (
+                "comms.modem.source_level=inf",
+                "comms.modem.source_level",
+                "between -100 and 300 dB",
+            ),
+            (
+                "comms.modem.frequency=2000",
+                "comms.modem.frequency",
+                "at most 1000 kHz",
+            ),
             (
                 "comms.modem.bitrate=1",
                 "comms.modem.bitrate",

@@ -72,6 +72,15 @@ fn ros2_namespace_ok(ns: &str) -> bool {
         })
 }
 
+/// A level of the acoustic modem, dB: the loudest sound water carries is some 300 dB re 1 µPa.
+fn level(path: Vec<Seg>, db: f64) -> Result<(), Invalid> {
+    check(
+        (-100.0..=300.0).contains(&db),
+        path,
+        "must be a level between -100 and 300 dB",
+    )
+}
+
 fn finite(path: Vec<Seg>, values: &[f64]) -> Result<(), Invalid> {
     check(values.iter().all(|v| v.is_finite()), path, "must be a finite number")
 }
@@ -605,14 +614,14 @@ impl Mission {
                 item("link", i, "from"),
                 "overrides nothing: give `loss`, `delay`, `range`, `loss_at_range`, `sound_speed`, `source_level` or `noise_level`",
             )?;
-            for (name, level) in [("source_level", l.source_level), ("noise_level", l.noise_level)] {
-                if let Some(level) = level {
+            for (name, db) in [("source_level", l.source_level), ("noise_level", l.noise_level)] {
+                if let Some(db) = db {
                     check(
                         k.modem.is_some(),
                         item("link", i, name),
                         "needs [comms.modem]: it is a level of the acoustic modem's physics (D23)",
                     )?;
-                    finite(item("link", i, name), &[level])?;
+                    level(item("link", i, name), db)?;
                 }
             }
             if let Some(p) = l.loss {
@@ -691,8 +700,13 @@ impl Mission {
     /// the run, and no hard range beside the physics that decides range by SINR.
     fn validate_modem(&self, m: &ModemConfig) -> Result<(), Invalid> {
         let at = |k: &str| ckey(&[Seg::Key("modem".into()), Seg::Key(k.into())]);
-        finite(at("source_level"), &[m.source_level])?;
-        finite(at("noise_level"), &[m.noise_level])?;
+        level(at("source_level"), m.source_level)?;
+        level(at("noise_level"), m.noise_level)?;
+        check(
+            m.frequency <= 1000.0,
+            at("frequency"),
+            "must be at most 1000 kHz: Thorp's absorption holds for acoustic modems' carriers",
+        )?;
         for (name, x, unit) in [
             ("frequency", m.frequency, "kHz"),
             ("bandwidth", m.bandwidth, "kHz"),
