@@ -992,6 +992,14 @@ fn bench_prints_every_figure_beside_its_baseline() {
     // Round trips and ticks are medians taken apart from each other on a shared machine, and
     // a router on its own threads adds little to a round trip: which of them is larger varies
     // from run to run, so only their range and the printed ratios are checked.
+    // The acoustic layer's cost: ticks with and without, their ratio, per frame, and its share.
+    let modem = numbers(&line("in-process, 10 lanes with events on acoustic modems"));
+    let [_, with, without, ratio, per_frame, frames, share] = modem[..] else {
+        panic!("{modem:?}")
+    };
+    assert!(with > 0.0 && without > 0.0 && frames > 100.0, "{modem:?}");
+    assert!((ratio - with / without).abs() <= 0.01 + 0.05 * ratio, "{modem:?}");
+    assert!(per_frame >= 0.0 && share < 100.0, "{modem:?}");
     let rtt = numbers(&line("zenoh round trip"));
     assert!(
         rtt.len() == 2 && rtt.iter().all(|&t| t > 10.0 && t < 1e5),

@@ -61,7 +61,9 @@ fn a_loss_sweep_of_case_d_grows_with_loss_and_matches_single_runs() {
     assert_eq!(
         header.lines().next().unwrap(),
         "run,comms.loss,seed,status,max_coordination_error,rms_coordination_error,integral_coordination_error,\
-         resync_time,min_clearance,arrival_spread,last_arrival,delivered_fraction,messages_per_vehicle_s"
+         resync_time,min_clearance,arrival_spread,last_arrival,delivered_fraction,messages_per_vehicle_s,\
+         frames_delivered,frames_busy,frames_half_duplex,frames_collision,frames_noise,frames_loss,frames_burst,\
+         frames_outage,frames_range"
     );
     let rows = common::csv_rows(&out.join("runs.csv"));
     assert_eq!(rows.len(), 60);

@@ -126,6 +126,18 @@ fn a_fleet_on_acoustic_modems_runs_the_same_as_processes() {
             "half-duplex" => assert_eq!(causes.keys().collect::<Vec<_>>(), ["half_duplex"]),
             _ => assert!(causes.get("collision").is_some_and(|&n| n > 0), "{causes:?}"),
         }
+        // The report draws each frame by its cause, and the error rate against distance.
+        let report = std::fs::read_to_string(dir.join("p/report.html")).unwrap();
+        for cause in causes.keys() {
+            let legend = format!("\n{}\n</text>", cause.replace('_', " "));
+            assert!(report.contains(&legend), "legend {cause}");
+        }
+        let drawn = report.contains("id=\"frame-errors\"");
+        assert_eq!(
+            drawn,
+            name != "half-duplex",
+            "frames the error draw decided: none in half duplex"
+        );
         assert_none_left(&s);
     }
 }

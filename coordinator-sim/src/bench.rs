@@ -251,6 +251,53 @@ pub fn vehicle_models(mission: &Mission, plan: &Plan, repeat: usize) -> [(Vehicl
     })
 }
 
+/// Ten lanes with event-triggered γ in-process on acoustic modems, and the same without a modem
+/// (the baseline), each the best of `repeat`: what the physical layer (MODEL D23) costs a tick,
+/// and per frame it judged.
+pub struct ModemCost {
+    pub ticks: u64,
+    /// Frames judged, busy instants included: `messages.csv`'s rows.
+    pub frames: u64,
+    pub with: Duration,
+    pub without: Duration,
+}
+
+pub fn modem_cost(repeat: usize) -> Result<ModemCost> {
+    let text = tcpf_core::mission::generate::lanes(10, 0.0);
+    let mission = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        tcpf_core::mission::parse("lanes10.toml", &text, &sets).map_err(|e| anyhow!("{e}"))
+    };
+    let plain = mission(&["comms.trigger=\"event\""])?;
+    let modem = mission(&["comms.trigger=\"event\"", "comms.modem={}"])?;
+    let plan = tcpf_core::planner::plan(&plain).map_err(|e| anyhow!("{e}"))?;
+    let mut frames = 0;
+    let mut ticks = 0;
+    let mut best = |m: &Mission, count: bool| {
+        (0..repeat)
+            .map(|_| {
+                let start = Instant::now();
+                let mut judged = 0;
+                let r = Fleet::new(m, &plan)
+                    .run(|_, c| judged += c.iter().flatten().map(|c| c.receptions.len()).sum::<usize>());
+                if count {
+                    (frames, ticks) = (judged as u64, r.ticks);
+                }
+                start.elapsed()
+            })
+            .min()
+            .unwrap_or_default()
+    };
+    let with = best(&modem, true);
+    let without = best(&plain, false);
+    Ok(ModemCost {
+        ticks,
+        frames,
+        with,
+        without,
+    })
+}
+
 /// A router listening on `endpoint`, with nothing else.
 async fn open_router(endpoint: &str) -> Result<zenoh::Session> {
     ZenohArgs {
@@ -416,6 +463,20 @@ pub async fn measure(
         per_second(&medusa),
         per_second(&kinematic),
         per_second(&medusa) / per_second(&kinematic)
+    ));
+
+    let modem = modem_cost(7)?;
+    let tick_us = |d: Duration| seconds(d) * 1e6 / modem.ticks as f64;
+    let extra = seconds(modem.with) - seconds(modem.without);
+    say(format!(
+        "in-process, 10 lanes with events on acoustic modems: {:.1} µs a tick; without a modem (baseline) {:.1} µs: {:.2}x; \
+         the layer {:.2} µs per frame judged ({} frames), {:.1} % of a tick",
+        tick_us(modem.with),
+        tick_us(modem.without),
+        seconds(modem.with) / seconds(modem.without),
+        extra * 1e6 / modem.frames.max(1) as f64,
+        modem.frames,
+        100.0 * extra / seconds(modem.with)
     ));
 
     // This process's own scratch directory: one a killed bench of the same pid left is stale.

@@ -81,12 +81,13 @@ impl Acoustic {
     /// Every frame sent at this instant reaches this vehicle, at `here`, neighbour's or not: heard
     /// in the order of the senders' ids, whatever order the network brought them in.
     fn hear(&mut self, inbox: &[Gamma], here: Vec2) {
-        for &(from, ..) in &self.senders {
-            let sample = inbox.iter().find(|g| g.from == from).and_then(|g| g.sample);
-            if let Some(a) = sample.and_then(|s| self.arrival(from, &s, here)) {
+        let heard = self.receiver.heard();
+        for g in inbox {
+            if let Some(a) = g.sample.and_then(|s| self.arrival(g.from, &s, here)) {
                 self.receiver.hear(a);
             }
         }
+        self.receiver.sort_from(heard);
     }
 
     /// Judges the frames due by `tick`, in the order sent: receptions for each, and the

@@ -219,6 +219,17 @@ impl Receiver {
         self.water.push(arrival);
     }
 
+    /// How many frames are in the water: where the next instant's begin.
+    pub fn heard(&self) -> usize {
+        self.water.len()
+    }
+
+    /// Puts the frames heard since `start` in the order of their senders' ids: interference is
+    /// summed in this order, the same whatever order the network delivered them in.
+    pub fn sort_from(&mut self, start: usize) {
+        self.water[start..].sort_unstable_by_key(|a| a.from);
+    }
+
     /// The frame `wanted` (heard before) judged with `u`, the link's uniform draw for it:
     /// half duplex if this modem transmitted during [a, a + T); else delivered iff u ≥ PER at the
     /// worst-case SINR over the frame, S / (N + ΣI) with every other overlapping frame's power.
@@ -231,8 +242,8 @@ impl Receiver {
                 cause: Cause::HalfDuplex,
             };
         }
-        // Summed in the order heard, which the agent keeps by sender id: the same bits in every
-        // process whatever order the network delivered the frames in.
+        // Summed in the order heard, each instant's frames by sender id (`sort_from`): the same
+        // bits in every process whatever order the network delivered the frames in.
         let interference: f64 = self
             .water
             .iter()

@@ -32,6 +32,9 @@ pub struct Chart<'a> {
     pub markers: Vec<(f64, f64, String)>,
     /// Named sets of points drawn as small dots, one colour each.
     pub dots: Vec<Series>,
+    /// The colour of each set of dots that must mean the same in every chart (a cause of loss),
+    /// by the set's index; others take the palette's.
+    pub dot_colors: Vec<RGBColor>,
     /// Start the y axis at zero (counts and rates, whose small wobbles are not a trend).
     pub y_from_zero: bool,
     /// Fault windows along x (time), shaded; one of no width is a line.
@@ -53,6 +56,7 @@ impl<'a> Chart<'a> {
             labels: Vec::new(),
             markers: Vec::new(),
             dots: Vec::new(),
+            dot_colors: Vec::new(),
             y_from_zero: false,
             windows: Vec::new(),
             arrows: Vec::new(),
@@ -220,7 +224,10 @@ impl<'a> Chart<'a> {
             }
         }
         for (k, s) in self.dots.iter().enumerate() {
-            let color = Palette99::pick(k).to_rgba();
+            let color = self
+                .dot_colors
+                .get(k)
+                .map_or(Palette99::pick(k).to_rgba(), |c| c.to_rgba());
             chart
                 .draw_series(s.points.iter().map(|&p| Circle::new(p, 2, color.filled())))?
                 .label(s.name.clone())

@@ -7,12 +7,13 @@ use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
 use tcpf_core::dynamics::{DEAD_ZONE, FULL};
-use tcpf_core::links::LinkStats;
+use tcpf_core::links::{Cause, LinkStats};
 use tcpf_core::metrics::Thrusters;
-use tcpf_core::mission::{self, Mission};
+use tcpf_core::mission::{self, Mission, ModemConfig};
 use tcpf_core::msg::Player;
 
 use crate::plots::{bars, Chart, Series};
+use plotters::style::RGBColor;
 use tcpf_core::summary::{Clock, RoleTiming, Summary};
 
 /// At most this many points per line: enough for the eye, small enough for the page.
@@ -123,10 +124,14 @@ fn read_telemetry(file: &Path, ids: &[u32]) -> Result<BTreeMap<u32, Track>> {
 /// One γ message a link decided on (`messages.csv`).
 struct Message {
     t: f64,
-    tick: u64,
     from: u32,
     to: u32,
-    delivered: bool,
+    /// s: when it was sent (judged then, in a run directory from before the column).
+    sent: f64,
+    distance: Option<f64>,
+    /// Where a modem's physics judged it.
+    sinr_db: Option<f64>,
+    cause: Cause,
 }
 
 /// `messages.csv`; a run directory from before it existed has none, which is said.
@@ -143,12 +148,25 @@ fn read_messages(file: &Path) -> Result<Vec<Message>> {
             let f: Vec<&str> = line.split(',').collect();
             let bad = || anyhow!("{}:{}: malformed row", file.display(), n + 1);
             let field = |c: usize| f.get(c).copied().ok_or_else(bad);
+            // The columns after `delivered` came with the acoustic modem: absent in older runs.
+            let number = |c: usize| match f.get(c).copied().unwrap_or("") {
+                "" => Ok(None),
+                x => x.parse().map(Some).map_err(|_| bad()),
+            };
+            let t = field(1)?.parse().map_err(|_| bad())?;
+            let cause = match (f.get(8), field(4)?) {
+                (Some(name), _) => *Cause::ALL.iter().find(|c| c.name() == *name).ok_or_else(bad)?,
+                (None, "1") => Cause::Delivered,
+                (None, _) => Cause::Loss,
+            };
             Ok(Message {
-                tick: field(0)?.parse().map_err(|_| bad())?,
-                t: field(1)?.parse().map_err(|_| bad())?,
+                t,
                 from: field(2)?.parse().map_err(|_| bad())?,
                 to: field(3)?.parse().map_err(|_| bad())?,
-                delivered: field(4)? == "1",
+                sent: number(5)?.unwrap_or(t),
+                distance: number(6)?,
+                sinr_db: number(7)?,
+                cause,
             })
         })
         .collect()
@@ -432,13 +450,18 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
     }
     let mut sent = Chart::new("γ messages sent", "t (s)", "broadcasts so far").with_windows(faults);
     let mut senders: BTreeMap<u32, Vec<(f64, f64)>> = BTreeMap::new();
-    let mut last: BTreeMap<u32, u64> = BTreeMap::new();
-    for m in messages {
-        // Each neighbour's row is the same broadcast.
-        if last.insert(m.from, m.tick) != Some(m.tick) {
-            let points = senders.entry(m.from).or_default();
-            points.push((m.t, points.len() as f64 + 1.0));
-        }
+    // Each neighbour's row is the same broadcast, judged at the same instant unless a modem
+    // judged it on arrival; a busy instant sent nothing.
+    let mut broadcasts: Vec<(f64, u32)> = messages
+        .iter()
+        .filter(|m| m.cause != Cause::Busy)
+        .map(|m| (m.sent, m.from))
+        .collect();
+    broadcasts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    broadcasts.dedup();
+    for (sent, from) in broadcasts {
+        let points = senders.entry(from).or_default();
+        points.push((sent, points.len() as f64 + 1.0));
     }
     for (id, points) in senders {
         let stride = every(points.len());
@@ -470,16 +493,20 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
     let row = |m: &Message| links.iter().position(|l| *l == (m.from, m.to)).unwrap_or(0) as f64 + 1.0;
     let stride = every(messages.len());
     let mut marks = Chart::new("γ messages per directed link", "t (s)", "link").with_windows(faults);
-    for (name, delivered) in [("lost", false), ("delivered", true)] {
+    for cause in Cause::ALL
+        .into_iter()
+        .filter(|&c| messages.iter().any(|m| m.cause == c))
+    {
         marks.dots.push(Series {
-            name: name.into(),
+            name: cause.name().replace('_', " "),
             points: messages
                 .iter()
                 .step_by(stride)
-                .filter(|m| m.delivered == delivered)
-                .map(|m| (m.t, row(m)))
+                .filter(|m| m.cause == cause)
+                .map(|m| (m.sent, row(m)))
                 .collect(),
         });
+        marks.dot_colors.push(cause_color(cause));
     }
     let t0 = messages[0].t;
     for (k, (from, to)) in links.iter().enumerate() {
@@ -492,8 +519,85 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
     };
     figures.push((
         "receptions",
-        format!("Each γ message on each directed link, delivered or lost{shown}."),
+        format!(
+            "Each γ message on each directed link at the instant it was sent, coloured by what became of it{shown}."
+        ),
         marks.svg(900, 200 + 40 * links.len() as u32),
+    ));
+}
+
+/// One colour per cause in every chart: Okabe–Ito's, told apart by readers with a colour vision
+/// deficiency; delivered blue, the modem's causes warm, the link's own models grey and purple.
+fn cause_color(cause: Cause) -> RGBColor {
+    match cause {
+        Cause::Delivered => RGBColor(0, 114, 178),
+        Cause::Busy => RGBColor(240, 228, 66),
+        Cause::HalfDuplex => RGBColor(230, 159, 0),
+        Cause::Collision => RGBColor(213, 94, 0),
+        Cause::Noise => RGBColor(204, 121, 167),
+        Cause::Loss => RGBColor(86, 86, 86),
+        Cause::Burst => RGBColor(150, 150, 150),
+        Cause::Outage => RGBColor(0, 0, 0),
+        Cause::Range => RGBColor(0, 158, 115),
+    }
+}
+
+/// With a modem: the error rate of frames the physics judged, by distance, beside the closed
+/// form of an isolated frame (D23): above the curve where frames collided.
+fn error_rate_figure(modem: &ModemConfig, messages: &[Message], figures: &mut Vec<(&str, String, String)>) {
+    // Frames the draw decided: not those never sent or lost to half duplex before it.
+    let judged: Vec<(f64, bool)> = messages
+        .iter()
+        .filter(|m| m.sinr_db.is_some())
+        .filter_map(|m| Some((m.distance?, !matches!(m.cause, Cause::Noise | Cause::Collision))))
+        .collect();
+    if judged.is_empty() {
+        return;
+    }
+    let (lo, hi) = judged
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (d, _)| {
+            (a.min(*d), b.max(*d))
+        });
+    const BINS: usize = 20;
+    let width = ((hi - lo) / BINS as f64).max(1e-9);
+    let mut bins = [(0u64, 0u64); BINS];
+    for &(d, survived) in &judged {
+        let k = (((d - lo) / width) as usize).min(BINS - 1);
+        bins[k].0 += 1;
+        bins[k].1 += u64::from(!survived);
+    }
+    let mut chart = Chart::new(
+        "Frame error rate against distance",
+        "distance at sending (m)",
+        "frame error rate",
+    );
+    chart.y_from_zero = true;
+    let reach = lo.min(modem.range_at(0.01)).max(1.0)..hi.max(modem.range_at(0.99));
+    chart.series.push(Series {
+        name: "isolated frame, closed form".into(),
+        points: (0..=200)
+            .map(|k| reach.start + (reach.end - reach.start) * k as f64 / 200.0)
+            .map(|d| (d, modem.per_at(d)))
+            .collect(),
+    });
+    chart.dots.push(Series {
+        name: "measured (frames the draw decided)".into(),
+        points: bins
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.0 > 0)
+            .map(|(k, b)| (lo + (k as f64 + 0.5) * width, b.1 as f64 / b.0 as f64))
+            .collect(),
+    });
+    chart.dot_colors.push(cause_color(Cause::Collision));
+    figures.push((
+        "frame-errors",
+        format!(
+            "Share of frames lost to the error draw (noise or collision) in {BINS} bins of distance, beside the error rate of an isolated frame at the fleet's levels: above the curve, other frames interfered. {} frames.",
+            judged.len()
+        ),
+        chart.svg(900, 400),
     ));
 }
 
@@ -663,6 +767,9 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
         link_chart,
     ));
     message_figures(messages, &faults, &mut figures);
+    if let Some(modem) = &mission.comms.modem {
+        error_rate_figure(modem, messages, &mut figures);
+    }
 
     let mut html = String::new();
     let title = format!("tcpf run: {}", summary.mission);

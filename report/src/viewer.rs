@@ -41,7 +41,7 @@ const PATH_STEP: f64 = 0.5;
 
 const COORDINATION_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"gamma":{"type":"number"},"gamma_dot":{"type":"number"},"v":{"type":"number"},"r":{"type":"number"},"v_d":{"type":"number"},"x_e":{"type":"number"},"y_e":{"type":"number"},"psi_e":{"type":"number"}}}"#;
 const DYNAMICS_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"surge":{"type":"number"},"sway":{"type":"number"},"yaw_rate":{"type":"number"},"beta":{"type":"number"},"command_1":{"type":"number"},"command_2":{"type":"number"},"motor_1":{"type":"number"},"motor_2":{"type":"number"},"thrust_1":{"type":"number"},"thrust_2":{"type":"number"}}}"#;
-const LINK_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"from":{"type":"integer"},"to":{"type":"integer"},"delivered":{"type":"boolean"}}}"#;
+const LINK_SCHEMA: &str = r#"{"type":"object","properties":{"t":{"type":"number"},"from":{"type":"integer"},"to":{"type":"integer"},"delivered":{"type":"boolean"},"cause":{"type":"string","enum":["delivered","busy","half_duplex","collision","noise","loss","burst","outage","range"]},"sent_t":{"type":"number"},"distance":{"type":"number"},"sinr_db":{"type":"number"}}}"#;
 
 /// One channel, in the file and, when live, on the server.
 struct Topic {
@@ -110,8 +110,18 @@ struct Dynamics {
 /// A message of `/links`, fields in the order of their names.
 #[derive(Serialize)]
 struct Link {
+    /// What became of it: `delivered`, or the cause that lost it (messages.csv's words).
+    cause: &'static str,
     delivered: bool,
+    /// m at the sending instant; absent for a frame a busy modem never sent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    distance: Option<f64>,
     from: u32,
+    /// s: the sending instant (`t` is when the receiver judged it).
+    sent_t: f64,
+    /// dB, where an acoustic modem's physics judged it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sinr_db: Option<f64>,
     t: f64,
     to: u32,
 }
@@ -325,8 +335,12 @@ impl Viewer {
             self.log_json(&mut json, &vehicle.coordination, &coordination, at);
             for r in &c.receptions {
                 let link = Link {
+                    cause: r.cause.name(),
                     delivered: r.delivered,
+                    distance: r.distance,
                     from: r.from,
+                    sent_t: r.sent,
+                    sinr_db: r.sinr_db,
                     t: s.t,
                     to: c.id,
                 };

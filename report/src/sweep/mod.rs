@@ -706,6 +706,16 @@ mod tests {
                 Some(last),
                 Some(1.0),
                 Some(10.0),
+                // Frames by cause: every one delivered.
+                Some(550.0),
+                Some(0.0),
+                Some(0.0),
+                Some(0.0),
+                Some(0.0),
+                Some(0.0),
+                Some(0.0),
+                Some(0.0),
+                Some(0.0),
             ],
         }
     }

@@ -4,6 +4,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
+use tcpf_core::links::Cause;
 use tcpf_core::metrics::Results;
 
 use super::grid::Grid;
@@ -15,8 +16,9 @@ pub struct Metric {
     pub unit: &'static str,
 }
 
-/// The metrics of every row, in the order of their columns.
-pub const METRICS: [Metric; 9] = [
+/// The metrics of every row, in the order of their columns: the fleet's figures, then every
+/// link's frames by what became of them (`frames_<cause>`, in `Cause::ALL`'s order).
+pub const METRICS: [Metric; 9 + Cause::ALL.len()] = [
     Metric {
         name: "max_coordination_error",
         title: "Coordination error",
@@ -61,6 +63,51 @@ pub const METRICS: [Metric; 9] = [
         name: "messages_per_vehicle_s",
         title: "γ messages",
         unit: "broadcasts per vehicle per second",
+    },
+    Metric {
+        name: "frames_delivered",
+        title: "Frames delivered",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_busy",
+        title: "Instants a busy modem sent nothing",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_half_duplex",
+        title: "Frames lost to half duplex",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_collision",
+        title: "Frames lost to collisions",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_noise",
+        title: "Frames lost to noise",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_loss",
+        title: "Frames lost to the link's loss",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_burst",
+        title: "Frames lost to bursts",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_outage",
+        title: "Frames lost to outages",
+        unit: "frames, every link",
+    },
+    Metric {
+        name: "frames_range",
+        title: "Frames lost beyond the range",
+        unit: "frames, every link",
     },
 ];
 
@@ -126,6 +173,9 @@ impl Row {
         let sent: u64 = r.links.iter().map(|l| l.sent).sum();
         let delivered: u64 = r.links.iter().map(|l| l.delivered).sum();
         let arrived = span.is_some() && !r.vehicles.iter().any(|v| v.lost);
+        let frames = |cause: Cause| Some(r.links.iter().map(|l| l.causes.get(cause)).sum::<u64>() as f64);
+        let [delivered_frames, busy, half_duplex, collision, noise, loss, burst, outage, range] =
+            Cause::ALL.map(frames);
         Row {
             run,
             point,
@@ -144,6 +194,15 @@ impl Row {
                     r.vehicles.iter().map(|v| v.gamma_sent).sum::<u64>() as f64
                         / (r.vehicles.len() as f64 * r.ticks as f64 * dt),
                 ),
+                delivered_frames,
+                busy,
+                half_duplex,
+                collision,
+                noise,
+                loss,
+                burst,
+                outage,
+                range,
             ],
         }
     }
