@@ -123,12 +123,16 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     let vector = |topic: &str| format!("0/tcpf/{topic}/geometry_msgs::msg::dds_::Vector3Stamped_/{vector_hash}");
     let twist = |id: u32| format!("0/tcpf/vehicle_{id}/cmd/geometry_msgs::msg::dds_::Twist_/{twist_hash}");
     let path = |id: u32| format!("0/tcpf/vehicle_{id}/path/nav_msgs::msg::dds_::Path_/{path_hash}");
+    let string_hash = seen["hashes"]["std_msgs/msg/String"].as_str().unwrap();
+    let cause = |link: &str| format!("0/tcpf/links/{link}/cause/std_msgs::msg::dds_::String_/{string_hash}");
     assert_eq!(
         keys,
         [
             format!("0/clock/rosgraph_msgs::msg::dds_::Clock_/{clock_hash}"),
             vector("coordination"),
+            cause("from_1_to_2"),
             vector("links/from_1_to_2"),
+            cause("from_2_to_1"),
             vector("links/from_2_to_1"),
             twist(1),
             vector("vehicle_1/gamma"),
@@ -140,10 +144,10 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     );
 
     // The graph: the nodes /tcpf/world, /tcpf/agent_1 and /tcpf/agent_2, and one publisher per
-    // topic: the world's eight and two paths, each agent's commands.
+    // topic: the world's ten and two paths, each agent's commands.
     let tokens = graph(&seen);
     let kinds = |kind: &str| tokens.iter().filter(|t| t.split('/').nth(5) == Some(kind)).count();
-    assert_eq!((kinds("NN"), kinds("MP"), tokens.len()), (3, 12, 15), "{tokens:?}");
+    assert_eq!((kinds("NN"), kinds("MP"), tokens.len()), (3, 14, 17), "{tokens:?}");
     for node in ["world", "agent_1", "agent_2"] {
         assert!(
             tokens.iter().any(|t| t.ends_with(&format!("/NN/%/%tcpf/{node}"))),
@@ -163,6 +167,8 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
         "%tcpf%vehicle_2%gamma",
         "%tcpf%links%from_1_to_2",
         "%tcpf%links%from_2_to_1",
+        "%tcpf%links%from_1_to_2%cause",
+        "%tcpf%links%from_2_to_1%cause",
         "%tcpf%coordination",
     ] {
         assert!(published("world", topic, "/1:2:1,10:,:,:,,"), "{topic}: {tokens:?}");
@@ -294,6 +300,10 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
             "{topic}"
         );
         assert_eq!(last["frame"], "map");
+        // Each message's fate, as messages.csv says it: every one delivered in case (b).
+        let causes = seen["strings"][&format!("{topic}/cause")].as_array().unwrap();
+        assert_eq!(causes.len() as f64, sent, "{topic}/cause");
+        assert!(causes.iter().all(|c| c == "delivered"), "{topic}/cause");
     }
 
     // /clock: the fleet's simulated time, tick by tick.
@@ -497,7 +507,7 @@ fn a_recorder_with_ros2_shows_a_fleet_that_speaks_none() {
 
     let tokens = graph(&seen);
     let kinds = |kind: &str| tokens.iter().filter(|t| t.split('/').nth(5) == Some(kind)).count();
-    assert_eq!((kinds("NN"), kinds("MP")), (1, 10), "{tokens:?}");
+    assert_eq!((kinds("NN"), kinds("MP")), (1, 12), "{tokens:?}");
     assert!(tokens.iter().any(|t| t.ends_with("/NN/%/%tcpf/recorder")), "{tokens:?}");
     let rows = telemetry(&out);
     assert_odometry_is_the_telemetry(&seen, &rows);

@@ -212,7 +212,8 @@ pub struct World {
     odometry: BTreeMap<u32, Topic>,
     gamma: BTreeMap<u32, Topic>,
     paths: BTreeMap<u32, Latched>,
-    links: BTreeMap<(u32, u32), Topic>,
+    /// Per link, its counts (Vector3Stamped) and each message's cause (String).
+    links: BTreeMap<(u32, u32), (Topic, Topic)>,
     counts: LinkCounts,
     coordination: Topic,
     clock: Option<Topic>,
@@ -254,11 +255,13 @@ impl World {
         }
         let mut links = BTreeMap::new();
         for &(from, to) in fleet.links {
-            let topic = ros2.link_topic(from, to);
-            links.insert(
-                (from, to),
-                node.publisher(topic, ros2::VECTOR3_STAMPED, ros2::QOS).await?,
-            );
+            let counts = node
+                .publisher(ros2.link_topic(from, to), ros2::VECTOR3_STAMPED, ros2::QOS)
+                .await?;
+            let causes = node
+                .publisher(ros2.link_cause_topic(from, to), ros2::STRING, ros2::QOS)
+                .await?;
+            links.insert((from, to), (counts, causes));
         }
         let coordination = node
             .publisher(ros2.coordination_topic(), ros2::VECTOR3_STAMPED, ros2::QOS)
@@ -331,9 +334,12 @@ impl World {
             if let Some(topic) = self.gamma.get_mut(&state.id) {
                 topic.put(ros2::gamma(state, command, stamp), stamp)?;
             }
-            for (link, counts) in self.counts.count(command) {
-                if let Some(topic) = self.links.get_mut(&link) {
-                    topic.put(ros2::link(counts, stamp), stamp)?;
+            for (link, counts, cause) in self.counts.count(command) {
+                if let Some((topic, causes)) = self.links.get_mut(&link) {
+                    if cause != tcpf_core::msg::Cause::Busy {
+                        topic.put(ros2::link(counts, stamp), stamp)?;
+                    }
+                    causes.put(ros2::cause(cause), stamp)?;
                 }
             }
         }

@@ -42,6 +42,12 @@ pub const TWIST: Type = Type {
     hash: "RIHS01_9c45bf16fe0983d80e3cfe750d6835843d265a9a6c46bd2e609fcddde6fb8d2a",
 };
 
+pub const STRING: Type = Type {
+    name: "std_msgs/msg/String",
+    dds: "std_msgs::msg::dds_::String_",
+    hash: "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18",
+};
+
 pub const PATH: Type = Type {
     name: "nav_msgs/msg/Path",
     dds: "nav_msgs::msg::dds_::Path_",
@@ -103,6 +109,11 @@ impl Ros2Config {
     /// The γ messages of the directed link from `from` to `to`.
     pub fn link_topic(&self, from: u32, to: u32) -> String {
         self.topic(&format!("links/from_{from}_to_{to}"))
+    }
+
+    /// What became of each γ message of the link from `from` to `to`, as `messages.csv` says it.
+    pub fn link_cause_topic(&self, from: u32, to: u32) -> String {
+        self.topic(&format!("links/from_{from}_to_{to}/cause"))
     }
 
     /// The fleet's coordination state.
@@ -421,6 +432,14 @@ pub fn link(counts: LinkCount, stamp: Stamp) -> Vec<u8> {
     )
 }
 
+/// std_msgs/msg/String: one γ message's fate on a link, `delivered` or the cause that lost it
+/// (`half_duplex`, `collision`, … as `messages.csv` words it).
+pub fn cause(cause: crate::msg::Cause) -> Vec<u8> {
+    let mut cdr = Cdr::new();
+    cdr.string(cause.name());
+    cdr.0
+}
+
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct LinkCount {
     pub sent: u64,
@@ -436,9 +455,10 @@ pub struct LinkCounts {
 }
 
 impl LinkCounts {
-    /// The links `command` reports on, as (from, to) with their counts after it; none if it was
-    /// counted already.
-    pub fn count(&mut self, command: &Command) -> Vec<((u32, u32), LinkCount)> {
+    /// The links `command` reports on, as (from, to) with their counts after it and what became
+    /// of the message (a busy instant too, which counts as nothing sent); none if it was counted
+    /// already.
+    pub fn count(&mut self, command: &Command) -> Vec<((u32, u32), LinkCount, crate::msg::Cause)> {
         if self.counted.get(&command.id).is_some_and(|&tick| tick >= command.tick) {
             return Vec::new();
         }
@@ -446,13 +466,14 @@ impl LinkCounts {
         command
             .receptions
             .iter()
-            .filter(|r| r.cause != crate::msg::Cause::Busy)
             .map(|r| {
                 let link = (r.from, command.id);
                 let c = self.links.entry(link).or_default();
-                c.sent += 1;
-                c.delivered += u64::from(r.delivered);
-                (link, *c)
+                if r.cause != crate::msg::Cause::Busy {
+                    c.sent += 1;
+                    c.delivered += u64::from(r.delivered);
+                }
+                (link, *c, r.cause)
             })
             .collect()
     }
@@ -980,14 +1001,31 @@ mod tests {
             )],
             ..crate::fixtures::command_at(2, tick, 0.0)
         };
+        use crate::msg::Cause;
         assert_eq!(
             counts.count(&heard(10, true)),
-            vec![((1, 2), LinkCount { sent: 1, delivered: 1 })]
+            vec![((1, 2), LinkCount { sent: 1, delivered: 1 }, Cause::Delivered)]
         );
         assert_eq!(counts.count(&heard(10, true)), vec![], "the same command held again");
         let after = counts.count(&heard(20, false));
-        assert_eq!(after, vec![((1, 2), LinkCount { sent: 2, delivered: 1 })]);
+        assert_eq!(after, vec![((1, 2), LinkCount { sent: 2, delivered: 1 }, Cause::Loss)]);
         assert_eq!(vector(&link(after[0].1, Stamp::from_seconds(0.2))), [2.0, 1.0, 1.0]);
+        // A busy instant is no message sent: its cause is said, the counts stay.
+        let busy = Command {
+            receptions: vec![crate::msg::Reception::of(1, Cause::Busy, 0.3, None)],
+            ..crate::fixtures::command_at(2, 30, 0.0)
+        };
+        assert_eq!(
+            counts.count(&busy),
+            vec![((1, 2), LinkCount { sent: 2, delivered: 1 }, Cause::Busy)]
+        );
+        let said = cause(Cause::HalfDuplex);
+        assert_eq!(
+            &said[..8],
+            [0, 1, 0, 0, 12, 0, 0, 0],
+            "CDR: header, then the length with its NUL"
+        );
+        assert_eq!(&said[8..], b"half_duplex\0");
         assert_eq!(
             counts.count(&crate::fixtures::command_at(2, 21, 0.0)),
             vec![],

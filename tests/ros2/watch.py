@@ -21,7 +21,8 @@ TYPES = {"nav_msgs::msg::dds_::Odometry_": "nav_msgs/msg/Odometry",
          "nav_msgs::msg::dds_::Path_": "nav_msgs/msg/Path",
          "rosgraph_msgs::msg::dds_::Clock_": "rosgraph_msgs/msg/Clock",
          "geometry_msgs::msg::dds_::Twist_": "geometry_msgs/msg/Twist",
-         "geometry_msgs::msg::dds_::Vector3Stamped_": "geometry_msgs/msg/Vector3Stamped"}
+         "geometry_msgs::msg::dds_::Vector3Stamped_": "geometry_msgs/msg/Vector3Stamped",
+         "std_msgs::msg::dds_::String_": "std_msgs/msg/String"}
 
 
 def main():
@@ -75,7 +76,7 @@ def main():
         subscriber.undeclare()
         end.undeclare()
 
-    problems, odometry, clock, sequences, vectors, twists, paths = [], {}, [], {}, {}, {}, {}
+    problems, odometry, clock, sequences, vectors, twists, paths, strings = [], {}, [], {}, {}, {}, {}, {}
     for key, replies in latched.items():
         if len(replies) != 1:
             problems.append(f"{key}: {len(replies)} replies to a late subscriber, not its one path")
@@ -101,6 +102,10 @@ def main():
         sequence = int.from_bytes(attachment[0:8], "little", signed=True)
         sequences.setdefault(key, []).append(sequence)
         message = store.deserialize_cdr(payload, name)
+        if name.endswith("String"):
+            # Its topic without the namespace: links/from_1_to_2/cause.
+            strings.setdefault("/".join(parts[2:-2]), []).append(message.data)
+            continue
         if name.endswith("Twist"):
             twists.setdefault(parts[2], []).append([repr(message.linear.x), repr(message.angular.z)])
             continue
@@ -129,7 +134,7 @@ def main():
             problems.append(f"{key}: sequence numbers {seq[:5]}... are not 1, 2, 3 without a gap")
     json.dump({"problems": problems, "hashes": hashes, "tokens": tokens, "clock": clock,
                "odometry": odometry, "vectors": vectors, "twists": twists, "paths": paths,
-               "adv": adv, "keys": sorted(sequences)}, open(out, "w"))
+               "adv": adv, "strings": strings, "keys": sorted(sequences)}, open(out, "w"))
 
 
 if __name__ == "__main__":
