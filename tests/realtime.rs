@@ -158,6 +158,43 @@ fn a_medusa_fleet_in_realtime_arrives_as_in_lockstep() {
     assert_none_left(&realtime);
 }
 
+/// Acoustic modems on the wall clock (docs/LINKS.md): the same physics, judged at each
+/// receiver's own instants. Case (b) in TDMA slots of 0.5 s delivers every frame and arrives as
+/// lockstep does.
+#[test]
+fn a_fleet_on_acoustic_modems_in_realtime_arrives_as_in_lockstep() {
+    let _fleet = fleet();
+    let dir = scratch("modem-realtime");
+    let (lockstep, realtime, printed) = beside_lockstep(&config("acoustic-modem"), &dir);
+    let rows = common::csv_rows(&dir.join("realtime/messages.csv"));
+    let error = |s: &Value| s["max_coordination_error"].as_f64().unwrap();
+    eprintln!(
+        "modems in realtime at ×10: {} frames, arrivals {:?} against lockstep's {:?}, error {:.3} against {:.3} s",
+        rows.len(),
+        arrivals(&realtime),
+        arrivals(&lockstep),
+        error(&realtime),
+        error(&lockstep)
+    );
+    assert!(rows.len() >= 100, "{printed}");
+    assert!(
+        rows.iter().all(|r| r["cause"] == "delivered"),
+        "every frame alone in its slot"
+    );
+    assert!(rows.iter().all(|r| r["sinr_db"].parse::<f64>().unwrap() > 20.0));
+    let (disturbed, arrival_tolerance, _) = allowed(&realtime);
+    // A γ judged an instant later than in lockstep holds the estimate a little longer: what
+    // coordination does with it is slower than what the world's ticks do.
+    for (l, r) in arrivals(&lockstep).iter().zip(arrivals(&realtime)) {
+        assert!(
+            (l - r).abs() < arrival_tolerance + 0.05,
+            "arrival {r:.3} s against lockstep's {l:.3} s ({disturbed} disturbed periods)"
+        );
+    }
+    assert!((error(&lockstep) - error(&realtime)).abs() < 0.1);
+    assert_none_left(&realtime);
+}
+
 #[test]
 fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     let _fleet = fleet();
