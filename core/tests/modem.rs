@@ -44,6 +44,15 @@ fn causes(heard: &[(u32, Reception)]) -> BTreeMap<&'static str, u64> {
     n
 }
 
+/// The run's arrivals and coordination error, to the 2 ms a deterministic run is pinned to.
+fn assert_figures(r: &Results, arrivals_s: [f64; 2], error_s: f64) {
+    for (a, want) in arrivals(r).iter().zip(arrivals_s) {
+        assert!((a - want).abs() < 0.002, "arrival {a} against {want}");
+    }
+    let error = r.max_coordination_error;
+    assert!((error - error_s).abs() < 0.002, "error {error} against {error_s}");
+}
+
 fn arrivals(r: &Results) -> Vec<f64> {
     r.vehicles.iter().map(|v| v.arrival_time.expect("arrives")).collect()
 }
@@ -98,14 +107,7 @@ fn with_tdma_slots_of_half_a_second_every_frame_of_case_b_is_delivered() {
     }
     // Coordinated, as case (b) (55.467 / 55.466 s), on one γ a second that is 0.2 s old: the
     // error is the start's, held longer (0.362 s with every γ at once).
-    for (a, want) in arrivals(&r).iter().zip([55.523, 55.512]) {
-        assert!((a - want).abs() < 0.002, "arrival {a} against {want}");
-    }
-    assert!(
-        (r.max_coordination_error - 0.948).abs() < 0.002,
-        "{}",
-        r.max_coordination_error
-    );
+    assert_figures(&r, [55.523, 55.512], 0.948);
 }
 
 #[test]
@@ -123,14 +125,7 @@ fn event_triggered_modems_coordinate_case_b() {
     );
     // Events are rare and seldom coincide: a few meet the other's frame in the water.
     assert_eq!((n["delivered"], n["half_duplex"]), (48, 10), "{n:?}");
-    for (a, want) in arrivals(&r).iter().zip([55.610, 55.597]) {
-        assert!((a - want).abs() < 0.002, "arrival {a} against {want}");
-    }
-    assert!(
-        (r.max_coordination_error - 1.056).abs() < 0.002,
-        "{}",
-        r.max_coordination_error
-    );
+    assert_figures(&r, [55.610, 55.597], 1.056);
 }
 
 /// The delivered count of isolated frames (TDMA, so that no frame overlaps another or the
