@@ -336,7 +336,7 @@ impl World {
             }
             for (link, counts, cause) in self.counts.count(command) {
                 if let Some((topic, causes)) = self.links.get_mut(&link) {
-                    if cause != tcpf_core::msg::Cause::Busy {
+                    if cause.was_sent() {
                         topic.put(ros2::link(counts, stamp), stamp)?;
                     }
                     causes.put(ros2::cause(cause), stamp)?;

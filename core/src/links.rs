@@ -300,7 +300,7 @@ impl LinkStats {
     /// Counts one decision of the receiver on this link.
     pub fn count(&mut self, r: &crate::msg::Reception) {
         self.causes.add(r.cause);
-        if r.cause == Cause::Busy {
+        if !r.cause.was_sent() {
             return;
         }
         self.sent += 1;

@@ -5,7 +5,7 @@ use std::collections::{BTreeMap, VecDeque};
 
 use serde::{Deserialize, Serialize};
 
-use crate::links::{Cause, LinkStats};
+use crate::links::LinkStats;
 
 /// Broadcasts per vehicle remembered as counted: receivers at different distances judge one
 /// frame at different ticks (D23), never 64 frames apart (6.4 s of periodic sending, 9.6 km of
@@ -433,7 +433,7 @@ impl Metrics {
                 // Each neighbour reports the same broadcast, at its own tick when a modem judges
                 // it on arrival: count it once.
                 let sent = (r.sent / self.dt).round() as u64;
-                if let (Some(n), false) = (self.ids.position(r.from), r.cause == Cause::Busy) {
+                if let (Some(n), false) = (self.ids.position(r.from), !r.cause.was_sent()) {
                     let counted = &mut self.sent_at[n];
                     if !counted.contains(&sent) {
                         if counted.len() == COUNTED_BROADCASTS {

@@ -163,6 +163,12 @@ impl Cause {
         self == Cause::Delivered
     }
 
+    /// Whether a frame went into the water: a busy modem's instant sent none, and is counted by
+    /// its cause alone, never as a message sent.
+    pub fn was_sent(self) -> bool {
+        self != Cause::Busy
+    }
+
     /// The word `messages.csv`, the summary and the sweep's columns use.
     pub fn name(self) -> &'static str {
         match self {

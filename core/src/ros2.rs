@@ -469,7 +469,7 @@ impl LinkCounts {
             .map(|r| {
                 let link = (r.from, command.id);
                 let c = self.links.entry(link).or_default();
-                if r.cause != crate::msg::Cause::Busy {
+                if r.cause.was_sent() {
                     c.sent += 1;
                     c.delivered += u64::from(r.delivered);
                 }

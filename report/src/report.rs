@@ -454,7 +454,7 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
     // judged it on arrival; a busy instant sent nothing.
     let mut broadcasts: Vec<(f64, u32)> = messages
         .iter()
-        .filter(|m| m.cause != Cause::Busy)
+        .filter(|m| m.cause.was_sent())
         .map(|m| (m.sent, m.from))
         .collect();
     broadcasts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
