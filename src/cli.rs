@@ -68,19 +68,48 @@ pub struct SweepArgs {
     /// Run each as a real fleet of processes (one after the other) instead of in-process.
     #[arg(long)]
     pub processes: bool,
+    /// Keep per grid point the mean and 95 % interval over the seeds of the coordination error
+    /// and the clearance against time (series.csv, and their figures). Not with --shard: a
+    /// shard's series are not merged.
+    #[arg(long, conflicts_with = "shard")]
+    pub series: bool,
     /// The band around each mean in the figures.
     #[arg(long, value_parser = ["ci95", "min-max"], default_value = "ci95")]
     pub band: String,
+    /// The figures' printed width: column (3.5 in), double (two columns, 7.16 in) or inches;
+    /// every text is at least 8 pt at it.
+    #[arg(long, value_name = "WIDTH", default_value = "column", value_parser = figure_width)]
+    pub figure_width: f64,
     /// Output directory (default runs/<mission>-sweep-<timestamp>/).
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
 
-/// The band of `--band`.
-pub fn band(name: &str) -> tcpf_report::sweep::figures::Band {
-    match name {
-        "min-max" => tcpf_report::sweep::figures::Band::MinMax,
-        _ => tcpf_report::sweep::figures::Band::Ci95,
+/// How a sweep's figures are drawn: `--band` and `--figure-width`. (Flags of `SweepArgs` and
+/// of `sweep merge` themselves: clap takes an optional flattened struct as absent when it holds
+/// another.)
+pub fn look(band: &str, figure_width: f64) -> tcpf_report::sweep::figures::Look {
+    use tcpf_report::sweep::figures::{Band, Look};
+    Look {
+        band: match band {
+            "min-max" => Band::MinMax,
+            _ => Band::Ci95,
+        },
+        width: figure_width,
+    }
+}
+
+fn figure_width(text: &str) -> Result<f64, String> {
+    use tcpf_report::style::{COLUMN, DOUBLE_COLUMN};
+    match text {
+        "column" => Ok(COLUMN),
+        "double" => Ok(DOUBLE_COLUMN),
+        _ => match text.strip_suffix("in").unwrap_or(text).trim().parse::<f64>() {
+            Ok(w) if (2.0..=20.0).contains(&w) => Ok(w),
+            _ => Err(format!(
+                "{text}: give column (3.5 in), double (7.16 in) or a width in inches from 2 to 20"
+            )),
+        },
     }
 }
 
@@ -97,6 +126,10 @@ pub enum SweepCommand {
         /// The band around each mean in the figures.
         #[arg(long, value_parser = ["ci95", "min-max"], default_value = "ci95")]
         band: String,
+        /// The figures' printed width: column (3.5 in), double (two columns, 7.16 in) or inches;
+        /// every text is at least 8 pt at it.
+        #[arg(long, value_name = "WIDTH", default_value = "column", value_parser = figure_width)]
+        figure_width: f64,
     },
 }
 
@@ -261,6 +294,10 @@ pub enum Command {
     Report {
         /// The run directory.
         dir: PathBuf,
+        /// The figures' printed width (figures/*.pdf, *.svg): column (3.5 in), double (7.16 in)
+        /// or inches; every text is at least 8 pt at it.
+        #[arg(long, value_name = "WIDTH", default_value = "column", value_parser = figure_width)]
+        figure_width: f64,
     },
     /// Every speed figure beside its baseline: the plan, the in-process fleet, the lockstep tick
     /// against a raw Zenoh round trip, the agents' memory and sockets.

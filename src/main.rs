@@ -170,14 +170,20 @@ fn main() -> ExitCode {
             },
         ),
         Command::Bench { mission, count } => bench::run(&mission, count),
-        Command::Report { dir } => run::report(&dir),
+        Command::Report { dir, figure_width } => run::report(&dir, figure_width),
         Command::Gen {
             mission: Generated::Lanes { vehicles, loss },
         } => out(format_args!("{}", mission::generate::lanes(vehicles, loss))).map(|()| ExitCode::SUCCESS),
         Command::Sweep {
-            merge: Some(cli::SweepCommand::Merge { dirs, out, band }),
+            merge:
+                Some(cli::SweepCommand::Merge {
+                    dirs,
+                    out,
+                    band,
+                    figure_width,
+                }),
             ..
-        } => sweep::merge(&dirs, &out, cli::band(&band)),
+        } => sweep::merge(&dirs, &out, cli::look(&band, figure_width)),
         Command::Sweep {
             sweep: Some(args), ..
         } => sweep::run(&args),

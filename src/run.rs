@@ -74,7 +74,7 @@ pub fn run(
     ))
 }
 
-pub fn report(dir: &Path) -> Result<ExitCode, Failure> {
+pub fn report(dir: &Path, figure_width: f64) -> Result<ExitCode, Failure> {
     // A sweep's directory holds its runs' directories when it ran them as processes.
     if dir.join("runs.csv").is_file() && !dir.join("summary.json").exists() {
         return Err(Failure::Input(anyhow!(
@@ -89,7 +89,7 @@ pub fn report(dir: &Path) -> Result<ExitCode, Failure> {
         )));
     }
     // What it cannot read or make sense of is the directory's fault: bad input.
-    tcpf_report::report::write(dir).map_err(Failure::Input)?;
+    tcpf_report::report::write(dir, &tcpf_report::report::Options { figure_width }).map_err(Failure::Input)?;
     sayln!("{}", dir.join("report.html").display());
     Ok(ExitCode::SUCCESS)
 }

@@ -2,11 +2,13 @@
 //! and its files, `report.html` and its plots, the tables printed at the end, and a
 //! sweep's summaries, and `run.mcap` with its live twin for Foxglove. Changing a report rebuilds this crate, not Zenoh.
 
+pub mod labels;
 pub mod live;
 pub mod pdf;
 pub mod plots;
 pub mod report;
 pub mod rundir;
+pub mod style;
 pub mod sweep;
 pub mod table;
 pub mod viewer;

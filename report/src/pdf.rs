@@ -152,7 +152,8 @@ fn outline(c: &mut Content, data: &usvg::tiny_skia_path::Path) {
     }
 }
 
-/// `svg` as a one-page PDF of its size (a pixel is a point).
+/// `svg` as a one-page PDF of its printed size: a figure that says its width in inches is that
+/// wide on the page, and an SVG pixel is a CSS pixel, 3/4 of a point.
 pub fn of_svg(svg: &str) -> Result<Vec<u8>> {
     let options = usvg::Options {
         fontdb: fonts(),
@@ -160,13 +161,15 @@ pub fn of_svg(svg: &str) -> Result<Vec<u8>> {
         ..usvg::Options::default()
     };
     let tree = usvg::Tree::from_str(svg, &options).map_err(|e| anyhow!("a figure's SVG: {e}"))?;
-    let (w, h) = (tree.size().width(), tree.size().height());
+    // usvg gives sizes in CSS pixels, 96 to the inch.
+    const POINTS: f32 = 0.75;
+    let (w, h) = (tree.size().width() * POINTS, tree.size().height() * POINTS);
     let mut page = Page {
         content: Content::new(),
         alphas: Vec::new(),
     };
     // SVG's y runs down the page, PDF's up it.
-    page.content.transform([1.0, 0.0, 0.0, -1.0, 0.0, h]);
+    page.content.transform([POINTS, 0.0, 0.0, -POINTS, 0.0, h]);
     page.group(tree.root(), 1.0)?;
     let (catalog, pages, page_id, content_id) = (Ref::new(1), Ref::new(2), Ref::new(3), Ref::new(4));
     let mut pdf = Pdf::new();
@@ -200,22 +203,22 @@ mod tests {
 
     #[test]
     fn a_chart_is_a_pdf_of_its_size_with_its_words_drawn() {
-        let mut chart = crate::plots::Chart::new("Coordination error", "comms.loss", "max |γi − γj| (s)");
+        let mut chart = crate::plots::Chart::new("comms.loss", "max |γi − γj| (s)");
         chart.series.push(crate::plots::Series {
             name: "delay = 1".into(),
             points: vec![(0.0, 0.36), (0.3, 0.58)],
         });
-        let bare = of_svg(&chart.svg(600, 340)).unwrap();
+        let size = crate::style::Size::column(0.62);
+        let bare = of_svg(&chart.svg(size)).unwrap();
         assert!(bare.starts_with(b"%PDF-"), "a PDF");
         let text = String::from_utf8_lossy(&bare);
-        assert!(text.contains("/MediaBox [0 0 600 340]"), "{text}");
-        // The words are outlines: a title makes the page's drawing longer by its glyphs.
-        let mut titled = crate::plots::Chart::new(
-            "Coordination error of a fleet of vehicles",
-            "comms.loss",
-            "max |γi − γj| (s)",
-        );
-        titled.series = chart.series;
-        assert!(of_svg(&titled.svg(600, 340)).unwrap().len() > bare.len() + 1000);
+        // A column's 3.5 in.
+        assert!(text.contains("/MediaBox [0 0 252 "), "{text}");
+        // The words are outlines: a longer axis description makes the page's drawing longer by
+        // its glyphs.
+        let mut described =
+            crate::plots::Chart::new("probability that a γ message is lost on its link", "max |γi − γj| (s)");
+        described.series = chart.series;
+        assert!(of_svg(&described.svg(size)).unwrap().len() > bare.len() + 1000);
     }
 }

@@ -1,7 +1,12 @@
-//! SVG charts for the reports, drawn with plotters' SVG backend (no fonts needed: the browser
-//! renders the text).
+//! SVG charts for the reports, drawn with plotters' SVG backend in `style`'s sizes, fonts and
+//! colours (no fonts needed: the browser, or `pdf`, lays out the text). A chart has no title,
+//! as the figure's caption names it, and its legend sits under the plot, never over the data.
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use crate::style::{self, Size, Swatch};
 
 /// A shaded band: its name and (x, low, high) points.
 pub type Band = (String, Vec<(f64, f64, f64)>);
@@ -16,7 +21,6 @@ pub struct Series {
 }
 
 pub struct Chart<'a> {
-    pub title: &'a str,
     pub x_label: &'a str,
     pub y_label: &'a str,
     pub series: Vec<Series>,
@@ -33,7 +37,7 @@ pub struct Chart<'a> {
     /// Named sets of points drawn as small dots, one colour each.
     pub dots: Vec<Series>,
     /// The colour of each set of dots that must mean the same in every chart (a cause of loss),
-    /// by the set's index; others take the palette's.
+    /// by the set's index; others take their family's.
     pub dot_colors: Vec<RGBColor>,
     /// Start the y axis at zero (counts and rates, whose small wobbles are not a trend).
     pub y_from_zero: bool,
@@ -41,12 +45,172 @@ pub struct Chart<'a> {
     pub windows: Vec<(f64, f64)>,
     /// Arrows: (from, to, label), e.g. the water current on a map.
     pub arrows: Vec<Arrow>,
+    /// Rows named on the y axis (links): category c sits at y = c, and the axis writes the
+    /// names alone, never a number between two rows.
+    pub y_categories: Vec<String>,
+}
+
+/// How many ticks the y axis writes at most: five levels are read at a glance.
+const Y_TICKS: usize = 5;
+
+/// A fault window's shade: light, so that the lines over it keep their colour.
+const SHADE: f64 = 0.35;
+
+/// A band's shade.
+const BAND: f64 = 0.2;
+
+/// A fault of no width: the fault's yellow darkened so that a thin line shows (orange is half
+/// duplex's).
+const FAULT_LINE: RGBColor = RGBColor(190, 160, 0);
+
+/// Margins around the plot, pt: above it and right of it at least (room for half the top y
+/// label, and the last x label), left and under it.
+const TOP: f64 = 5.0;
+const RIGHT: f64 = 5.0;
+const LEFT: f64 = 2.0;
+const BOTTOM: f64 = 2.0;
+
+/// A line of data, in units.
+fn line() -> u32 {
+    style::units(1.0).max(1) as u32
+}
+
+/// An axis, a level, a marker's ring: thinner than the data.
+fn thin() -> u32 {
+    style::units(0.6).max(1) as u32
+}
+
+/// A tick mark's length; plotters puts its label twice as far from the axis.
+fn tick() -> i32 {
+    style::units(2.5)
+}
+
+/// A level's dash and a fault of no width's, in units.
+fn level_dash() -> (i32, i32) {
+    (style::units(3.0), style::units(2.0))
+}
+
+fn fault_dash() -> (i32, i32) {
+    (style::units(2.0), style::units(1.5))
+}
+
+/// The width of `text` at `pt` points, in units: DejaVu Sans' digits are 0.64 em wide, and
+/// most of its letters narrower.
+fn text_width(text: &str, pt: f64) -> i32 {
+    (text.chars().count() as f64 * 0.64 * pt / 72.0 * style::DPI).ceil() as i32
+}
+
+/// The labels plotters writes along `range` for at most `n` ticks.
+fn tick_labels(range: (f64, f64), n: usize, format: &dyn Fn(&f64) -> String) -> Vec<String> {
+    RangedCoordf64::from(range.0..range.1)
+        .key_points(n)
+        .iter()
+        .map(format)
+        .collect()
+}
+
+/// Where a figure's parts go, in SVG units: the label areas fit the widest tick label, so that
+/// a narrow figure keeps its plot as wide as its labels allow.
+struct Layout {
+    /// The legend's height, under the plot.
+    legend: u32,
+    /// How many ticks each axis writes at most.
+    x_ticks: usize,
+    y_ticks: usize,
+    /// Under the plot: tick labels and the axis' description.
+    x_area: i32,
+    /// Left of the plot: tick labels and the axis' description.
+    y_area: i32,
+    /// Right of the plot: room for half the last x label.
+    right: i32,
+}
+
+impl Layout {
+    fn new(legend: u32, (x_ticks, y_ticks): (usize, usize), x_labels: &[String], y_labels: &[String]) -> Layout {
+        let widest = |labels: &[String]| labels.iter().map(|l| text_width(l, style::TICK_PT)).max().unwrap_or(0);
+        let description = style::units(style::LABEL_PT * 1.3);
+        Layout {
+            legend,
+            x_ticks,
+            y_ticks,
+            x_area: 2 * tick() + style::units(style::TICK_PT * 1.2) + description + style::units(1.0),
+            y_area: 2 * tick() + widest(y_labels) + description + style::units(2.0),
+            right: (widest(x_labels) / 2 + style::units(1.0)).max(style::units(RIGHT)),
+        }
+    }
+
+    /// The plot's width and height in a figure of `(w, h)` units.
+    fn plot(&self, (w, h): (u32, u32)) -> (f64, f64) {
+        let width = w as i32 - style::units(LEFT) - self.y_area - self.right;
+        let height = h as i32 - self.legend as i32 - style::units(TOP) - style::units(BOTTOM) - self.x_area;
+        (f64::from(width.max(1)), f64::from(height.max(1)))
+    }
+}
+
+type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
+
+type Plot<'c, 'b> = ChartContext<'c, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// One axis of a chart: its range, its description and how its ticks are written.
+struct Axis<'f> {
+    range: (f64, f64),
+    desc: &'f str,
+    format: &'f dyn Fn(&f64) -> String,
+}
+
+/// The chart on `area` (the figure above its legend), its axes, ticks and grid drawn; a grid
+/// line at each labelled tick alone, as finer ones blur in print.
+fn axes<'c, 'b>(
+    area: &Area<'b>,
+    layout: &Layout,
+    x: Axis,
+    y: Axis,
+    x_grid: bool,
+) -> Result<Plot<'c, 'b>, Box<dyn std::error::Error>> {
+    let mut chart = ChartBuilder::on(area)
+        .margin_top(style::units(TOP))
+        .margin_left(style::units(LEFT))
+        .margin_bottom(style::units(BOTTOM))
+        .margin_right(layout.right)
+        .x_label_area_size(layout.x_area)
+        .y_label_area_size(layout.y_area)
+        .build_cartesian_2d(x.range.0..x.range.1, y.range.0..y.range.1)?;
+    {
+        let mut mesh = chart.configure_mesh();
+        mesh.x_labels(layout.x_ticks)
+            .y_labels(layout.y_ticks)
+            .x_label_formatter(x.format)
+            .y_label_formatter(y.format)
+            .x_desc(x.desc)
+            .y_desc(y.desc)
+            .label_style(style::font(style::TICK_PT))
+            .axis_desc_style(style::font(style::LABEL_PT))
+            .axis_style(style::INK.stroke_width(thin()))
+            .bold_line_style(style::INK.mix(0.12).stroke_width(1))
+            .max_light_lines(0)
+            .set_all_tick_mark_size(tick());
+        if !x_grid {
+            mesh.disable_x_mesh();
+        }
+        mesh.draw()?;
+    }
+    Ok(chart)
+}
+
+/// `x` and `y` widened about their centres so that a unit is as long on both across a plot of
+/// `plot` units.
+fn equalise(x: (f64, f64), y: (f64, f64), plot: (f64, f64)) -> ((f64, f64), (f64, f64)) {
+    let scale = ((x.1 - x.0) / plot.0).max((y.1 - y.0) / plot.1);
+    let (cx, cy) = (0.5 * (x.0 + x.1), 0.5 * (y.0 + y.1));
+    (
+        (cx - 0.5 * scale * plot.0, cx + 0.5 * scale * plot.0),
+        (cy - 0.5 * scale * plot.1, cy + 0.5 * scale * plot.1),
+    )
 }
 
 impl<'a> Chart<'a> {
-    pub fn new(title: &'a str, x_label: &'a str, y_label: &'a str) -> Chart<'a> {
+    pub fn new(x_label: &'a str, y_label: &'a str) -> Chart<'a> {
         Chart {
-            title,
             x_label,
             y_label,
             series: Vec::new(),
@@ -60,6 +224,7 @@ impl<'a> Chart<'a> {
             y_from_zero: false,
             windows: Vec::new(),
             arrows: Vec::new(),
+            y_categories: Vec::new(),
         }
     }
 
@@ -101,80 +266,198 @@ impl<'a> Chart<'a> {
             }
         };
         let xs_all: Vec<f64> = xs.chain(self.markers.iter().map(|m| m.0)).collect();
-        (range(&mut xs_all.into_iter()), range(&mut ys.into_iter()))
+        let y = if self.y_categories.is_empty() {
+            range(&mut ys.into_iter())
+        } else {
+            (-0.5, self.y_categories.len() as f64 - 0.5)
+        };
+        (range(&mut xs_all.into_iter()), y)
     }
 
-    /// The chart as an SVG document of `width` × `height` pixels.
-    pub fn svg(&self, width: u32, height: u32) -> String {
-        let mut out = String::new();
-        let ((mut x0, mut x1), (mut y0, mut y1)) = self.bounds();
-        if self.equal_axes {
-            // Stretch the narrower axis so that a metre is as long on both.
-            let plot = ((width - 90) as f64, (height - 80) as f64);
-            let scale = ((x1 - x0) / plot.0).max((y1 - y0) / plot.1);
-            let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
-            (x0, x1, y0, y1) = (
-                cx - 0.5 * scale * plot.0,
-                cx + 0.5 * scale * plot.0,
-                cy - 0.5 * scale * plot.1,
-                cy + 0.5 * scale * plot.1,
-            );
+    /// The fault windows that meet `x`, cut to it.
+    fn shown(&self, x: (f64, f64)) -> Vec<(f64, f64)> {
+        self.windows
+            .iter()
+            .filter(|w| w.1 >= x.0 && w.0 <= x.1)
+            .map(|w| (w.0.max(x.0), w.1.min(x.1)))
+            .collect()
+    }
+
+    fn dot_color(&self, k: usize) -> RGBColor {
+        self.dot_colors.get(k).copied().unwrap_or_else(|| style::family(k))
+    }
+
+    /// The legend's entries: lines, dots, bands, levels, then the fault windows `shown`.
+    fn entries(&self, shown: &[(f64, f64)]) -> Vec<(String, Swatch)> {
+        let mut out: Vec<(String, Swatch)> = Vec::new();
+        for (k, s) in self.series.iter().enumerate() {
+            // A line of no value at all is not drawn, nor named.
+            if s.points.iter().any(|p| p.1.is_finite()) {
+                out.push((s.name.clone(), Swatch::family(k, false)));
+            }
         }
-        {
-            let root = SVGBackend::with_string(&mut out, (width, height)).into_drawing_area();
-            let _ = self.draw(&root, (x0, x1), (y0, y1));
-            let _ = root.present();
+        for (k, s) in self.dots.iter().enumerate() {
+            out.push((
+                s.name.clone(),
+                Swatch::Dot {
+                    colour: self.dot_color(k),
+                },
+            ));
+        }
+        for (k, (name, _)) in self.bands.iter().enumerate() {
+            out.push((
+                name.clone(),
+                Swatch::Fill {
+                    colour: style::family(k),
+                    alpha: BAND,
+                },
+            ));
+        }
+        for (_, name) in &self.levels {
+            out.push((
+                name.clone(),
+                Swatch::Line {
+                    colour: style::INK,
+                    dash: Some(level_dash()),
+                    marker: None,
+                },
+            ));
+        }
+        let wide = shown.iter().any(|w| w.1 - w.0 > 1e-9);
+        if wide {
+            out.push((
+                "fault window".into(),
+                Swatch::Fill {
+                    colour: style::FAULT,
+                    alpha: SHADE,
+                },
+            ));
+        }
+        if shown.iter().any(|w| w.1 - w.0 <= 1e-9) {
+            out.push((
+                if wide { "fault instant" } else { "fault window" }.into(),
+                Swatch::Line {
+                    colour: FAULT_LINE,
+                    dash: Some(fault_dash()),
+                    marker: None,
+                },
+            ));
         }
         out
     }
 
-    fn draw(
-        &self,
-        root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
-        x: (f64, f64),
-        y: (f64, f64),
-    ) -> Result<(), Box<dyn std::error::Error + '_>> {
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(root)
-            .caption(self.title, ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d(x.0..x.1, y.0..y.1)?;
-        chart
-            .configure_mesh()
-            .x_desc(self.x_label)
-            .y_desc(self.y_label)
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()?;
-        let shown = self
-            .windows
-            .iter()
-            .filter(|w| w.1 >= x.0 && w.0 <= x.1)
-            .map(|w| (w.0.max(x.0), w.1.min(x.1)));
-        for (k, (start, end)) in shown.enumerate() {
-            let shade = RGBColor(200, 0, 0);
-            let drawn = if end - start > 1e-9 {
-                chart.draw_series(std::iter::once(Rectangle::new(
-                    [(start, y.0), (end, y.1)],
-                    shade.mix(0.1).filled(),
-                )))?
-            } else {
-                chart.draw_series(DashedLineSeries::new(
-                    vec![(start, y.0), (start, y.1)],
-                    4,
-                    3,
-                    shade.stroke_width(1),
-                ))?
-            };
-            if k == 0 {
-                drawn
-                    .label("fault window")
-                    .legend(move |(a, b)| Rectangle::new([(a, b - 5), (a + 16, b + 5)], shade.mix(0.2).filled()));
+    /// Where the parts of a figure of `size` go, its axes spanning `x` and `y`.
+    fn layout(&self, size: Size, legend: u32, x: (f64, f64), y: (f64, f64)) -> Layout {
+        // Fewer on a narrow figure, where six would run into each other.
+        let x_ticks = if size.width < 3.0 { 4 } else { 6 };
+        let x_labels = tick_labels(x, x_ticks, &style::ticks(x, x_ticks));
+        let y_labels = if self.y_categories.is_empty() {
+            tick_labels(y, Y_TICKS, &style::ticks(y, Y_TICKS))
+        } else {
+            self.y_categories.clone()
+        };
+        let mut layout = Layout::new(legend, (x_ticks, Y_TICKS), &x_labels, &y_labels);
+        if !self.y_categories.is_empty() {
+            // Every row named where the names fit, else every second, fifth, tenth… (plotters'
+            // steps, whole rows all).
+            let fit = layout.plot(size.pixels()).1 / f64::from(style::units(style::TICK_PT * 1.25));
+            layout.y_ticks = self.y_categories.len().min((fit as usize).max(1));
+        }
+        layout
+    }
+
+    /// The size of this chart, `plot.width` wide, whose drawing above its legend has `plot`'s
+    /// shape: a long legend makes the figure taller rather than the data flatter.
+    pub fn fitted(&self, plot: Size) -> Size {
+        let (w, h) = plot.pixels();
+        let legend = style::legend_height(&self.entries(&self.shown(self.bounds().0)), w);
+        Size {
+            aspect: f64::from(h + legend) / f64::from(w.max(1)),
+            ..plot
+        }
+    }
+
+    /// The chart as an SVG document of `size` (`size.pixels()` units, printed at its width in
+    /// inches).
+    pub fn svg(&self, size: Size) -> String {
+        let pixels = size.pixels();
+        let (data_x, data_y) = self.bounds();
+        let shown = self.shown(data_x);
+        let entries = self.entries(&shown);
+        let legend = style::legend_height(&entries, pixels.0);
+        let (mut x, mut y) = (data_x, data_y);
+        let mut layout = self.layout(size, legend, x, y);
+        if self.equal_axes {
+            // Stretch the narrower axis so that a metre is as long on both; its new tick labels
+            // may be wider and the plot narrower, hence a second pass.
+            for _ in 0..2 {
+                (x, y) = equalise(data_x, data_y, layout.plot(pixels));
+                layout = self.layout(size, legend, x, y);
             }
         }
+        let mut out = String::new();
+        {
+            let root = SVGBackend::with_string(&mut out, pixels).into_drawing_area();
+            let _ = self.draw(&root, &layout, &entries, &shown, (x, y));
+            let _ = root.present();
+        }
+        style::in_inches(out, size)
+    }
+
+    fn draw(
+        &self,
+        root: &Area,
+        layout: &Layout,
+        entries: &[(String, Swatch)],
+        shown: &[(f64, f64)],
+        (x, y): ((f64, f64), (f64, f64)),
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        root.fill(&WHITE)?;
+        let (_, h) = root.dim_in_pixel();
+        let (upper, under) = root.split_vertically(h.saturating_sub(layout.legend));
+        let x_format = style::ticks(x, layout.x_ticks);
+        let numbers = style::ticks(y, layout.y_ticks);
+        let categories = |v: &f64| category_at(&self.y_categories, *v);
+        let y_format: &dyn Fn(&f64) -> String = if self.y_categories.is_empty() {
+            &numbers
+        } else {
+            &categories
+        };
+        let mut chart = axes(
+            &upper,
+            layout,
+            Axis {
+                range: x,
+                desc: self.x_label,
+                format: &x_format,
+            },
+            Axis {
+                range: y,
+                desc: self.y_label,
+                format: y_format,
+            },
+            true,
+        )?;
+        for &(start, end) in shown {
+            let (start, end) = (start.max(x.0), end.min(x.1));
+            if end - start > 1e-9 {
+                chart.draw_series(std::iter::once(Rectangle::new(
+                    [(start, y.0), (end, y.1)],
+                    style::FAULT.mix(SHADE).filled(),
+                )))?;
+            } else {
+                let (on, off) = fault_dash();
+                chart.draw_series(DashedLineSeries::new(
+                    vec![(start, y.0), (start, y.1)],
+                    on,
+                    off,
+                    FAULT_LINE.stroke_width(line()),
+                ))?;
+            }
+        }
+        let note = style::font(style::NOTE_PT);
         for (from, to, label) in &self.arrows {
-            let grey = RGBColor(90, 90, 90);
+            let pen = style::INK.stroke_width(line());
             let (dx, dy) = (to.0 - from.0, to.1 - from.1);
             // The head: two strokes back from the tip at ±25°, a quarter of the shaft long.
             let head = |turn: f64| {
@@ -182,71 +465,90 @@ impl<'a> Chart<'a> {
                 (to.0 - 0.25 * (c * dx - s * dy), to.1 - 0.25 * (s * dx + c * dy))
             };
             chart.draw_series([
-                PathElement::new(vec![*from, *to], grey.stroke_width(2)),
-                PathElement::new(vec![head(0.44), *to, head(-0.44)], grey.stroke_width(2)),
+                PathElement::new(vec![*from, *to], pen),
+                PathElement::new(vec![head(0.44), *to, head(-0.44)], pen),
             ])?;
-            chart.draw_series(std::iter::once(Text::new(label.clone(), *from, ("sans-serif", 12))))?;
+            // Behind the tail, away from where it points: the words never cross the shaft.
+            let length = dx.hypot(dy).max(1e-12);
+            let (ux, uy) = (dx / length, dy / length);
+            let h_pos = match ux {
+                u if u > 0.4 => HPos::Right,
+                u if u < -0.4 => HPos::Left,
+                _ => HPos::Center,
+            };
+            let v_pos = match uy {
+                u if u > 0.4 => VPos::Top,
+                u if u < -0.4 => VPos::Bottom,
+                _ => VPos::Center,
+            };
+            let gap = f64::from(style::units(3.0));
+            let offset = ((-ux * gap).round() as i32, (uy * gap).round() as i32);
+            chart.draw_series(std::iter::once(
+                EmptyElement::at(*from) + Text::new(label.clone(), offset, note.pos(Pos::new(h_pos, v_pos))),
+            ))?;
         }
-        for (k, (name, band)) in self.bands.iter().enumerate() {
-            let color = Palette99::pick(k).mix(0.2);
+        for (k, (_, band)) in self.bands.iter().enumerate() {
             let mut outline: Vec<(f64, f64)> = band.iter().map(|p| (p.0, p.2)).collect();
             outline.extend(band.iter().rev().map(|p| (p.0, p.1)));
-            chart
-                .draw_series(std::iter::once(Polygon::new(outline, color.filled())))?
-                .label(name.clone());
+            chart.draw_series(std::iter::once(Polygon::new(
+                outline,
+                style::family(k).mix(BAND).filled(),
+            )))?;
         }
-        for (y, label) in &self.levels {
-            let style = ShapeStyle::from(&BLACK).stroke_width(1);
-            chart
-                .draw_series(DashedLineSeries::new(vec![(x.0, *y), (x.1, *y)], 6, 4, style))?
-                .label(label.clone())
-                .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], BLACK));
+        for (level, _) in &self.levels {
+            let (on, off) = level_dash();
+            chart.draw_series(DashedLineSeries::new(
+                vec![(x.0, *level), (x.1, *level)],
+                on,
+                off,
+                style::INK.stroke_width(thin()),
+            ))?;
         }
         for (k, s) in self.series.iter().enumerate() {
-            let color = Palette99::pick(k).to_rgba();
+            let colour = style::family(k);
+            let pen = colour.stroke_width(line());
             // A point without a value (a vehicle lost, then back) breaks the line there.
-            let runs: Vec<&[(f64, f64)]> = s
-                .points
-                .split(|p| !p.1.is_finite())
-                .filter(|run| !run.is_empty())
-                .collect();
-            for (r, run) in runs.iter().enumerate() {
-                let drawn = chart.draw_series(LineSeries::new(run.iter().copied(), color.stroke_width(2)))?;
-                if r == 0 {
-                    drawn
-                        .label(s.name.clone())
-                        .legend(move |(a, b)| PathElement::new(vec![(a, b), (a + 16, b)], color.stroke_width(2)));
-                }
-                // A line through one point is drawn as nothing.
-                if let [point] = run {
-                    chart.draw_series(std::iter::once(Circle::new(*point, 4, color.filled())))?;
+            for run in s.points.split(|p| !p.1.is_finite()).filter(|run| !run.is_empty()) {
+                match (run, style::dash(k)) {
+                    // A line through one point is drawn as nothing: a dot instead.
+                    ([point], _) => {
+                        chart.draw_series(std::iter::once(Circle::new(*point, style::units(2.0), colour.filled())))?;
+                    }
+                    (_, None) => {
+                        chart.draw_series(LineSeries::new(run.iter().copied(), pen))?;
+                    }
+                    (_, Some((on, off))) => {
+                        chart.draw_series(DashedLineSeries::new(run.iter().copied(), on, off, pen))?;
+                    }
                 }
             }
         }
         for (k, s) in self.dots.iter().enumerate() {
-            let color = self
-                .dot_colors
-                .get(k)
-                .map_or(Palette99::pick(k).to_rgba(), |c| c.to_rgba());
-            chart
-                .draw_series(s.points.iter().map(|&p| Circle::new(p, 2, color.filled())))?
-                .label(s.name.clone())
-                .legend(move |(a, b)| Circle::new((a + 8, b), 3, color.filled()));
+            let colour = self.dot_color(k);
+            chart.draw_series(
+                s.points
+                    .iter()
+                    .map(|&p| Circle::new(p, style::units(1.2), colour.filled())),
+            )?;
         }
+        let beside = note.pos(Pos::new(HPos::Left, VPos::Center));
         for (px, py, text) in &self.labels {
-            chart.draw_series(std::iter::once(Circle::new((*px, *py), 2, BLACK.filled())))?;
-            chart.draw_series(std::iter::once(Text::new(text.clone(), (*px, *py), ("sans-serif", 11))))?;
+            chart.draw_series(std::iter::once(
+                EmptyElement::at((*px, *py))
+                    + Circle::new((0, 0), style::units(1.0), style::INK.filled())
+                    + Text::new(text.clone(), (style::units(2.0), 0), beside.clone()),
+            ))?;
         }
         for (px, py, name) in &self.markers {
-            chart.draw_series(std::iter::once(Circle::new((*px, *py), 5, BLACK.stroke_width(2))))?;
-            chart.draw_series(std::iter::once(Text::new(name.clone(), (*px, *py), ("sans-serif", 12))))?;
+            let r = style::units(2.5);
+            chart.draw_series(std::iter::once(
+                EmptyElement::at((*px, *py))
+                    + Circle::new((0, 0), r, style::INK.stroke_width(line()))
+                    + Text::new(name.clone(), (r + style::units(1.5), 0), beside.clone()),
+            ))?;
         }
-        if !self.series.is_empty() || !self.levels.is_empty() || !self.dots.is_empty() || !self.windows.is_empty() {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()?;
+        if !entries.is_empty() {
+            style::legend(&under, entries)?;
         }
         Ok(())
     }
@@ -263,84 +565,120 @@ pub fn category_at(categories: &[String], x: f64) -> String {
         .unwrap_or_default()
 }
 
-/// Grouped bars: per category, one bar per named value, each category named under its bars.
+/// Grouped bars: per category, one bar per named value in the colour given with it (which
+/// means the same in every figure), each category named under its bars, as an SVG document of
+/// `size`.
 pub fn bars(
-    title: &str,
     x_label: &str,
     y_label: &str,
     categories: &[String],
-    groups: &[(&str, Vec<f64>)],
-    width: u32,
-    height: u32,
+    groups: &[(&str, RGBColor, Vec<f64>)],
+    size: Size,
 ) -> String {
+    let (w, h) = size.pixels();
+    let top = groups.iter().flat_map(|g| g.2.iter().copied()).fold(1.0f64, f64::max) * 1.1;
+    let n = categories.len().max(1);
+    let (x, y) = ((-0.5, n as f64 - 0.5), (0.0, top));
+    let entries: Vec<(String, Swatch)> = groups
+        .iter()
+        .map(|(name, colour, _)| {
+            (
+                name.to_string(),
+                Swatch::Fill {
+                    colour: *colour,
+                    alpha: 1.0,
+                },
+            )
+        })
+        .collect();
+    // Category c is centred on x = c, where the axis puts a label.
+    let x_format = |v: &f64| category_at(categories, *v);
+    let y_format = style::ticks(y, Y_TICKS);
+    let layout = Layout::new(
+        style::legend_height(&entries, w),
+        (n, Y_TICKS),
+        categories,
+        &tick_labels(y, Y_TICKS, &y_format),
+    );
     let mut out = String::new();
     {
-        let root = SVGBackend::with_string(&mut out, (width, height)).into_drawing_area();
-        let top = groups.iter().flat_map(|g| g.1.iter().copied()).fold(1.0f64, f64::max) * 1.1;
-        let n = categories.len().max(1);
-        let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
+        let root = SVGBackend::with_string(&mut out, (w, h)).into_drawing_area();
+        let draw = || -> Result<(), Box<dyn std::error::Error>> {
             root.fill(&WHITE)?;
-            let mut chart = ChartBuilder::on(&root)
-                .caption(title, ("sans-serif", 18))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .build_cartesian_2d(-0.5..n as f64 - 0.5, 0.0..top)?;
-            // Category c is centred on x = c, where the axis puts a label.
-            chart
-                .configure_mesh()
-                .disable_x_mesh()
-                .x_labels(n)
-                .x_label_formatter(&|x| category_at(categories, *x))
-                .x_desc(x_label)
-                .y_desc(y_label)
-                .draw()?;
-            let w = 0.8 / groups.len().max(1) as f64;
-            for (g, (name, values)) in groups.iter().enumerate() {
-                let color = Palette99::pick(g).to_rgba();
-                chart
-                    .draw_series(values.iter().enumerate().map(|(c, v)| {
-                        let left = c as f64 - 0.4 + g as f64 * w;
-                        Rectangle::new([(left, 0.0), (left + w, *v)], color.filled())
-                    }))?
-                    .label(*name)
-                    .legend(move |(a, b)| Rectangle::new([(a, b - 5), (a + 12, b + 5)], color.filled()));
+            let (upper, under) = root.split_vertically(h.saturating_sub(layout.legend));
+            let mut chart = axes(
+                &upper,
+                &layout,
+                Axis {
+                    range: x,
+                    desc: x_label,
+                    format: &x_format,
+                },
+                Axis {
+                    range: y,
+                    desc: y_label,
+                    format: &y_format,
+                },
+                false,
+            )?;
+            let width = 0.8 / groups.len().max(1) as f64;
+            for (g, (_, colour, values)) in groups.iter().enumerate() {
+                chart.draw_series(values.iter().enumerate().map(|(c, v)| {
+                    let left = c as f64 - 0.4 + g as f64 * width;
+                    Rectangle::new([(left, 0.0), (left + width, *v)], colour.filled())
+                }))?;
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()?;
+            if !entries.is_empty() {
+                style::legend(&under, &entries)?;
+            }
             root.present()?;
             Ok(())
         };
         let _ = draw();
     }
-    out
+    style::in_inches(out, size)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// Every text of `svg`: (its opening tag, its words).
+    fn texts(svg: &str) -> Vec<(&str, &str)> {
+        svg.split("</text>")
+            .filter_map(|chunk| {
+                let open = chunk.rfind("<text")?;
+                let (tag, words) = chunk[open..].split_once(">\n")?;
+                Some((tag, words.strip_suffix('\n')?))
+            })
+            .collect()
+    }
+
     #[test]
     fn a_chart_draws_its_lines_labels_and_levels() {
-        let mut c = Chart::new("t", "x", "y");
+        let mut c = Chart::new("x", "y");
         c.series.push(Series {
             name: "one".into(),
             points: vec![(0.0, 0.0), (1.0, 2.0), (2.0, 1.0)],
         });
         c.levels.push((1.5, "limit".into()));
         c.markers.push((0.0, 0.0, "start".into()));
-        let svg = c.svg(400, 300);
+        let size = Size::column(0.62);
+        let svg = c.svg(size);
         assert!(svg.starts_with("<svg") && svg.contains("</svg>"));
-        assert!(svg.contains("<polyline"), "the line");
+        assert!(svg.contains("width=\"3.500in\""), "printed at a column's width");
         // A gap breaks it in two, named once.
         c.series[0].points = vec![(0.0, 0.0), (1.0, 2.0), (2.0, f64::NAN), (3.0, 1.0), (4.0, 0.5)];
-        let gapped = c.svg(400, 300);
+        let gapped = c.svg(size);
+        let blue = format!(
+            "stroke=\"#{:02X}{:02X}{:02X}\"",
+            style::family(0).0,
+            style::family(0).1,
+            style::family(0).2
+        );
         let lines = |svg: &str| {
             svg.lines()
-                .filter(|l| l.starts_with("<polyline") && l.contains("stroke-width=\"2\""))
+                .filter(|l| l.starts_with("<polyline") && l.contains(&blue))
                 .count()
         };
         // The line and its legend; then two runs and the one legend.
@@ -350,21 +688,92 @@ mod tests {
     }
 
     #[test]
+    fn a_chart_prints_its_words_at_8_pt_or_more_in_its_own_colours_and_no_title() {
+        let mut c = Chart::new("t (s)", "|γi − γj| (s)").with_windows(&[(1.0, 2.0), (3.0, 3.0)]);
+        for k in 0..3 {
+            c.series.push(Series {
+                name: format!("{k}–{}", k + 1),
+                points: (0..50)
+                    .map(|i| (0.1 * i as f64, (0.3 * i as f64 + k as f64).sin()))
+                    .collect(),
+            });
+        }
+        c.bands
+            .push(("spread".into(), vec![(0.0, -1.0, 1.0), (4.9, -0.5, 0.5)]));
+        c.levels.push((0.8, "limit 0.8 s".into()));
+        c.labels.push((2.0, 0.0, "20".into()));
+        let svg = c.svg(Size::column(0.62));
+        let sizes = style::printed_text_sizes(&svg);
+        assert!(sizes.len() > 10, "{sizes:?}");
+        assert!(sizes.iter().all(|pt| *pt >= 8.0), "{sizes:?}");
+        let upper = svg.to_uppercase();
+        assert!(
+            !upper.contains("#E6194B") && !upper.contains("#3CB44B"),
+            "Palette99's red and green"
+        );
+        assert!(
+            texts(&svg)
+                .iter()
+                .all(|(_, words)| *words != "Coordination error |γi − γj|"),
+            "the caption names the figure, not a title in it"
+        );
+        for entry in ["0–1", "spread", "limit 0.8 s", "fault window", "fault instant"] {
+            assert!(
+                texts(&svg).iter().any(|(_, words)| *words == entry),
+                "{entry} in the legend"
+            );
+        }
+    }
+
+    #[test]
+    fn a_categorical_axis_writes_its_rows_alone() {
+        let mut c = Chart::new("t (s)", "link");
+        c.y_categories = vec!["1→2".into(), "2→1".into()];
+        c.dots.push(Series {
+            name: "delivered".into(),
+            points: vec![(0.0, 0.0), (1.0, 1.0), (2.5, 0.0)],
+        });
+        let svg = c.svg(Size::column(0.4));
+        // The y axis' labels are the ones right-aligned against it.
+        let y_labels: Vec<(&str, &str)> = texts(&svg)
+            .into_iter()
+            .filter(|(tag, _)| tag.contains("text-anchor=\"end\""))
+            .collect();
+        let words: Vec<&str> = y_labels.iter().map(|(_, w)| *w).collect();
+        // Those two alone: no 0.5, 1.1 or 1.5 between them.
+        assert_eq!(words, ["1→2", "2→1"], "{svg}");
+        // Row 0 at the bottom.
+        let at = |tag: &str| -> i32 {
+            tag.split(" y=\"")
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        assert!(at(y_labels[0].0) > at(y_labels[1].0));
+    }
+
+    #[test]
     fn bars_have_one_rectangle_per_value() {
         for n in [2, 10] {
             let names: Vec<String> = (1..=n).map(|i| format!("{i}→{}", i % n + 1)).collect();
             let values = vec![5.0; n];
             let svg = bars(
-                "links",
                 "directed link",
                 "messages",
                 &names,
-                &[("delivered", values.clone()), ("dropped", values)],
-                400,
-                300,
+                &[
+                    ("delivered", style::DELIVERED, values.clone()),
+                    ("dropped", style::LOST, values),
+                ],
+                Size::column(0.62),
             );
             assert!(svg.matches("<rect").count() >= 2 * n, "{svg}");
             assert!(svg.contains("\ndelivered\n") && svg.contains("directed link"));
+            assert!(style::printed_text_sizes(&svg).iter().all(|pt| *pt >= 8.0));
             for name in &names {
                 assert!(
                     svg.contains(&format!(">\n{name}\n<")),

@@ -13,6 +13,7 @@ use tcpf_core::mission::{self, Mission, ModemConfig};
 use tcpf_core::msg::Player;
 
 use crate::plots::{bars, Chart, Series};
+use crate::style::{self, Size};
 use plotters::style::RGBColor;
 use tcpf_core::summary::{Clock, RoleTiming, Summary};
 
@@ -123,7 +124,6 @@ fn read_telemetry(file: &Path, ids: &[u32]) -> Result<BTreeMap<u32, Track>> {
 
 /// One γ message a link decided on (`messages.csv`).
 struct Message {
-    t: f64,
     from: u32,
     to: u32,
     /// s: when it was sent (judged then, in a run directory from before the column).
@@ -160,7 +160,6 @@ fn read_messages(file: &Path) -> Result<Vec<Message>> {
                 (None, _) => Cause::Loss,
             };
             Ok(Message {
-                t,
                 from: field(2)?.parse().map_err(|_| bad())?,
                 to: field(3)?.parse().map_err(|_| bad())?,
                 sent: number(5)?.unwrap_or(t),
@@ -193,8 +192,35 @@ fn number(x: impl Into<Option<f64>>, digits: usize) -> String {
         .map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
 }
 
-/// Writes `report.html` into `dir` from its mission.toml, summary.json and telemetry.csv.
-pub fn write(dir: &Path) -> Result<()> {
+/// How `write` draws the report's figures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    /// in.: every figure's printed width, `style::COLUMN` for a paper's column or
+    /// `style::DOUBLE_COLUMN` across its page. Its text stays at its size in points whatever the
+    /// width.
+    pub figure_width: f64,
+}
+
+impl Default for Options {
+    fn default() -> Options {
+        Options {
+            figure_width: style::COLUMN,
+        }
+    }
+}
+
+/// A figure of the report: its id (its file's name), its caption and its SVG.
+type Figure = (&'static str, String, String);
+
+/// Writes `report.html` into `dir` from its mission.toml, summary.json and telemetry.csv, and
+/// each of its figures into `figures/` as SVG and PDF with its caption beside them (`.txt`),
+/// ready for a paper.
+pub fn write(dir: &Path, options: &Options) -> Result<()> {
+    let width = options.figure_width;
+    // As `--figure-width` allows: under 2 in. a figure's 8 pt words crowd its plot out.
+    if !(2.0..=20.0).contains(&width) {
+        return Err(anyhow!("a figure width of {width} in.: from 2 to 20 in."));
+    }
     let read = |name: &str| {
         std::fs::read_to_string(dir.join(name)).with_context(|| format!("cannot read {}", dir.join(name).display()))
     };
@@ -221,10 +247,29 @@ pub fn write(dir: &Path) -> Result<()> {
         }
     }
     let messages = read_messages(&dir.join("messages.csv"))?;
-    let html = page(&mission, &summary, &tracks, &messages);
+    let (html, figures) = page(&mission, &summary, &tracks, &messages, width);
     std::fs::write(dir.join("report.html"), html)
-        .with_context(|| format!("cannot write {}", dir.join("report.html").display()))
+        .with_context(|| format!("cannot write {}", dir.join("report.html").display()))?;
+    let out = dir.join("figures");
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    for (id, caption, svg) in &figures {
+        let pdf = crate::pdf::of_svg(svg).with_context(|| format!("figure {id}"))?;
+        let text = format!("{caption}\n");
+        for (extension, bytes) in [("svg", svg.as_bytes()), ("pdf", &pdf[..]), ("txt", text.as_bytes())] {
+            let file = out.join(format!("{id}.{extension}"));
+            std::fs::write(&file, bytes).with_context(|| format!("cannot write {}", file.display()))?;
+        }
+    }
+    Ok(())
 }
+
+/// `chart` `width` in. wide, its plot `aspect` of that high, with its legend under it.
+fn drawn(chart: &Chart, width: f64, aspect: f64) -> String {
+    chart.svg(chart.fitted(Size { width, aspect }))
+}
+
+/// A time plot's height over its width: time runs along the page.
+const TIME: f64 = 0.62;
 
 /// What made the run, and the mission's main parameters, on the first screen: enough to tell runs
 /// apart, and to make one again (`mission.toml` beside this page holds the mission whole).
@@ -374,13 +419,13 @@ fn pairs(mission: &Mission, ids: &[u32]) -> (Pairs, Pairs) {
 
 /// What a dynamic vehicle did (MODEL D22): its velocity through the water, side-slip and turn
 /// rate, and its thrusters' commands against the dead zone and full thrust, and their forces.
-fn dynamic_figures(tracks: &BTreeMap<u32, Track>, faults: &[(f64, f64)], figures: &mut Vec<(&str, String, String)>) {
+fn dynamic_figures(tracks: &BTreeMap<u32, Track>, faults: &[(f64, f64)], width: f64, figures: &mut Vec<Figure>) {
     let dynamic: Vec<(&u32, &Track)> = tracks.iter().filter(|(_, t)| t.is_dynamic()).collect();
     if dynamic.is_empty() {
         return;
     }
-    let per_vehicle = |title: &'static str, y: &'static str, columns: &[(&str, &str)]| {
-        let mut chart = Chart::new(title, "t (s)", y).with_windows(faults);
+    let per_vehicle = |y: &'static str, columns: &[(&str, &str)]| {
+        let mut chart = Chart::new("t (s)", y).with_windows(faults);
         for (id, tr) in &dynamic {
             for (column, name) in columns {
                 chart.series.push(Series {
@@ -391,28 +436,19 @@ fn dynamic_figures(tracks: &BTreeMap<u32, Track>, faults: &[(f64, f64)], figures
         }
         chart
     };
-    let velocity = per_vehicle(
-        "Velocity through the water, body frame",
-        "m/s",
-        &[("surge", ": surge u"), ("sway", ": sway v")],
-    );
+    let velocity = per_vehicle("m/s", &[("surge", ": surge u"), ("sway", ": sway v")]);
     figures.push((
         "body-velocity",
         "Surge u and sway v of each dynamic vehicle, relative to the water.".into(),
-        velocity.svg(900, 400),
+        drawn(&velocity, width, TIME),
     ));
-    let turn = per_vehicle(
-        "Yaw rate and side-slip",
-        "rad/s, rad",
-        &[("yaw_rate", ": yaw rate r"), ("beta", ": side-slip β")],
-    );
+    let turn = per_vehicle("rad/s, rad", &[("yaw_rate", ": yaw rate r"), ("beta", ": side-slip β")]);
     figures.push((
         "yaw-rate",
         "Yaw rate r and side-slip β = atan2(v, u) of each dynamic vehicle.".into(),
-        turn.svg(900, 400),
+        drawn(&turn, width, TIME),
     ));
     let mut commands = per_vehicle(
-        "Thruster commands",
         "command (%)",
         &[("command_1", ": thruster 1"), ("command_2", ": thruster 2")],
     );
@@ -429,26 +465,22 @@ fn dynamic_figures(tracks: &BTreeMap<u32, Track>, faults: &[(f64, f64)], figures
         format!(
             "Thruster commands of the inner loops: inside ±{DEAD_ZONE} % a motor does not turn, at ±{FULL} % the loops are clipped."
         ),
-        commands.svg(900, 400),
+        drawn(&commands, width, TIME),
     ));
-    let forces = per_vehicle(
-        "Thruster forces",
-        "F (N)",
-        &[("thrust_1", ": thruster 1"), ("thrust_2", ": thruster 2")],
-    );
+    let forces = per_vehicle("F (N)", &[("thrust_1", ": thruster 1"), ("thrust_2", ": thruster 2")]);
     figures.push((
         "thrust",
         "Force of each thruster, after the dead time and the motor's lag.".into(),
-        forces.svg(900, 400),
+        drawn(&forces, width, TIME),
     ));
 }
 
 /// Broadcasts per vehicle over time, and every message of every link, delivered or lost.
-fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Vec<(&str, String, String)>) {
+fn message_figures(messages: &[Message], faults: &[(f64, f64)], width: f64, figures: &mut Vec<Figure>) {
     if messages.is_empty() {
         return;
     }
-    let mut sent = Chart::new("γ messages sent", "t (s)", "broadcasts so far").with_windows(faults);
+    let mut sent = Chart::new("t (s)", "broadcasts so far").with_windows(faults);
     let mut senders: BTreeMap<u32, Vec<(f64, f64)>> = BTreeMap::new();
     // Each neighbour's row is the same broadcast, judged at the same instant unless a modem
     // judged it on arrival; a busy instant sent nothing.
@@ -484,15 +516,17 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
     figures.push((
         "messages",
         "γ messages each vehicle has broadcast so far: event triggering and TDMA show as flat stretches.".into(),
-        sent.svg(900, 400),
+        drawn(&sent, width, TIME),
     ));
 
     let mut links: Vec<(u32, u32)> = messages.iter().map(|m| (m.from, m.to)).collect();
     links.sort_unstable();
     links.dedup();
-    let row = |m: &Message| links.iter().position(|l| *l == (m.from, m.to)).unwrap_or(0) as f64 + 1.0;
+    // Link c is row c, named on the axis.
+    let row = |m: &Message| links.iter().position(|l| *l == (m.from, m.to)).unwrap_or(0) as f64;
     let stride = every(messages.len());
-    let mut marks = Chart::new("γ messages per directed link", "t (s)", "link").with_windows(faults);
+    let mut marks = Chart::new("t (s)", "link").with_windows(faults);
+    marks.y_categories = links.iter().map(|(from, to)| format!("{from}→{to}")).collect();
     for cause in Cause::ALL
         .into_iter()
         .filter(|&c| messages.iter().any(|m| m.cause == c))
@@ -508,10 +542,6 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
         });
         marks.dot_colors.push(cause_color(cause));
     }
-    let t0 = messages[0].t;
-    for (k, (from, to)) in links.iter().enumerate() {
-        marks.labels.push((t0, k as f64 + 1.0, format!("{from}→{to}")));
-    }
     let shown = if stride > 1 {
         format!(" (one message in {stride} shown)")
     } else {
@@ -522,29 +552,31 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], figures: &mut Ve
         format!(
             "Each γ message on each directed link at the instant it was sent, coloured by what became of it{shown}."
         ),
-        marks.svg(900, 200 + 40 * links.len() as u32),
+        // A row per link: the more links, the taller.
+        drawn(&marks, width, (0.35 + 0.05 * links.len() as f64).min(2.0)),
     ));
 }
 
 /// One colour per cause in every chart: Okabe–Ito's, told apart by readers with a colour vision
 /// deficiency; delivered blue, the modem's causes warm, the link's own models grey and purple.
+/// Delivered and lost are `style`'s, which the bars of each link's messages use too.
 fn cause_color(cause: Cause) -> RGBColor {
     match cause {
-        Cause::Delivered => RGBColor(0, 114, 178),
-        Cause::Busy => RGBColor(240, 228, 66),
-        Cause::HalfDuplex => RGBColor(230, 159, 0),
-        Cause::Collision => RGBColor(213, 94, 0),
-        Cause::Noise => RGBColor(204, 121, 167),
-        Cause::Loss => RGBColor(86, 86, 86),
-        Cause::Burst => RGBColor(150, 150, 150),
-        Cause::Outage => RGBColor(0, 0, 0),
-        Cause::Range => RGBColor(0, 158, 115),
+        Cause::Delivered => style::DELIVERED,
+        Cause::Busy => style::YELLOW,
+        Cause::HalfDuplex => style::ORANGE,
+        Cause::Collision => style::VERMILLION,
+        Cause::Noise => style::PURPLE,
+        Cause::Loss => style::LOST,
+        Cause::Burst => style::LIGHT_GREY,
+        Cause::Outage => style::INK,
+        Cause::Range => style::GREEN,
     }
 }
 
 /// With a modem: the error rate of frames the physics judged, by distance, beside the closed
 /// form of an isolated frame (D23): above the curve where frames collided.
-fn error_rate_figure(modem: &ModemConfig, messages: &[Message], figures: &mut Vec<(&str, String, String)>) {
+fn error_rate_figure(modem: &ModemConfig, messages: &[Message], width: f64, figures: &mut Vec<Figure>) {
     // Frames the draw decided: not those never sent or lost to half duplex before it.
     let judged: Vec<(f64, bool)> = messages
         .iter()
@@ -560,18 +592,14 @@ fn error_rate_figure(modem: &ModemConfig, messages: &[Message], figures: &mut Ve
             (a.min(*d), b.max(*d))
         });
     const BINS: usize = 20;
-    let width = ((hi - lo) / BINS as f64).max(1e-9);
+    let bin = ((hi - lo) / BINS as f64).max(1e-9);
     let mut bins = [(0u64, 0u64); BINS];
     for &(d, survived) in &judged {
-        let k = (((d - lo) / width) as usize).min(BINS - 1);
+        let k = (((d - lo) / bin) as usize).min(BINS - 1);
         bins[k].0 += 1;
         bins[k].1 += u64::from(!survived);
     }
-    let mut chart = Chart::new(
-        "Frame error rate against distance",
-        "distance at sending (m)",
-        "frame error rate",
-    );
+    let mut chart = Chart::new("distance at sending (m)", "frame error rate");
     chart.y_from_zero = true;
     let reach = lo.min(modem.range_at(0.01)).max(1.0)..hi.max(modem.range_at(0.99));
     chart.series.push(Series {
@@ -587,7 +615,7 @@ fn error_rate_figure(modem: &ModemConfig, messages: &[Message], figures: &mut Ve
             .iter()
             .enumerate()
             .filter(|(_, b)| b.0 > 0)
-            .map(|(k, b)| (lo + (k as f64 + 0.5) * width, b.1 as f64 / b.0 as f64))
+            .map(|(k, b)| (lo + (k as f64 + 0.5) * bin, b.1 as f64 / b.0 as f64))
             .collect(),
     });
     chart.dot_colors.push(cause_color(Cause::Collision));
@@ -597,19 +625,26 @@ fn error_rate_figure(modem: &ModemConfig, messages: &[Message], figures: &mut Ve
             "Share of frames lost to the error draw (noise or collision) in {BINS} bins of distance, beside the error rate of an isolated frame at the fleet's levels: above the curve, other frames interfered. {} frames.",
             judged.len()
         ),
-        chart.svg(900, 400),
+        drawn(&chart, width, TIME),
     ));
 }
 
-fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, messages: &[Message]) -> String {
+/// The page, and its figures.
+fn page(
+    mission: &Mission,
+    summary: &Summary,
+    tracks: &BTreeMap<u32, Track>,
+    messages: &[Message],
+    width: f64,
+) -> (String, Vec<Figure>) {
     let ids: Vec<u32> = tracks.keys().copied().collect();
     let (all, linked) = pairs(mission, &ids);
     let t_f = summary.results.t_f;
-    let mut figures: Vec<(&str, String, String)> = Vec::new();
+    let mut figures: Vec<Figure> = Vec::new();
     // Every time plot shades the run's fault windows (MODEL D16a).
     let faults: Vec<(f64, f64)> = summary.results.faults.iter().map(|f| (f.start, f.end)).collect();
 
-    let mut paths = Chart::new("Paths, with time along them", "x (m)", "y (m)");
+    let mut paths = Chart::new("x (m)", "y (m)");
     paths.equal_axes = true;
     for (id, tr) in tracks {
         paths.series.push(Series {
@@ -653,11 +688,11 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
     }
     figures.push((
         "paths",
-        "Paths (the paper's Fig. 4), x east and y north at equal scale: labels give the time in s; the grey arrow is the water current.".into(),
-        paths.svg(900, 600),
+        "Paths (the paper's Fig. 4), x east and y north at equal scale: labels give the time in s; the arrow is the water current.".into(),
+        drawn(&paths, width, 0.8),
     ));
 
-    let mut gaps = Chart::new("Coordination error |γi − γj|", "t (s)", "|γi − γj| (s)").with_windows(&faults);
+    let mut gaps = Chart::new("t (s)", "|γi − γj| (s)").with_windows(&faults);
     let shown = if linked.is_empty() { &all } else { &linked };
     let error = |a: u32, b: u32| {
         tracks[&a]
@@ -682,10 +717,10 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
     figures.push((
         "coordination",
         format!("Coordination error for {what} (Fig. 5); a lost vehicle's pairs end where it was lost."),
-        gaps.svg(900, 400),
+        drawn(&gaps, width, TIME),
     ));
 
-    let mut distance = Chart::new("Distance between vehicles", "t (s)", "distance (m)").with_windows(&faults);
+    let mut distance = Chart::new("t (s)", "distance (m)").with_windows(&faults);
     let apart = |a: u32, b: u32| {
         let (ta, tb) = (&tracks[&a], &tracks[&b]);
         (0..ta.t.len().min(tb.t.len())).map(|k| (ta.x[k] - tb.x[k]).hypot(ta.y[k] - tb.y[k]))
@@ -721,11 +756,11 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
     figures.push((
         "distances",
         format!("Pairwise distances{which} with the clearance E (Fig. 6)."),
-        distance.svg(900, 400),
+        drawn(&distance, width, TIME),
     ));
 
-    let mut speeds = Chart::new("Speed through the water", "t (s)", "v (m/s)").with_windows(&faults);
-    let mut cross = Chart::new("Cross-track error", "t (s)", "y_e (m)").with_windows(&faults);
+    let mut speeds = Chart::new("t (s)", "v (m/s)").with_windows(&faults);
+    let mut cross = Chart::new("t (s)", "y_e (m)").with_windows(&faults);
     for (id, tr) in tracks {
         speeds.series.push(Series {
             name: format!("vehicle {id}"),
@@ -739,43 +774,44 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
     figures.push((
         "speeds",
         "Commanded speed through the water.".into(),
-        speeds.svg(900, 400),
+        drawn(&speeds, width, TIME),
     ));
     figures.push((
         "cross-track",
         "Cross-track error y_e in the path frame.".into(),
-        cross.svg(900, 400),
+        drawn(&cross, width, TIME),
     ));
 
-    dynamic_figures(tracks, &faults, &mut figures);
+    dynamic_figures(tracks, &faults, width, &mut figures);
 
     let links = &summary.results.links;
     let names: Vec<String> = links.iter().map(|l| format!("{}→{}", l.from, l.to)).collect();
     let count = |n: fn(&LinkStats) -> u64| links.iter().map(|l| n(l) as f64).collect::<Vec<f64>>();
     let link_chart = bars(
-        "Messages per directed link",
         "directed link",
         "messages",
         &names,
-        &[("delivered", count(|l| l.delivered)), ("dropped", count(|l| l.dropped))],
-        900,
-        350,
+        &[
+            ("delivered", style::DELIVERED, count(|l| l.delivered)),
+            ("dropped", style::LOST, count(|l| l.dropped)),
+        ],
+        Size { width, aspect: TIME },
     );
     figures.push((
         "links",
         "Messages delivered and dropped on each directed link.".into(),
         link_chart,
     ));
-    message_figures(messages, &faults, &mut figures);
+    message_figures(messages, &faults, width, &mut figures);
     if let Some(modem) = &mission.comms.modem {
-        error_rate_figure(modem, messages, &mut figures);
+        error_rate_figure(modem, messages, width, &mut figures);
     }
 
     let mut html = String::new();
     let title = format!("tcpf run: {}", summary.mission);
     let _ = write!(
         html,
-        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\n<style>body{{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}}table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:.25em .6em;text-align:right}}th{{background:#f4f4f4}}figure{{margin:1.5em 0}}figcaption{{color:#555;margin-top:.3em}}</style></head><body>\n<h1>{}</h1>\n",
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\n<style>body{{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}}table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:.25em .6em;text-align:right}}th{{background:#f4f4f4}}figure{{margin:1.5em 0;max-width:720px}}figure svg{{width:100%;height:auto}}figcaption{{color:#555;margin-top:.3em}}</style></head><body>\n<h1>{}</h1>\n",
         escape(&title),
         escape(&title)
     );
@@ -841,15 +877,15 @@ fn page(mission: &Mission, summary: &Summary, tracks: &BTreeMap<u32, Track>, mes
     html.push_str("</table>\n");
     thrusters_table(&mut html, summary);
     timing_table(&mut html, summary);
-    for (id, caption, svg) in figures {
+    for (id, caption, svg) in &figures {
         let _ = writeln!(
             html,
             "<figure class=\"plot\" id=\"{id}\">{svg}<figcaption>{}</figcaption></figure>",
-            escape(&caption)
+            escape(caption)
         );
     }
     html.push_str("</body></html>\n");
-    html
+    (html, figures)
 }
 
 /// Dynamic vehicles: how hard their thrusters worked (`vehicles[].thrusters` in summary.json).
@@ -943,6 +979,17 @@ mod tests {
         assert_eq!(tracks[&2].gamma[..2], [0.0, 0.01]);
         assert!(tracks[&2].gamma[2].is_nan(), "no γ once lost: {:?}", tracks[&2].gamma);
         assert_eq!(tracks[&1].gamma[2], 0.02);
+    }
+
+    #[test]
+    fn one_colour_means_one_cause_and_the_bars_say_the_same() {
+        let colours: Vec<RGBColor> = Cause::ALL.iter().map(|&c| cause_color(c)).collect();
+        for (a, x) in colours.iter().enumerate() {
+            assert!(colours[a + 1..].iter().all(|y| y != x), "{:?} twice", Cause::ALL[a]);
+        }
+        // The link bars' delivered and dropped.
+        assert_eq!(cause_color(Cause::Delivered), style::DELIVERED);
+        assert_eq!(cause_color(Cause::Loss), style::LOST);
     }
 
     #[test]

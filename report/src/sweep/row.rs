@@ -9,107 +9,7 @@ use tcpf_core::metrics::Results;
 
 use super::grid::Grid;
 
-/// A metric of a run, by its column name, with the words its plots and tables use.
-pub struct Metric {
-    pub name: &'static str,
-    pub title: &'static str,
-    pub unit: &'static str,
-}
-
-/// The metrics of every row, in the order of their columns: the fleet's figures, then every
-/// link's frames by what became of them (`frames_<cause>`, in `Cause::ALL`'s order).
-pub const METRICS: [Metric; 9 + Cause::ALL.len()] = [
-    Metric {
-        name: "max_coordination_error",
-        title: "Coordination error",
-        unit: "max |γi − γj| (s)",
-    },
-    Metric {
-        name: "rms_coordination_error",
-        title: "RMS coordination error",
-        unit: "rms of max |γi − γj| (s)",
-    },
-    Metric {
-        name: "integral_coordination_error",
-        title: "Integral of the coordination error",
-        unit: "∫ max |γi − γj| dt (s²)",
-    },
-    Metric {
-        name: "resync_time",
-        title: "Re-synchronisation after a fault",
-        unit: "longest time back in step (s)",
-    },
-    Metric {
-        name: "min_clearance",
-        title: "Clearance",
-        unit: "min distance (m)",
-    },
-    Metric {
-        name: "arrival_spread",
-        title: "Arrival spread",
-        unit: "last − first arrival (s)",
-    },
-    Metric {
-        name: "last_arrival",
-        title: "Last arrival",
-        unit: "last arrival (s)",
-    },
-    Metric {
-        name: "delivered_fraction",
-        title: "γ messages delivered",
-        unit: "delivered / sent",
-    },
-    Metric {
-        name: "messages_per_vehicle_s",
-        title: "γ messages",
-        unit: "broadcasts per vehicle per second",
-    },
-    Metric {
-        name: "frames_delivered",
-        title: "Frames delivered",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_busy",
-        title: "Instants a busy modem sent nothing",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_half_duplex",
-        title: "Frames lost to half duplex",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_collision",
-        title: "Frames lost to collisions",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_noise",
-        title: "Frames lost to noise",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_loss",
-        title: "Frames lost to the link's loss",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_burst",
-        title: "Frames lost to bursts",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_outage",
-        title: "Frames lost to outages",
-        unit: "frames, every link",
-    },
-    Metric {
-        name: "frames_range",
-        title: "Frames lost beyond the range",
-        unit: "frames, every link",
-    },
-];
+pub use crate::labels::METRICS;
 
 pub const N_METRICS: usize = METRICS.len();
 
@@ -117,7 +17,7 @@ pub const N_METRICS: usize = METRICS.len();
 pub fn metric(name: &str) -> usize {
     METRICS
         .iter()
-        .position(|m| m.name == name)
+        .position(|m| m.key == name)
         .unwrap_or_else(|| panic!("no metric {name}"))
 }
 
@@ -228,7 +128,7 @@ pub fn header(grid: &Grid) -> Vec<String> {
     let mut h = vec!["run".to_string()];
     h.extend(grid.params.iter().map(|p| p.key.clone()));
     h.extend(["seed".into(), "status".into()]);
-    h.extend(METRICS.iter().map(|m| m.name.to_string()));
+    h.extend(METRICS.iter().map(|m| m.key.to_string()));
     h
 }
 
