@@ -8,7 +8,7 @@ use anyhow::anyhow;
 use tcpf_coordinator::sweep;
 use tcpf_core::mission;
 use tcpf_core::summary::Provenance;
-use tcpf_report::sweep::figures::Band;
+use tcpf_report::sweep::figures::Look;
 use tcpf_report::sweep::{Design, Sweep};
 
 use crate::cli::{MissionArgs, SweepArgs};
@@ -87,6 +87,9 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
         })
     };
     let mut rows = made?;
+    if args.series {
+        rows.keep_series();
+    }
     let interrupted = if args.processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
@@ -97,20 +100,20 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
         let jobs = args.jobs.map_or(cores, |j| j as usize);
         sweep::run_in_process(&runs, &plans, jobs, &mut rows).map_err(Failure::Failed)?
     };
-    finish(rows, crate::cli::band(&args.band), interrupted)
+    finish(rows, crate::cli::look(&args.band, args.figure_width), interrupted)
 }
 
-fn finish(rows: Sweep, band: Band, interrupted: bool) -> Result<ExitCode, Failure> {
+fn finish(rows: Sweep, look: Look, interrupted: bool) -> Result<ExitCode, Failure> {
     let dir = rows.dir().to_path_buf();
-    let (summary, table) = rows.finish(band).map_err(Failure::Failed)?;
+    let (summary, table) = rows.finish(look).map_err(Failure::Failed)?;
     say!("{table}");
     sayln!("sweep directory: {}", dir.display());
     sayln!("again: {}/rerun.sh DIR   ({})", dir.display(), summary.rerun);
     Ok(code(summary.failed_runs.is_empty(), interrupted))
 }
 
-pub fn merge(dirs: &[PathBuf], out: &Path, band: Band) -> Result<ExitCode, Failure> {
+pub fn merge(dirs: &[PathBuf], out: &Path, look: Look) -> Result<ExitCode, Failure> {
     fresh_out(Some(out))?;
     let rows = Sweep::merge(dirs, out).map_err(Failure::Input)?;
-    finish(rows, band, false)
+    finish(rows, look, false)
 }

@@ -192,11 +192,18 @@ pub fn in_process(mission: &Mission, plan: &Plan, repeat: usize) -> InProcess {
 }
 
 /// Runs per second of a sweep of `runs` seeds of the mission in-process on every core (into
-/// `dir`: rows, tables, figures), and of the same runs as bare `Fleet::run`s on as many threads
-/// (the baseline): what the sweep itself costs per run.
-pub fn sweep_rates(mission: &Mission, plan: &Plan, runs: u64, dir: &Path) -> Result<(f64, f64)> {
+/// `dir`: rows, tables, figures), of the same sweep keeping its series (`--series`), and of the
+/// same runs as bare `Fleet::run`s on as many threads (the baseline): what the sweep itself
+/// costs per run.
+pub struct SweepRates {
+    pub swept: f64,
+    pub series: f64,
+    pub bare: f64,
+}
+
+pub fn sweep_rates(mission: &Mission, plan: &Plan, runs: u64, dir: &Path) -> Result<SweepRates> {
     use std::sync::atomic::{AtomicU64, Ordering};
-    use tcpf_report::sweep::{figures::Band, Design, Grid, Sweep};
+    use tcpf_report::sweep::{figures::Look, Design, Grid, Sweep};
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let bare = Instant::now();
     let next = AtomicU64::new(0);
@@ -214,29 +221,40 @@ pub fn sweep_rates(mission: &Mission, plan: &Plan, runs: u64, dir: &Path) -> Res
         }
     });
     let bare = bare.elapsed();
-    let swept = Instant::now();
-    let design = Design {
-        mission: mission.mission.name.clone(),
-        grid: Grid {
-            params: Vec::new(),
-            seeds: runs,
-            seed_start: 1,
-        },
-        shard: None,
-        mode: "in-process".into(),
-        clearance: mission.planner.clearance,
+    let sweep = |dir: &Path, series: bool| -> Result<Duration> {
+        let swept = Instant::now();
+        let design = Design {
+            mission: mission.mission.name.clone(),
+            grid: Grid {
+                params: Vec::new(),
+                seeds: runs,
+                seed_start: 1,
+            },
+            shard: None,
+            mode: "in-process".into(),
+            clearance: mission.planner.clearance,
+        };
+        let grid = design.grid.clone();
+        let mut sweep = Sweep::create(Some(dir), &mission.to_toml(), Default::default(), design)?;
+        if series {
+            sweep.keep_series();
+        }
+        let every = crate::sweep::Runs {
+            grid,
+            missions: vec![mission.clone()],
+        };
+        crate::sweep::run_in_process(&every, std::slice::from_ref(plan), threads, &mut sweep)?;
+        sweep.finish(Look::default())?;
+        Ok(swept.elapsed())
     };
-    let grid = design.grid.clone();
-    let mut sweep = Sweep::create(Some(dir), &mission.to_toml(), Default::default(), design)?;
-    let every = crate::sweep::Runs {
-        grid,
-        missions: vec![mission.clone()],
-    };
-    crate::sweep::run_in_process(&every, std::slice::from_ref(plan), threads, &mut sweep)?;
-    sweep.finish(Band::Ci95)?;
-    let swept = swept.elapsed();
+    let swept = sweep(&dir.join("rows"), false)?;
+    let series = sweep(&dir.join("series"), true)?;
     let rate = |d: Duration| runs as f64 / d.as_secs_f64();
-    Ok((rate(swept), rate(bare)))
+    Ok(SweepRates {
+        swept: rate(swept),
+        series: rate(series),
+        bare: rate(bare),
+    })
 }
 
 /// The mission's fleet in-process with every vehicle kinematic, then with every vehicle a
@@ -483,11 +501,13 @@ pub async fn measure(
     let scratch = std::env::temp_dir().join(format!("tcpf-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&scratch);
     let runs = 200;
-    let (swept, bare) = sweep_rates(mission, plan, runs, &scratch.join("sweep"))?;
+    let SweepRates { swept, series, bare } = sweep_rates(mission, plan, runs, &scratch.join("sweep"))?;
     let _ = std::fs::remove_dir_all(&scratch);
     say(format!(
-        "sweep of {runs} seeds in-process: {swept:.1} runs/s; the same runs as bare Fleet::run on as many threads (baseline) {bare:.1} runs/s: {:.2}x",
-        swept / bare
+        "sweep of {runs} seeds in-process: {swept:.1} runs/s; the same runs as bare Fleet::run on as many threads (baseline) {bare:.1} runs/s: {:.2}x; \
+         keeping e(t) and d(t) (--series) {series:.1} runs/s: {:.2}x the sweep without",
+        swept / bare,
+        series / swept
     ));
     let measured = processes(mission, plan, exe, count, &scratch, shutdown).await;
     let _ = std::fs::remove_dir_all(&scratch);

@@ -183,6 +183,14 @@ pub struct Metrics {
     away_since: Vec<Option<f64>>,
 }
 
+/// The coordination error (max |γi − γj| over the vehicles with a γ: those that sent a
+/// command) and the clearance (the least distance between two vehicles) at one tick: a sample
+/// of e(t) and d(t), the series a sweep keeps per grid point.
+pub fn error_and_clearance(gammas: &[Option<f64>], positions: &[[f64; 2]]) -> (f64, f64) {
+    let values: Vec<f64> = gammas.iter().map(|g| g.unwrap_or(0.0)).collect();
+    spread(&values, positions, &mut Vec::new(), |n| gammas[n].is_some())
+}
+
 /// max |γ_i − γ_j| over pairs of live vehicles (a lost vehicle's γ is frozen: it coordinates
 /// with nobody), and min |p_i − p_j| over all pairs (a drifting vehicle can still be hit).
 ///

@@ -1,13 +1,16 @@
 //! A sweep's results: `runs.csv` (one row per run), `aggregate.csv` (statistics per grid
-//! point), `sweep.json`, the figures and `sweep.html`, the table printed at the end, and what
-//! makes a sweep whole again: `--resume` and the merge of its shards.
+//! point) and `aggregate.tex` (its means and intervals as a LaTeX table), `sweep.json`, the
+//! figures and `sweep.html`, the table printed at the end, and what makes a sweep whole again:
+//! `--resume` and the merge of its shards.
 //!
 //! Rows are folded into the statistics in the order of the runs, whoever ran them: a sweep, its
 //! shards merged and a resumed sweep give the same tables, byte for byte.
 
 pub mod figures;
 pub mod grid;
+pub mod latex;
 pub mod row;
+pub mod series;
 pub mod stats;
 
 use std::collections::BTreeMap;
@@ -181,6 +184,8 @@ pub struct Sweep {
     failed: Vec<FailedRun>,
     /// Failed runs since the last one done.
     in_a_row: usize,
+    /// `--series`: e(t) and d(t) of the runs this sweep runs, per grid point.
+    series: Option<series::Series>,
 }
 
 const RESUMING: &str = "runs.csv.resuming";
@@ -241,6 +246,7 @@ impl Sweep {
             done: 0,
             failed: Vec::new(),
             in_a_row: 0,
+            series: None,
         })
     }
 
@@ -344,6 +350,24 @@ impl Sweep {
         Ok(())
     }
 
+    /// Keeps the series of every run pushed from now on (`push_series`) and writes them at the
+    /// end: `series.csv` and its figures.
+    pub fn keep_series(&mut self) {
+        self.series = Some(series::Series::new(self.points.len()));
+    }
+
+    /// Whether the sweep keeps series.
+    pub fn keeps_series(&self) -> bool {
+        self.series.is_some()
+    }
+
+    /// The samples of run `row`'s, pushed after it (in the order of the runs).
+    pub fn push_series(&mut self, point: u64, step: f64, samples: &[(f64, f64)]) {
+        if let Some(series) = &mut self.series {
+            series.push(point as usize, step, samples);
+        }
+    }
+
     pub fn dir(&self) -> &Path {
         &self.dir
     }
@@ -439,7 +463,7 @@ impl Sweep {
                     metrics: METRICS
                         .iter()
                         .zip(&p.metrics)
-                        .map(|(m, r)| (m.name, r.stats()))
+                        .map(|(m, r)| (m.key, r.stats()))
                         .collect(),
                 })
                 .collect(),
@@ -455,9 +479,10 @@ impl Sweep {
         Ok(summary)
     }
 
-    /// Every row in runs.csv, then sweep.json, aggregate.csv, the figures and sweep.html.
+    /// Every row in runs.csv, then sweep.json, aggregate.csv, aggregate.tex, the figures and
+    /// sweep.html.
     /// Returns the summary and its table.
-    pub fn finish(mut self, band: figures::Band) -> Result<(SweepSummary, String)> {
+    pub fn finish(mut self, look: figures::Look) -> Result<(SweepSummary, String)> {
         self.write_kept_before(u64::MAX)?;
         self.csv.flush()?;
         self.walls.flush()?;
@@ -467,8 +492,21 @@ impl Sweep {
         let summary = self.write_json()?;
         let out = &self.dir;
         write_aggregate(out, &summary)?;
+        latex::write(out, &summary)?;
         let mut table = table(&summary);
-        let figures = figures::write(out, &summary, band, &mut table)?;
+        let mut figures = figures::write(out, &summary, look, &mut table)?;
+        if let Some(series) = &self.series {
+            series.write(out, &summary.design.grid)?;
+            figures.push_str(&figures::series(out, &summary, series, look)?);
+            let runs = series.runs();
+            if runs < summary.done_runs {
+                let _ = writeln!(
+                    table,
+                    "series.csv is over the {runs} runs this command ran, not the {} kept from before",
+                    summary.done_runs - runs
+                );
+            }
+        }
         let title = format!(
             "tcpf sweep: {} over {}",
             summary.design.mission,
@@ -477,12 +515,12 @@ impl Sweep {
                 .grid
                 .params
                 .iter()
-                .map(|p| p.key.as_str())
+                .map(|p| crate::labels::key(&p.key).name)
                 .collect::<Vec<_>>()
                 .join(" × ")
         );
         let html = format!(
-            "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title><style>body{{font-family:sans-serif;max-width:980px;margin:2em auto}}figure{{margin:1em 0}}</style></head><body><h1>{title}</h1><p>Again from this directory: <code>{rerun}</code> (<code>rerun.sh</code>). Every run: <code>runs.csv</code>; per grid point: <code>aggregate.csv</code>.</p><pre>{t}</pre>{figures}</body></html>\n",
+            "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title><style>body{{font-family:sans-serif;max-width:980px;margin:2em auto;padding:0 1em}}pre{{overflow-x:auto;max-width:100%}}figure{{margin:1.5em 0;max-width:720px}}figure svg{{width:100%;height:auto}}figcaption{{color:#444;margin-top:.3em}}</style></head><body><h1>{title}</h1><p>Again from this directory: <code>{rerun}</code> (<code>rerun.sh</code>). Every run: <code>runs.csv</code>; per grid point: <code>aggregate.csv</code>, and as a LaTeX table <code>aggregate.tex</code> (the tabular alone, to <code>\\input</code> in a paper: <code>aggregate-table.tex</code>).</p><pre>{t}</pre>{figures}</body></html>\n",
             rerun = escape(&summary.rerun),
             t = escape(&table)
         );
@@ -503,7 +541,7 @@ fn write_aggregate(out: &Path, summary: &SweepSummary) -> Result<()> {
     header.extend(["runs".into(), "arrived".into(), "failed".into()]);
     for m in &METRICS {
         for stat in ["n", "mean", "sd", "ci95", "min", "max"] {
-            header.push(format!("{}_{stat}", m.name));
+            header.push(format!("{}_{stat}", m.key));
         }
     }
     csv.write_record(&header)?;
@@ -512,7 +550,7 @@ fn write_aggregate(out: &Path, summary: &SweepSummary) -> Result<()> {
         let mut record = p.values.clone();
         record.extend([p.runs.to_string(), p.arrived.to_string(), p.failed.to_string()]);
         for m in &METRICS {
-            match p.get(m.name) {
+            match p.get(m.key) {
                 Some(s) => record.extend([
                     s.n.to_string(),
                     s.mean.to_string(),
@@ -750,7 +788,7 @@ mod tests {
         // Three in a row: the sweep gives up, which is no interrupt.
         assert!(!sweep.fail(failed(4)).unwrap());
         assert!(sweep.fail(failed(5)).unwrap());
-        let (summary, t) = sweep.finish(figures::Band::Ci95).unwrap();
+        let (summary, t) = sweep.finish(figures::Look::default()).unwrap();
         assert!(summary.gave_up && !summary.interrupted);
         assert!(
             t.contains("gave up after 3 failed runs in a row: 1 of 6 runs done"),
@@ -774,7 +812,7 @@ mod tests {
         let whole = dir.join("whole");
         let mut sweep = Sweep::create(Some(&whole), &mission, provenance.clone(), design.clone()).unwrap();
         rows.iter().for_each(|r| sweep.push(r, None).unwrap());
-        sweep.finish(figures::Band::Ci95).unwrap();
+        sweep.finish(figures::Look::default()).unwrap();
         // Runs 1 and 4 done, the rest missing: resumed, the rows come back in order.
         let part = dir.join("part");
         let mut sweep = Sweep::create(Some(&part), &mission, provenance.clone(), design.clone()).unwrap();
@@ -786,7 +824,7 @@ mod tests {
         for k in [0, 2, 3, 5] {
             sweep.push(&rows[k], None).unwrap();
         }
-        sweep.finish(figures::Band::Ci95).unwrap();
+        sweep.finish(figures::Look::default()).unwrap();
         for file in ["runs.csv", "aggregate.csv"] {
             assert_eq!(
                 std::fs::read(whole.join(file)).unwrap(),
