@@ -144,11 +144,15 @@ fn takes(args: &[String], var: &dyn Fn(&str) -> String) -> Result<(), Skip> {
     }
 }
 
-/// `TCPF_COMMIT`: the git commit this is built from, where it is built from a checkout with git
-/// at hand (empty otherwise), for the provenance of every run. Built again when HEAD moves.
+include!("build/commit.rs");
+
+/// `TCPF_COMMIT`: the git commit this is built from (`-dirty` if the tree was modified), where it
+/// is built from a checkout with git at hand (empty otherwise), for the provenance of every
+/// run. Built again when HEAD moves or any file of the workspace changes.
 fn commit() {
-    let git = Path::new(env!("CARGO_MANIFEST_DIR")).join(".git");
-    for watched in [git.join("HEAD"), git.join("packed-refs")] {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let git = root.join(".git");
+    for watched in [git.join("HEAD"), git.join("packed-refs"), git.join("index")] {
         if watched.is_file() {
             println!("cargo:rerun-if-changed={}", watched.display());
         }
@@ -160,13 +164,12 @@ fn commit() {
             println!("cargo:rerun-if-changed={}", git.join(branch).display());
         }
     }
-    let commit = Command::new("git")
-        .args(["rev-parse", "HEAD"])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_default();
-    println!("cargo:rustc-env=TCPF_COMMIT={commit}");
+    // A change anywhere in the sources makes the tree dirty (cargo scans a directory whole).
+    for entry in std::fs::read_dir(root).into_iter().flatten().flatten() {
+        let name = entry.file_name();
+        if !matches!(name.to_str(), Some("target" | "runs" | ".git")) {
+            println!("cargo:rerun-if-changed={}", entry.path().display());
+        }
+    }
+    println!("cargo:rustc-env=TCPF_COMMIT={}", commit_of(root).unwrap_or_default());
 }

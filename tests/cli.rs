@@ -1,12 +1,12 @@
 //! The `tcpf` binary as a user runs it: exit codes, error messages, the run directory.
 
 use std::path::Path;
-use std::process::Output;
+use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 mod common;
 use common::{
-    config, credential, credentialed, exited, fleet, free_endpoint, kill, paper, scratch, tcpf, text, Reaper,
+    commit_of, config, credential, credentialed, exited, fleet, free_endpoint, kill, paper, scratch, tcpf, text, Reaper,
 };
 
 #[test]
@@ -1421,5 +1421,79 @@ fn a_run_directory_says_what_made_it() {
     let first_screen = &html[..html.find("<figure").unwrap_or(html.len())];
     for shown in [&command[..], &digest, "loss 0.2", "k_c 0.5", env!("CARGO_PKG_VERSION")] {
         assert!(first_screen.contains(shown), "{shown} not on the first screen");
+    }
+}
+
+/// A build of a modified tree says so in every run's provenance: its commit gains `-dirty` when
+/// a tracked file changed or an untracked one (not ignored) was added, and not before.
+#[test]
+fn a_modified_tree_records_its_commit_as_dirty() {
+    let dir = scratch("dirty");
+    let git = |args: &[&str]| {
+        let o = Command::new("git")
+            .args([
+                "-c",
+                "user.name=t",
+                "-c",
+                "user.email=t@t",
+                "-c",
+                "init.defaultBranch=main",
+            ])
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "git {args:?}: {}", text(&o));
+    };
+    git(&["init", "-q"]);
+    std::fs::write(dir.join(".gitignore"), "/runs\n").unwrap();
+    std::fs::write(dir.join("a.rs"), "fn a() {}\n").unwrap();
+    git(&["add", "."]);
+    git(&["commit", "-q", "-m", "a"]);
+    let clean = commit_of(&dir).unwrap();
+    assert_eq!(clean.len(), 40, "{clean}");
+    std::fs::create_dir_all(dir.join("runs")).unwrap();
+    std::fs::write(dir.join("runs/x"), "ignored").unwrap();
+    assert_eq!(commit_of(&dir).unwrap(), clean, "an ignored file changes nothing");
+    std::fs::write(dir.join("a.rs"), "fn a() { }\n").unwrap();
+    assert_eq!(commit_of(&dir).unwrap(), format!("{clean}-dirty"));
+    git(&["checkout", "-q", "a.rs"]);
+    std::fs::write(dir.join("b.rs"), "fn b() {}\n").unwrap();
+    assert_eq!(commit_of(&dir).unwrap(), format!("{clean}-dirty"), "a new file");
+    assert!(commit_of(&std::env::temp_dir().join("no-such-checkout")).is_none());
+}
+
+/// Every run directory runs itself again: `rerun.sh` from the directory's own mission.toml, in
+/// the mode it ran in, records the same telemetry byte for byte.
+#[test]
+fn a_run_directory_runs_itself_again_with_rerun_sh() {
+    let dir = scratch("rerun-run");
+    let first = dir.join("first");
+    let o = tcpf(&[
+        "run",
+        &paper("b-current"),
+        "--in-process",
+        "--seed",
+        "7",
+        "--set",
+        "comms.loss=0.2",
+        "--out",
+        first.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let again = dir.join("again");
+    let o = Command::new("sh")
+        .arg(first.join("rerun.sh"))
+        .arg(&again)
+        .env("TCPF", env!("CARGO_BIN_EXE_tcpf"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    for file in ["telemetry.csv", "messages.csv"] {
+        assert_eq!(
+            std::fs::read(first.join(file)).unwrap(),
+            std::fs::read(again.join(file)).unwrap(),
+            "{file}"
+        );
     }
 }

@@ -83,6 +83,22 @@ pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
     Ok(configs)
 }
 
+/// The files of `create` that hold the run's password.
+pub const SECRETS: [&str; 3] = ["credentials", "zenoh.json5", "world.json5"];
+
+/// Removes the run's secrets from `dir` once its run is over: a sweep keeps hundreds of run
+/// directories, which are copied and shared, and a password of a fleet that is gone opens
+/// nothing but is still a password.
+pub fn forget(dir: &Path) -> Result<()> {
+    for file in SECRETS {
+        match std::fs::remove_file(dir.join(file)) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e.into()),
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// Writes `endpoint` (owner-only) into `dir` once the world listens there: its existence says
 /// that the run can be joined.
 pub fn announce(dir: &Path, endpoint: &str) -> Result<()> {

@@ -18,7 +18,7 @@ use tcpf_report::rundir::RunDir;
 /// report of the ticks run.
 pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr>) -> Result<Summary> {
     let interrupted = tcpf_bus::signals::stop_flag()?;
-    dir.write_mission(mission)?;
+    dir.write_mission(mission, tcpf_core::summary::Mode::InProcess)?;
     dir.write_plan(plan)?;
     let mut telemetry = dir.telemetry(mission, plan, Mode::InProcess, live)?;
     let mut failure = None;
@@ -72,6 +72,6 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
     };
     summary.name_the_shortfall();
     dir.write_summary(&summary)?;
-    tcpf_report::report::write(&dir.path)?;
+    tcpf_report::report::write(&dir.path, &tcpf_report::report::Options::default())?;
     Ok(summary)
 }

@@ -417,7 +417,7 @@ async fn unstarted(
     let written = dir
         .write_summary(&summary)
         .and(telemetry)
-        .and_then(|()| tcpf_report::report::write(&dir.path));
+        .and_then(|()| tcpf_report::report::write(&dir.path, &tcpf_report::report::Options::default()));
     if let Err(unwritten) = written {
         tracing::warn!("the run directory could not be written whole: {unwritten:#}");
     }
@@ -480,7 +480,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let mut suspend = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::from_raw(libc::SIGTSTP))
         .context("cannot handle SIGTSTP (Ctrl-Z)")?;
     let stall = stall_limit(mission, command_timeout, restart);
-    dir.write_mission(mission)?;
+    dir.write_mission(mission, tcpf_core::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
     let mission_file = dir.path.join("mission.toml").display().to_string();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);

@@ -479,7 +479,7 @@ impl Recording {
         // how the run went.
         dir.write_summary(&summary)?;
         self.telemetry.finish()?;
-        tcpf_report::report::write(&dir.path)?;
+        tcpf_report::report::write(&dir.path, &tcpf_report::report::Options::default())?;
         Ok(summary)
     }
 }
@@ -506,7 +506,7 @@ pub async fn record(
         ros2,
     } = options;
     let mut shutdown = Shutdown::new()?;
-    dir.write_mission(mission)?;
+    dir.write_mission(mission, tcpf_core::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
     let unrecorded = |e: anyhow::Error| e.context(NothingRecorded);
     let session = zenoh

@@ -10,11 +10,13 @@ use std::time::Instant;
 
 use anyhow::{anyhow, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use tcpf_core::metrics::error_and_clearance;
 use tcpf_core::mission::Mission;
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::Fleet;
 use tcpf_report::rundir::RunDir;
 use tcpf_report::sweep::grid::split_values;
+use tcpf_report::sweep::series::{self, Samples};
 use tcpf_report::sweep::{Design, FailedRun, Grid, Param, Row, Sweep, GIVE_UP};
 
 use crate::launcher::RunFailed;
@@ -167,7 +169,8 @@ pub fn run_in_process(runs: &Runs, plans: &[Plan], jobs: usize, sweep: &mut Swee
     let next = AtomicU64::new(0);
     let bar = progress(todo);
     let dt = |point: u64| runs.missions[point as usize].mission.control_period;
-    type Done = (u64, Option<(Row, std::time::Duration)>);
+    let keep_series = sweep.keeps_series();
+    type Done = (u64, Option<(Row, std::time::Duration, Samples)>);
     let (tx, rx) = mpsc::sync_channel::<Done>(jobs.max(1) * 4);
     let written = std::thread::scope(|s| -> Result<()> {
         for _ in 0..jobs.max(1) {
@@ -187,8 +190,18 @@ pub fn run_in_process(runs: &Runs, plans: &[Plan], jobs: usize, sweep: &mut Swee
                 let done = wanted(k).then(|| {
                     let started = Instant::now();
                     let (point, mission) = runs.mission(k);
-                    let results = Fleet::new(&mission, &plans[point as usize]).run(|_, _| {});
-                    (Row::new(&runs.grid, k, &results, dt(point)), started.elapsed())
+                    let stride = series::stride(dt(point));
+                    let (mut tick, mut samples) = (0u64, Samples::new());
+                    let results = Fleet::new(&mission, &plans[point as usize]).run(|states, commands| {
+                        if keep_series && tick % stride == 0 {
+                            let gammas: Vec<Option<f64>> =
+                                commands.iter().map(|c| c.as_ref().map(|c| c.gamma)).collect();
+                            let positions: Vec<[f64; 2]> = states.iter().map(|s| s.position).collect();
+                            samples.push(error_and_clearance(&gammas, &positions));
+                        }
+                        tick += 1;
+                    });
+                    (Row::new(&runs.grid, k, &results, dt(point)), started.elapsed(), samples)
                 });
                 if tx.send((k, done)).is_err() {
                     break;
@@ -202,8 +215,13 @@ pub fn run_in_process(runs: &Runs, plans: &[Plan], jobs: usize, sweep: &mut Swee
         for (k, done) in rx {
             early.insert(k, done);
             while let Some(done) = early.remove(&due) {
-                if let Some((row, wall)) = done {
+                if let Some((row, wall, samples)) = done {
                     sweep.push(&row, Some(wall))?;
+                    sweep.push_series(
+                        row.point,
+                        series::stride(dt(row.point)) as f64 * dt(row.point),
+                        &samples,
+                    );
                     bar.inc(1);
                 }
                 due += 1;
@@ -244,17 +262,20 @@ pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut 
                 .join("_")
                 .replace(['/', ' ', '"', '\'', '[', ']', '{', '}', '=', ','], "_")
         );
-        let dir = RunDir::create(Some(&sweep.dir().join("runs").join(&name)), &mission)?;
+        let path = sweep.dir().join("runs").join(&name);
+        set_aside(&path)?;
+        let dir = RunDir::create(Some(&path), &mission)?;
         let started = Instant::now();
-        let summary = match crate::launcher::run(
+        let ran = crate::launcher::run(
             &mission,
             &plans[point as usize],
             &dir,
             exe,
             crate::launcher::Options::default(),
         )
-        .await
-        {
+        .await;
+        crate::access::forget(&path)?;
+        let summary = match ran {
             // Stopped as its world started: the sweep is cut short there, as by any interrupt.
             Err(e) if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() => {
                 bar.finish_and_clear();
@@ -289,12 +310,43 @@ pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut 
             bar.finish_and_clear();
             return Ok(true);
         }
-        let row = Row::new(&runs.grid, k, &summary.results, mission.mission.control_period);
+        let dt = mission.mission.control_period;
+        let row = Row::new(&runs.grid, k, &summary.results, dt);
         sweep.push(&row, Some(started.elapsed()))?;
+        if sweep.keeps_series() {
+            let stride = series::stride(dt);
+            let samples = series::from_telemetry(&path.join("telemetry.csv"), stride)?;
+            sweep.push_series(point, stride as f64 * dt, &samples);
+        }
         bar.inc(1);
     }
     bar.finish_and_clear();
     Ok(false)
+}
+
+/// Moves the directory of an earlier attempt at a run (interrupted, or failed) out of the way of
+/// the run again, to `<name>.attempt-<k>`: what it says about that attempt is kept, and
+/// `--resume` after Ctrl-C runs the run as if for the first time.
+fn set_aside(path: &Path) -> Result<()> {
+    if !path.exists() {
+        return Ok(());
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let aside = (1..)
+        .map(|k| path.with_file_name(format!("{name}.attempt-{k}")))
+        .find(|p| !p.exists())
+        .expect("a free name");
+    std::fs::rename(path, &aside)
+        .map_err(|e| anyhow!("{}: cannot set the earlier attempt aside: {e}", path.display()))?;
+    tracing::info!(
+        "{}: an earlier attempt, set aside as {}",
+        path.display(),
+        aside.display()
+    );
+    Ok(())
 }
 
 #[cfg(test)]

@@ -153,6 +153,7 @@ impl RunDir {
     pub fn discard(&self) {
         for name in [
             "mission.toml",
+            "rerun.sh",
             "plan.json",
             "telemetry.csv",
             "messages.csv",
@@ -171,8 +172,25 @@ impl RunDir {
         fs::write(self.path.join(name), contents).with_context(|| cannot_write(&self.path, name))
     }
 
-    pub fn write_mission(&self, mission: &Mission) -> Result<()> {
-        self.write("mission.toml", &mission.to_toml())
+    /// `mission.toml`, the mission as run (its seed and every `--set` in it), and beside it
+    /// `rerun.sh`, which runs it again in the same `mode` from this directory's files alone.
+    pub fn write_mission(&self, mission: &Mission, mode: Mode) -> Result<()> {
+        self.write("mission.toml", &mission.to_toml())?;
+        let flags = match mode {
+            Mode::InProcess => " --in-process",
+            Mode::Processes => "",
+        };
+        let rerun = format!(
+            "#!/bin/sh\n# This run again ({mode}), from this directory's mission.toml alone, into the directory\n# given (default: rerun/ in this one). TCPF names the tcpf to run, if not the one on the PATH.\n# On the lockstep clock it records the same telemetry, byte for byte.\nhere=$(dirname \"$0\")\nexec \"${{TCPF:-tcpf}}\" run \"$here/mission.toml\"{flags} --out \"${{1:-$here/rerun}}\"\n"
+        );
+        self.write("rerun.sh", &rerun)?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            fs::set_permissions(self.path.join("rerun.sh"), fs::Permissions::from_mode(0o755))
+                .with_context(|| cannot_write(&self.path, "rerun.sh"))?;
+        }
+        Ok(())
     }
 
     pub fn write_plan(&self, plan: &Plan) -> Result<()> {

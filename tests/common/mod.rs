@@ -487,6 +487,9 @@ pub fn wait_exit(child: &mut Child, limit: Duration, what: &str) -> Option<i32> 
     }
 }
 
+// The build's own rule for the commit it records (build.rs includes it too).
+include!("../../build/commit.rs");
+
 /// Checks a provenance (summary.json's or sweep.json's) against the arguments `tcpf` was given
 /// and the mission it ran (`mission_toml`, its text as run): the command, the version, the
 /// commit where built from a checkout, the digest. The command line, joined, for the caller.
@@ -499,14 +502,7 @@ pub fn assert_provenance(p: &Value, args: &[&str], mission_toml: &str) -> String
         .collect();
     assert_eq!(command[1..], *args, "{p}");
     assert_eq!(p["version"], env!("CARGO_PKG_VERSION"));
-    let head = Command::new("git")
-        .args(["rev-parse", "HEAD"])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
-    match head {
+    match commit_of(Path::new(env!("CARGO_MANIFEST_DIR"))) {
         Some(head) => assert_eq!(p["commit"], head.as_str(), "built from this checkout's HEAD"),
         None => assert!(p.get("commit").is_none(), "{p}"),
     }
