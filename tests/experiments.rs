@@ -264,12 +264,15 @@ fn a_threshold_sweep_shows_messages_traded_for_coordination() {
     let arrival = std::fs::read_to_string(dir.join("sweep-arrival.svg")).unwrap();
     assert!(arrival.contains("last arrival (s)"), "the arrival is plotted too");
     let plot = std::fs::read_to_string(dir.join("sweep-messages.svg")).unwrap();
-    assert!(plot.contains("broadcasts per vehicle per second"));
+    assert!(plot.contains("γ broadcasts per vehicle (1/s)"));
 }
 
 /// Debian's chromium, headless, as the machine's notes prescribe for a closed network.
 fn chromium(args: &[&str]) -> Output {
-    let profile = scratch("chromium-profile");
+    // A profile per browser: two at once on one profile, the second aborts.
+    static BROWSERS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let n = BROWSERS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let profile = scratch(&format!("chromium-profile-{n}"));
     let exe = ["chromium", "/usr/bin/chromium"]
         .into_iter()
         .find(|c| Command::new(c).arg("--version").output().is_ok());
@@ -422,11 +425,13 @@ fn a_sweep_says_what_it_could_not_average() {
         "--out",
         words.to_str().unwrap(),
     ]));
-    let bars = std::fs::read_to_string(words.join("sweep-error.svg")).unwrap();
-    assert!(
-        bars.contains("<rect") && bars.contains("\nperiodic\n") && bars.contains("\nevent\n"),
-        "a bar per value"
-    );
+    for figure in ["sweep-error", "sweep-messages"] {
+        let bars = std::fs::read_to_string(words.join(format!("{figure}.svg"))).unwrap();
+        assert!(
+            bars.contains("<rect") && bars.contains("\nperiodic\n") && bars.contains("\nevent\n"),
+            "{figure}: a bar per value"
+        );
+    }
 
     let infeasible = dir.join("infeasible");
     let o = tcpf(&[
@@ -494,8 +499,121 @@ fn a_sweep_of_one_value_plots_its_point() {
         dir.to_str().unwrap(),
     ]));
     let svg = std::fs::read_to_string(dir.join("sweep-error.svg")).unwrap();
-    assert!(svg.contains("<circle"), "the mean at loss 0.5 is marked");
+    assert!(svg.contains("<polygon opacity=\"1\""), "the mean at loss 0.5 is marked");
     assert!(svg.contains("mean of 1 seed\n"), "one seed, singular");
+}
+
+/// aggregate.tex compiles with plain pdflatex (Debian's texlive-latex-base and
+/// texlive-latex-recommended, which scripts/test installs), and its table says what aggregate.csv
+/// says: each mean and interval is the csv's, rounded to the decimals the table writes.
+#[test]
+fn aggregate_tex_compiles_with_pdflatex_and_says_what_aggregate_csv_says() {
+    let dir = scratch("sweep-tex");
+    {
+        let _fleet = fleet();
+        ok(tcpf(&[
+            "sweep",
+            &config("paper/b-current"),
+            "--param",
+            "comms.loss=0,0.5",
+            "--seeds",
+            "3",
+            "--out",
+            dir.to_str().unwrap(),
+        ]));
+    }
+    let o = match Command::new("pdflatex")
+        .args(["-interaction=nonstopmode", "-halt-on-error", "aggregate.tex"])
+        .current_dir(&dir)
+        .stdin(std::process::Stdio::null())
+        .output()
+    {
+        Ok(o) => o,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            panic!(
+                "pdflatex missing: run scripts/test, which installs texlive-latex-base and texlive-latex-recommended"
+            )
+        }
+        Err(e) => panic!("pdflatex: {e}"),
+    };
+    if !o.status.success() {
+        let log = std::fs::read_to_string(dir.join("aggregate.log"))
+            .unwrap_or_else(|_| String::from_utf8_lossy(&o.stdout).into_owned());
+        let lines: Vec<&str> = log.lines().collect();
+        panic!(
+            "pdflatex aggregate.tex in {} failed ({}); the end of its log:\n{}",
+            dir.display(),
+            o.status,
+            lines[lines.len().saturating_sub(40)..].join("\n")
+        );
+    }
+    assert!(std::fs::read(dir.join("aggregate.pdf")).unwrap().starts_with(b"%PDF-"));
+    let document = std::fs::read_to_string(dir.join("aggregate.tex")).unwrap();
+    assert!(document.contains("over 3 seeds"), "{document}");
+
+    // The tabular: its header's words, then a row per grid point, cells split on &.
+    let table = std::fs::read_to_string(dir.join("aggregate-table.tex")).unwrap();
+    let (head, body) = table.split_once("\\midrule").expect("a booktabs tabular");
+    let head = head.split_once("\\toprule").expect("a booktabs tabular").1;
+    let body = body.split_once("\\bottomrule").expect("a booktabs tabular").0;
+    // A header cell's words: the cell, or what its \parbox holds after \raggedleft.
+    let words = |cell: &str| -> String {
+        let cell = cell.trim();
+        cell.strip_prefix("\\parbox")
+            .and_then(|boxed| boxed.rsplit_once("\\ragged"))
+            .and_then(|(_, w)| w.split_once(' '))
+            .and_then(|(_, w)| w.strip_suffix('}'))
+            .unwrap_or(cell)
+            .to_string()
+    };
+    let heads: Vec<String> = head.trim().trim_end_matches("\\\\").split('&').map(words).collect();
+    let rows: Vec<Vec<&str>> = body
+        .split("\\\\")
+        .map(str::trim)
+        .filter(|r| !r.is_empty())
+        .map(|r| r.split('&').map(str::trim).collect())
+        .collect();
+    let aggregate = common::csv_rows(&dir.join("aggregate.csv"));
+    assert_eq!(rows.len(), aggregate.len(), "a row per grid point: {table}");
+    for (row, a) in rows.iter().zip(&aggregate) {
+        assert_eq!(row.len(), heads.len(), "{table}");
+        assert_eq!(
+            (row[0], row[1]),
+            (a["comms.loss"].as_str(), a["runs"].as_str()),
+            "{table}"
+        );
+        for (metric, label) in [
+            ("max_coordination_error", "coordination error (s)"),
+            ("last_arrival", "last arrival (s)"),
+        ] {
+            let column = heads
+                .iter()
+                .position(|h| h == label)
+                .unwrap_or_else(|| panic!("no column {label}: {heads:?}"));
+            let cell = row[column];
+            let (mean, ci) = cell
+                .trim_matches('$')
+                .split_once("\\pm")
+                .unwrap_or_else(|| panic!("{cell}: mean ± interval, with 3 seeds"));
+            let (mean, ci) = (mean.trim(), ci.trim());
+            let decimals = |x: &str| x.split_once('.').map_or(0, |(_, d)| d.len());
+            assert_eq!(
+                decimals(mean),
+                decimals(ci),
+                "{cell}: the mean to its interval's decimals"
+            );
+            let half = 0.5 * 10f64.powi(-(decimals(mean) as i32));
+            for (tex, stat) in [(mean, "mean"), (ci, "ci95")] {
+                let csv: f64 = a[&format!("{metric}_{stat}")].parse().unwrap();
+                let tex: f64 = tex.parse().unwrap();
+                assert!(
+                    (tex - csv).abs() <= half * (1.0 + 1e-9),
+                    "{metric}_{stat} at comms.loss = {}: {tex} in aggregate-table.tex, {csv} in aggregate.csv",
+                    a["comms.loss"]
+                );
+            }
+        }
+    }
 }
 
 /// A sweep's directory says what made it: the mission of its first value (`mission.toml`, the
@@ -623,13 +741,17 @@ fn a_grid_of_loss_by_delay_by_seeds_is_one_command_that_runs_again_from_its_own_
     assert!((mean("0", "1") - 0.356).abs() < 0.001);
     // One curve per delay, a marker at each sampled loss, SVG and PDF.
     let svg = std::fs::read_to_string(out.join("sweep-error.svg")).unwrap();
-    assert!(svg.contains("\ndelay = 0\n") && svg.contains("\ndelay = 1\n"), "{svg}");
-    assert_eq!(svg.matches("<circle").count(), 6 + 2, "6 means and 2 legend markers");
+    assert!(svg.contains("\ndelay 0 s\n") && svg.contains("\ndelay 1 s\n"), "{svg}");
+    assert_eq!(
+        svg.matches("<polygon opacity=\"1\"").count(),
+        6 + 2,
+        "6 means and 2 legend markers"
+    );
     assert!(std::fs::read(out.join("sweep-error.pdf"))
         .unwrap()
         .starts_with(b"%PDF-"));
     let clearance = std::fs::read_to_string(out.join("sweep-clearance.svg")).unwrap();
-    assert!(clearance.contains("required E = 1 m"), "the requirement line");
+    assert!(clearance.contains("required clearance E = 1 m"), "the requirement line");
     // Provenance: the mission as run, the command, the version.
     let summary = json(&out.join("sweep.json"));
     let toml = std::fs::read_to_string(out.join("mission.toml")).unwrap();
@@ -952,7 +1074,7 @@ fn a_categorical_sweep_draws_bars_per_metric() {
     let dir = scratch("topology");
     let mission = four_lanes(&dir);
     let out = dir.join("sweep");
-    ok(tcpf(&[
+    let o = ok(tcpf(&[
         "sweep",
         mission.to_str().unwrap(),
         "--param",
@@ -962,13 +1084,20 @@ fn a_categorical_sweep_draws_bars_per_metric() {
         "--out",
         out.to_str().unwrap(),
     ]));
-    for figure in [
-        "sweep-error",
-        "sweep-rms",
-        "sweep-clearance",
-        "sweep-arrival",
-        "sweep-messages",
+    // The lanes keep their distance and arrive together whatever the graph, and broadcast 10
+    // times a second: lines in the table, not flat figures.
+    let said = String::from_utf8_lossy(&o.stdout);
+    for (figure, line) in [
+        ("sweep-clearance", "minimum clearance: 3.99 m in every run"),
+        ("sweep-arrival", "last arrival: 75.3 s in every run"),
+        ("sweep-messages", "γ broadcasts per vehicle: 10 1/s in every run"),
     ] {
+        assert!(
+            !out.join(format!("{figure}.svg")).exists() && said.contains(line),
+            "{said}"
+        );
+    }
+    for figure in ["sweep-error", "sweep-rms"] {
         let svg = std::fs::read_to_string(out.join(format!("{figure}.svg"))).unwrap();
         for topology in ["ring", "complete", "line"] {
             assert!(
@@ -1004,21 +1133,16 @@ fn the_sweeps_figures_render_in_a_real_browser() {
     grid_sweep(&grid, &[]);
     let page = format!("file://{}", grid.join("sweep.html").display());
     let dom = String::from_utf8_lossy(&chromium(&["--dump-dom", &page]).stdout).to_string();
-    for id in [
-        "sweep-error",
-        "sweep-rms",
-        "sweep-clearance",
-        "sweep-arrival",
-        "sweep-messages",
-    ] {
+    for id in ["sweep-error", "sweep-rms", "sweep-clearance", "sweep-arrival"] {
         let start = dom
             .find(&format!("id=\"{id}\""))
             .unwrap_or_else(|| panic!("figure {id} missing from the rendered page"));
         let figure = &dom[start..start + dom[start..].find("</figure>").unwrap()];
         assert!(
-            figure.matches("<circle").count() >= 6,
+            figure.matches("<polygon opacity=\"1\"").count() >= 6,
             "{id}: a marker per sampled loss"
         );
+        assert!(figure.contains("<figcaption>"), "{id}: its caption beside it");
     }
     let topology = dir.join("topology");
     let mission = four_lanes(&dir);
@@ -1042,15 +1166,24 @@ fn the_sweeps_figures_render_in_a_real_browser() {
         "--out",
         outage.to_str().unwrap(),
     ]));
+    // A figure at its printed size (3.5 in: 336 CSS pixels), shot at twice that: what a reader
+    // of the paper sees, magnified.
     for (source, name, size) in [
-        (grid.join("sweep-error.svg"), "grid-error.png", "600,340"),
-        (grid.join("sweep-clearance.svg"), "grid-clearance.png", "600,340"),
-        (topology.join("sweep-error.svg"), "topology-error.png", "600,340"),
+        (grid.join("sweep-error.svg"), "grid-error.png", "340,260"),
+        (grid.join("sweep-clearance.svg"), "grid-clearance.png", "340,260"),
+        (topology.join("sweep-error.svg"), "topology-error.png", "340,260"),
+        (
+            outage.join("figures/receptions.svg"),
+            "outage-receptions.png",
+            "340,260",
+        ),
+        (grid.join("sweep.html"), "grid-page.png", "1000,1600"),
         (outage.join("report.html"), "outage-report.png", "1000,2000"),
     ] {
         let shot = shots.join(name);
         let _ = std::fs::remove_file(&shot);
         let o = chromium(&[
+            "--force-device-scale-factor=2",
             &format!("--window-size={size}"),
             &format!("--screenshot={}", shot.display()),
             &format!("file://{}", source.display()),
@@ -1062,5 +1195,305 @@ fn the_sweeps_figures_render_in_a_real_browser() {
             String::from_utf8_lossy(&o.stderr)
         );
         eprintln!("screenshot: {}", shot.display());
+    }
+}
+
+/// The words of an SVG figure: each `<text>`'s content (plotters writes it on its own line).
+fn texts(svg: &str) -> Vec<String> {
+    svg.split("<text")
+        .skip(1)
+        .filter_map(|t| Some(t.split_once('>')?.1.split("</text>").next()?.trim().to_string()))
+        .collect()
+}
+
+/// The outlines of an SVG's filled polygons, by their number of corners: the markers.
+fn corners(svg: &str) -> std::collections::BTreeSet<usize> {
+    svg.split("<polygon ")
+        .skip(1)
+        .filter_map(|p| {
+            let tag = p.split('>').next()?;
+            Some(
+                tag.split_once(" points=\"")?
+                    .1
+                    .split('"')
+                    .next()?
+                    .split_whitespace()
+                    .count(),
+            )
+        })
+        .collect()
+}
+
+/// Every figure of a sweep and of a run's report prints at a column's 3.5 in with no text under
+/// 8 pt, says words and units instead of mission keys, has no title inside (its caption is
+/// beside it), tells its families apart by marker as well as colour, and a metric the same at
+/// every grid point gets a line, not a figure. `--figure-width double` draws them at 7.16 in.
+#[test]
+fn figures_print_at_eight_points_with_words_and_units_and_families_told_apart() {
+    use tcpf_report::style::printed_text_sizes;
+    let dir = scratch("print");
+    let out = dir.join("grid");
+    let o = grid_sweep(&out, &[]);
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        table.contains("γ broadcasts per vehicle: 10 1/s in every run, to three significant digits (no figure)"),
+        "{table}"
+    );
+    assert!(!out.join("sweep-messages.svg").exists(), "no figure of a constant");
+    let html = std::fs::read_to_string(out.join("sweep.html")).unwrap();
+    for figure in ["sweep-error", "sweep-rms", "sweep-clearance", "sweep-arrival"] {
+        let svg = std::fs::read_to_string(out.join(format!("{figure}.svg"))).unwrap();
+        assert!(svg.contains("width=\"3.500in\""), "{figure}: a column wide");
+        let sizes = printed_text_sizes(&svg);
+        assert!(sizes.len() >= 10, "{figure}: {sizes:?}");
+        let small = sizes.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(small >= 8.0, "{figure}: a text of {small:.2} pt");
+        let words = texts(&svg);
+        for key in ["comms.loss", "comms.delay"] {
+            assert!(
+                !words.iter().any(|w| w.contains(key)),
+                "{figure}: {key} written as a key: {words:?}"
+            );
+        }
+        assert!(words.iter().any(|w| w == "message loss probability"), "{words:?}");
+        assert!(
+            words.iter().any(|w| w == "delay 0 s") && words.iter().any(|w| w == "delay 1 s"),
+            "legends with units: {words:?}"
+        );
+        assert!(!words.iter().any(|w| w == "Coordination error"), "no title inside");
+        // Circles (16 corners) for one family, squares (4) for the other; the first a solid
+        // line (one polyline for the data, one in the legend), the second dashed (a polyline a
+        // dash).
+        let shapes = corners(&svg);
+        assert!(shapes.contains(&16) && shapes.contains(&4), "{figure}: {shapes:?}");
+        let strokes = |colour: &str| {
+            svg.split("<polyline")
+                .filter(|p| {
+                    p.split('>')
+                        .next()
+                        .unwrap_or("")
+                        .contains(&format!("stroke=\"{colour}\""))
+                })
+                .count()
+        };
+        assert_eq!(strokes("#0072B2"), 2, "{figure}: delay 0 s solid");
+        assert!(strokes("#D55E00") > 10, "{figure}: delay 1 s dashed");
+        let pdf = String::from_utf8_lossy(&std::fs::read(out.join(format!("{figure}.pdf"))).unwrap()).to_string();
+        assert!(pdf.contains("/MediaBox [0 0 252 "), "{figure}: 3.5 in of PDF");
+        let caption = std::fs::read_to_string(out.join(format!("{figure}.txt"))).unwrap();
+        assert!(caption.contains("95 % confidence interval"), "{caption}");
+        assert!(html.contains(&format!("<figcaption>{}</figcaption>", caption.trim())));
+    }
+    let error = texts(&std::fs::read_to_string(out.join("sweep-error.svg")).unwrap());
+    assert!(error.iter().any(|w| w == "coordination error (s)"), "{error:?}");
+
+    let double = dir.join("double");
+    grid_sweep(&double, &["--figure-width", "double"]);
+    let svg = std::fs::read_to_string(double.join("sweep-error.svg")).unwrap();
+    assert!(svg.contains("width=\"7.160in\""));
+    assert!(printed_text_sizes(&svg).iter().all(|s| *s >= 8.0));
+
+    let run = dir.join("outage");
+    ok(tcpf(&[
+        "run",
+        &config("outage"),
+        "--in-process",
+        "--out",
+        run.to_str().unwrap(),
+    ]));
+    let mut figures = 0;
+    for entry in std::fs::read_dir(run.join("figures")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "svg") {
+            let svg = std::fs::read_to_string(&path).unwrap();
+            let small = printed_text_sizes(&svg).into_iter().fold(f64::INFINITY, f64::min);
+            assert!(small >= 8.0, "{}: a text of {small:.2} pt", path.display());
+            assert!(path.with_extension("pdf").is_file() && path.with_extension("txt").is_file());
+            let lower = svg.to_lowercase();
+            assert!(
+                !lower.contains("#e6194b") && !lower.contains("#3cb44b"),
+                "{}: red and green",
+                path.display()
+            );
+            figures += 1;
+        }
+    }
+    assert!(figures >= 8, "every figure of the report: {figures}");
+    ok(tcpf(&["report", run.to_str().unwrap(), "--figure-width", "double"]));
+    let paths = std::fs::read_to_string(run.join("figures/paths.svg")).unwrap();
+    assert!(paths.contains("width=\"7.160in\""), "redrawn two columns wide");
+    let o = tcpf(&["report", run.to_str().unwrap(), "--figure-width", "1"]);
+    assert_eq!(o.status.code(), Some(2), "a width no page has is bad input");
+}
+
+/// A sweep of fleets interrupted by Ctrl-C after some runs, then `--resume`d, writes the tables
+/// the sweep writes uninterrupted (here in-process: the same runs give the same rows); the run
+/// cut short is set aside, not in the way, and no kept run directory holds a password.
+#[test]
+fn an_interrupted_sweep_of_fleets_resumes_to_the_tables_of_one_never_interrupted() {
+    let _fleet = fleet();
+    let dir = scratch("resume-processes");
+    let (out, whole) = (dir.join("cut"), dir.join("whole"));
+    let mission = config("paper/b-current");
+    let grid = ["--loss", "0,0.5", "--seeds", "2"];
+    let mut sweep = Reaper(
+        Command::new(env!("CARGO_BIN_EXE_tcpf"))
+            .args(["sweep", &mission])
+            .args(grid)
+            .args(["--processes", "--out", out.to_str().unwrap()])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let rows = || std::fs::read_to_string(out.join("runs.csv")).map_or(0, |s| s.lines().count().saturating_sub(1));
+    let started = std::time::Instant::now();
+    while rows() < 2 {
+        assert!(started.elapsed().as_secs() < 120, "two runs done");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // Into the third run: its fleet is under way.
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    kill("-INT", sweep.0.id());
+    let status = sweep.0.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "an interrupted sweep exits 130");
+    let mut said = String::new();
+    std::io::Read::read_to_string(sweep.0.stdout.as_mut().unwrap(), &mut said).unwrap();
+    assert!(said.contains("--resume runs the rest"), "{said}");
+    let resumed = ok(tcpf(&[
+        "sweep",
+        &mission,
+        grid[0],
+        grid[1],
+        grid[2],
+        grid[3],
+        "--processes",
+        "--resume",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    let summary = json(&out.join("sweep.json"));
+    assert_eq!(
+        summary["interrupted"],
+        false,
+        "{}",
+        String::from_utf8_lossy(&resumed.stdout)
+    );
+    assert_eq!(summary["done_runs"], 4);
+    ok(tcpf(&[
+        "sweep",
+        &mission,
+        grid[0],
+        grid[1],
+        grid[2],
+        grid[3],
+        "--out",
+        whole.to_str().unwrap(),
+    ]));
+    assert_eq!(tables(&out), tables(&whole), "runs.csv and aggregate.csv byte for byte");
+    let runs: Vec<std::path::PathBuf> = std::fs::read_dir(out.join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let kept: Vec<&std::path::PathBuf> = runs
+        .iter()
+        .filter(|p| !p.to_string_lossy().contains(".attempt-"))
+        .collect();
+    assert_eq!(kept.len(), 4, "{runs:?}");
+    for run in &runs {
+        for secret in ["credentials", "zenoh.json5", "world.json5"] {
+            assert!(!run.join(secret).exists(), "{}: {secret} kept", run.display());
+        }
+    }
+    for run in kept {
+        assert!(run.join("rerun.sh").is_file() && run.join("telemetry.csv").is_file());
+    }
+}
+
+/// `--series` keeps, per grid point, e(t) and d(t) over the seeds: at every sample, the mean of
+/// what each run's own telemetry says at that tick.
+#[test]
+fn a_series_is_the_mean_of_the_runs_telemetry_at_each_tick() {
+    let dir = scratch("series");
+    let mission = config("paper/b-current");
+    let out = dir.join("sweep");
+    ok(tcpf(&[
+        "sweep",
+        &mission,
+        "--loss",
+        "0.3",
+        "--seeds",
+        "3",
+        "--series",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    let series = common::csv_rows(&out.join("series.csv"));
+    assert!(
+        series.len() > 500,
+        "a sample every 0.1 s of a 55 s run: {}",
+        series.len()
+    );
+    // Each run's e and d at each tick, from its telemetry.
+    let mut runs = Vec::new();
+    for seed in 1..=3 {
+        let run = dir.join(format!("run{seed}"));
+        ok(tcpf(&[
+            "run",
+            &mission,
+            "--set",
+            "comms.loss=0.3",
+            "--seed",
+            &seed.to_string(),
+            "--in-process",
+            "--out",
+            run.to_str().unwrap(),
+        ]));
+        let mut ticks: std::collections::BTreeMap<u64, Vec<(f64, f64, f64)>> = Default::default();
+        for row in common::csv_rows(&run.join("telemetry.csv")) {
+            let f = |k: &str| row[k].parse::<f64>().unwrap();
+            ticks
+                .entry(row["tick"].parse().unwrap())
+                .or_default()
+                .push((f("gamma"), f("x"), f("y")));
+        }
+        runs.push(ticks);
+    }
+    let at = |tick: u64| {
+        let (mut e, mut d) = (Vec::new(), Vec::new());
+        for ticks in &runs {
+            let Some(rows) = ticks.get(&tick) else { continue };
+            let g = rows.iter().map(|r| r.0);
+            e.push(g.clone().fold(f64::NEG_INFINITY, f64::max) - g.fold(f64::INFINITY, f64::min));
+            let mut near = f64::INFINITY;
+            for (i, a) in rows.iter().enumerate() {
+                for b in &rows[i + 1..] {
+                    near = near.min((a.1 - b.1).hypot(a.2 - b.2));
+                }
+            }
+            d.push(near);
+        }
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        (e.len(), mean(&e), mean(&d))
+    };
+    let mut checked = 0;
+    for row in series.iter().step_by(37) {
+        let t: f64 = row["t"].parse().unwrap();
+        let tick = (t / 0.01).round() as u64;
+        let (n, e, d) = at(tick);
+        assert_eq!(row["n"], n.to_string(), "t = {t}");
+        let (se, sd): (f64, f64) = (
+            row["error_mean"].parse().unwrap(),
+            row["clearance_mean"].parse().unwrap(),
+        );
+        assert!(
+            (se - e).abs() < 1e-9 && (sd - d).abs() < 1e-9,
+            "t = {t}: {se} vs {e}, {sd} vs {d}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 10);
+    for figure in ["series-error", "series-clearance"] {
+        assert!(out.join(format!("{figure}.svg")).is_file() && out.join(format!("{figure}.pdf")).is_file());
     }
 }
