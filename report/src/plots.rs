@@ -623,7 +623,9 @@ pub fn bars(
             )?;
             let width = 0.8 / groups.len().max(1) as f64;
             for (g, (_, colour, values)) in groups.iter().enumerate() {
-                chart.draw_series(values.iter().enumerate().map(|(c, v)| {
+                // A bar of nothing is not drawn: a rectangle of no height is no shape to a
+                // PDF's reader, which warns of it.
+                chart.draw_series(values.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(c, v)| {
                     let left = c as f64 - 0.4 + g as f64 * width;
                     Rectangle::new([(left, 0.0), (left + width, *v)], colour.filled())
                 }))?;

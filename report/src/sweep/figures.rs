@@ -481,10 +481,13 @@ fn bars(summary: &SweepSummary, families: &[Family], plot: &Plot) -> String {
                 let Some(s) = p.get(metric) else { continue };
                 let left = *x as f64 - 0.4 + k as f64 * w;
                 let mid = left + 0.5 * w;
-                chart.draw_series(std::iter::once(Rectangle::new(
-                    [(left + 0.05 * w, 0.0), (left + 0.95 * w, s.mean)],
-                    c.mix(style::BAR_ALPHA).filled(),
-                )))?;
+                // A bar of nothing is no rectangle (a PDF's reader warns of one of no height).
+                if s.mean != 0.0 {
+                    chart.draw_series(std::iter::once(Rectangle::new(
+                        [(left + 0.05 * w, 0.0), (left + 0.95 * w, s.mean)],
+                        c.mix(style::BAR_ALPHA).filled(),
+                    )))?;
+                }
                 let (lo, hi) = band.of(&s);
                 let whisker = |y| PathElement::new(vec![(mid - 0.2 * w, y), (mid + 0.2 * w, y)], thin);
                 chart.draw_series([
