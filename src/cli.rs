@@ -216,6 +216,11 @@ fn recorders() -> clap::builder::RangedU64ValueParser<usize> {
     clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_RECORDERS)
 }
 
+/// `tcpf run --recorders`: the recorders beside the launcher's own, which its world counts too.
+fn more_recorders() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_RECORDERS - 1)
+}
+
 /// A ROS 2 domain id: ROS 2 allows 0 to 232.
 fn ros2_domain() -> clap::builder::RangedU64ValueParser<u32> {
     clap::builder::RangedU64ValueParser::<u32>::new().range(0..=232)
@@ -262,7 +267,7 @@ pub enum Command {
         ros2: Option<u32>,
         /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
         /// own, with the run directory's `zenoh.json5` (-c).
-        #[arg(long, value_name = "N", default_value_t = 0, value_parser = recorders(), conflicts_with = "in_process")]
+        #[arg(long, value_name = "N", default_value_t = 0, value_parser = more_recorders(), conflicts_with = "in_process")]
         recorders: usize,
         /// Seconds the world waits for every agent and recorder before it gives up and says who
         /// is missing.

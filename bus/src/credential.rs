@@ -56,7 +56,16 @@ pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
         ));
     }
     let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
-    let line = text.lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("");
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let line = lines.next().unwrap_or("");
+    // The file is also the dictionary every listener checks others against: each further line
+    // would be another user it lets in, unseen.
+    if lines.next().is_some() {
+        return Err(
+            "more than one line: a fleet's credential is one USER:PASSWORD, and every further line would be a user let in (make one with `tcpf credential FILE`)"
+                .into(),
+        );
+    }
     match line.split_once(':') {
         Some((user, password)) if !user.is_empty() && !password.is_empty() => {
             Ok((user.to_string(), password.to_string()))
@@ -102,5 +111,8 @@ mod tests {
         assert_eq!(read(&path).unwrap(), ("tcpf".into(), "secret".into()));
         std::fs::write(&path, "tcpf\n").unwrap();
         assert!(read(&path).unwrap_err().contains("USER:PASSWORD"));
+        std::fs::write(&path, "tcpf:secret\nmallory:open\n").unwrap();
+        let why = read(&path).unwrap_err();
+        assert!(why.starts_with("more than one line"), "{why}");
     }
 }

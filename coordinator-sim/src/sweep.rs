@@ -49,6 +49,9 @@ impl Runs {
     }
 }
 
+/// The largest seed of a run (`tcpf run --seed`): a seed is a TOML integer, which is signed.
+pub const MAX_SEED: u64 = i64::MAX as u64;
+
 /// The keys a sweep sets and their values, from `--param KEY=V1,V2,...` (any number of them) and
 /// `--loss V1,V2,...` (`--param comms.loss=...`), checked against each other and the `--set`s
 /// beside them (`sets`), with the seeds. Why a sweep cannot be run, if it cannot: bad input,
@@ -98,9 +101,10 @@ pub fn parse_grid(
                 .into(),
         );
     }
-    if seed_start.checked_add(seeds - 1).is_none() {
+    // Each run's seed is one `tcpf run --seed` takes, so that any run can be run again alone.
+    if seed_start.checked_add(seeds - 1).is_none_or(|last| last > MAX_SEED) {
         return Err(format!(
-            "--seed-start {seed_start} --seeds {seeds}: the last seed is past 2^64"
+            "--seed-start {seed_start} --seeds {seeds}: the last seed is past {MAX_SEED} (2^63 − 1), the largest a run's --seed takes"
         ));
     }
     for p in &grid.params {
@@ -388,6 +392,12 @@ mod tests {
         assert!(refused(&["mission.seed=1,2"], &[], &[], 1).starts_with("mission.seed: the sweep gives"));
         assert!(refused(&[], &["0.1"], &["mission.seed=3"], 1).starts_with("mission.seed"));
         assert!(refused(&[], &["0.1", "0.2"], &[], 1 << 53).contains("more runs than a sweep counts"));
+        let past = parse_grid(&[], &strings(&["0.1"]), &[], 2, MAX_SEED).unwrap_err();
+        assert!(past.contains("the last seed is past 9223372036854775807"), "{past}");
+        assert!(
+            parse_grid(&[], &strings(&["0.1"]), &[], 1, MAX_SEED).is_ok(),
+            "the largest --seed"
+        );
         assert_eq!(
             refused(&[], &["0.1"], &["comms.loss=0.3"], 1),
             "--set comms.loss=0.3: comms.loss is a key the sweep sets, value by value"

@@ -143,6 +143,28 @@ fn read_written(dir: &Path) -> Result<Written> {
     serde_json::from_str(&text).with_context(|| format!("{}: not a sweep's sweep.json", file.display()))
 }
 
+/// Refuses a sweep directory whose `mission.toml` is not the mission its sweep.json names
+/// (`digest`): edited since, its runs were not run with it.
+fn check_mission(dir: &Path, digest: &str) -> Result<()> {
+    let file = dir.join("mission.toml");
+    let text = std::fs::read_to_string(&file).with_context(|| format!("{}: no mission.toml", dir.display()))?;
+    // Its first lines say what it is; the mission follows.
+    let start = text
+        .lines()
+        .take_while(|l| l.starts_with('#'))
+        .map(|l| l.len() + 1)
+        .sum::<usize>()
+        .min(text.len());
+    let found = format!("{:016x}", tcpf_core::mission::digest_of(&text[start..]));
+    if found != digest {
+        bail!(
+            "{}: not the mission this sweep ran (digest {found}, sweep.json says {digest}): edited since; restore it, or run the sweep again",
+            file.display()
+        );
+    }
+    Ok(())
+}
+
 /// Every row of `dir`'s runs.csv, checked against `grid`.
 fn read_rows(dir: &Path, grid: &Grid) -> Result<Vec<Row>> {
     let file = dir.join("runs.csv");
@@ -286,7 +308,7 @@ impl Sweep {
     pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Sweep> {
         let first = dirs.first().ok_or_else(|| anyhow!("no shard to merge"))?;
         let base = read_written(first)?;
-        let mut rows = BTreeMap::new();
+        let mut rows: BTreeMap<u64, (Row, PathBuf)> = BTreeMap::new();
         for dir in dirs {
             let w = read_written(dir)?;
             let same = Design {
@@ -302,12 +324,31 @@ impl Sweep {
                     w.design.rerun()
                 );
             }
+            check_mission(dir, &w.provenance.mission_digest)?;
             for row in read_rows(dir, &base.design.grid)? {
-                if row.status != Status::Failed {
-                    rows.insert(row.run, row);
+                if !w.design.holds(row.run) {
+                    bail!(
+                        "{}: run {} is not the runs of its shard {}: rows were copied between shards",
+                        dir.display(),
+                        row.run,
+                        w.design.shard.map_or("(none)".to_string(), |s| s.to_string())
+                    );
                 }
+                if row.status == Status::Failed {
+                    continue;
+                }
+                if let Some((_, other)) = rows.get(&row.run) {
+                    bail!(
+                        "run {} is done in both {} and {}: merge each run once",
+                        row.run,
+                        other.display(),
+                        dir.display()
+                    );
+                }
+                rows.insert(row.run, (row, dir.clone()));
             }
         }
+        let rows: BTreeMap<u64, Row> = rows.into_iter().map(|(k, (row, _))| (k, row)).collect();
         let design = Design {
             shard: None,
             ..base.design

@@ -176,12 +176,17 @@ pub fn parse(grid: &Grid, record: &csv::StringRecord) -> Result<Row> {
     }
     let status = Status::parse(&record[2 + k]).ok_or_else(|| anyhow!("run {run}: no status {}", &record[2 + k]))?;
     let mut metrics = [None; N_METRICS];
-    for (m, cell) in metrics.iter_mut().zip(record.iter().skip(3 + k)) {
+    for ((m, cell), metric) in metrics.iter_mut().zip(record.iter().skip(3 + k)).zip(&METRICS) {
         if !cell.is_empty() {
-            *m = Some(
-                cell.parse()
-                    .with_context(|| format!("run {run}: {cell} is not a number"))?,
-            );
+            let x: f64 = cell
+                .parse()
+                .with_context(|| format!("run {run}: {cell} is not a number"))?;
+            // A fleet never back in step has an infinite re-synchronisation; nothing else is
+            // infinite, and no run writes NaN.
+            if x.is_nan() || (x.is_infinite() && metric.key != "resync_time") {
+                bail!("run {run}: {} = {cell}, which no run writes", metric.key);
+            }
+            *m = Some(x);
         }
     }
     Ok(Row {
