@@ -597,7 +597,15 @@ pub enum Refused {
     Early,
     /// Older than one already taken (overtaken on the way).
     Stale,
+    /// Stamped more than `LEAD` ahead of the fleet's clock: a wrong clock, not a skew. Taken,
+    /// it would be the vehicle's newest state until the fleet caught up with it, and every
+    /// genuine one before then "older".
+    Ahead,
 }
+
+/// s of fleet time: how far ahead of the fleet's clock a played vehicle's stamp may be (two
+/// machines' clocks, a driver's latency).
+pub const LEAD: f64 = 1.0;
 
 impl Played {
     /// The vehicles of `mission`'s fleet whose clock began at Unix time `epoch` (realtime).
@@ -612,11 +620,15 @@ impl Played {
         }
     }
 
-    /// The state of vehicle `id` that its node's odometry `cdr` says: refused if it is no
-    /// odometry, or older than one already taken (a newer one of the same tick replaces it).
-    pub fn on_odometry(&mut self, id: u32, cdr: &[u8]) -> Result<State, Refused> {
+    /// The state of vehicle `id` that its node's odometry `cdr` says, the fleet's clock at tick
+    /// `now`: refused if it is no odometry, stamped more than `LEAD` ahead of `now`, or older
+    /// than one already taken (a newer one of the same tick replaces it).
+    pub fn on_odometry(&mut self, id: u32, cdr: &[u8], now: u64) -> Result<State, Refused> {
         let odometry = Odometry::from_cdr(id, cdr).map_err(|Malformed| Refused::Malformed)?;
         let state = self.state(&odometry)?;
+        if state.t > now as f64 * self.control_period + LEAD {
+            return Err(Refused::Ahead);
+        }
         if self.newest.get(&id).is_some_and(|held| held.tick > state.tick) {
             return Err(Refused::Stale);
         }
@@ -946,7 +958,7 @@ mod tests {
         };
         assert!(!played.heard(2));
         // 2.0006 wall seconds at 5x: t = 10.003 s, tick 1000 to the nearest period.
-        let s = played.on_odometry(2, &o.cdr()).unwrap();
+        let s = played.on_odometry(2, &o.cdr(), 1000).unwrap();
         assert_eq!(
             (s.id, s.tick, s.t, s.position, s.heading),
             (2, 1000, 10.0, [1.0, 2.0], 0.5)
@@ -964,13 +976,24 @@ mod tests {
             ..o
         };
         assert_eq!(
-            played.on_odometry(2, &at(1_002.0).cdr()).map(|s| s.tick),
+            played.on_odometry(2, &at(1_002.0).cdr(), 1000).map(|s| s.tick),
             Ok(1000),
             "the same tick again"
         );
-        assert_eq!(played.on_odometry(2, &at(1_001.0).cdr()), Err(Refused::Stale));
+        assert_eq!(played.on_odometry(2, &at(1_001.0).cdr(), 1000), Err(Refused::Stale));
+        // 0.5 wall s ahead at 5x: 2.5 s of the fleet's time ahead of tick 1000; 2038, years.
+        assert_eq!(played.on_odometry(2, &at(1_002.5).cdr(), 1000), Err(Refused::Ahead));
         assert_eq!(
-            played.on_odometry(3, &at(999.0).cdr()),
+            played.on_odometry(2, &at(2_145_916_800.0).cdr(), 1000),
+            Err(Refused::Ahead)
+        );
+        assert_eq!(
+            played.on_odometry(2, &at(1_002.1).cdr(), 1000).map(|s| s.tick),
+            Ok(1050),
+            "0.5 s of the fleet's time ahead: a clock's skew"
+        );
+        assert_eq!(
+            played.on_odometry(3, &at(999.0).cdr(), 1000),
             Err(Refused::Early),
             "before t = 0"
         );
@@ -978,11 +1001,11 @@ mod tests {
             position: [f64::NAN, 0.0],
             ..o
         };
-        assert_eq!(played.on_odometry(2, &nan.cdr()), Err(Refused::NonFinite));
-        assert_eq!(played.on_odometry(2, &[0, 1, 0, 0, 7]), Err(Refused::Malformed));
+        assert_eq!(played.on_odometry(2, &nan.cdr(), 1000), Err(Refused::NonFinite));
+        assert_eq!(played.on_odometry(2, &[0, 1, 0, 0, 7], 1000), Err(Refused::Malformed));
         assert!(!played.heard(3));
         let held: Vec<(u32, u64)> = played.states().map(|s| (s.id, s.tick)).collect();
-        assert_eq!(held, [(2, 1000)], "the newest state of each vehicle heard");
+        assert_eq!(held, [(2, 1050)], "the newest state of each vehicle heard");
     }
 
     #[test]

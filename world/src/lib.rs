@@ -20,7 +20,7 @@ use tcpf_bus::typed::{
     fetch_paths, linger, linger_within, presence, report, say_now, subscribe, subscribe_with, ClockServer, Outlet,
     Presence, RealtimeReport, Received, Rejected,
 };
-use tcpf_core::lockstep::{Timing, WorldNode};
+use tcpf_core::lockstep::{Reject, Timing, WorldNode};
 use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, PROTOCOL_VERSION};
@@ -638,11 +638,12 @@ impl Shell {
                 }
                 Some(o) = played_odometry(&mut self.ros2) => {
                     let (id, cdr) = &o.message;
-                    match (played.on_odometry(*id, cdr), &mut self.ros2) {
+                    match (played.on_odometry(*id, cdr, node.tick()), &mut self.ros2) {
                         (Ok(state), Some(ros2)) => ros2.outlets[id].put(&state).await?,
                         (Ok(_), None) => {}
                         (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
                         (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
+                        (Err(Refused::Ahead), _) => self.rejected.reject(Reject::Future, &o.key),
                         // Odometry flows before the run starts, and may be overtaken: neither is
                         // wrong, and neither is a state of the run.
                         (Err(Refused::Early | Refused::Stale), _) => {}
