@@ -12,7 +12,7 @@ use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::tungstenite::Message;
 
 mod common;
-use common::{fleet, paper, scratch, Reaper};
+use common::{fleet, kill, paper, scratch, Reaper};
 
 const READ_MCAP: &str = r##"
 import json, sys
@@ -246,6 +246,61 @@ async fn the_live_view_bounds_its_clients_and_what_they_send() {
     assert!(status.success(), "the run completes beside them");
 }
 
+/// Connections that never finish their WebSocket handshake, and clients that never read, hold
+/// no place for long: 8 clients that take nothing and 200 raw TCP connections are dropped
+/// within seconds (5 s for a handshake, two pings unanswered), and a genuine viewer is served.
+#[tokio::test(flavor = "multi_thread")]
+async fn the_live_view_drops_connections_that_never_shake_hands_and_clients_that_never_read() {
+    let _fleet = fleet();
+    let dir = scratch("live-stalled");
+    let port = free_port();
+    // In real time: 55 s, stopped once the viewer is served.
+    let mut run = live_run(&dir, port, "1");
+    drop(first_client(&mut run, port).await);
+    let mut deaf = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while deaf.len() < 8 {
+        assert!(Instant::now() < deadline, "8 clients served");
+        match join(port).await {
+            Ok((socket, _)) => deaf.push(socket),
+            Err(_) => tokio::time::sleep(Duration::from_millis(50)).await,
+        }
+    }
+    let mut mute = Vec::new();
+    for _ in 0..200 {
+        if let Ok(stream) = tokio::net::TcpStream::connect(("127.0.0.1", port)).await {
+            mute.push(stream);
+        }
+    }
+    assert!(join(port).await.is_err(), "every place is held");
+    let started = Instant::now();
+    let mut viewer = loop {
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "no place freed for a viewer"
+        );
+        match join(port).await {
+            Ok((socket, _)) => break socket,
+            Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
+        }
+    };
+    eprintln!(
+        "a viewer served {:.1} s after the places were taken",
+        started.elapsed().as_secs_f64()
+    );
+    let spoke = tokio::time::timeout(Duration::from_secs(10), viewer.next()).await;
+    assert!(
+        matches!(spoke, Ok(Some(Ok(Message::Text(_))))),
+        "the viewer is told what the server serves: {spoke:?}"
+    );
+    kill("-INT", run.0.id());
+    drop((deaf, mute));
+    let status = tokio::task::spawn_blocking(move || run.0.wait().unwrap())
+        .await
+        .unwrap();
+    assert_eq!(status.code(), Some(130), "the run stops on Ctrl-C");
+}
+
 /// A port nobody listens on now.
 fn free_port() -> u16 {
     TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
@@ -256,9 +311,10 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
     let _fleet = fleet();
     let dir = scratch("live");
     let port = free_port();
-    // Its 55 s of simulated time in about 11 s, on any machine: long enough for a client to
-    // join and subscribe on a loaded one (at 3 s the run once ended first).
-    let mut run = live_run(&dir, port, "5");
+    // In real time: the run lasts its 55 s, far longer than a client takes to join, subscribe
+    // and see 10 poses on any machine, and is stopped (Ctrl-C) once it has (at x5 a loaded
+    // machine once let the run end first).
+    let mut run = live_run(&dir, port, "1");
     let (mut socket, response) = first_client(&mut run, port).await;
     assert_eq!(response.headers()["Sec-WebSocket-Protocol"], "foxglove.websocket.v1");
 
@@ -338,7 +394,8 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
     }
     let pose = channels.iter().find(|c| c["topic"] == "/vehicle/2/pose").unwrap();
     assert_eq!(pose["schemaName"], "foxglove.PoseInFrame");
-    // To the end: the last tick's pose, then a Close frame.
+    // To the end, as the run ends on Ctrl-C: the last tick's pose, then a Close frame.
+    kill("-INT", run.0.id());
     let (mut last, mut closed) = (0u64, false);
     while let Ok(Some(Ok(message))) = tokio::time::timeout(Duration::from_secs(30), socket.next()).await {
         match message {
@@ -350,7 +407,11 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
         }
     }
     let status = run.0.wait().unwrap();
-    assert!(status.success(), "the run completes with a client attached");
+    assert_eq!(
+        status.code(),
+        Some(130),
+        "the run stops on Ctrl-C with a client attached"
+    );
     assert!(closed, "the server closes the connection with a Close frame");
     // The wall clock's recorder may write a row a period past the world's end (an arrival is
     // stamped at most a period late): the view ends where telemetry.csv does.

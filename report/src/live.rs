@@ -6,11 +6,14 @@
 //! The run never waits for a viewer: messages go through a bounded broadcast queue, and a client
 //! that falls behind loses the oldest (counted in the log). What is sent once (a planned path) is
 //! latched: a client that subscribes later gets its last message then. At the end each client is
-//! sent what is queued for it and a Close frame, for a second at most.
+//! sent what is queued for it and a Close frame, for a second at most. What would hold a place
+//! for the whole run is dropped: a connection whose handshake takes over 5 s, a client that
+//! takes no message for 5 s or answers no ping for two.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use base64::Engine;
@@ -173,8 +176,19 @@ const MAX_CLIENTS: usize = 8;
 /// The largest message or frame a client may send: what a viewer sends is a few lines of JSON
 /// (subscriptions); anything larger is refused and its connection closed.
 const MAX_CLIENT_MESSAGE: usize = 64 << 10;
+/// Connections still in their WebSocket handshake at once, and how long one may take: a
+/// connection that never finishes it would otherwise hold a client's place for the whole run
+/// (200 raw TCP connections locked every viewer out).
+const MAX_HANDSHAKES: usize = 64;
+const HANDSHAKE: Duration = Duration::from_secs(5);
+/// How often a client is pinged, and how long a message to it may wait to be taken: a client
+/// that stops reading answers no ping and takes no message, and is dropped (8 that never read
+/// held every place).
+const PING: Duration = Duration::from_secs(5);
+const SEND_PATIENCE: Duration = Duration::from_secs(5);
 
 async fn accept(listener: TcpListener, shared: Arc<Shared>) {
+    let handshakes = Arc::new(std::sync::atomic::AtomicUsize::new(0));
     while let Ok((stream, peer)) = listener.accept().await {
         let shared = shared.clone();
         if shared.clients.load(std::sync::atomic::Ordering::SeqCst) >= MAX_CLIENTS {
@@ -182,14 +196,54 @@ async fn accept(listener: TcpListener, shared: Arc<Shared>) {
             drop(stream);
             continue;
         }
-        shared.clients.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        if handshakes.load(std::sync::atomic::Ordering::SeqCst) >= MAX_HANDSHAKES {
+            tracing::warn!("live view: {peer} refused: {MAX_HANDSHAKES} connections are in their handshake already");
+            drop(stream);
+            continue;
+        }
+        handshakes.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        let pending = handshakes.clone();
         tokio::spawn(async move {
+            let socket = handshake(stream).await;
+            pending.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+            let socket = match socket {
+                Ok(socket) => socket,
+                Err(e) => return tracing::info!("live view: {peer}: {e}"),
+            };
+            if shared.clients.fetch_add(1, std::sync::atomic::Ordering::SeqCst) >= MAX_CLIENTS {
+                shared.clients.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+                return tracing::warn!("live view: {peer} refused: {MAX_CLIENTS} clients are served already");
+            }
             let _counted = Connected(&shared);
-            if let Err(e) = client(stream, &shared).await {
+            if let Err(e) = client(socket, &shared).await {
                 tracing::info!("live view: client {peer}: {e}");
             }
         });
     }
+}
+
+type Socket = tokio_tungstenite::WebSocketStream<TcpStream>;
+
+/// The WebSocket handshake of a new connection, within `HANDSHAKE`.
+async fn handshake(stream: TcpStream) -> Result<Socket> {
+    let limits = tokio_tungstenite::tungstenite::protocol::WebSocketConfig::default()
+        .max_message_size(Some(MAX_CLIENT_MESSAGE))
+        .max_frame_size(Some(MAX_CLIENT_MESSAGE));
+    tokio::time::timeout(
+        HANDSHAKE,
+        tokio_tungstenite::accept_hdr_async_with_config(stream, negotiate, Some(limits)),
+    )
+    .await
+    .map_err(|_| anyhow!("no WebSocket handshake within {} s: closed", HANDSHAKE.as_secs()))?
+    .map_err(Into::into)
+}
+
+/// Sends `message`, or says the client does not read it.
+async fn send(socket: &mut Socket, message: Message) -> Result<()> {
+    tokio::time::timeout(SEND_PATIENCE, socket.send(message))
+        .await
+        .map_err(|_| anyhow!("it took no message for {} s: dropped", SEND_PATIENCE.as_secs()))?
+        .map_err(Into::into)
 }
 
 fn advertise(channels: &[ChannelInfo]) -> Value {
@@ -247,26 +301,34 @@ fn frame(subscription: u32, m: &Data) -> Vec<u8> {
     frame
 }
 
-/// One client: handshake, server info and advertisements, then its subscriptions' messages.
-async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
-    let limits = tokio_tungstenite::tungstenite::protocol::WebSocketConfig::default()
-        .max_message_size(Some(MAX_CLIENT_MESSAGE))
-        .max_frame_size(Some(MAX_CLIENT_MESSAGE));
-    let mut socket = tokio_tungstenite::accept_hdr_async_with_config(stream, negotiate, Some(limits)).await?;
+/// One client: server info and advertisements, then its subscriptions' messages, while it
+/// answers its pings.
+async fn client(mut socket: Socket, shared: &Shared) -> Result<()> {
+    let socket = &mut socket;
     let mut data = shared.data.subscribe();
+    let mut ping = tokio::time::interval(PING);
+    let mut heard = tokio::time::Instant::now();
     let info = json!({
         "op": "serverInfo", "name": "tcpf", "capabilities": [], "supportedEncodings": [], "metadata": {},
     });
-    socket.send(Message::text(info.to_string())).await?;
+    send(socket, Message::text(info.to_string())).await?;
     let channels = shared.channels.lock().expect("no panic while held").clone();
-    socket.send(Message::text(advertise(&channels).to_string())).await?;
+    send(socket, Message::text(advertise(&channels).to_string())).await?;
     // channel id → subscription id
     let mut subscriptions: HashMap<u32, u32> = HashMap::new();
     let mut lost = 0u64;
     loop {
         tokio::select! {
+            _ = ping.tick() => {
+                // Two pings unanswered: a client that reads would have answered the first.
+                if heard.elapsed() > 2 * PING {
+                    anyhow::bail!("no answer to a ping for {} s: dropped", heard.elapsed().as_secs());
+                }
+                send(socket, Message::Ping(Vec::new().into())).await?;
+            }
             incoming = socket.next() => {
                 let Some(message) = incoming else { break };
+                heard = tokio::time::Instant::now();
                 if let Message::Text(text) = message? {
                     let op: Value = serde_json::from_str(&text).unwrap_or_default();
                     let ids = |key: &str| -> Vec<Value> { op[key].as_array().cloned().unwrap_or_default() };
@@ -277,7 +339,7 @@ async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
                                     subscriptions.insert(channel as u32, id as u32);
                                     let latched = shared.latched.lock().expect("no panic while held").get(&(channel as u32)).cloned();
                                     if let Some(m) = latched {
-                                        socket.send(Message::binary(frame(id as u32, &m))).await?;
+                                        send(socket, Message::binary(frame(id as u32, &m))).await?;
                                     }
                                 }
                             }
@@ -297,7 +359,7 @@ async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
                 }
                 Ok(m) => {
                     if let Some(&subscription) = subscriptions.get(&m.channel) {
-                        socket.send(Message::binary(frame(subscription, &m))).await?;
+                        send(socket, Message::binary(frame(subscription, &m))).await?;
                     }
                 }
                 Err(broadcast::error::RecvError::Lagged(n)) => {
@@ -315,7 +377,7 @@ async fn client(stream: TcpStream, shared: &Shared) -> Result<()> {
                             .collect()
                     };
                     for (subscription, m) in latched {
-                        socket.send(Message::binary(frame(subscription, &m))).await?;
+                        send(socket, Message::binary(frame(subscription, &m))).await?;
                     }
                 }
                 Err(broadcast::error::RecvError::Closed) => break,
