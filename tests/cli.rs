@@ -532,9 +532,25 @@ fn command_line_misuse_exits_2_with_a_clear_message() {
         // 2^64 − 1 recorders, plus the launcher's own, wrapped to none: the run started at once.
         (
             vec!["run", &mission, "--recorders", "18446744073709551615"],
-            "is not in 0..=64",
+            "is not in 0..=63",
         ),
+        // 64 more and the launcher's own: 65, more than a world waits for.
+        (vec!["run", &mission, "--recorders", "64"], "is not in 0..=63"),
         (vec!["world", &mission, "--recorders", "65"], "is not in 0..=64"),
+        // A seed is a TOML integer: a sweep's last one is a seed `tcpf run --seed` takes.
+        (
+            vec![
+                "sweep",
+                &mission,
+                "--loss",
+                "0",
+                "--seeds",
+                "2",
+                "--seed-start",
+                "9223372036854775807",
+            ],
+            "the last seed is past 9223372036854775807 (2^63 − 1)",
+        ),
         // ROS 2's domains are 0 to 232; an in-process run has no bus to speak it on.
         (vec!["world", &mission, "--ros2", "233"], "is not in 0..=232"),
         (
@@ -823,6 +839,13 @@ fn a_credential_is_made_owner_only_never_overwritten_and_refused_when_others_can
     let o = tcpf(&["planner", &paper("b-current"), "--credential", path, "--open"]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("cannot be used with"), "{}", text(&o));
+    // The file is every listener's dictionary too: a second line would be a second user.
+    let two = dir.join("two.key");
+    std::fs::write(&two, format!("{}mallory:open\n", made)).unwrap();
+    std::fs::set_permissions(&two, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let o = tcpf(&["planner", &paper("b-current"), "--credential", two.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("more than one line"), "{}", text(&o));
 }
 
 /// A role started by hand demands a credential: without one it does not start (exit 2) and says

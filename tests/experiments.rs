@@ -856,6 +856,57 @@ fn shards_merged_are_the_sweep_and_a_lost_shard_comes_back_with_resume() {
     assert!(tables(&whole) == before);
 }
 
+/// `tcpf sweep merge` takes nothing it cannot vouch for: a cell no run writes (NaN), a run done
+/// in two of the directories, a shard holding another shard's rows, a mission.toml edited since
+/// the sweep ran; each is refused by name (exit 2), and the shards as they were merge.
+#[test]
+fn a_merge_refuses_rows_and_missions_it_cannot_vouch_for() {
+    let dir = scratch("merge-refuses");
+    let shards: Vec<_> = (1..=2).map(|i| dir.join(format!("shard-{i}"))).collect();
+    for (i, shard) in shards.iter().enumerate() {
+        grid_sweep(shard, &["--shard", &format!("{}/2", i + 1)]);
+    }
+    let copy = |from: &Path, name: &str| {
+        let to = dir.join(name);
+        std::fs::create_dir_all(&to).unwrap();
+        for file in ["sweep.json", "runs.csv", "mission.toml"] {
+            std::fs::copy(from.join(file), to.join(file)).unwrap();
+        }
+        to
+    };
+    let refused = |dirs: &[&Path], words: &str| {
+        let mut args = vec!["sweep".to_string(), "merge".into()];
+        args.extend(dirs.iter().map(|d| d.display().to_string()));
+        args.extend(["--out".into(), dir.join("merged-refused").display().to_string()]);
+        let o = tcpf(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{words}: {said}");
+        assert!(said.contains(words), "{said}");
+        assert!(!dir.join("merged-refused").exists(), "nothing written");
+    };
+    let nan = copy(&shards[0], "nan");
+    let csv = std::fs::read_to_string(nan.join("runs.csv")).unwrap();
+    let mut lines: Vec<String> = csv.lines().map(String::from).collect();
+    let cells: Vec<&str> = lines[1].split(',').collect();
+    let mut cells: Vec<String> = cells.iter().map(|c| c.to_string()).collect();
+    // The row's first metric, after run, the two keys, seed and status.
+    cells[5] = "NaN".into();
+    lines[1] = cells.join(",");
+    std::fs::write(nan.join("runs.csv"), lines.join("\n") + "\n").unwrap();
+    refused(&[&nan, &shards[1]], "max_coordination_error = NaN, which no run writes");
+    refused(&[&shards[0], &copy(&shards[0], "twice"), &shards[1]], "is done in both");
+    let mixed = copy(&shards[0], "mixed");
+    let theirs = std::fs::read_to_string(shards[1].join("runs.csv")).unwrap();
+    let ours = std::fs::read_to_string(mixed.join("runs.csv")).unwrap();
+    std::fs::write(mixed.join("runs.csv"), ours + theirs.split_once('\n').unwrap().1).unwrap();
+    refused(&[&mixed, &shards[1]], "is not the runs of its shard 1/2");
+    let edited = copy(&shards[1], "edited");
+    let mission = std::fs::read_to_string(edited.join("mission.toml")).unwrap();
+    std::fs::write(edited.join("mission.toml"), mission.replace("kc = 0.5", "kc = 5.0")).unwrap();
+    refused(&[&shards[0], &edited], "not the mission this sweep ran");
+    merge(&shards, &dir.join("merged"));
+}
+
 /// Stops a cluster that `tests/slurm/cluster` started, however the test ends.
 struct Cluster(std::path::PathBuf);
 
@@ -1301,6 +1352,17 @@ fn figures_print_at_eight_points_with_words_and_units_and_families_told_apart() 
         "--out",
         run.to_str().unwrap(),
     ]));
+    // A run that drops nothing has bars of nothing: drawn as no shape, not one the PDF's
+    // reader warns of in the user's terminal.
+    let quiet = ok(tcpf(&[
+        "run",
+        &config("paper/b-current"),
+        "--in-process",
+        "--out",
+        dir.join("quiet").to_str().unwrap(),
+    ]));
+    let said = String::from_utf8_lossy(&quiet.stderr);
+    assert!(!said.contains("WARN"), "{said}");
     let mut figures = 0;
     for entry in std::fs::read_dir(run.join("figures")).unwrap() {
         let path = entry.unwrap().path();
