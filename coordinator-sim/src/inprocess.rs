@@ -18,7 +18,7 @@ use tcpf_report::rundir::RunDir;
 /// report of the ticks run.
 pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr>) -> Result<Summary> {
     let interrupted = tcpf_bus::signals::stop_flag()?;
-    dir.write_mission(mission, tcpf_core::summary::Mode::InProcess)?;
+    dir.write_mission(mission, Mode::InProcess)?;
     dir.write_plan(plan)?;
     let mut telemetry = dir.telemetry(mission, plan, Mode::InProcess, live)?;
     let mut failure = None;

@@ -70,11 +70,6 @@ const RIGHT: f64 = 5.0;
 const LEFT: f64 = 2.0;
 const BOTTOM: f64 = 2.0;
 
-/// A line of data, in units.
-fn line() -> u32 {
-    style::units(1.0).max(1) as u32
-}
-
 /// An axis, a level, a marker's ring: thinner than the data.
 fn thin() -> u32 {
     style::units(0.6).max(1) as u32
@@ -451,13 +446,13 @@ impl<'a> Chart<'a> {
                     vec![(start, y.0), (start, y.1)],
                     on,
                     off,
-                    FAULT_LINE.stroke_width(line()),
+                    FAULT_LINE.stroke_width(style::line_width()),
                 ))?;
             }
         }
         let note = style::font(style::NOTE_PT);
         for (from, to, label) in &self.arrows {
-            let pen = style::INK.stroke_width(line());
+            let pen = style::INK.stroke_width(style::line_width());
             let (dx, dy) = (to.0 - from.0, to.1 - from.1);
             // The head: two strokes back from the tip at ±25°, a quarter of the shaft long.
             let head = |turn: f64| {
@@ -506,7 +501,7 @@ impl<'a> Chart<'a> {
         }
         for (k, s) in self.series.iter().enumerate() {
             let colour = style::family(k);
-            let pen = colour.stroke_width(line());
+            let pen = colour.stroke_width(style::line_width());
             // A point without a value (a vehicle lost, then back) breaks the line there.
             for run in s.points.split(|p| !p.1.is_finite()).filter(|run| !run.is_empty()) {
                 match (run, style::dash(k)) {
@@ -543,7 +538,7 @@ impl<'a> Chart<'a> {
             let r = style::units(2.5);
             chart.draw_series(std::iter::once(
                 EmptyElement::at((*px, *py))
-                    + Circle::new((0, 0), r, style::INK.stroke_width(line()))
+                    + Circle::new((0, 0), r, style::INK.stroke_width(style::line_width()))
                     + Text::new(name.clone(), (r + style::units(1.5), 0), beside.clone()),
             ))?;
         }
