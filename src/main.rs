@@ -198,9 +198,14 @@ fn main() -> ExitCode {
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { role } => roles::planner(&clocked(&role.mission, &role.clock), &role.zenoh),
         Command::Credential { file } => roles::credential(&file),
-        Command::Router { zenoh } => runtime()
-            .and_then(|rt| rt.block_on(tcpf_coordinator::router::run(&zenoh)).map_err(role_failure))
-            .map(|_| ExitCode::SUCCESS),
+        Command::Router { zenoh } => {
+            // Every message of a fleet on a router passes through it: a realtime role is late
+            // when its router is.
+            tcpf_bus::priority::for_realtime("router");
+            runtime()
+                .and_then(|rt| rt.block_on(tcpf_coordinator::router::run(&zenoh)).map_err(role_failure))
+                .map(|_| ExitCode::SUCCESS)
+        }
         Command::Record {
             role,
             out,

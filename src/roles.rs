@@ -60,6 +60,7 @@ pub fn world(args: &MissionArgs, zenoh: &ZenohArgs, options: tcpf_world::Options
             )));
         }
     }
+    realtime_priority(&mission, "world");
     let exit = role(tcpf_world::run(&mission, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
         matches!(exit, tcpf_world::Exit::Ended { lost: 0, short: 0, .. }),
@@ -80,6 +81,7 @@ pub fn agent(
             args.file.display()
         )));
     }
+    realtime_priority(&mission, &format!("agent {id}"));
     let exit = role(tcpf_agent::run(&mission, id, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
         exit == tcpf_agent::Exit::Ended,
@@ -109,6 +111,7 @@ pub fn record(
         startup_timeout,
         ros2: ros2.and_then(|domain| mission.ros2(Some(domain))),
     };
+    realtime_priority(&mission, "recorder");
     let summary = role(tcpf_coordinator::recording::record(
         &mission, &plan, &dir, zenoh, options,
     ))?
@@ -129,4 +132,12 @@ pub fn record(
         summary.completed && (summary.reproducible || realtime),
         summary.interrupted,
     ))
+}
+
+/// A role on the realtime clock asks for its share of the CPU before its runtime starts threads
+/// (docs/CLOCK.md); in lockstep a late role only makes the tick wait.
+fn realtime_priority(mission: &mission::Mission, role: &str) {
+    if mission.mission.clock == mission::ClockKind::Realtime {
+        tcpf_bus::priority::for_realtime(role);
+    }
 }

@@ -47,6 +47,10 @@ pub fn run(
     if !in_process && !realtime {
         launcher::launcher_runtime();
     }
+    // It records the run, and the roles it starts inherit what it got.
+    if realtime {
+        tcpf_bus::priority::for_realtime("tcpf run");
+    }
     if in_process && mission.ros2.is_some() {
         eprintln!(
             "{}: its [ros2] is for a fleet of processes; this run is in-process and speaks no ROS 2",

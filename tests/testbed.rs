@@ -205,6 +205,32 @@ fn finish(bed: &mut Testbed, dir: &Path, recorder: u32) -> PathBuf {
     dir.join("run")
 }
 
+/// Waits until the world started by `start` has run `wall` seconds of its clock.
+fn world_has_run(dir: &Path, wall: f64) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    while !std::fs::read_to_string(dir.join("world.log")).is_ok_and(|l| l.contains("agents present, starting")) {
+        assert!(std::time::Instant::now() < deadline, "the world never started");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_secs_f64(wall));
+}
+
+/// The simulated time `s` of the world's log line that says `text` followed by "at t = s s".
+fn world_said_at(dir: &Path, text: &str) -> f64 {
+    let log = std::fs::read_to_string(dir.join("world.log")).unwrap();
+    log.lines()
+        .find_map(|l| {
+            l.split_once(text)?
+                .1
+                .strip_prefix(" at t = ")?
+                .split_once(" s")?
+                .0
+                .parse()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("the world never said {text:?}: {log}"))
+}
+
 /// The in-process run of `mission`, the reference every fleet here must equal.
 fn reference(dir: &Path, mission: &str) -> PathBuf {
     let out = dir.join("in-process");
@@ -398,10 +424,14 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
     let _fleet = common::fleet();
     let dir = scratch("link-down");
     let mut bed = Testbed::new("down", &["shore", "v1", "v2"]);
-    let clock = ["--clock", "realtime", "--time-scale", "2"];
+    // In real time: the vehicle's host reconnects when TCP's next SYN gets through, which backs
+    // off in wall seconds (seen 1 to 6 s after the link came back), and the path left to catch
+    // up on is in simulated ones.
+    let clock = ["--clock", "realtime", "--time-scale", "1"];
     let recorder = start(&mut bed, &dir, &paper("b-current"), Security::Plain, &clock, |_| {});
-    let out = dir.join("run");
-    wait_until_simulated(&out, 10.0);
+    // From the world's own start, not from telemetry.csv: a recorder that writes late under load
+    // would put the outage where the fleet has too little path left to catch up.
+    world_has_run(&dir, 10.0);
     bed.link("v2", false);
     let down_at = std::time::Instant::now();
     std::thread::sleep(Duration::from_secs(10));
@@ -415,7 +445,8 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
         "coordination recovers after the outage: arrivals {arrivals:?}"
     );
     // While the link was down nothing of vehicle 2 reached vehicle 1: its γ went stale. The
-    // window in simulated time is 20 s at time scale 2, from about t = 10 s.
+    // window in simulated time is from about t = 10 s to 20 s (seen 9.5 to 19.9), and the world
+    // saw agent 2 go a lease later and come back when TCP's backoff let it: inside that, surely.
     let messages = std::fs::read_to_string(out.join("messages.csv")).unwrap();
     let heard: Vec<f64> = messages
         .lines()
@@ -425,15 +456,24 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
             (f[2] == "2" && f[3] == "1").then(|| f[1].parse().unwrap())
         })
         .collect();
-    let (from, to) = (14.0, 28.0);
+    let (from, to) = (
+        world_said_at(&dir, "agent 2 is gone"),
+        world_said_at(&dir, "agent 2 is here"),
+    );
     assert!(
-        !heard.iter().any(|t| (from..to).contains(t)),
+        (11.0..17.0).contains(&from) && to - from > 4.0,
+        "the world saw agent 2 gone from t = {from} s to {to} s"
+    );
+    assert!(
+        // Agent 2's first γ back may reach agent 1 before its liveliness reaches the world.
+        !heard.iter().any(|t| (from..to - 0.5).contains(t)),
         "γ of vehicle 2 reached vehicle 1 inside the outage"
     );
     assert!(heard.iter().any(|&t| t >= 32.0), "and again after it");
     let drifted = without_command(&s, 2);
-    assert!(drifted > 1000, "vehicle 2 drifted during the outage: {}", s["timing"]);
-    assert!(down_at.elapsed() < Duration::from_secs(60));
+    // From the world's noticing (the lease: 3 s, seen up to 6 under load) to the reconnection.
+    assert!(drifted > 400, "vehicle 2 drifted during the outage: {}", s["timing"]);
+    assert!(down_at.elapsed() < Duration::from_secs(90));
 }
 
 #[test]
@@ -449,6 +489,21 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
     // OUTPUT chain fails its send() with EPERM, which Zenoh takes for a broken link. The
     // mission's own loss is 0.
     wait_until_simulated(&dir.join("run"), 1.0);
+    // And once vehicle 2's UDP link is open: on a loaded machine it may open after the first
+    // second, and its handshake would then meet the rule.
+    let udp = format!(
+        "ss -Hun state established dst {}:{} | grep -q .",
+        bed.address("shore"),
+        PORT + 1
+    );
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    while !bed.run("v2", &["sh", "-c", &udp]) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "vehicle 2's UDP link to the shore never opened: its session runs on TCP alone"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
     let v2 = bed.address("v2");
     let rule = [
         "iptables",

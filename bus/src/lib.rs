@@ -8,6 +8,7 @@ pub mod credential;
 pub mod footprint;
 pub mod handover;
 pub mod keys;
+pub mod priority;
 pub mod ros2;
 pub mod session;
 pub mod signals;

@@ -84,6 +84,10 @@ pub struct FleetSlot(#[allow(dead_code)] std::fs::File);
 pub fn fleet() -> FleetSlot {
     let file = std::fs::File::create(std::env::temp_dir().join("tcpf-tests-fleet.lock")).expect("the fleet lock file");
     file.lock().expect("the fleet lock");
+    // The test drives the fleet (kills a role at t = 5 s, cuts a link at 10 s) and times it
+    // from what the fleet writes: it must run when the fleet does, not behind whatever else the
+    // machine runs that a realtime fleet overtakes (bus/src/priority.rs).
+    tcpf_bus::priority::for_realtime("the test");
     FleetSlot(file)
 }
 
