@@ -366,6 +366,10 @@ pub enum Command {
         /// lockstep, /clock; it takes the odometry of a vehicle a ROS 2 node plays (docs/ROS2.md).
         #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain())]
         ros2: Option<u32>,
+        /// Set by `tcpf run` for the roles it starts: no other process can be claiming this
+        /// role now, so the claim is decided at once instead of after 1.5 s.
+        #[arg(long, hide = true)]
+        no_rivals: bool,
     },
     /// Role: record a fleet started by hand (start its world with --recorders 1).
     Record {
@@ -402,6 +406,10 @@ pub enum Command {
         /// /tcpf/agent_<id>, its commands on /tcpf/vehicle_<id>/cmd (docs/ROS2.md).
         #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain())]
         ros2: Option<u32>,
+        /// Set by `tcpf run` for the roles it starts: no other process can be claiming this
+        /// role now, so the claim is decided at once instead of after 1.5 s.
+        #[arg(long, hide = true)]
+        no_rivals: bool,
     },
 }
 

@@ -167,6 +167,7 @@ fn main() -> ExitCode {
                 restart: restart == Restart::OnFailure,
                 recorders,
                 ros2,
+                ..launcher::Options::default()
             },
         ),
         Command::Bench { mission, count } => bench::run(&mission, count),
@@ -228,6 +229,7 @@ fn main() -> ExitCode {
             startup_timeout,
             command_timeout,
             ros2,
+            no_rivals,
         } => roles::world(
             &clocked(&role.mission, &role.clock),
             &role.zenoh,
@@ -238,6 +240,7 @@ fn main() -> ExitCode {
                 rejoin_timeout,
                 vehicles,
                 ros2,
+                rivals: rivals(no_rivals),
             },
         ),
         Command::Agent {
@@ -246,6 +249,7 @@ fn main() -> ExitCode {
             startup_timeout,
             stale_timeout,
             ros2,
+            no_rivals,
         } => roles::agent(
             &clocked(&role.mission, &role.clock),
             &role.zenoh,
@@ -254,6 +258,7 @@ fn main() -> ExitCode {
                 startup_timeout,
                 stale_timeout,
                 ros2,
+                rivals: rivals(no_rivals),
             },
         ),
     };
@@ -286,6 +291,14 @@ fn role<F: std::future::Future>(work: F) -> Result<F::Output, Failure> {
     let out = rt.block_on(work);
     rt.shutdown_background();
     Ok(out)
+}
+
+fn rivals(none: bool) -> tcpf_bus::claim::Rivals {
+    if none {
+        tcpf_bus::claim::Rivals::None
+    } else {
+        tcpf_bus::claim::Rivals::Possible
+    }
 }
 
 fn code(ok: bool, interrupted: bool) -> ExitCode {

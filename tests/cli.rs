@@ -1049,6 +1049,13 @@ fn bench_prints_every_figure_beside_its_baseline() {
         speed[1] > 0.0 && speed[1] < speed[0],
         "the start and the end slow the whole run: {speed:?}"
     );
+    // The start-up beside the one roles started by hand pay (1.5 s of claims settling at least).
+    let start = numbers(&line("start-up: the first tick"));
+    let [first, settled, ratio] = start[..] else {
+        panic!("{start:?}")
+    };
+    assert!(first > 0.0 && settled > 1.5, "{start:?}");
+    assert!((ratio - first / settled).abs() < 0.01 + 0.01 * ratio, "{start:?}");
     let memory = numbers(&line("per agent:"));
     assert!(memory.iter().all(|&m| m > 0.5 && m < 200.0), "{memory:?}");
     // Sockets grow with the fleet, not its square: a handful per process.

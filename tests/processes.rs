@@ -36,6 +36,11 @@ fn processes_and_in_process_are_bit_identical() {
             s["sim_time_s"].as_f64().unwrap() / s["wall_time_s"].as_f64().unwrap(),
             1e6 * s["wall_time_s"].as_f64().unwrap() / s["ticks"].as_f64().unwrap()
         );
+        // How long the launch took to its first tick: said by a fleet of processes, not by a
+        // run that launched none.
+        let first = s["first_tick_s"].as_f64().unwrap();
+        assert!(first > 0.0 && first < s["wall_time_s"].as_f64().unwrap(), "{s}");
+        assert!(summary(&dir.join("i")).get("first_tick_s").is_none());
         assert_none_left(&s);
     }
 }
@@ -421,6 +426,7 @@ fn agents_that_cannot_be_started_fail_the_run_with_its_run_directory_written() {
     // From the launch, while strace held the world 2 s; and no tick to time.
     assert!(s["wall_time_s"].as_f64().unwrap() > 1.0, "{s}");
     assert_eq!(s["tick_wall_time_us"], 0.0, "{s}");
+    assert!(s.get("first_tick_s").is_none(), "{s}");
     assert!(s["children"]
         .as_array()
         .unwrap()
@@ -1439,12 +1445,18 @@ fn a_second_agent_of_a_vehicle_or_a_second_world_is_refused() {
     // between).
     wait_for_text(&dir.join("world.log"), "(2 of 2)", Duration::from_secs(30));
     router_knows(&endpoint, &["alive/world/0", "alive/agent/1", "alive/agent/2"]);
+    // Also when told, as `tcpf run` tells its own, that no other process claims the role now:
+    // the holder's claim is at the router already, and that is decided at once.
     let mut second = Fleet(vec![
         client(&["agent", &mission, "--id", "2"], Stdio::piped()),
         client(&["world", &mission], Stdio::piped()),
+        client(&["agent", &mission, "--id", "1", "--no-rivals"], Stdio::piped()),
+        client(&["world", &mission, "--no-rivals"], Stdio::piped()),
     ]);
     for (n, words) in [
         "agent 2 of mission paper-b-current is already running",
+        "a world of mission paper-b-current is already running",
+        "agent 1 of mission paper-b-current is already running",
         "a world of mission paper-b-current is already running",
     ]
     .iter()

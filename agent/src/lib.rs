@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::claim::claim;
+use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{self, metronome, FleetClock, Monotonic};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
@@ -50,6 +50,8 @@ pub struct Options {
     pub stale_timeout: Duration,
     /// The ROS 2 domain to speak rmw_zenoh on (`--ros2`), over the mission's `[ros2]`.
     pub ros2: Option<u32>,
+    /// Whether another process may be claiming the same role now (`--no-rivals`: no).
+    pub rivals: Rivals,
 }
 
 /// Why the agent stopped.
@@ -246,7 +248,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     // Before this session follows liveliness: a liveliness query from a session with a liveliness
     // subscriber of its own at times answers nothing (Zenoh 1.10), and a second agent of a
     // running vehicle then found nobody holding its id.
-    let claimed = claim(&session, &keys, Role::Agent, id, &mission.mission.name).await?;
+    let claimed = claim(&session, &keys, Role::Agent, id, &mission.mission.name, options.rivals).await?;
     let (presence_subscriber, mut presence) = presence(&session, &keys).await?;
     let ids = [id];
     let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));

@@ -29,6 +29,11 @@ impl Monotonic {
         self.0.elapsed().as_secs_f64()
     }
 
+    /// Seconds from the start to `at`.
+    pub fn since(&self, at: Instant) -> f64 {
+        at.saturating_duration_since(self.0).as_secs_f64()
+    }
+
     /// The instant `s` seconds after the start.
     pub fn at(&self, s: f64) -> tokio::time::Instant {
         (self.0 + Duration::try_from_secs_f64(s).unwrap_or_default()).into()

@@ -9,6 +9,7 @@ use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
+use tcpf_bus::claim::Rivals;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
@@ -516,6 +517,7 @@ pub async fn measure(
         routed,
         fleet,
         ros2,
+        settled,
         running,
         idle,
     }) = measured?
@@ -548,6 +550,13 @@ pub async fn measure(
         mission.mission.control_period / (tick * 1e-6),
         fleet.speedup()
     ));
+    let first = |s: &Summary| s.first_tick_s.unwrap_or(f64::NAN);
+    say(format!(
+        "start-up: the first tick {:.3} s after the launch; with the world and agents claiming their roles as roles started by hand do (baseline) {:.3} s: {:.2}x",
+        first(&fleet),
+        first(&settled),
+        first(&fleet) / first(&settled)
+    ));
     let (rss, pss) = running.per_process_mib();
     let (idle_rss, idle_pss) = idle.per_process_mib();
     say(format!(
@@ -567,6 +576,8 @@ struct Processes {
     routed: Vec<Duration>,
     fleet: Summary,
     ros2: Summary,
+    /// The fleet whose world and agents claimed their roles as roles started by hand do.
+    settled: Summary,
     running: Footprint,
     idle: Footprint,
 }
@@ -628,6 +639,21 @@ async fn processes(
     if ros2.interrupted {
         return Ok(None);
     }
+    let settling = RunDir::create(Some(&scratch.join("settled")), mission)?;
+    let options = launcher::Options {
+        rivals: Rivals::Possible,
+        ..launcher::Options::default()
+    };
+    let Some(settled) = shutdown
+        .unless(launcher::run(mission, plan, &settling, exe, options))
+        .await
+    else {
+        return Ok(None);
+    };
+    let settled = settled?;
+    if settled.interrupted {
+        return Ok(None);
+    }
     let Some(idle) = shutdown.unless(idle_fleet(exe, plan.vehicles.len())).await else {
         return Ok(None);
     };
@@ -636,6 +662,7 @@ async fn processes(
         routed: routed?,
         fleet,
         ros2,
+        settled,
         running,
         idle: idle?,
     }))

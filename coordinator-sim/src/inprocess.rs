@@ -57,6 +57,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         results,
         tick_wall_time_us: 1e6 * wall_time_s / ticks.max(1) as f64,
         wall_time_s,
+        first_tick_s: None,
         // What the world or an agent refused (a command with a non-finite number, say), which
         // loses its vehicle here as it does over Zenoh.
         rejected_messages: rejections.total(),

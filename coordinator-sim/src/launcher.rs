@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
+use tcpf_bus::claim::Rivals;
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::{Interrupted, Shutdown};
@@ -349,6 +350,10 @@ pub struct Options {
     pub startup_timeout: Duration,
     /// The ROS 2 domain the world speaks rmw_zenoh on, if any.
     pub ros2: Option<u32>,
+    /// `Rivals::Possible` makes the world and agents claim their roles as roles started by hand
+    /// do, waiting for contemporaries that cannot exist here: the baseline `tcpf bench` sets
+    /// a run's start-up beside.
+    pub rivals: Rivals,
 }
 
 impl Default for Options {
@@ -360,6 +365,7 @@ impl Default for Options {
             recorders: 0,
             startup_timeout: waits::STARTUP,
             ros2: None,
+            rivals: Rivals::None,
         }
     }
 }
@@ -474,6 +480,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         recorders,
         startup_timeout,
         ros2,
+        rivals,
     } = options;
     let begun = Instant::now();
     let mut shutdown = Shutdown::new()?;
@@ -502,6 +509,11 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
     }
     let mut agent_args = common.clone();
+    // The only world, and the only agent of each vehicle, this launcher runs at a time.
+    if rivals == Rivals::None {
+        world_args.push("--no-rivals".into());
+        agent_args.push("--no-rivals".into());
+    }
     if let Some(domain) = ros2 {
         world_args.extend(["--ros2".to_string(), domain.to_string()]);
         agent_args.extend(["--ros2".to_string(), domain.to_string()]);
@@ -726,6 +738,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         .map(|c| child_summary(c, report_of(&recording, c)))
         .collect();
     let ended = matches!(outcome, Outcome::Completed);
+    let first_tick_s = recording.first_tick().map(|at| at.duration_since(begun).as_secs_f64());
     let summary = recording.close(
         mission,
         dir,
@@ -737,6 +750,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 _ => None,
             },
             wall_time_s,
+            first_tick_s,
             children,
             restarts,
             warnings,

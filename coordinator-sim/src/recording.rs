@@ -425,6 +425,11 @@ impl Recording {
         }
     }
 
+    /// When the first tick was written, if one was.
+    pub fn first_tick(&self) -> Option<Instant> {
+        self.first
+    }
+
     /// Mean wall time of a tick in steady state, from the first tick written to the last.
     pub fn tick_wall_time(&self) -> Option<f64> {
         let first = self.first?;
@@ -635,6 +640,7 @@ pub async fn record(
     .await;
     let _ = session.close().await;
     let ended = !interrupted && recording.end.is_some();
+    let first_tick_s = recording.first_tick().map(|at| clock.since(at));
     recording.close(
         mission,
         dir,
@@ -643,6 +649,7 @@ pub async fn record(
             interrupted,
             failure,
             wall_time_s,
+            first_tick_s,
             children: Vec::new(),
             restarts: Vec::new(),
             warnings: Vec::new(),

@@ -125,6 +125,10 @@ pub struct Summary {
     /// Simulated seconds, ticks × control period.
     pub sim_time_s: f64,
     pub wall_time_s: f64,
+    /// Processes: wall seconds from the launch (`tcpf run`'s, or `tcpf record`'s start) to the
+    /// first tick recorded: what a study of many short runs pays per run before any work.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_tick_s: Option<f64>,
     /// Mean wall time of one tick in steady state, µs.
     pub tick_wall_time_us: f64,
     /// Payloads dropped because they did not decode, had the wrong version, non-finite numbers or
@@ -204,6 +208,7 @@ impl Summary {
             results: Metrics::new(&ids, t_f, mission.mission.control_period).results(),
             sim_time_s: 0.0,
             wall_time_s,
+            first_tick_s: None,
             tick_wall_time_us: 0.0,
             rejected_messages: 0,
             rejections: Rejections::default(),
@@ -337,6 +342,8 @@ pub struct Closing {
     /// What stopped the run before its end, if something failed.
     pub failure: Option<String>,
     pub wall_time_s: f64,
+    /// Wall seconds from the launch to the first tick recorded, if one was.
+    pub first_tick_s: Option<f64>,
     pub children: Vec<ChildSummary>,
     pub restarts: Vec<Restarts>,
     /// What went wrong without failing the run (the planner gone once the fleet ran).
@@ -395,6 +402,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         interrupted,
         mut failure,
         wall_time_s,
+        first_tick_s,
         children,
         restarts,
         warnings,
@@ -544,6 +552,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         tick_wall_time_us: 1e6 * tick_wall_time_s.unwrap_or(if ticks_recorded > 0 { wall_time_s } else { 0.0 }),
         results,
         wall_time_s,
+        first_tick_s,
         rejected_messages: rejections.total(),
         rejections,
         children,

@@ -221,6 +221,9 @@ pub fn summary(summary: &Summary) -> String {
             );
         }
     }
+    if let Some(first) = summary.first_tick_s {
+        let _ = writeln!(s, "first tick {first:.3} s after the start");
+    }
     s
 }
 

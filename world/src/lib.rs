@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::claim::claim;
+use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
 use tcpf_bus::codec::Invalid;
 use tcpf_bus::handover::{self, hand_over};
@@ -50,6 +50,8 @@ pub struct Options {
     pub vehicles: Option<Vec<u32>>,
     /// The ROS 2 domain to speak rmw_zenoh on (`--ros2`), over the mission's `[ros2]`.
     pub ros2: Option<u32>,
+    /// Whether another process may be claiming the same role now (`--no-rivals`: no).
+    pub rivals: Rivals,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -262,7 +264,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     // Before this session follows liveliness: a liveliness query from a session with a liveliness
     // subscriber of its own at times answers nothing (Zenoh 1.10), and a second world then found
     // no world running and drove the fleet.
-    let claimed = claim(&session, &keys, Role::World, 0, &mission.mission.name).await?;
+    let claimed = claim(&session, &keys, Role::World, 0, &mission.mission.name, options.rivals).await?;
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once its roles have had theirs acknowledged, and left.
     let routes = zenoh.routes()?;
