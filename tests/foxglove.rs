@@ -323,7 +323,7 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
     let mut subscribed = false;
     let (mut poses, mut paths) = (0, 0);
     // The path was sent once, before any client: it comes as the subscription is made.
-    let (mut first_pose, mut path_time) = (u64::MAX, None);
+    let (mut first_pose, mut latest_pose, mut path_time) = (u64::MAX, 0, None);
     while poses < 10 || paths == 0 {
         let message = tokio::time::timeout(Duration::from_secs(30), socket.next())
             .await
@@ -354,6 +354,7 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
                     7 => {
                         poses += 1;
                         first_pose = first_pose.min(log_time);
+                        latest_pose = latest_pose.max(log_time);
                     }
                     8 => {
                         path_time = Some(log_time);
@@ -394,9 +395,10 @@ async fn live_serves_the_fleet_over_foxglove_websocket() {
     }
     let pose = channels.iter().find(|c| c["topic"] == "/vehicle/2/pose").unwrap();
     assert_eq!(pose["schemaName"], "foxglove.PoseInFrame");
-    // To the end, as the run ends on Ctrl-C: the last tick's pose, then a Close frame.
+    // To the end, as the run ends on Ctrl-C: the last tick's pose, then a Close frame. The last
+    // may have come already: the run can end within the period the signal took to arrive.
     kill("-INT", run.0.id());
-    let (mut last, mut closed) = (0u64, false);
+    let (mut last, mut closed) = (latest_pose, false);
     while let Ok(Some(Ok(message))) = tokio::time::timeout(Duration::from_secs(30), socket.next()).await {
         match message {
             Message::Binary(data) if data[1..5] == 7u32.to_le_bytes() => {
