@@ -582,6 +582,23 @@ struct Processes {
     idle: Footprint,
 }
 
+/// The fleet run with `options` in run directory `out`; `None` if a signal stopped it.
+async fn variant(
+    mission: &Mission,
+    plan: &Plan,
+    exe: &Path,
+    out: &Path,
+    options: launcher::Options,
+    shutdown: &mut Shutdown,
+) -> Result<Option<Summary>> {
+    let dir = RunDir::create(Some(out), mission)?;
+    let Some(summary) = shutdown.unless(launcher::run(mission, plan, &dir, exe, options)).await else {
+        return Ok(None);
+    };
+    let summary = summary?;
+    Ok((!summary.interrupted).then_some(summary))
+}
+
 /// `None` if a signal stopped it: its children go (dropped, they are killed).
 async fn processes(
     mission: &Mission,
@@ -624,36 +641,20 @@ async fn processes(
     }
     // The same fleet speaking ROS 2 beside its own protocol (odometry and /clock every tick), with
     // no ROS 2 subscriber: what --ros2 costs the fleet itself.
-    let speaking = RunDir::create(Some(&scratch.join("ros2")), mission)?;
-    let options = launcher::Options {
+    let ros2 = launcher::Options {
         ros2: Some(0),
         ..launcher::Options::default()
     };
-    let Some(ros2) = shutdown
-        .unless(launcher::run(mission, plan, &speaking, exe, options))
-        .await
-    else {
+    let Some(ros2) = variant(mission, plan, exe, &scratch.join("ros2"), ros2, shutdown).await? else {
         return Ok(None);
     };
-    let ros2 = ros2?;
-    if ros2.interrupted {
-        return Ok(None);
-    }
-    let settling = RunDir::create(Some(&scratch.join("settled")), mission)?;
-    let options = launcher::Options {
+    let settled = launcher::Options {
         rivals: Rivals::Possible,
         ..launcher::Options::default()
     };
-    let Some(settled) = shutdown
-        .unless(launcher::run(mission, plan, &settling, exe, options))
-        .await
-    else {
+    let Some(settled) = variant(mission, plan, exe, &scratch.join("settled"), settled, shutdown).await? else {
         return Ok(None);
     };
-    let settled = settled?;
-    if settled.interrupted {
-        return Ok(None);
-    }
     let Some(idle) = shutdown.unless(idle_fleet(exe, plan.vehicles.len())).await else {
         return Ok(None);
     };
