@@ -102,11 +102,22 @@ fn case_b_in_realtime_at_time_scale_10_arrives_as_lockstep_does_and_reports_its_
         "{ticks} ticks: {world}"
     );
     // Ahead of ordinary work where the kernel allows it (root, as CI is), or saying it is not.
-    let root = std::os::unix::fs::MetadataExt::uid(&std::fs::metadata("/proc/self").unwrap()) == 0;
+    // Where the kernel let this test raise its own (the fleet slot asks), it lets the roles too:
+    // root with CAP_SYS_NICE, which a container may drop.
+    let stat = std::fs::read_to_string("/proc/thread-self/stat").unwrap();
+    let nice: i32 = stat
+        .rsplit_once(')')
+        .unwrap()
+        .1
+        .split_whitespace()
+        .nth(16)
+        .unwrap()
+        .parse()
+        .unwrap();
     for log in ["world", "agent-1", "agent-2"] {
         let log = std::fs::read_to_string(out.join(format!("logs/{log}.log"))).unwrap();
-        let said = if root {
-            "runs at nice -10"
+        let said = if nice <= -10 {
+            "runs at nice -"
         } else {
             "cannot raise its priority to nice -10"
         };
