@@ -44,7 +44,7 @@ pub fn for_realtime(role: &str) -> Priority {
 }
 
 fn raise() -> Priority {
-    let at = nice_of(0);
+    let at = nice();
     if at <= REALTIME_NICE {
         return Priority::Kept(at);
     }
@@ -71,14 +71,11 @@ fn raise() -> Priority {
     Priority::Raised { from: at }
 }
 
-/// The nice value of thread `tid` (0: the caller). getpriority may return -1 as a value, so
-/// success is told by errno.
-fn nice_of(tid: libc::id_t) -> i32 {
-    // SAFETY: errno is this thread's; getpriority takes plain integers.
-    unsafe {
-        *libc::__errno_location() = 0;
-        libc::getpriority(libc::PRIO_PROCESS, tid)
-    }
+/// The calling thread's nice value: asked of itself, getpriority cannot fail, and its -1 is a
+/// value.
+fn nice() -> i32 {
+    // SAFETY: getpriority takes plain integers.
+    unsafe { libc::getpriority(libc::PRIO_PROCESS, 0) }
 }
 
 #[cfg(test)]
@@ -89,18 +86,18 @@ mod tests {
     /// nothing changes.
     #[test]
     fn a_realtime_role_runs_ahead_of_ordinary_work_or_says_why_not() {
-        let before = nice_of(0);
+        let before = nice();
         match raise() {
             Priority::Raised { from } => {
                 assert_eq!(from, before);
-                assert_eq!(nice_of(0), REALTIME_NICE);
+                assert_eq!(nice(), REALTIME_NICE);
                 // A thread started afterwards inherits it.
-                assert_eq!(std::thread::spawn(|| nice_of(0)).join().unwrap(), REALTIME_NICE);
+                assert_eq!(std::thread::spawn(nice).join().unwrap(), REALTIME_NICE);
             }
             Priority::Kept(at) => assert!(at <= REALTIME_NICE),
             Priority::Refused { at, error } => {
                 assert_eq!(at, before);
-                assert_eq!(nice_of(0), before);
+                assert_eq!(nice(), before);
                 assert!(error.contains("ermission"), "{error}");
             }
         }
