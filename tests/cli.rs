@@ -1039,6 +1039,17 @@ fn bench_prints_every_figure_beside_its_baseline() {
     };
     assert!(with > 10.0 && with < 1e5, "tick in µs: {ros2:?}");
     assert!((ratio - with / tick[2]).abs() < 0.01 * ratio, "{ros2:?} {tick:?}");
+    // The tick with certificates beside the tick on plain links: the line's last three numbers.
+    let certified = numbers(&line("lockstep tick with a certificate per role"));
+    let [with, plain, ratio] = certified[certified.len() - 3..] else {
+        panic!("{certified:?}")
+    };
+    assert!(
+        (with - tick[2]).abs() < 0.1,
+        "the fleet's own tick: {certified:?} {tick:?}"
+    );
+    assert!(plain > 10.0 && plain < 1e5, "tick in µs: {certified:?}");
+    assert!((ratio - with / plain).abs() < 0.01 * ratio, "{certified:?}");
     // b-current's control period is 0.01 s: a tick's wall time says how fast it runs.
     let speed = numbers(&line("simulated / wall time:"));
     assert!(

@@ -1,10 +1,13 @@
-//! Other processes on the bus of a running fleet: one without the run's credential (an outsider
-//! that found the port), and one with it that floods the bus (a buggy insider). Neither may change
-//! a lockstep run's bits; what the insider sends is refused, counted by kind, and logged as counts.
+//! Other processes on the bus of a running fleet: one without a certificate of the run (an
+//! outsider that found the port); ones holding the certificate of a role an attacker would most
+//! plausibly hold (a recorder's, an observer's, another vehicle's agent's), whose forgeries the
+//! world's access rules drop; and ones holding the very role's certificate they forge for, which
+//! the fleet's own checks must catch. None may change a lockstep run's bits without the run
+//! saying so; what an insider sends is refused, counted by kind, and logged as counts.
 
 use std::collections::BTreeMap;
-use std::net::TcpStream;
-use std::path::PathBuf;
+use std::net::UdpSocket;
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -27,7 +30,7 @@ fn key(rest: &str) -> String {
 }
 
 fn endpoint(launch: &Launch) -> String {
-    launch.wait_for("endpoint", "tcp/");
+    launch.wait_for("endpoint", "quic/");
     std::fs::read_to_string(launch.out.join("endpoint"))
         .unwrap()
         .trim()
@@ -48,12 +51,29 @@ fn outsider(endpoint: &str) -> zenoh::Config {
     config
 }
 
-/// An insider: a session with the run's own Zenoh configuration (`<run>/zenoh.json5`), as a
-/// process of the run's owner could open.
-async fn insider(run: &std::path::Path) -> zenoh::Session {
-    zenoh::open(zenoh::Config::from_file(run.join("zenoh.json5")).unwrap())
-        .await
-        .unwrap()
+/// A client of the run holding `identity`'s certificate (`recorder`, `observer`, `agent-2`,
+/// `world`, ...), from its configuration in the run directory, as a process of the run's owner
+/// could open; the world's, a router's, made a client of the world.
+fn holding(run: &Path, identity: &str) -> zenoh::Config {
+    let file = match identity {
+        "recorder" => "zenoh.json5".to_string(),
+        other => format!("{other}.json5"),
+    };
+    let text = std::fs::read_to_string(run.join(file)).unwrap();
+    let mut config: serde_json::Value = serde_json::from_str(&text).unwrap();
+    if identity == "world" {
+        config = serde_json::json!({
+            "mode": "client",
+            "scouting": { "multicast": { "enabled": false } },
+            "connect": { "endpoints": config["listen"]["endpoints"].clone() },
+            "transport": { "link": config["transport"]["link"].clone() },
+        });
+    }
+    zenoh::Config::from_json5(&config.to_string()).unwrap()
+}
+
+async fn open(config: zenoh::Config) -> zenoh::Session {
+    zenoh::open(config).await.unwrap()
 }
 
 /// Publishes without dropping: every message of the test reaches whoever can hear it.
@@ -192,7 +212,13 @@ async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
     run_in_process(&paper("b-current"), &dir.join("i"), &SLOWER);
     assert_same_run(&dir.join("p"), &dir.join("i"));
     let modes = |f: &str| std::fs::metadata(dir.join("p").join(f)).unwrap().permissions();
-    for file in ["credentials", "zenoh.json5", "world.json5", "endpoint"] {
+    for file in [
+        "zenoh.json5",
+        "world.json5",
+        "agent-1.json5",
+        "observer.json5",
+        "endpoint",
+    ] {
         use std::os::unix::fs::PermissionsExt;
         assert_eq!(modes(file).mode() & 0o777, 0o600, "{file} is the owner's only");
     }
@@ -259,11 +285,11 @@ impl Junk {
 
 const FLOOD: u64 = 100_000;
 
-/// The insider: joins with the run's own Zenoh configuration, copies every genuine state,
+/// The insider: joins with the world's certificate, copies every genuine state,
 /// command and γ it hears once as is and once with other values (for the tick under way), and
 /// in between sends junk: random bytes, messages for ticks far ahead, NaN. Stops at FLOOD.
-async fn flood(config: PathBuf, sent: Arc<Mutex<u64>>) {
-    let session = zenoh::open(zenoh::Config::from_file(&config).unwrap()).await.unwrap();
+async fn flood(config: zenoh::Config, sent: Arc<Mutex<u64>>) {
+    let session = open(config).await;
     let (tx, rx) = std::sync::mpsc::channel::<(String, Vec<u8>)>();
     let _copies = session
         .declare_subscriber(key("*/*"))
@@ -385,7 +411,9 @@ async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &SLOWER);
     endpoint(&launch);
     let sent = Arc::new(Mutex::new(0u64));
-    let flooder = tokio::spawn(flood(dir.join("p/zenoh.json5"), sent.clone()));
+    // With the world's own certificate, which may say anything: what is sent is refused by the
+    // roles' own checks.
+    let flooder = tokio::spawn(flood(holding(&dir.join("p"), "world"), sent.clone()));
     let flooded = tokio::task::block_in_place(|| peaks(&mut launch, || {}));
     let status = launch.wait(Duration::from_secs(1));
     let sent = *sent.lock().unwrap();
@@ -452,7 +480,7 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
     let realtime = ["--clock", "realtime", "--time-scale", "10"];
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &realtime);
     endpoint(&launch);
-    let session = insider(&dir.join("p")).await;
+    let session = open(holding(&dir.join("p"), "world")).await;
     tokio::task::block_in_place(|| wait_until_simulated(&dir.join("p"), 2.0));
     let (state, command, gamma) = samples();
     let far = 1_000_000_000;
@@ -503,37 +531,31 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
 /// How many idle connections the flood below holds open at once.
 const IDLE: usize = 300;
 
-/// Holds `IDLE` TCP connections to `address` open, idle, opening a new one for each that the
-/// other side closes, until `stop` or 120 s; counts every one it opened in `opened`.
-fn hold_idle_connections(address: String, stop: Arc<AtomicBool>, opened: Arc<AtomicU64>) {
-    let mut held: Vec<TcpStream> = Vec::new();
+/// From `IDLE` sockets, sends `address` a datagram of junk every 50 ms each, as many handshakes
+/// begun and never finished, until `stop` or 120 s; counts every datagram in `sent`.
+fn junk_datagrams(address: String, stop: Arc<AtomicBool>, sent: Arc<AtomicU64>) {
+    let sockets: Vec<UdpSocket> = (0..IDLE).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
+    // A QUIC long header (an Initial of version 1), then bytes that decrypt to nothing.
+    let mut datagram = vec![0xc0, 0, 0, 0, 1, 8];
+    datagram.resize(1200, 0x5a);
     let deadline = Instant::now() + Duration::from_secs(120);
     while !stop.load(Ordering::Relaxed) && Instant::now() < deadline {
-        held.retain(|s| {
-            let mut byte = [0u8; 1];
-            match s.peek(&mut byte) {
-                Ok(n) => n > 0,
-                Err(e) => e.kind() == std::io::ErrorKind::WouldBlock,
+        for socket in &sockets {
+            if socket.send_to(&datagram, &address).is_ok() {
+                sent.fetch_add(1, Ordering::Relaxed);
             }
-        });
-        while held.len() < IDLE {
-            let Ok(s) = TcpStream::connect(&address) else {
-                break;
-            };
-            s.set_nonblocking(true).unwrap();
-            held.push(s);
-            opened.fetch_add(1, Ordering::Relaxed);
         }
         std::thread::sleep(Duration::from_millis(50));
     }
 }
 
-/// A process with no credential that holds hundreds of idle connections to the run's port
-/// (opening another for each one closed) keeps nobody out: Zenoh refuses a new connection while
-/// as many as `transport/unicast/accept_pending` have not finished their handshake, and 300 such
-/// once kept a recorder out of a run waiting for it, and the launcher away from its own world.
+/// A process with no certificate that keeps sending handshakes it never finishes, from hundreds
+/// of sockets, to the run's port keeps nobody out. Over TCP, 300 idle connections once kept a
+/// recorder out of a run waiting for it, and the launcher away from its own world (Zenoh refuses
+/// a new connection while `transport/unicast/accept_pending` have not finished their handshake);
+/// the run's QUIC listener is held to the same.
 #[test]
-fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
+fn idle_handshakes_to_the_runs_port_keep_no_recorder_out() {
     let _fleet = fleet();
     let dir = scratch("connection-flood");
     let out = dir.join("p");
@@ -543,15 +565,15 @@ fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
         &["--recorders", "1", "--startup-timeout", "30"],
     );
     let endpoint = endpoint(&launch);
-    let (stop, opened) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicU64::new(0)));
-    let address = endpoint.strip_prefix("tcp/").expect("a TCP endpoint").to_string();
+    let (stop, sent) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicU64::new(0)));
+    let address = endpoint.strip_prefix("quic/").expect("a QUIC endpoint").to_string();
     let flood = {
-        let (stop, opened) = (stop.clone(), opened.clone());
-        std::thread::spawn(move || hold_idle_connections(address, stop, opened))
+        let (stop, sent) = (stop.clone(), sent.clone());
+        std::thread::spawn(move || junk_datagrams(address, stop, sent))
     };
     let until = Instant::now() + Duration::from_secs(30);
-    while opened.load(Ordering::Relaxed) < IDLE as u64 {
-        assert!(Instant::now() < until, "the flood could not open {IDLE} connections");
+    while sent.load(Ordering::Relaxed) < IDLE as u64 {
+        assert!(Instant::now() < until, "the flood could not send from {IDLE} sockets");
         std::thread::sleep(Duration::from_millis(20));
     }
     let recorded = dir.join("r");
@@ -570,19 +592,113 @@ fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
     let recorder_status = recorder.0.wait().unwrap();
     stop.store(true, Ordering::Relaxed);
     flood.join().unwrap();
-    let opened = opened.load(Ordering::Relaxed);
-    eprintln!("idle connections opened: {opened}");
+    let sent = sent.load(Ordering::Relaxed);
+    eprintln!("junk handshakes sent: {sent}");
     assert!(status.success(), "{}", launch.summary());
     assert!(recorder_status.success(), "the recorder joined and recorded");
     assert_eq!(summary(&recorded)["completed"], true);
     assert!(
-        opened >= IDLE as u64,
-        "the flood held {IDLE} connections ({opened} opened)"
+        sent >= 2 * IDLE as u64,
+        "the flood went on while the recorder joined ({sent})"
     );
 }
 
-/// An insider's end for a tick the fleet is about to reach: the recorder takes it (nothing tells
-/// it from the world's), but the fleet runs on past it, and every message of a later tick
+/// Forges, with `session`, every word of the fleet a role other than its own says: an end and a
+/// loss (published and handed over), states, commands and γ of vehicle 2 for ticks to come, a
+/// tick record, and answers for the paths and the clock. Returns the queryables it declared,
+/// which answer while they live.
+async fn forge_everything(session: &zenoh::Session) -> Vec<zenoh::query::Queryable<()>> {
+    let (state, command, gamma) = samples();
+    let far = 1_000_000;
+    let end = End {
+        version: PROTOCOL_VERSION,
+        ticks: 10,
+        lost: vec![],
+    };
+    as_the_world(session, &key("end"), postcard::to_stdvec(&end).unwrap()).await;
+    let loss = tcpf_core::msg::Loss::from(tcpf_core::msg::Lost {
+        id: 2,
+        tick: 1,
+        reason: tcpf_core::msg::LossReason::Silent,
+    });
+    as_the_world(session, &key("lost/2"), postcard::to_stdvec(&loss).unwrap()).await;
+    for round in 0..5 {
+        let tick = far + round;
+        let s = State { tick, id: 2, ..state };
+        put(session, &key("state/2"), postcard::to_stdvec(&s).unwrap()).await;
+        let c = Command {
+            tick,
+            id: 2,
+            ..command.clone()
+        };
+        put(session, &key("cmd/2"), postcard::to_stdvec(&c).unwrap()).await;
+        let g = Gamma { tick, from: 2, ..gamma };
+        put(session, &key("gamma/2"), postcard::to_stdvec(&g).unwrap()).await;
+        put(session, &key("tick"), vec![0xff; 64]).await;
+    }
+    let mut answering = Vec::new();
+    for (what, bytes) in [("plan/2", vec![0u8; 32]), ("clock", vec![0u8; 16])] {
+        answering.push(
+            session
+                .declare_queryable(key(what))
+                .callback(move |query| {
+                    use zenoh::Wait;
+                    let _ = query.reply(query.key_expr().clone(), bytes.clone()).wait();
+                })
+                .await
+                .unwrap(),
+        );
+    }
+    answering
+}
+
+/// Processes holding the certificates an attacker would most plausibly hold, a recorder's (any
+/// tool that joins a run to record it gets one), an observer's and vehicle 1's agent's, forge
+/// every word of the fleet that is not theirs to say, while a lockstep run goes on: the world's
+/// access rules drop each where it enters, no role sees one (nothing refused, nothing counted),
+/// and the run is the in-process run's, bit for bit. With the shared password of before, each of
+/// these made the run fail, end early, or lose a vehicle.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_recorders_an_observers_or_another_agents_certificate_forges_nothing() {
+    let _fleet = fleet();
+    let dir = scratch("forgers");
+    let out = dir.join("p");
+    let mut launch = Launch::start(&paper("b-current"), &out, &SLOWER);
+    endpoint(&launch);
+    let mut forgers = Vec::new();
+    for identity in ["recorder", "observer", "agent-1"] {
+        forgers.push(open(holding(&out, identity)).await);
+    }
+    tokio::task::block_in_place(|| wait_until_simulated(&out, 1.0));
+    let mut answering = Vec::new();
+    for forger in &forgers {
+        answering.extend(forge_everything(forger).await);
+    }
+    let (during, _) = common::last_recorded(&out).expect("a tick in telemetry.csv");
+    let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));
+    drop(answering);
+    for forger in forgers {
+        forger.close().await.unwrap();
+    }
+    let s = launch.summary();
+    assert!(status.success(), "{s}");
+    assert!(
+        during < s["ticks"].as_u64().unwrap(),
+        "the forgeries were sent while the run went on (by tick {during})"
+    );
+    assert_eq!(
+        s["rejected_messages"], 0,
+        "nothing forged reached a role: {}",
+        s["rejections"]
+    );
+    assert_eq!(s["reproducible"], true, "{s}");
+    run_in_process(&paper("b-current"), &dir.join("i"), &SLOWER);
+    assert_same_run(&out, &dir.join("i"));
+    assert_none_left(&s);
+}
+
+/// An end for a tick the fleet is about to reach, sent with the world's own certificate: the
+/// recorder takes it (nothing tells it from the world's), but the fleet runs on past it, and every message of a later tick
 /// contradicts it. The run says so: not completed, not reproducible, the contradicted end named
 /// as the failure. Once, the recording stopped there with no failure while the fleet ran on.
 #[tokio::test(flavor = "multi_thread")]
@@ -592,7 +708,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
     let out = dir.join("p");
     let mut launch = Launch::start(&paper("b-current"), &out, &SLOWER);
     endpoint(&launch);
-    let session = insider(&out).await;
+    let session = open(holding(&out, "world")).await;
     tokio::task::block_in_place(|| wait_until_simulated(&out, 2.0));
     let (last, _) = common::last_recorded(&out).expect("a tick in telemetry.csv");
     // Ahead of every agent (which refuses an end it has not reached), behind the world soon.
@@ -616,7 +732,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
     assert!(s["rejections"]["conflict"].as_u64().unwrap() > 0, "{s}");
 }
 
-/// An insider's loss of vehicle 2 at tick 1: its agent obeys and stops, and the world, no longer
+/// A loss of vehicle 2 at tick 1, sent with the world's own certificate: its agent obeys and stops, and the world, no longer
 /// hearing from it, loses the vehicle itself a few seconds later. A genuine world loses a vehicle
 /// once: the second, different loss makes the run one that is not reproducible, and says that
 /// another process spoke for a role. Once, the summary blamed the command timeout alone.
@@ -627,7 +743,7 @@ async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
     let out = dir.join("p");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--command-timeout", "4"]);
     endpoint(&launch);
-    let session = insider(&out).await;
+    let session = open(holding(&out, "world")).await;
     tokio::task::block_in_place(|| wait_until_simulated(&out, 1.0));
     let forged = tcpf_core::msg::Loss::from(tcpf_core::msg::Lost {
         id: 2,
@@ -650,7 +766,7 @@ async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
     assert!(s["rejections"]["conflict"].as_u64().unwrap() >= 1, "{s}");
 }
 
-/// An insider commands vehicle 2 in a realtime run: for every command of its agent, one with
+/// Vehicle 2's agent's own certificate commands vehicle 2 in a realtime run: for every command of its agent, one with
 /// another speed stamped 20 ticks ahead (0.04 s of wall time at ×5, well within the skew allowed
 /// between hosts' clocks). The world holds the freshest, so the forger steers the vehicle and its
 /// agent's commands are refused as older. The run fails and says so. Once, it arrived with every
@@ -663,7 +779,7 @@ async fn a_vehicle_commanded_ahead_of_the_clock_by_another_process_fails_the_run
     let realtime = ["--clock", "realtime", "--time-scale", "5"];
     let mut launch = Launch::start(&paper("b-current"), &out, &realtime);
     endpoint(&launch);
-    let session = insider(&out).await;
+    let session = open(holding(&out, "agent-2")).await;
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Vec<u8>>();
     let _genuine = session
         .declare_subscriber(key("cmd/2"))
@@ -704,7 +820,7 @@ async fn a_vehicle_commanded_ahead_of_the_clock_by_another_process_fails_the_run
     assert!(why.contains("two processes commanded a vehicle"), "{s}");
 }
 
-/// An insider answers for the fleet's clock while the fleet waits for its world to start (the
+/// The world's own certificate answers for the fleet's clock while the fleet waits for its world to start (the
 /// agents and the launcher's recorder ask every so often until it answers), with another
 /// mission's clock. Only the world that holds its role is listened to (`tcpf_core::claim`): the
 /// run goes on as in-process, and each forged answer is counted as from the wrong sender.
@@ -716,7 +832,7 @@ async fn a_clock_answered_by_another_process_than_the_world_is_counted_and_not_l
     let out = dir.join("p");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--recorders", "1"]);
     endpoint(&launch);
-    let session = insider(&out).await;
+    let session = open(holding(&out, "world")).await;
     let forged = tcpf_core::msg::Clock {
         version: PROTOCOL_VERSION,
         realtime: false,

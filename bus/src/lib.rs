@@ -1,6 +1,7 @@
 //! tcpf-bus: everything the processes share about Zenoh: the session from the usual options, the
 //! key expressions, the message codec and typed publishers and subscribers.
 
+pub mod acl;
 pub mod claim;
 pub mod clock;
 pub mod codec;

@@ -443,8 +443,9 @@ async fn open(config: Config) -> Result<Session> {
              TLS handshake failed, or the router refused this process's credentials (is the \
              router up and reachable? does it accept this host's certificate? is the router's \
              certificate valid for the address connected to, and signed by the CA this host \
-             trusts? to join a `tcpf run`, use its run directory's zenoh.json5, which holds the \
-             run's credentials; RUST_LOG=zenoh=debug says which)",
+             trusts? to join a `tcpf run`, use a configuration of its run directory, which holds a \
+             role's certificate: zenoh.json5 to record, observer.json5 to watch; \
+             RUST_LOG=zenoh=debug says which)",
     )
 }
 

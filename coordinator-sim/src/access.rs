@@ -1,14 +1,22 @@
-//! A fresh Zenoh user and password for each `tcpf run`. Every node of the fleet demands them of
-//! every link (Zenoh's user-password authentication), so only processes that can read the run
-//! directory's owner-only files can join: another user's process, or one that merely knows the
-//! port, cannot publish into the run.
+//! A certificate for each role of each `tcpf run`, from an authority made for that run alone,
+//! and the world's access rules made from its mission. Every link is mutual TLS (1.3, over QUIC:
+//! Zenoh 1.10's `tls/` link reads and writes one TLS session from two threads at once, and
+//! under a lockstep fleet's load its links break, eclipse-zenoh/zenoh#2557) to the world,
+//! which is the run's router: it knows which role sent each message, and lets each do only what
+//! that role does (`tcpf_bus::acl`). A process needs a role's configuration, an owner-only file
+//! of the run directory, to join, and holding one it can speak only as that role: the recorder's
+//! (`zenoh.json5`, what a joining recorder or tool gets) cannot forge a tick, an agent's cannot
+//! command another vehicle.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use serde_json::json;
-use tcpf_bus::credential::{self, private};
+use tcpf_bus::acl::{self, Fleet};
+use tcpf_bus::credential::private;
+use tcpf_bus::pki::{self, Authority, Identity};
 use tcpf_bus::session::{ACCEPT_PENDING, ACCEPT_TIMEOUT_MS};
+use tcpf_core::mission::{Mission, Ros2Config};
 
 /// How long a client of the run waits for the world to listen.
 const CONNECT_TIMEOUT_MS: u64 = 60_000;
@@ -20,80 +28,151 @@ const CONNECT_TIMEOUT_MS: u64 = 60_000;
 /// timeouts' (the command and stale timeouts) to find.
 const LINK_PATIENCE_MS: u64 = 60_000;
 
-/// The Zenoh configurations of a run, both owner-only files in its directory.
+/// What the links of a run are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Links {
+    /// Mutual TLS over QUIC with a certificate per role, and the world's access rules.
+    Certified,
+    /// TCP with no certificate and no rules: any process that reaches the port may speak for any
+    /// role. Only `tcpf bench`'s baseline, on loopback, for what the certificates cost.
+    Plain,
+}
+
+impl Links {
+    pub fn protocol(self) -> &'static str {
+        match self {
+            Links::Certified => "quic",
+            Links::Plain => "tcp",
+        }
+    }
+
+    /// Whether nothing listens on `port` of 127.0.0.1 yet.
+    pub fn port_free(self, port: u16) -> bool {
+        match self {
+            Links::Certified => std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok(),
+            Links::Plain => std::net::TcpListener::bind(("127.0.0.1", port)).is_ok(),
+        }
+    }
+}
+
+/// The Zenoh configurations of a run, each an owner-only file in its directory holding one
+/// role's certificate and key.
 pub struct Configs {
-    /// `zenoh.json5`: a client of the run's router, with the run's user and password. Every
-    /// child but the world gets it, and so does whoever joins the running fleet.
+    dir: PathBuf,
+    /// `zenoh.json5`: a recorder's (`Identity::Recorder`). The launcher's own session uses it, and
+    /// so does whoever joins the running fleet to record it.
     pub client: PathBuf,
-    /// `world.json5`: the world's, the run's router, which listens at the endpoint and demands
-    /// the credential of every link.
+    /// `world.json5`: the world's, the run's router, which listens at the endpoint, demands a
+    /// certificate of the run's authority of every link and enforces the access rules.
     pub world: PathBuf,
 }
 
-/// Writes the run's credential (`credentials`, Zenoh's user-password dictionary) and the Zenoh
-/// configurations that use it (`Configs`) into `dir`, for a router at `endpoint`.
-///
-/// Clients of one router, not peers: peers that find each other by gossip open links both ways,
-/// and with user-password authentication Zenoh 1.10 refuses the second (eclipse-zenoh/zenoh#2577),
-/// which under load can leave a process without a link. A router also keeps the sockets of a
-/// fleet linear in its size. The world is that router because most of a tick's messages are its
-/// own: each state and command is then one hop, not two through the launcher (measured, runs
-/// interleaved with the launcher as router: case (b) 0.20-0.26 -> 0.15-0.20 ms a tick, 10 agents
-/// 0.49-0.54 -> 0.47-0.49 ms, 50 agents 2.46-2.77 -> 2.13-2.57 ms).
-pub fn create(dir: &Path, endpoint: &str) -> Result<Configs> {
-    let dictionary = dir.join("credentials");
-    let password = credential::create(&dictionary)?;
-    let dictionary = std::fs::canonicalize(&dictionary)?;
-    let auth = json!({ "usrpwd": {
-        "user": credential::USER,
-        "password": password,
-        "dictionary_file": dictionary,
-    } });
-    let patience = json!({ "tx": { "lease": LINK_PATIENCE_MS } });
-    let client = json!({
-        "mode": "client",
-        "scouting": { "multicast": { "enabled": false } },
-        // A client that comes before the world waits for it, as configs/zenoh/ do for a router.
-        "connect": {
-            "endpoints": [endpoint],
-            "timeout_ms": CONNECT_TIMEOUT_MS,
-            "retry": { "period_init_ms": 50, "period_max_ms": 1000, "period_increase_factor": 2 },
-        },
-        "transport": { "auth": auth, "link": patience },
-    });
-    // A router's open sleeps the scouting delay (500 ms by default) for multicast to find its
-    // peers; this one scouts for nothing, and every run's first tick waited on it.
-    let world = json!({
-        "mode": "router",
-        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false }, "delay": 0 },
-        "listen": { "endpoints": [endpoint] },
-        "connect": { "endpoints": [] },
-        "transport": {
-            "auth": auth,
-            "link": patience,
-            "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
-        },
-    });
-    let configs = Configs {
-        client: dir.join("zenoh.json5"),
-        world: dir.join("world.json5"),
-    };
-    private(&configs.client, &(serde_json::to_string_pretty(&client)? + "\n"))?;
-    private(&configs.world, &(serde_json::to_string_pretty(&world)? + "\n"))?;
-    Ok(configs)
+impl Configs {
+    /// The configuration of `identity`.
+    pub fn of(&self, identity: Identity) -> PathBuf {
+        self.dir.join(file_name(identity))
+    }
 }
 
-/// The files of `create` that hold the run's password.
-pub const SECRETS: [&str; 3] = ["credentials", "zenoh.json5", "world.json5"];
+/// The file of `identity`'s configuration: `zenoh.json5` for a recorder (what joins a run), else
+/// `<identity>.json5`.
+fn file_name(identity: Identity) -> String {
+    match identity {
+        Identity::Recorder => "zenoh.json5".to_string(),
+        other => format!("{other}.json5"),
+    }
+}
 
-/// Removes the run's secrets from `dir` once its run is over: a sweep keeps hundreds of run
-/// directories, which are copied and shared, and a password of a fleet that is gone opens
-/// nothing but is still a password.
+/// Writes a configuration for every role of `mission` into `dir` (`Configs`), for a world
+/// listening at `endpoint`, with certificates of a new authority whose key is never written:
+/// once the run's certificates are issued nobody can issue another.
+///
+/// Clients of one router, not peers: access control is enforced where a message passes, so a
+/// peer link between two roles would bypass it. A router also keeps the sockets of a fleet
+/// linear in its size. The world is that router because most of a tick's messages are its own:
+/// each state and command is then one hop, not two through the launcher (measured, runs
+/// interleaved with the launcher as router: case (b) 0.20-0.26 -> 0.15-0.20 ms a tick, 10 agents
+/// 0.49-0.54 -> 0.47-0.49 ms, 50 agents 2.46-2.77 -> 2.13-2.57 ms).
+pub fn create(
+    dir: &Path,
+    endpoint: &str,
+    mission: &Mission,
+    ros2: Option<&Ros2Config>,
+    links: Links,
+) -> Result<Configs> {
+    let vehicles: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+    let fleet = Fleet {
+        mission: &mission.mission.name,
+        vehicles: &vehicles,
+        ros2,
+    };
+    let authority = Authority::create()?;
+    let patience = json!({ "lease": LINK_PATIENCE_MS });
+    for identity in acl::identities(&fleet) {
+        let link = match links {
+            Links::Certified => {
+                let credential = authority.issue(identity, &pki::loopback_names())?;
+                json!({ "tx": patience, "protocols": ["quic"], "tls": credential.tls() })
+            }
+            Links::Plain => json!({ "tx": patience, "protocols": ["tcp"] }),
+        };
+        let config = if identity == Identity::World {
+            // A router's open sleeps the scouting delay (500 ms by default) for multicast to find
+            // its peers; this one scouts for nothing, and every run's first tick waited on it.
+            json!({
+                "mode": "router",
+                "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false }, "delay": 0 },
+                "listen": { "endpoints": [endpoint] },
+                "connect": { "endpoints": [] },
+                "transport": {
+                    "link": link,
+                    "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
+                },
+                "access_control": match links {
+                    Links::Certified => acl::access_control(&fleet),
+                    Links::Plain => json!({ "enabled": false }),
+                },
+            })
+        } else {
+            json!({
+                "mode": "client",
+                "scouting": { "multicast": { "enabled": false } },
+                // A client that comes before the world waits for it, as configs/zenoh/ do for a
+                // router.
+                "connect": {
+                    "endpoints": [endpoint],
+                    "timeout_ms": CONNECT_TIMEOUT_MS,
+                    "retry": { "period_init_ms": 50, "period_max_ms": 1000, "period_increase_factor": 2 },
+                },
+                "transport": { "link": link },
+            })
+        };
+        private(
+            &dir.join(file_name(identity)),
+            &(serde_json::to_string_pretty(&config)? + "\n"),
+        )?;
+    }
+    private(&dir.join("ca.pem"), authority.certificate())?;
+    Ok(Configs {
+        dir: dir.to_path_buf(),
+        client: dir.join("zenoh.json5"),
+        world: dir.join("world.json5"),
+    })
+}
+
+/// Whether `name` is a file of `create` that holds a role's key.
+pub fn is_secret(name: &str) -> bool {
+    name.ends_with(".json5")
+}
+
+/// Removes the run's keys from `dir` once its run is over: a sweep keeps hundreds of run
+/// directories, which are copied and shared, and a key of a fleet that is gone opens nothing but
+/// is still a key.
 pub fn forget(dir: &Path) -> Result<()> {
-    for file in SECRETS {
-        match std::fs::remove_file(dir.join(file)) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e.into()),
-            _ => {}
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        if entry.file_name().to_str().is_some_and(is_secret) {
+            std::fs::remove_file(entry.path())?;
         }
     }
     Ok(())

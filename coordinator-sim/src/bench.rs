@@ -518,6 +518,7 @@ pub async fn measure(
         fleet,
         ros2,
         settled,
+        plain,
         running,
         idle,
     }) = measured?
@@ -538,6 +539,12 @@ pub async fn measure(
         tick,
         tick / median(&direct),
         tick / median(&routed)
+    ));
+    say(format!(
+        "lockstep tick with a certificate per role (mutual TLS over QUIC, the world's access rules): {:.1} µs; on plain TCP with neither (baseline) {:.1} µs: {:.2}x",
+        tick,
+        plain.tick_wall_time_us,
+        tick / plain.tick_wall_time_us
     ));
     say(format!(
         "lockstep tick with --ros2 (the world and every agent as ROS 2 nodes, no subscriber): {:.1} µs; / without it: {:.2}",
@@ -578,6 +585,8 @@ struct Processes {
     ros2: Summary,
     /// The fleet whose world and agents claimed their roles as roles started by hand do.
     settled: Summary,
+    /// The fleet on plain TCP links, with no certificates and no access rules.
+    plain: Summary,
     running: Footprint,
     idle: Footprint,
 }
@@ -655,6 +664,13 @@ async fn processes(
     let Some(settled) = variant(mission, plan, exe, &scratch.join("settled"), settled, shutdown).await? else {
         return Ok(None);
     };
+    let plain = launcher::Options {
+        links: launcher::Links::Plain,
+        ..launcher::Options::default()
+    };
+    let Some(plain) = variant(mission, plan, exe, &scratch.join("plain"), plain, shutdown).await? else {
+        return Ok(None);
+    };
     let Some(idle) = shutdown.unless(idle_fleet(exe, plan.vehicles.len())).await else {
         return Ok(None);
     };
@@ -664,6 +680,7 @@ async fn processes(
         fleet,
         ros2,
         settled,
+        plain,
         running,
         idle: idle?,
     }))

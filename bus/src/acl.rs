@@ -1,0 +1,445 @@
+//! The router's access rules, made from the mission: every identity (`Identity`: the user a role
+//! authenticates as, or the Common Name of its certificate) may do only what its role needs, and anything else is denied where
+//! it enters the router. Every role must therefore be a client of that router, never a peer of
+//! another: access control is enforced where a message passes.
+//!
+//! What each may send (ingress):
+//! - everyone may subscribe, watch liveliness, and ask for paths and the clock (listening says
+//!   nothing in anyone's name);
+//! - the world: everything (in `tcpf run` it is the router, whose own messages no rule stops);
+//! - the planner: paths (published, and as answers to `plan/<id>`), its token, its exit report;
+//! - agent N: its own commands and γ, its own tokens (alive, claim), its own exit report, and as
+//!   the ROS 2 node `agent_N` its vehicle's commands;
+//! - a recorder: its token, and acknowledgements of what is handed over to it (exit reports, the
+//!   end, losses);
+//! - vehicle N played by a ROS 2 node (`vehicle_N`): its odometry;
+//! - an observer: nothing; with ROS 2, an observer or a recorder may also declare what a ROS 2
+//!   node that listens declares in the graph (its node, its subscriptions), but never a token of
+//!   the fleet's own nodes (`world`, `agent_N`, `vehicle_N`), which say who plays a vehicle.
+//!
+//! Everyone may hear everything of the fleet (egress): the fleet keeps no secrets from its own
+//! members, only its words from being forged.
+
+use std::fmt;
+
+use serde_json::{json, Value};
+use tcpf_core::mission::Ros2Config;
+
+/// Who a process speaks for: the role it may play, and nothing else.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Identity {
+    /// The world: it alone publishes states, tick records, the end and losses, and keeps the clock.
+    World,
+    /// The planner: it alone answers `plan/<id>`.
+    Planner,
+    /// Vehicle N's agent: its commands, its γ, its exit report.
+    Agent(u32),
+    /// A recorder: it listens, and acknowledges what is handed over to it.
+    Recorder,
+    /// An observer (a viewer, `ros2 topic echo`, a probe): it only listens.
+    Observer,
+    /// Vehicle N played by a ROS 2 node: its odometry.
+    Vehicle(u32),
+}
+
+impl fmt::Display for Identity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Identity::World => f.write_str("world"),
+            Identity::Planner => f.write_str("planner"),
+            Identity::Agent(id) => write!(f, "agent-{id}"),
+            Identity::Recorder => f.write_str("recorder"),
+            Identity::Observer => f.write_str("observer"),
+            Identity::Vehicle(id) => write!(f, "vehicle-{id}"),
+        }
+    }
+}
+
+/// How the router knows a link's identity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Naming {
+    /// The user it authenticated as (Zenoh's user-password authentication).
+    Username,
+    /// The Common Name of its certificate (mutual TLS).
+    CommonName,
+}
+
+/// Every kind of message Zenoh's access control knows.
+const ALL: [&str; 9] = [
+    "put",
+    "delete",
+    "query",
+    "reply",
+    "declare_subscriber",
+    "declare_queryable",
+    "liveliness_token",
+    "liveliness_query",
+    "declare_liveliness_subscriber",
+];
+
+/// The fleet the rules are made for.
+pub struct Fleet<'a> {
+    /// The mission's name, or `*` for rules that fit any mission of the fleet.
+    pub mission: &'a str,
+    pub vehicles: &'a [u32],
+    /// The fleet's ROS 2 graph, if it speaks ROS 2.
+    pub ros2: Option<&'a Ros2Config>,
+}
+
+impl Fleet<'_> {
+    /// `tcpf/<m>/<rest>`.
+    fn key(&self, rest: &str) -> String {
+        format!("tcpf/{}/{rest}", self.mission)
+    }
+
+    /// A key under the fleet's ROS 2 namespace (`topic` relative to it), in any domain it is
+    /// told to use.
+    fn ros2_key(&self, ros2: &Ros2Config, topic: &str) -> String {
+        match ros2.namespace.trim_matches('/') {
+            "" => format!("{}/{topic}", ros2.domain),
+            ns => format!("{}/{ns}/{topic}", ros2.domain),
+        }
+    }
+
+    /// The liveliness tokens of the ROS 2 node `node` and its publishers and subscriptions.
+    fn ros2_node(&self, ros2: &Ros2Config, node: &str) -> [String; 2] {
+        let namespace = ros2.namespace.replace('/', "%");
+        let node = format!("@ros2_lv/{}/*/*/*/*/%/{namespace}/{node}", ros2.domain);
+        [node.clone(), format!("{node}/**")]
+    }
+
+    /// Every key of the fleet's ROS 2 domain, data, history and tokens: a ROS 2 tool listens to
+    /// the whole domain (`/clock` is at its root). `**` does not reach a chunk that starts with
+    /// `@`, so the history's (`<key>/@adv/...`) is named on its own.
+    fn ros2_all(&self, ros2: &Ros2Config) -> Vec<String> {
+        vec![
+            format!("{}/**", ros2.domain),
+            format!("{}/**/@adv/**", ros2.domain),
+            format!("@ros2_lv/{}/**", ros2.domain),
+        ]
+    }
+
+    /// Every key of the fleet: its own and its ROS 2 graph's.
+    fn all(&self) -> Vec<String> {
+        let mut keys = vec![self.key("**")];
+        if let Some(ros2) = self.ros2 {
+            keys.extend(self.ros2_all(ros2));
+        }
+        keys
+    }
+}
+
+fn rule(id: &str, flow: &str, messages: &[&str], key_exprs: Vec<String>) -> Value {
+    json!({
+        "id": id,
+        "permission": "allow",
+        "flows": [flow],
+        "messages": messages,
+        "key_exprs": key_exprs,
+    })
+}
+
+/// The rules `identity` may act by, beyond listening: `(name, messages, keys)`, all ingress.
+fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, Vec<String>)> {
+    match identity {
+        Identity::World => vec![("all".into(), ALL.to_vec(), fleet.all())],
+        Identity::Planner => vec![
+            (
+                "paths".into(),
+                vec!["put", "declare_queryable", "reply"],
+                vec![fleet.key("plan/*")],
+            ),
+            (
+                "token".into(),
+                vec!["liveliness_token"],
+                vec![fleet.key("alive/planner/*")],
+            ),
+            ("report".into(), vec!["query"], vec![fleet.key("report/planner/*")]),
+        ],
+        Identity::Agent(id) => {
+            let mut rules = vec![
+                (
+                    "words".into(),
+                    vec!["put"],
+                    vec![fleet.key(&format!("cmd/{id}")), fleet.key(&format!("gamma/{id}"))],
+                ),
+                (
+                    "tokens".into(),
+                    vec!["liveliness_token"],
+                    vec![
+                        fleet.key(&format!("alive/agent/{id}")),
+                        fleet.key(&format!("claim/agent/{id}/*")),
+                    ],
+                ),
+                (
+                    "report".into(),
+                    vec!["query"],
+                    vec![fleet.key(&format!("report/agent/{id}"))],
+                ),
+            ];
+            if let Some(ros2) = fleet.ros2 {
+                rules.push((
+                    "ros2-commands".into(),
+                    vec!["put"],
+                    vec![fleet.ros2_key(ros2, &format!("vehicle_{id}/cmd/**"))],
+                ));
+                rules.push((
+                    "ros2-node".into(),
+                    vec!["liveliness_token"],
+                    fleet.ros2_node(ros2, &format!("agent_{id}")).to_vec(),
+                ));
+            }
+            rules
+        }
+        Identity::Recorder => vec![
+            (
+                "acknowledge".into(),
+                vec!["declare_queryable", "reply"],
+                vec![fleet.key("report/**"), fleet.key("end"), fleet.key("lost/*")],
+            ),
+            (
+                "token".into(),
+                vec!["liveliness_token"],
+                vec![fleet.key("alive/record/*")],
+            ),
+        ],
+        Identity::Vehicle(id) => match fleet.ros2 {
+            Some(ros2) => vec![
+                (
+                    "odometry".into(),
+                    vec!["put"],
+                    vec![fleet.ros2_key(ros2, &format!("vehicle_{id}/odom/**"))],
+                ),
+                (
+                    "node".into(),
+                    vec!["liveliness_token"],
+                    fleet.ros2_node(ros2, &format!("vehicle_{id}")).to_vec(),
+                ),
+            ],
+            None => Vec::new(),
+        },
+        Identity::Observer => Vec::new(),
+    }
+}
+
+/// The ROS 2 graph's tokens a node that only listens declares (its own node, its subscriptions),
+/// for an observer or a recorder: any but those of the fleet's own nodes (`fleet_nodes`), whose
+/// tokens say who plays a vehicle.
+fn ros2_graph(ros2: &Ros2Config) -> Vec<String> {
+    vec![format!("@ros2_lv/{}/**", ros2.domain)]
+}
+
+/// The tokens of the fleet's own ROS 2 nodes (the world, `agent_N`, `vehicle_N`) and their
+/// entities.
+fn fleet_nodes(fleet: &Fleet, ros2: &Ros2Config) -> Vec<String> {
+    ["world", "agent_$*", "vehicle_$*"]
+        .iter()
+        .flat_map(|node| fleet.ros2_node(ros2, node))
+        .collect()
+}
+
+/// Every identity of the fleet.
+pub fn identities(fleet: &Fleet) -> Vec<Identity> {
+    let mut all = vec![
+        Identity::World,
+        Identity::Planner,
+        Identity::Recorder,
+        Identity::Observer,
+    ];
+    all.extend(fleet.vehicles.iter().map(|&id| Identity::Agent(id)));
+    if fleet.ros2.is_some() {
+        all.extend(fleet.vehicles.iter().map(|&id| Identity::Vehicle(id)));
+    }
+    all
+}
+
+/// The router's `access_control` section for `fleet`, knowing each identity by `naming`: deny by
+/// default, and allow each identity what its role needs.
+pub fn access_control(fleet: &Fleet, naming: Naming) -> Value {
+    let mut listen_keys = vec![fleet.key("**")];
+    let mut ask_keys = vec![fleet.key("plan/*"), fleet.key("clock")];
+    if let Some(ros2) = fleet.ros2 {
+        listen_keys.extend(fleet.ros2_all(ros2));
+        // A transient-local subscription asks for what was published before it came.
+        ask_keys.push(fleet.ros2_key(ros2, "**/@adv/**"));
+    }
+    let mut rules = vec![
+        rule("hear", "egress", &ALL, fleet.all()),
+        rule(
+            "listen",
+            "ingress",
+            &[
+                "declare_subscriber",
+                "declare_liveliness_subscriber",
+                "liveliness_query",
+            ],
+            listen_keys,
+        ),
+        rule("ask", "ingress", &["query"], ask_keys),
+    ];
+    if let Some(ros2) = fleet.ros2 {
+        rules.push(rule("ros2-graph", "ingress", &["liveliness_token"], ros2_graph(ros2)));
+        let mut deny = rule(
+            "ros2-not-the-fleet",
+            "ingress",
+            &["liveliness_token"],
+            fleet_nodes(fleet, ros2),
+        );
+        deny["permission"] = json!("deny");
+        rules.push(deny);
+    }
+    let mut subjects = Vec::new();
+    let mut policies = Vec::new();
+    for identity in identities(fleet) {
+        let name = identity.to_string();
+        let mut own = vec!["hear".to_string(), "listen".to_string(), "ask".to_string()];
+        for (what, messages, keys) in speaks(fleet, identity) {
+            let id = format!("{name}-{what}");
+            rules.push(rule(&id, "ingress", &messages, keys));
+            own.push(id);
+        }
+        if let (Some(_), Identity::Observer | Identity::Recorder) = (fleet.ros2, identity) {
+            own.extend(["ros2-graph".to_string(), "ros2-not-the-fleet".to_string()]);
+        }
+        let by = match naming {
+            Naming::Username => "usernames",
+            Naming::CommonName => "cert_common_names",
+        };
+        subjects.push(json!({ "id": name, by: [name] }));
+        policies.push(json!({ "id": name, "subjects": [name], "rules": own }));
+    }
+    json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn allowed(acl: &Value, identity: Identity, flow: &str, message: &str) -> Vec<String> {
+        let name = identity.to_string();
+        let policy = acl["policies"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["id"] == name.as_str())
+            .unwrap();
+        let own: Vec<&str> = policy["rules"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r.as_str().unwrap())
+            .collect();
+        acl["rules"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|r| own.contains(&r["id"].as_str().unwrap()))
+            .filter(|r| r["flows"].as_array().unwrap().iter().any(|f| f == flow))
+            .filter(|r| r["messages"].as_array().unwrap().iter().any(|m| m == message))
+            .flat_map(|r| {
+                r["key_exprs"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|k| k.as_str().unwrap().to_string())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn each_identity_may_publish_only_what_its_role_publishes() {
+        let ros2 = Ros2Config::on(7);
+        let fleet = Fleet {
+            mission: "m",
+            vehicles: &[1, 2],
+            ros2: Some(&ros2),
+        };
+        let acl = access_control(&fleet, Naming::Username);
+        let puts = |identity| allowed(&acl, identity, "ingress", "put");
+        assert_eq!(
+            puts(Identity::Agent(2)),
+            ["tcpf/m/cmd/2", "tcpf/m/gamma/2", "7/tcpf/vehicle_2/cmd/**"]
+        );
+        assert_eq!(puts(Identity::Planner), ["tcpf/m/plan/*"]);
+        assert_eq!(puts(Identity::Vehicle(1)), ["7/tcpf/vehicle_1/odom/**"]);
+        assert!(puts(Identity::Recorder).is_empty());
+        assert!(puts(Identity::Observer).is_empty());
+        assert!(puts(Identity::World).contains(&"tcpf/m/**".to_string()));
+        assert_eq!(
+            allowed(&acl, Identity::Observer, "ingress", "reply"),
+            Vec::<String>::new()
+        );
+        assert_eq!(
+            allowed(&acl, Identity::Recorder, "ingress", "reply"),
+            ["tcpf/m/report/**", "tcpf/m/end", "tcpf/m/lost/*"]
+        );
+        assert_eq!(
+            allowed(&acl, Identity::Agent(1), "ingress", "query"),
+            [
+                "tcpf/m/plan/*",
+                "tcpf/m/clock",
+                "7/tcpf/**/@adv/**",
+                "tcpf/m/report/agent/1"
+            ]
+        );
+        assert_eq!(
+            allowed(&acl, Identity::Agent(1), "ingress", "liveliness_token"),
+            [
+                "tcpf/m/alive/agent/1",
+                "tcpf/m/claim/agent/1/*",
+                "@ros2_lv/7/*/*/*/*/%/%tcpf/agent_1",
+                "@ros2_lv/7/*/*/*/*/%/%tcpf/agent_1/**"
+            ]
+        );
+        // A ROS 2 tool that listens declares its node and subscriptions, never the fleet's nodes.
+        let observer = &acl["policies"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["id"] == "observer")
+            .unwrap()["rules"];
+        assert!(observer.as_array().unwrap().contains(&json!("ros2-not-the-fleet")));
+        let deny = acl["rules"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["id"] == "ros2-not-the-fleet")
+            .unwrap();
+        assert_eq!(deny["permission"], "deny");
+        assert!(deny["key_exprs"]
+            .as_array()
+            .unwrap()
+            .contains(&json!("@ros2_lv/7/*/*/*/*/%/%tcpf/vehicle_$*")));
+        assert!(
+            !allowed(&acl, Identity::Agent(1), "ingress", "liveliness_token").contains(&"@ros2_lv/7/**".to_string())
+        );
+        // Everyone hears the whole fleet.
+        assert_eq!(allowed(&acl, Identity::Observer, "egress", "put"), fleet.all());
+    }
+
+    #[test]
+    fn zenoh_takes_the_rules() {
+        let fleet = Fleet {
+            mission: "*",
+            vehicles: &[1, 2, 3],
+            ros2: None,
+        };
+        let mut config = zenoh::Config::default();
+        config
+            .insert_json5(
+                "access_control",
+                &access_control(&fleet, Naming::CommonName).to_string(),
+            )
+            .unwrap();
+        assert_eq!(
+            config.get_json("access_control/default_permission").unwrap(),
+            "\"deny\""
+        );
+    }
+}
