@@ -1039,8 +1039,8 @@ fn bench_prints_every_figure_beside_its_baseline() {
     };
     assert!(with > 10.0 && with < 1e5, "tick in µs: {ros2:?}");
     assert!((ratio - with / tick[2]).abs() < 0.01 * ratio, "{ros2:?} {tick:?}");
-    // The tick with certificates beside the tick on plain links: the line's last three numbers.
-    let certified = numbers(&line("lockstep tick with a certificate per role"));
+    // The tick with a password per role and access rules beside the tick with neither.
+    let certified = numbers(&line("lockstep tick with a user and password per role"));
     let [with, plain, ratio] = certified[certified.len() - 3..] else {
         panic!("{certified:?}")
     };

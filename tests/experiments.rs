@@ -1463,7 +1463,13 @@ fn an_interrupted_sweep_of_fleets_resumes_to_the_tables_of_one_never_interrupted
         .collect();
     assert_eq!(kept.len(), 4, "{runs:?}");
     for run in &runs {
-        for secret in ["zenoh.json5", "world.json5", "agent-1.json5", "observer.json5"] {
+        for secret in [
+            "credentials",
+            "zenoh.json5",
+            "world.json5",
+            "agent-1.json5",
+            "observer.json5",
+        ] {
             assert!(!run.join(secret).exists(), "{}: {secret} kept", run.display());
         }
     }

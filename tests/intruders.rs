@@ -1,12 +1,12 @@
-//! Other processes on the bus of a running fleet: one without a certificate of the run (an
-//! outsider that found the port); ones holding the certificate of a role an attacker would most
+//! Other processes on the bus of a running fleet: one without a password of the run (an outsider
+//! that found the port); ones holding the user and password of a role an attacker would most
 //! plausibly hold (a recorder's, an observer's, another vehicle's agent's), whose forgeries the
-//! world's access rules drop; and ones holding the very role's certificate they forge for, which
-//! the fleet's own checks must catch. None may change a lockstep run's bits without the run
+//! world's access rules drop; and ones holding the very role's they forge for, which the fleet's
+//! own checks must catch. None may change a lockstep run's bits without the run
 //! saying so; what an insider sends is refused, counted by kind, and logged as counts.
 
 use std::collections::BTreeMap;
-use std::net::UdpSocket;
+use std::net::TcpStream;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -30,7 +30,7 @@ fn key(rest: &str) -> String {
 }
 
 fn endpoint(launch: &Launch) -> String {
-    launch.wait_for("endpoint", "quic/");
+    launch.wait_for("endpoint", "tcp/");
     std::fs::read_to_string(launch.out.join("endpoint"))
         .unwrap()
         .trim()
@@ -51,7 +51,7 @@ fn outsider(endpoint: &str) -> zenoh::Config {
     config
 }
 
-/// A client of the run holding `identity`'s certificate (`recorder`, `observer`, `agent-2`,
+/// A client of the run holding `identity`'s user and password (`recorder`, `observer`, `agent-2`,
 /// `world`, ...), from its configuration in the run directory, as a process of the run's owner
 /// could open; the world's, a router's, made a client of the world.
 fn holding(run: &Path, identity: &str) -> zenoh::Config {
@@ -66,7 +66,10 @@ fn holding(run: &Path, identity: &str) -> zenoh::Config {
             "mode": "client",
             "scouting": { "multicast": { "enabled": false } },
             "connect": { "endpoints": config["listen"]["endpoints"].clone() },
-            "transport": { "link": config["transport"]["link"].clone() },
+            "transport": { "auth": { "usrpwd": {
+                "user": config["transport"]["auth"]["usrpwd"]["user"].clone(),
+                "password": config["transport"]["auth"]["usrpwd"]["password"].clone(),
+            } } },
         });
     }
     zenoh::Config::from_json5(&config.to_string()).unwrap()
@@ -213,6 +216,7 @@ async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
     assert_same_run(&dir.join("p"), &dir.join("i"));
     let modes = |f: &str| std::fs::metadata(dir.join("p").join(f)).unwrap().permissions();
     for file in [
+        "credentials",
         "zenoh.json5",
         "world.json5",
         "agent-1.json5",
@@ -285,7 +289,7 @@ impl Junk {
 
 const FLOOD: u64 = 100_000;
 
-/// The insider: joins with the world's certificate, copies every genuine state,
+/// The insider: joins with the world's password, copies every genuine state,
 /// command and γ it hears once as is and once with other values (for the tick under way), and
 /// in between sends junk: random bytes, messages for ticks far ahead, NaN. Stops at FLOOD.
 async fn flood(config: zenoh::Config, sent: Arc<Mutex<u64>>) {
@@ -411,7 +415,7 @@ async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &SLOWER);
     endpoint(&launch);
     let sent = Arc::new(Mutex::new(0u64));
-    // With the world's own certificate, which may say anything: what is sent is refused by the
+    // With the world's own password, which may say anything: what is sent is refused by the
     // roles' own checks.
     let flooder = tokio::spawn(flood(holding(&dir.join("p"), "world"), sent.clone()));
     let flooded = tokio::task::block_in_place(|| peaks(&mut launch, || {}));
@@ -531,31 +535,37 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
 /// How many idle connections the flood below holds open at once.
 const IDLE: usize = 300;
 
-/// From `IDLE` sockets, sends `address` a datagram of junk every 50 ms each, as many handshakes
-/// begun and never finished, until `stop` or 120 s; counts every datagram in `sent`.
-fn junk_datagrams(address: String, stop: Arc<AtomicBool>, sent: Arc<AtomicU64>) {
-    let sockets: Vec<UdpSocket> = (0..IDLE).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
-    // A QUIC long header (an Initial of version 1), then bytes that decrypt to nothing.
-    let mut datagram = vec![0xc0, 0, 0, 0, 1, 8];
-    datagram.resize(1200, 0x5a);
+/// Holds `IDLE` TCP connections to `address` open, idle, opening a new one for each that the
+/// other side closes, until `stop` or 120 s; counts every one it opened in `opened`.
+fn hold_idle_connections(address: String, stop: Arc<AtomicBool>, opened: Arc<AtomicU64>) {
+    let mut held: Vec<TcpStream> = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(120);
     while !stop.load(Ordering::Relaxed) && Instant::now() < deadline {
-        for socket in &sockets {
-            if socket.send_to(&datagram, &address).is_ok() {
-                sent.fetch_add(1, Ordering::Relaxed);
+        held.retain(|s| {
+            let mut byte = [0u8; 1];
+            match s.peek(&mut byte) {
+                Ok(n) => n > 0,
+                Err(e) => e.kind() == std::io::ErrorKind::WouldBlock,
             }
+        });
+        while held.len() < IDLE {
+            let Ok(s) = TcpStream::connect(&address) else {
+                break;
+            };
+            s.set_nonblocking(true).unwrap();
+            held.push(s);
+            opened.fetch_add(1, Ordering::Relaxed);
         }
         std::thread::sleep(Duration::from_millis(50));
     }
 }
 
-/// A process with no certificate that keeps sending handshakes it never finishes, from hundreds
-/// of sockets, to the run's port keeps nobody out. Over TCP, 300 idle connections once kept a
-/// recorder out of a run waiting for it, and the launcher away from its own world (Zenoh refuses
-/// a new connection while `transport/unicast/accept_pending` have not finished their handshake);
-/// the run's QUIC listener is held to the same.
+/// A process with no credential that holds hundreds of idle connections to the run's port
+/// (opening another for each one closed) keeps nobody out: Zenoh refuses a new connection while
+/// as many as `transport/unicast/accept_pending` have not finished their handshake, and 300 such
+/// once kept a recorder out of a run waiting for it, and the launcher away from its own world.
 #[test]
-fn idle_handshakes_to_the_runs_port_keep_no_recorder_out() {
+fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
     let _fleet = fleet();
     let dir = scratch("connection-flood");
     let out = dir.join("p");
@@ -565,15 +575,15 @@ fn idle_handshakes_to_the_runs_port_keep_no_recorder_out() {
         &["--recorders", "1", "--startup-timeout", "30"],
     );
     let endpoint = endpoint(&launch);
-    let (stop, sent) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicU64::new(0)));
-    let address = endpoint.strip_prefix("quic/").expect("a QUIC endpoint").to_string();
+    let (stop, opened) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicU64::new(0)));
+    let address = endpoint.strip_prefix("tcp/").expect("a TCP endpoint").to_string();
     let flood = {
-        let (stop, sent) = (stop.clone(), sent.clone());
-        std::thread::spawn(move || junk_datagrams(address, stop, sent))
+        let (stop, opened) = (stop.clone(), opened.clone());
+        std::thread::spawn(move || hold_idle_connections(address, stop, opened))
     };
     let until = Instant::now() + Duration::from_secs(30);
-    while sent.load(Ordering::Relaxed) < IDLE as u64 {
-        assert!(Instant::now() < until, "the flood could not send from {IDLE} sockets");
+    while opened.load(Ordering::Relaxed) < IDLE as u64 {
+        assert!(Instant::now() < until, "the flood could not open {IDLE} connections");
         std::thread::sleep(Duration::from_millis(20));
     }
     let recorded = dir.join("r");
@@ -592,14 +602,14 @@ fn idle_handshakes_to_the_runs_port_keep_no_recorder_out() {
     let recorder_status = recorder.0.wait().unwrap();
     stop.store(true, Ordering::Relaxed);
     flood.join().unwrap();
-    let sent = sent.load(Ordering::Relaxed);
-    eprintln!("junk handshakes sent: {sent}");
+    let opened = opened.load(Ordering::Relaxed);
+    eprintln!("idle connections opened: {opened}");
     assert!(status.success(), "{}", launch.summary());
     assert!(recorder_status.success(), "the recorder joined and recorded");
     assert_eq!(summary(&recorded)["completed"], true);
     assert!(
-        sent >= 2 * IDLE as u64,
-        "the flood went on while the recorder joined ({sent})"
+        opened >= IDLE as u64,
+        "the flood held {IDLE} connections ({opened} opened)"
     );
 }
 
@@ -652,14 +662,14 @@ async fn forge_everything(session: &zenoh::Session) -> Vec<zenoh::query::Queryab
     answering
 }
 
-/// Processes holding the certificates an attacker would most plausibly hold, a recorder's (any
+/// Processes holding the users and passwords an attacker would most plausibly hold, a recorder's (any
 /// tool that joins a run to record it gets one), an observer's and vehicle 1's agent's, forge
 /// every word of the fleet that is not theirs to say, while a lockstep run goes on: the world's
 /// access rules drop each where it enters, no role sees one (nothing refused, nothing counted),
 /// and the run is the in-process run's, bit for bit. With the shared password of before, each of
 /// these made the run fail, end early, or lose a vehicle.
 #[tokio::test(flavor = "multi_thread")]
-async fn a_recorders_an_observers_or_another_agents_certificate_forges_nothing() {
+async fn a_recorders_an_observers_or_another_agents_password_forges_nothing() {
     let _fleet = fleet();
     let dir = scratch("forgers");
     let out = dir.join("p");
@@ -697,7 +707,7 @@ async fn a_recorders_an_observers_or_another_agents_certificate_forges_nothing()
     assert_none_left(&s);
 }
 
-/// An end for a tick the fleet is about to reach, sent with the world's own certificate: the
+/// An end for a tick the fleet is about to reach, sent with the world's own password: the
 /// recorder takes it (nothing tells it from the world's), but the fleet runs on past it, and every message of a later tick
 /// contradicts it. The run says so: not completed, not reproducible, the contradicted end named
 /// as the failure. Once, the recording stopped there with no failure while the fleet ran on.
@@ -732,7 +742,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
     assert!(s["rejections"]["conflict"].as_u64().unwrap() > 0, "{s}");
 }
 
-/// A loss of vehicle 2 at tick 1, sent with the world's own certificate: its agent obeys and stops, and the world, no longer
+/// A loss of vehicle 2 at tick 1, sent with the world's own password: its agent obeys and stops, and the world, no longer
 /// hearing from it, loses the vehicle itself a few seconds later. A genuine world loses a vehicle
 /// once: the second, different loss makes the run one that is not reproducible, and says that
 /// another process spoke for a role. Once, the summary blamed the command timeout alone.
@@ -766,7 +776,7 @@ async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
     assert!(s["rejections"]["conflict"].as_u64().unwrap() >= 1, "{s}");
 }
 
-/// Vehicle 2's agent's own certificate commands vehicle 2 in a realtime run: for every command of its agent, one with
+/// Vehicle 2's agent's own password commands vehicle 2 in a realtime run: for every command of its agent, one with
 /// another speed stamped 20 ticks ahead (0.04 s of wall time at ×5, well within the skew allowed
 /// between hosts' clocks). The world holds the freshest, so the forger steers the vehicle and its
 /// agent's commands are refused as older. The run fails and says so. Once, it arrived with every
@@ -820,7 +830,7 @@ async fn a_vehicle_commanded_ahead_of_the_clock_by_another_process_fails_the_run
     assert!(why.contains("two processes commanded a vehicle"), "{s}");
 }
 
-/// The world's own certificate answers for the fleet's clock while the fleet waits for its world to start (the
+/// The world's own password answers for the fleet's clock while the fleet waits for its world to start (the
 /// agents and the launcher's recorder ask every so often until it answers), with another
 /// mission's clock. Only the world that holds its role is listened to (`tcpf_core::claim`): the
 /// run goes on as in-process, and each forged answer is counted as from the wrong sender.

@@ -297,7 +297,7 @@ fn a_world_that_cannot_listen_fails_the_run_at_once_in_its_own_words() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("world.json5")).unwrap()).unwrap();
     let endpoint = world["listen"]["endpoints"][0].as_str().unwrap();
     let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
-    let _taken = std::net::UdpSocket::bind(("127.0.0.1", port)).unwrap();
+    let _taken = std::net::TcpListener::bind(("127.0.0.1", port)).unwrap();
     // Well before the minute a client of the run waits for its router.
     let status = launch.wait(Duration::from_secs(30));
     assert_eq!(status.code(), Some(1));
@@ -584,7 +584,7 @@ fn a_sweep_of_fleets_goes_on_past_a_world_that_could_not_start() {
     let world: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(config).unwrap()).unwrap();
     let endpoint = world["listen"]["endpoints"][0].as_str().unwrap();
     let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
-    let taken = std::net::UdpSocket::bind(("127.0.0.1", port)).unwrap();
+    let taken = std::net::TcpListener::bind(("127.0.0.1", port)).unwrap();
     let (code, stderr) = exited(&mut sweep.0, Duration::from_secs(120), "the sweep never ended");
     drop(taken);
     assert_eq!(code, Some(1), "{stderr}");
@@ -1655,7 +1655,7 @@ fn a_run_waits_for_a_recorder_from_elsewhere_which_records_the_same_run() {
     let dir = scratch("joined");
     let mission = paper("b-current");
     let mut launch = Launch::start(&mission, &dir.join("p"), &["--recorders", "1"]);
-    launch.wait_for("endpoint", "quic/");
+    launch.wait_for("endpoint", "tcp/");
     launch.wait_for("logs/world.log", "a recorder is here (1 of 2)");
     // At the run's endpoint but without its credentials (its zenoh.json5): refused, and told so.
     let endpoint = std::fs::read_to_string(dir.join("p/endpoint")).unwrap();

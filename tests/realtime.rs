@@ -305,7 +305,7 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
             .arg("agent")
             .arg(out.join("mission.toml"))
             .args(["--id", "2", "-c"])
-            .arg(out.join("zenoh.json5"))
+            .arg(out.join("agent-2.json5"))
             .stdout(Stdio::from(log.try_clone().unwrap()))
             .stderr(Stdio::from(log))
             .spawn()
@@ -361,7 +361,7 @@ fn a_planner_gone_once_the_fleet_runs_ends_nothing_and_a_new_agent_is_told_why()
         .arg("agent")
         .arg(out.join("mission.toml"))
         .args(["--id", "2", "--startup-timeout", "2", "-c"])
-        .arg(out.join("zenoh.json5"))
+        .arg(out.join("agent-2.json5"))
         .output()
         .unwrap();
     let said = String::from_utf8_lossy(&again.stderr);

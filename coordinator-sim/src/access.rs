@@ -1,20 +1,23 @@
-//! A certificate for each role of each `tcpf run`, from an authority made for that run alone,
-//! and the world's access rules made from its mission. Every link is mutual TLS (1.3, over QUIC:
-//! Zenoh 1.10's `tls/` link reads and writes one TLS session from two threads at once, and
-//! under a lockstep fleet's load its links break, eclipse-zenoh/zenoh#2557) to the world,
-//! which is the run's router: it knows which role sent each message, and lets each do only what
-//! that role does (`tcpf_bus::acl`). A process needs a role's configuration, an owner-only file
-//! of the run directory, to join, and holding one it can speak only as that role: the recorder's
-//! (`zenoh.json5`, what a joining recorder or tool gets) cannot forge a tick, an agent's cannot
-//! command another vehicle.
+//! A user and password for each role of each `tcpf run`, and the world's access rules made from
+//! its mission. Every link to the world, the run's router, demands a role's user and password
+//! (Zenoh's user-password authentication), so the world knows which role sent each message, and
+//! lets each do only what that role does (`tcpf_bus::acl`, by user name). A process needs a
+//! role's configuration, an owner-only file of the run directory, to join, and holding one it can
+//! speak only as that role: the recorder's (`zenoh.json5`, what a joining recorder or tool gets)
+//! cannot forge a tick, an agent's cannot command another vehicle.
+//!
+//! Passwords over TCP, not certificates: Zenoh 1.10's `tls/` link reads and writes one TLS
+//! session from two threads at once, and under a lockstep fleet's load its links break
+//! (eclipse-zenoh/zenoh#2557, 2 runs of case (b) in 4 here); over QUIC a killed process's link
+//! is found dead only when its lease runs out (30 s here), where TCP's closes at once, so a
+//! killed agent went unnoticed and an interrupted fleet took that long to stop.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use serde_json::json;
-use tcpf_bus::acl::{self, Fleet};
-use tcpf_bus::credential::private;
-use tcpf_bus::pki::{self, Authority, Identity};
+use tcpf_bus::acl::{self, Fleet, Identity, Naming};
+use tcpf_bus::credential::{private, secret};
 use tcpf_bus::session::{ACCEPT_PENDING, ACCEPT_TIMEOUT_MS};
 use tcpf_core::mission::{Mission, Ros2Config};
 
@@ -31,40 +34,20 @@ const LINK_PATIENCE_MS: u64 = 60_000;
 /// What the links of a run are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Links {
-    /// Mutual TLS over QUIC with a certificate per role, and the world's access rules.
-    Certified,
-    /// TCP with no certificate and no rules: any process that reaches the port may speak for any
-    /// role. Only `tcpf bench`'s baseline, on loopback, for what the certificates cost.
+    /// Each role with its own user and password, and the world's access rules.
+    PerRole,
+    /// No user, no password, no rules: any process that reaches the port may speak for any role.
+    /// Only `tcpf bench`'s baseline, on loopback, for what the rules cost.
     Plain,
 }
 
-impl Links {
-    pub fn protocol(self) -> &'static str {
-        match self {
-            Links::Certified => "quic",
-            Links::Plain => "tcp",
-        }
-    }
-
-    /// Whether nothing listens on `port` of 127.0.0.1 yet.
-    pub fn port_free(self, port: u16) -> bool {
-        match self {
-            Links::Certified => std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok(),
-            Links::Plain => std::net::TcpListener::bind(("127.0.0.1", port)).is_ok(),
-        }
-    }
-}
-
 /// The Zenoh configurations of a run, each an owner-only file in its directory holding one
-/// role's certificate and key.
+/// role's user and password.
 pub struct Configs {
     dir: PathBuf,
     /// `zenoh.json5`: a recorder's (`Identity::Recorder`). The launcher's own session uses it, and
     /// so does whoever joins the running fleet to record it.
     pub client: PathBuf,
-    /// `world.json5`: the world's, the run's router, which listens at the endpoint, demands a
-    /// certificate of the run's authority of every link and enforces the access rules.
-    pub world: PathBuf,
 }
 
 impl Configs {
@@ -75,7 +58,8 @@ impl Configs {
 }
 
 /// The file of `identity`'s configuration: `zenoh.json5` for a recorder (what joins a run), else
-/// `<identity>.json5`.
+/// `<identity>.json5` (the world's, the run's router, listens at the endpoint, demands a role's
+/// user and password of every link and enforces the access rules).
 fn file_name(identity: Identity) -> String {
     match identity {
         Identity::Recorder => "zenoh.json5".to_string(),
@@ -84,8 +68,8 @@ fn file_name(identity: Identity) -> String {
 }
 
 /// Writes a configuration for every role of `mission` into `dir` (`Configs`), for a world
-/// listening at `endpoint`, with certificates of a new authority whose key is never written:
-/// once the run's certificates are issued nobody can issue another.
+/// listening at `endpoint`, each with its role's user and a fresh password, and the world's
+/// `credentials`, the dictionary of them all.
 ///
 /// Clients of one router, not peers: access control is enforced where a message passes, so a
 /// peer link between two roles would bypass it. A router also keeps the sockets of a fleet
@@ -106,15 +90,25 @@ pub fn create(
         vehicles: &vehicles,
         ros2,
     };
-    let authority = Authority::create()?;
-    let patience = json!({ "lease": LINK_PATIENCE_MS });
-    for identity in acl::identities(&fleet) {
-        let link = match links {
-            Links::Certified => {
-                let credential = authority.issue(identity, &pki::loopback_names())?;
-                json!({ "tx": patience, "protocols": ["quic"], "tls": credential.tls() })
+    let identities = acl::identities(&fleet);
+    let mut dictionary = String::new();
+    let mut users = Vec::new();
+    for identity in &identities {
+        let password = secret()?;
+        dictionary.push_str(&format!("{identity}:{password}\n"));
+        users.push(json!({ "user": identity.to_string(), "password": password }));
+    }
+    let dictionary_file = dir.join("credentials");
+    private(&dictionary_file, &dictionary)?;
+    let dictionary_file = std::fs::canonicalize(&dictionary_file)?;
+    let link = json!({ "tx": { "lease": LINK_PATIENCE_MS } });
+    for (identity, user) in identities.into_iter().zip(users) {
+        let auth = match links {
+            Links::PerRole if identity == Identity::World => {
+                json!({ "usrpwd": { "dictionary_file": dictionary_file, "user": user["user"], "password": user["password"] } })
             }
-            Links::Plain => json!({ "tx": patience, "protocols": ["tcp"] }),
+            Links::PerRole => json!({ "usrpwd": user }),
+            Links::Plain => json!({}),
         };
         let config = if identity == Identity::World {
             // A router's open sleeps the scouting delay (500 ms by default) for multicast to find
@@ -125,11 +119,12 @@ pub fn create(
                 "listen": { "endpoints": [endpoint] },
                 "connect": { "endpoints": [] },
                 "transport": {
+                    "auth": auth,
                     "link": link,
                     "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
                 },
                 "access_control": match links {
-                    Links::Certified => acl::access_control(&fleet),
+                    Links::PerRole => acl::access_control(&fleet, Naming::Username),
                     Links::Plain => json!({ "enabled": false }),
                 },
             })
@@ -144,7 +139,7 @@ pub fn create(
                     "timeout_ms": CONNECT_TIMEOUT_MS,
                     "retry": { "period_init_ms": 50, "period_max_ms": 1000, "period_increase_factor": 2 },
                 },
-                "transport": { "link": link },
+                "transport": { "auth": auth, "link": link },
             })
         };
         private(
@@ -152,22 +147,20 @@ pub fn create(
             &(serde_json::to_string_pretty(&config)? + "\n"),
         )?;
     }
-    private(&dir.join("ca.pem"), authority.certificate())?;
     Ok(Configs {
         dir: dir.to_path_buf(),
         client: dir.join("zenoh.json5"),
-        world: dir.join("world.json5"),
     })
 }
 
-/// Whether `name` is a file of `create` that holds a role's key.
+/// Whether `name` is a file of `create` that holds a password.
 pub fn is_secret(name: &str) -> bool {
-    name.ends_with(".json5")
+    name.ends_with(".json5") || name == "credentials"
 }
 
-/// Removes the run's keys from `dir` once its run is over: a sweep keeps hundreds of run
-/// directories, which are copied and shared, and a key of a fleet that is gone opens nothing but
-/// is still a key.
+/// Removes the run's passwords from `dir` once its run is over: a sweep keeps hundreds of run
+/// directories, which are copied and shared, and a password of a fleet that is gone opens nothing
+/// but is still a password.
 pub fn forget(dir: &Path) -> Result<()> {
     for entry in std::fs::read_dir(dir)? {
         let entry = entry?;

@@ -541,7 +541,7 @@ pub async fn measure(
         tick / median(&routed)
     ));
     say(format!(
-        "lockstep tick with a certificate per role (mutual TLS over QUIC, the world's access rules): {:.1} µs; on plain TCP with neither (baseline) {:.1} µs: {:.2}x",
+        "lockstep tick with a user and password per role and the world's access rules: {:.1} µs; with neither (baseline) {:.1} µs: {:.2}x",
         tick,
         plain.tick_wall_time_us,
         tick / plain.tick_wall_time_us
@@ -585,7 +585,7 @@ struct Processes {
     ros2: Summary,
     /// The fleet whose world and agents claimed their roles as roles started by hand do.
     settled: Summary,
-    /// The fleet on plain TCP links, with no certificates and no access rules.
+    /// The fleet with no user, no password and no access rules.
     plain: Summary,
     running: Footprint,
     idle: Footprint,

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
+use tcpf_bus::acl::Identity;
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
@@ -19,6 +20,7 @@ use tcpf_core::msg::Report;
 use tcpf_core::planner::Plan;
 use tokio::process::{Child, Command};
 
+pub use crate::access::Links;
 use crate::progress::Ticks;
 use crate::recording::Recording;
 use tcpf_core::summary::{ChildSummary, Closing, Mode, Restarts, Summary};
@@ -272,6 +274,7 @@ const ATTEMPT_MS: u64 = 200;
 /// words say why.
 async fn connect(
     config: &Path,
+    links: Links,
     world: &mut Process,
     dir: &RunDir,
     startup: Duration,
@@ -279,6 +282,7 @@ async fn connect(
 ) -> Result<zenoh::Session> {
     let mut config = ZenohArgs {
         config: Some(config.to_path_buf()),
+        open: links == Links::Plain,
         ..ZenohArgs::default()
     }
     .config()?;
@@ -354,6 +358,9 @@ pub struct Options {
     /// do, waiting for contemporaries that cannot exist here: the baseline `tcpf bench` sets
     /// a run's start-up beside.
     pub rivals: Rivals,
+    /// `Links::Plain` runs the fleet with no user, no password and no access rules: the baseline
+    /// `tcpf bench` sets a run's tick beside.
+    pub links: Links,
 }
 
 impl Default for Options {
@@ -366,6 +373,7 @@ impl Default for Options {
             startup_timeout: waits::STARTUP,
             ros2: None,
             rivals: Rivals::None,
+            links: Links::PerRole,
         }
     }
 }
@@ -481,6 +489,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         startup_timeout,
         ros2,
         rivals,
+        links,
     } = options;
     let begun = Instant::now();
     let mut shutdown = Shutdown::new()?;
@@ -491,12 +500,22 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     dir.write_plan(plan)?;
     let mission_file = dir.path.join("mission.toml").display().to_string();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
-    // How another tool (a recorder, a testbed bridge, a probe) joins the running fleet: with the
-    // run's credential, which only the run directory's owner can read.
-    let configs = crate::access::create(&dir.path, &endpoint)?;
+    // How another tool (a recorder, a testbed bridge, a probe) joins the running fleet: as a role,
+    // with its configuration, which only the run directory's owner can read.
+    let configs = crate::access::create(&dir.path, &endpoint, mission, mission.ros2(ros2).as_ref(), links)?;
     let lockstep = mission.mission.clock == ClockKind::Lockstep;
-    let common = vec![mission_file, "-c".to_string(), configs.client.display().to_string()];
-    let mut world_args = vec![common[0].clone(), "-c".to_string(), configs.world.display().to_string()];
+    let as_role = |identity| {
+        let mut args = vec![
+            mission_file.clone(),
+            "-c".to_string(),
+            configs.of(identity).display().to_string(),
+        ];
+        if links == Links::Plain {
+            args.push("--open".into());
+        }
+        args
+    };
+    let mut world_args = as_role(Identity::World);
     world_args.extend([
         "--recorders".to_string(),
         (1 + recorders).to_string(),
@@ -508,7 +527,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     if restart {
         world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
     }
-    let mut agent_args = common.clone();
+    let mut agent_args = Vec::new();
     // The only world, and the only agent of each vehicle, this launcher runs at a time.
     if rivals == Rivals::None {
         world_args.push("--no-rivals".into());
@@ -523,13 +542,22 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     // world cannot start before the recorder below is there, so nothing is missed, and the plan
     // is not on the path to the first tick.
     let mut children = Vec::with_capacity(mission.vehicles.len() + 2);
-    for (role, args) in [(Role::World, &world_args), (Role::Planner, &common)] {
+    for (role, args) in [(Role::World, &world_args), (Role::Planner, &as_role(Identity::Planner))] {
         match spawn(exe, dir, role, None, args, lockstep) {
             Ok(child) => children.push(child),
             Err(e) => return Err(unstarted(mission, plan, dir, &mut children, begun, e).await),
         }
     }
-    let session = match connect(&configs.client, &mut children[0], dir, startup_timeout, &mut shutdown).await {
+    let session = match connect(
+        &configs.client,
+        links,
+        &mut children[0],
+        dir,
+        startup_timeout,
+        &mut shutdown,
+    )
+    .await
+    {
         Ok(session) => session,
         Err(e) => return Err(unstarted(mission, plan, dir, &mut children, begun, e).await),
     };
@@ -566,7 +594,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         // Listed as before the world routed: the planner, the world, the agents.
         children.swap(0, 1);
         for v in &mission.vehicles {
-            children.push(spawn(exe, dir, Role::Agent, Some(v.id), &agent_args, lockstep)?);
+            let args = [as_role(Identity::Agent(v.id)), agent_args.clone()].concat();
+            children.push(spawn(exe, dir, Role::Agent, Some(v.id), &args, lockstep)?);
         }
         anyhow::Ok(())
     }

@@ -131,7 +131,7 @@ async fn a_hiroz_node_on_sim_time_hears_every_tick_and_every_odometry() {
         "1",
     ];
     let mut run = spawn(&dir, "run", &args);
-    wait_for(&out.join("endpoint"), "quic/", Duration::from_secs(60));
+    wait_for(&out.join("endpoint"), "tcp/", Duration::from_secs(60));
     let ctx = ZContextBuilder::default()
         .with_config_file(out.join("zenoh.json5"))
         .with_domain_id(6)
