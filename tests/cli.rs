@@ -1040,16 +1040,13 @@ fn bench_prints_every_figure_beside_its_baseline() {
     assert!(with > 10.0 && with < 1e5, "tick in µs: {ros2:?}");
     assert!((ratio - with / tick[2]).abs() < 0.01 * ratio, "{ros2:?} {tick:?}");
     // The tick with a password per role and access rules beside the tick with neither.
-    let certified = numbers(&line("lockstep tick with a user and password per role"));
-    let [with, plain, ratio] = certified[certified.len() - 3..] else {
-        panic!("{certified:?}")
+    let rules = numbers(&line("lockstep tick with a user and password per role"));
+    let [with, plain, ratio] = rules[rules.len() - 3..] else {
+        panic!("{rules:?}")
     };
-    assert!(
-        (with - tick[2]).abs() < 0.1,
-        "the fleet's own tick: {certified:?} {tick:?}"
-    );
-    assert!(plain > 10.0 && plain < 1e5, "tick in µs: {certified:?}");
-    assert!((ratio - with / plain).abs() < 0.01 * ratio, "{certified:?}");
+    assert!((with - tick[2]).abs() < 0.1, "the fleet's own tick: {rules:?} {tick:?}");
+    assert!(plain > 10.0 && plain < 1e5, "tick in µs: {rules:?}");
+    assert!((ratio - with / plain).abs() < 0.01 * ratio, "{rules:?}");
     // b-current's control period is 0.01 s: a tick's wall time says how fast it runs.
     let speed = numbers(&line("simulated / wall time:"));
     assert!(

@@ -25,6 +25,8 @@ use std::fmt;
 use serde_json::{json, Value};
 use tcpf_core::mission::Ros2Config;
 
+use crate::keys::{Keys, Role};
+
 /// Who a process speaks for: the role it may play, and nothing else.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Identity {
@@ -79,51 +81,25 @@ const ALL: [&str; 9] = [
 
 /// The fleet the rules are made for.
 pub struct Fleet<'a> {
-    /// The mission's name, or `*` for rules that fit any mission of the fleet.
-    pub mission: &'a str,
+    /// The mission's keys (`Keys::new("*")` for rules that fit any mission of the fleet).
+    pub keys: Keys,
     pub vehicles: &'a [u32],
     /// The fleet's ROS 2 graph, if it speaks ROS 2.
     pub ros2: Option<&'a Ros2Config>,
 }
 
 impl Fleet<'_> {
-    /// `tcpf/<m>/<rest>`.
-    fn key(&self, rest: &str) -> String {
-        format!("tcpf/{}/{rest}", self.mission)
-    }
-
-    /// A key under the fleet's ROS 2 namespace (`topic` relative to it), in any domain it is
-    /// told to use.
-    fn ros2_key(&self, ros2: &Ros2Config, topic: &str) -> String {
-        match ros2.namespace.trim_matches('/') {
-            "" => format!("{}/{topic}", ros2.domain),
-            ns => format!("{}/{ns}/{topic}", ros2.domain),
-        }
-    }
-
-    /// The liveliness tokens of the ROS 2 node `node` and its publishers and subscriptions.
-    fn ros2_node(&self, ros2: &Ros2Config, node: &str) -> [String; 2] {
-        let namespace = ros2.namespace.replace('/', "%");
-        let node = format!("@ros2_lv/{}/*/*/*/*/%/{namespace}/{node}", ros2.domain);
-        [node.clone(), format!("{node}/**")]
-    }
-
-    /// Every key of the fleet's ROS 2 domain, data, history and tokens: a ROS 2 tool listens to
-    /// the whole domain (`/clock` is at its root). `**` does not reach a chunk that starts with
-    /// `@`, so the history's (`<key>/@adv/...`) is named on its own.
-    fn ros2_all(&self, ros2: &Ros2Config) -> Vec<String> {
-        vec![
-            format!("{}/**", ros2.domain),
-            format!("{}/**/@adv/**", ros2.domain),
-            format!("@ros2_lv/{}/**", ros2.domain),
-        ]
-    }
-
-    /// Every key of the fleet: its own and its ROS 2 graph's.
+    /// Every key of the fleet: its own and its ROS 2 domain's, data, history and tokens (a ROS 2
+    /// tool listens to the whole domain: `/clock` is at its root). `**` does not reach a chunk
+    /// that starts with `@`, so the history's (`<key>/@adv/...`) is named on its own.
     fn all(&self) -> Vec<String> {
-        let mut keys = vec![self.key("**")];
+        let mut keys = vec![self.keys.all()];
         if let Some(ros2) = self.ros2 {
-            keys.extend(self.ros2_all(ros2));
+            keys.extend([
+                format!("{}/**", ros2.domain),
+                format!("{}/**/@adv/**", ros2.domain),
+                format!("@ros2_lv/{}/**", ros2.domain),
+            ]);
         }
         keys
     }
@@ -147,46 +123,43 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
             (
                 "paths".into(),
                 vec!["put", "declare_queryable", "reply"],
-                vec![fleet.key("plan/*")],
+                vec![fleet.keys.plan("*")],
             ),
             (
                 "token".into(),
                 vec!["liveliness_token"],
-                vec![fleet.key("alive/planner/*")],
+                vec![fleet.keys.alive(Role::Planner, "*")],
             ),
-            ("report".into(), vec!["query"], vec![fleet.key("report/planner/*")]),
+            (
+                "report".into(),
+                vec!["query"],
+                vec![fleet.keys.report(Role::Planner, "*")],
+            ),
         ],
         Identity::Agent(id) => {
             let mut rules = vec![
                 (
                     "words".into(),
                     vec!["put"],
-                    vec![fleet.key(&format!("cmd/{id}")), fleet.key(&format!("gamma/{id}"))],
+                    vec![fleet.keys.cmd(id), fleet.keys.gamma(id)],
                 ),
                 (
                     "tokens".into(),
                     vec!["liveliness_token"],
-                    vec![
-                        fleet.key(&format!("alive/agent/{id}")),
-                        fleet.key(&format!("claim/agent/{id}/*")),
-                    ],
+                    vec![fleet.keys.alive(Role::Agent, id), fleet.keys.claims(Role::Agent, id)],
                 ),
-                (
-                    "report".into(),
-                    vec!["query"],
-                    vec![fleet.key(&format!("report/agent/{id}"))],
-                ),
+                ("report".into(), vec!["query"], vec![fleet.keys.report(Role::Agent, id)]),
             ];
             if let Some(ros2) = fleet.ros2 {
                 rules.push((
                     "ros2-commands".into(),
                     vec!["put"],
-                    vec![fleet.ros2_key(ros2, &format!("vehicle_{id}/cmd/**"))],
+                    vec![ros2.topic_keys(&ros2.command_topic(id))],
                 ));
                 rules.push((
                     "ros2-node".into(),
                     vec!["liveliness_token"],
-                    fleet.ros2_node(ros2, &format!("agent_{id}")).to_vec(),
+                    ros2.node_tokens(&format!("agent_{id}")).to_vec(),
                 ));
             }
             rules
@@ -195,12 +168,12 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
             (
                 "acknowledge".into(),
                 vec!["declare_queryable", "reply"],
-                vec![fleet.key("report/**"), fleet.key("end"), fleet.key("lost/*")],
+                vec![fleet.keys.reports(), fleet.keys.end(), fleet.keys.lost("*")],
             ),
             (
                 "token".into(),
                 vec!["liveliness_token"],
-                vec![fleet.key("alive/record/*")],
+                vec![fleet.keys.alive(Role::Record, "*")],
             ),
         ],
         Identity::Vehicle(id) => match fleet.ros2 {
@@ -208,12 +181,12 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
                 (
                     "odometry".into(),
                     vec!["put"],
-                    vec![fleet.ros2_key(ros2, &format!("vehicle_{id}/odom/**"))],
+                    vec![ros2.topic_keys(&ros2.odometry_topic(id))],
                 ),
                 (
                     "node".into(),
                     vec!["liveliness_token"],
-                    fleet.ros2_node(ros2, &format!("vehicle_{id}")).to_vec(),
+                    ros2.node_tokens(&format!("vehicle_{id}")).to_vec(),
                 ),
             ],
             None => Vec::new(),
@@ -222,19 +195,12 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
     }
 }
 
-/// The ROS 2 graph's tokens a node that only listens declares (its own node, its subscriptions),
-/// for an observer or a recorder: any but those of the fleet's own nodes (`fleet_nodes`), whose
-/// tokens say who plays a vehicle.
-fn ros2_graph(ros2: &Ros2Config) -> Vec<String> {
-    vec![format!("@ros2_lv/{}/**", ros2.domain)]
-}
-
 /// The tokens of the fleet's own ROS 2 nodes (the world, `agent_N`, `vehicle_N`) and their
 /// entities.
-fn fleet_nodes(fleet: &Fleet, ros2: &Ros2Config) -> Vec<String> {
+fn fleet_nodes(ros2: &Ros2Config) -> Vec<String> {
     ["world", "agent_$*", "vehicle_$*"]
         .iter()
-        .flat_map(|node| fleet.ros2_node(ros2, node))
+        .flat_map(|node| ros2.node_tokens(node))
         .collect()
 }
 
@@ -256,12 +222,10 @@ pub fn identities(fleet: &Fleet) -> Vec<Identity> {
 /// The router's `access_control` section for `fleet`, knowing each identity by `naming`: deny by
 /// default, and allow each identity what its role needs.
 pub fn access_control(fleet: &Fleet, naming: Naming) -> Value {
-    let mut listen_keys = vec![fleet.key("**")];
-    let mut ask_keys = vec![fleet.key("plan/*"), fleet.key("clock")];
+    let mut ask_keys = vec![fleet.keys.plan("*"), fleet.keys.clock()];
     if let Some(ros2) = fleet.ros2 {
-        listen_keys.extend(fleet.ros2_all(ros2));
         // A transient-local subscription asks for what was published before it came.
-        ask_keys.push(fleet.ros2_key(ros2, "**/@adv/**"));
+        ask_keys.push(format!("{}/@adv/**", ros2.topic_keys(&ros2.namespace)));
     }
     let mut rules = vec![
         rule("hear", "egress", &ALL, fleet.all()),
@@ -273,17 +237,21 @@ pub fn access_control(fleet: &Fleet, naming: Naming) -> Value {
                 "declare_liveliness_subscriber",
                 "liveliness_query",
             ],
-            listen_keys,
+            fleet.all(),
         ),
         rule("ask", "ingress", &["query"], ask_keys),
     ];
     if let Some(ros2) = fleet.ros2 {
-        rules.push(rule("ros2-graph", "ingress", &["liveliness_token"], ros2_graph(ros2)));
+        // What a listening ROS 2 node declares in the graph (its node, its subscriptions), for an
+        // observer or a recorder: any token but the fleet's own nodes', which say who plays a
+        // vehicle.
+        let graph = vec![format!("@ros2_lv/{}/**", ros2.domain)];
+        rules.push(rule("ros2-graph", "ingress", &["liveliness_token"], graph));
         let mut deny = rule(
             "ros2-not-the-fleet",
             "ingress",
             &["liveliness_token"],
-            fleet_nodes(fleet, ros2),
+            fleet_nodes(ros2),
         );
         deny["permission"] = json!("deny");
         rules.push(deny);
@@ -356,7 +324,7 @@ mod tests {
     fn each_identity_may_publish_only_what_its_role_publishes() {
         let ros2 = Ros2Config::on(7);
         let fleet = Fleet {
-            mission: "m",
+            keys: Keys::new("m"),
             vehicles: &[1, 2],
             ros2: Some(&ros2),
         };
@@ -426,7 +394,7 @@ mod tests {
     #[test]
     fn zenoh_takes_the_rules() {
         let fleet = Fleet {
-            mission: "*",
+            keys: Keys::new("*"),
             vehicles: &[1, 2, 3],
             ros2: None,
         };

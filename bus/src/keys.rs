@@ -43,6 +43,11 @@ impl Keys {
     pub fn claims(&self, role: Role, id: impl fmt::Display) -> String {
         format!("{}/claim/{role}/{id}/*", self.root)
     }
+    /// Every key of the mission.
+    pub fn all(&self) -> String {
+        format!("{}/**", self.root)
+    }
+
     /// Every liveliness token of the mission.
     pub fn alive_all(&self) -> String {
         format!("{}/alive/**", self.root)

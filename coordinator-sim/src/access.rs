@@ -18,6 +18,7 @@ use anyhow::Result;
 use serde_json::json;
 use tcpf_bus::acl::{self, Fleet, Identity, Naming};
 use tcpf_bus::credential::{private, secret};
+use tcpf_bus::keys::Keys;
 use tcpf_bus::session::{ACCEPT_PENDING, ACCEPT_TIMEOUT_MS};
 use tcpf_core::mission::{Mission, Ros2Config};
 
@@ -45,9 +46,6 @@ pub enum Links {
 /// role's user and password.
 pub struct Configs {
     dir: PathBuf,
-    /// `zenoh.json5`: a recorder's (`Identity::Recorder`). The launcher's own session uses it, and
-    /// so does whoever joins the running fleet to record it.
-    pub client: PathBuf,
 }
 
 impl Configs {
@@ -57,7 +55,8 @@ impl Configs {
     }
 }
 
-/// The file of `identity`'s configuration: `zenoh.json5` for a recorder (what joins a run), else
+/// The file of `identity`'s configuration: `zenoh.json5` for a recorder (the launcher's own
+/// session, and whoever joins the running fleet to record it), else
 /// `<identity>.json5` (the world's, the run's router, listens at the endpoint, demands a role's
 /// user and password of every link and enforces the access rules).
 fn file_name(identity: Identity) -> String {
@@ -86,28 +85,22 @@ pub fn create(
 ) -> Result<Configs> {
     let vehicles: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let fleet = Fleet {
-        mission: &mission.mission.name,
+        keys: Keys::new(&mission.mission.name),
         vehicles: &vehicles,
         ros2,
     };
-    let identities = acl::identities(&fleet);
+    let dictionary_file = std::fs::canonicalize(dir)?.join("credentials");
     let mut dictionary = String::new();
-    let mut users = Vec::new();
-    for identity in &identities {
+    let link = json!({ "tx": { "lease": LINK_PATIENCE_MS } });
+    for identity in acl::identities(&fleet) {
         let password = secret()?;
         dictionary.push_str(&format!("{identity}:{password}\n"));
-        users.push(json!({ "user": identity.to_string(), "password": password }));
-    }
-    let dictionary_file = dir.join("credentials");
-    private(&dictionary_file, &dictionary)?;
-    let dictionary_file = std::fs::canonicalize(&dictionary_file)?;
-    let link = json!({ "tx": { "lease": LINK_PATIENCE_MS } });
-    for (identity, user) in identities.into_iter().zip(users) {
+        let mut usrpwd = json!({ "user": identity.to_string(), "password": password });
+        if identity == Identity::World {
+            usrpwd["dictionary_file"] = json!(dictionary_file);
+        }
         let auth = match links {
-            Links::PerRole if identity == Identity::World => {
-                json!({ "usrpwd": { "dictionary_file": dictionary_file, "user": user["user"], "password": user["password"] } })
-            }
-            Links::PerRole => json!({ "usrpwd": user }),
+            Links::PerRole => json!({ "usrpwd": usrpwd }),
             Links::Plain => json!({}),
         };
         let config = if identity == Identity::World {
@@ -147,14 +140,12 @@ pub fn create(
             &(serde_json::to_string_pretty(&config)? + "\n"),
         )?;
     }
-    Ok(Configs {
-        dir: dir.to_path_buf(),
-        client: dir.join("zenoh.json5"),
-    })
+    private(&dictionary_file, &dictionary)?;
+    Ok(Configs { dir: dir.to_path_buf() })
 }
 
 /// Whether `name` is a file of `create` that holds a password.
-pub fn is_secret(name: &str) -> bool {
+fn is_secret(name: &str) -> bool {
     name.ends_with(".json5") || name == "credentials"
 }
 

@@ -549,7 +549,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         }
     }
     let session = match connect(
-        &configs.client,
+        &configs.of(Identity::Recorder),
         links,
         &mut children[0],
         dir,
@@ -568,7 +568,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
                 startup_timeout.as_secs_f64(),
                 dir.path.join("mission.toml").display(),
-                configs.client.display()
+                configs.of(Identity::Recorder).display()
             );
         }
         Recording::start(

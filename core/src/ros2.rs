@@ -151,6 +151,22 @@ impl Ros2Config {
         )
     }
 
+    /// Every key the RMW publishes `topic` (a fully qualified name, or a namespace for every
+    /// topic under it) under, whatever its type.
+    pub fn topic_keys(&self, topic: &str) -> String {
+        match topic.trim_matches('/') {
+            "" => format!("{}/**", self.domain),
+            topic => format!("{}/{topic}/**", self.domain),
+        }
+    }
+
+    /// Key expressions of the liveliness tokens of the node `name` in any session: its own and
+    /// those of its publishers and subscriptions.
+    pub fn node_tokens(&self, name: &str) -> [String; 2] {
+        let node = format!("@ros2_lv/{}/*/*/*/*/%/{}/{name}", self.domain, mangled(&self.namespace));
+        [node.clone(), format!("{node}/**")]
+    }
+
     /// The liveliness token of a publisher or subscription of `node` (its entity `id`) on
     /// `topic` with QoS `qos`: `ros2 topic list` shows the topic while it lives.
     pub fn entity_token(&self, node: &Node, id: u32, kind: Entity, topic: &str, ty: &Type, qos: &str) -> String {
