@@ -87,9 +87,8 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
         })
     };
     let mut rows = made?;
-    if args.series {
-        rows.keep_series();
-    }
+    rows.draw(args.series, crate::cli::look(&args.band, args.figure_width))
+        .map_err(Failure::Failed)?;
     let interrupted = if args.processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
@@ -100,12 +99,12 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
         let jobs = args.jobs.map_or(cores, |j| j as usize);
         sweep::run_in_process(&runs, &plans, jobs, &mut rows).map_err(Failure::Failed)?
     };
-    finish(rows, crate::cli::look(&args.band, args.figure_width), interrupted)
+    finish(rows, interrupted)
 }
 
-fn finish(rows: Sweep, look: Look, interrupted: bool) -> Result<ExitCode, Failure> {
+fn finish(rows: Sweep, interrupted: bool) -> Result<ExitCode, Failure> {
     let dir = rows.dir().to_path_buf();
-    let (summary, table) = rows.finish(look).map_err(Failure::Failed)?;
+    let (summary, table) = rows.finish().map_err(Failure::Failed)?;
     say!("{table}");
     sayln!("sweep directory: {}", dir.display());
     sayln!("again: {}/rerun.sh DIR   ({})", dir.display(), summary.rerun);
@@ -114,6 +113,7 @@ fn finish(rows: Sweep, look: Look, interrupted: bool) -> Result<ExitCode, Failur
 
 pub fn merge(dirs: &[PathBuf], out: &Path, look: Look) -> Result<ExitCode, Failure> {
     fresh_out(Some(out))?;
-    let rows = Sweep::merge(dirs, out).map_err(Failure::Input)?;
-    finish(rows, look, false)
+    let mut rows = Sweep::merge(dirs, out).map_err(Failure::Input)?;
+    rows.draw(false, look).map_err(Failure::Failed)?;
+    finish(rows, false)
 }

@@ -329,6 +329,27 @@ fn the_report_renders_in_a_real_browser_with_every_plot() {
         assert!(marks > 2, "{id}: empty plot");
     }
     assert!(dom.contains("id=\"summary\""));
+    // Each fate of a message in a lane of its own in each link's row: dots of one colour at
+    // one height per link, and no height shared by two colours (one painted over another would
+    // hide how many there were). A legend's dot is alone at its height.
+    let raster = std::fs::read_to_string(run.join("figures/receptions.svg")).unwrap();
+    let mut lanes: std::collections::BTreeMap<(String, String), usize> = Default::default();
+    for circle in raster.split("<circle").skip(1) {
+        let attr = |name: &str| {
+            let at = circle.find(&format!(" {name}=\"")).unwrap() + name.len() + 3;
+            circle[at..at + circle[at..].find('"').unwrap()].to_string()
+        };
+        *lanes.entry((attr("fill"), attr("cy"))).or_default() += 1;
+    }
+    lanes.retain(|_, dots| *dots > 1);
+    let colours: std::collections::BTreeSet<&String> = lanes.keys().map(|(fill, _)| fill).collect();
+    assert!(colours.len() >= 2, "delivered and lost in the outage: {lanes:?}");
+    for colour in &colours {
+        let heights = lanes.keys().filter(|(fill, _)| fill == *colour).count();
+        assert_eq!(heights, 2, "{colour}: one lane in each of the two links: {lanes:?}");
+    }
+    let heights: std::collections::BTreeSet<&String> = lanes.keys().map(|(_, cy)| cy).collect();
+    assert_eq!(heights.len(), lanes.len(), "a lane per colour and link: {lanes:?}");
     let shot = dir.join("report.png");
     let o = chromium(&[
         "--window-size=1000,2600",
@@ -1479,7 +1500,7 @@ fn an_interrupted_sweep_of_fleets_resumes_to_the_tables_of_one_never_interrupted
 }
 
 /// `--series` keeps, per grid point, e(t) and d(t) over the seeds: at every sample, the mean of
-/// what each run's own telemetry says at that tick.
+/// what each run's own telemetry says at that tick. rerun.sh draws it again, as it was drawn.
 #[test]
 fn a_series_is_the_mean_of_the_runs_telemetry_at_each_tick() {
     let dir = scratch("series");
@@ -1493,6 +1514,10 @@ fn a_series_is_the_mean_of_the_runs_telemetry_at_each_tick() {
         "--seeds",
         "3",
         "--series",
+        "--band",
+        "min-max",
+        "--figure-width",
+        "double",
         "--out",
         out.to_str().unwrap(),
     ]));
@@ -1564,4 +1589,19 @@ fn a_series_is_the_mean_of_the_runs_telemetry_at_each_tick() {
     for figure in ["series-error", "series-clearance"] {
         assert!(out.join(format!("{figure}.svg")).is_file() && out.join(format!("{figure}.pdf")).is_file());
     }
+    let again = dir.join("again");
+    ok(Command::new(out.join("rerun.sh"))
+        .arg(&again)
+        .env("TCPF", env!("CARGO_BIN_EXE_tcpf"))
+        .output()
+        .unwrap());
+    for file in ["series.csv", "series-error.svg", "sweep-error.svg"] {
+        assert!(
+            std::fs::read(again.join(file)).unwrap() == std::fs::read(out.join(file)).unwrap(),
+            "{file} drawn again by rerun.sh is not the first: {}",
+            std::fs::read_to_string(out.join("rerun.sh")).unwrap()
+        );
+    }
+    let svg = std::fs::read_to_string(out.join("series-error.svg")).unwrap();
+    assert!(svg.starts_with("<svg width=\"7.160in\""), "{}", &svg[..80]);
 }

@@ -237,15 +237,13 @@ pub fn sweep_rates(mission: &Mission, plan: &Plan, runs: u64, dir: &Path) -> Res
         };
         let grid = design.grid.clone();
         let mut sweep = Sweep::create(Some(dir), &mission.to_toml(), Default::default(), design)?;
-        if series {
-            sweep.keep_series();
-        }
+        sweep.draw(series, Look::default())?;
         let every = crate::sweep::Runs {
             grid,
             missions: vec![mission.clone()],
         };
         crate::sweep::run_in_process(&every, std::slice::from_ref(plan), threads, &mut sweep)?;
-        sweep.finish(Look::default())?;
+        sweep.finish()?;
         Ok(swept.elapsed())
     };
     let swept = sweep(&dir.join("rows"), false)?;

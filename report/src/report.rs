@@ -527,17 +527,25 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], width: f64, figu
     let stride = every(messages.len());
     let mut marks = Chart::new("t (s)", "link").with_windows(faults);
     marks.y_categories = links.iter().map(|(from, to)| format!("{from}→{to}")).collect();
-    for cause in Cause::ALL
+    let causes: Vec<Cause> = Cause::ALL
         .into_iter()
         .filter(|&c| messages.iter().any(|m| m.cause == c))
-    {
+        .collect();
+    // Each cause its own lane within its link's row, delivered on top: at print width ten
+    // messages a second overlap, and one colour painted over another would hide how many of
+    // each there were.
+    let lane = |k: usize| match causes.len() {
+        1 => 0.0,
+        n => 0.2 - 0.4 * k as f64 / (n - 1) as f64,
+    };
+    for (k, &cause) in causes.iter().enumerate() {
         marks.dots.push(Series {
             name: cause.name().replace('_', " "),
             points: messages
                 .iter()
                 .step_by(stride)
                 .filter(|m| m.cause == cause)
-                .map(|m| (m.sent, row(m)))
+                .map(|m| (m.sent, row(m) + lane(k)))
                 .collect(),
         });
         marks.dot_colors.push(cause_color(cause));
@@ -550,7 +558,7 @@ fn message_figures(messages: &[Message], faults: &[(f64, f64)], width: f64, figu
     figures.push((
         "receptions",
         format!(
-            "Each γ message on each directed link at the instant it was sent, coloured by what became of it{shown}."
+            "Each γ message on each directed link at the instant it was sent, coloured by what became of it, each fate in a lane of its own{shown}."
         ),
         // A row per link: the more links, the taller.
         drawn(&marks, width, (0.35 + 0.05 * links.len() as f64).min(2.0)),

@@ -84,8 +84,8 @@ pub fn family(k: usize) -> RGBColor {
     FAMILIES[k % FAMILIES.len()]
 }
 
-/// A marker's shape: family `k` has its own, seven families before one repeats (with another
-/// colour and dash).
+/// A marker's shape: family `k` has its own, eight families (a grid of 2 × 4) before one
+/// repeats (with another colour and dash).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Marker {
     Circle,
@@ -95,11 +95,12 @@ pub enum Marker {
     Down,
     Plus,
     Star,
+    Cross,
 }
 
 impl Marker {
     pub fn of(k: usize) -> Marker {
-        const ALL: [Marker; 7] = [
+        const ALL: [Marker; 8] = [
             Marker::Circle,
             Marker::Square,
             Marker::Triangle,
@@ -107,6 +108,7 @@ impl Marker {
             Marker::Down,
             Marker::Plus,
             Marker::Star,
+            Marker::Cross,
         ];
         ALL[k % ALL.len()]
     }
@@ -131,25 +133,35 @@ impl Marker {
             Marker::Diamond => ring(4, up, &|_| r * 1.35),
             Marker::Down => ring(3, -up, &|_| r * 1.35),
             Marker::Star => ring(10, up, &|i| if i % 2 == 0 { r * 1.5 } else { r * 0.6 }),
-            Marker::Plus => {
-                let (a, b) = ((r * 1.3).round() as i32, (r * 0.45).round() as i32);
-                vec![
-                    (-b, -a),
-                    (b, -a),
-                    (b, -b),
-                    (a, -b),
-                    (a, b),
-                    (b, b),
-                    (b, a),
-                    (-b, a),
-                    (-b, b),
-                    (-a, b),
-                    (-a, -b),
-                    (-b, -b),
-                ]
-            }
+            Marker::Plus => plus(r, 0.0),
+            Marker::Cross => plus(r, std::f64::consts::FRAC_PI_4),
         }
     }
+}
+
+/// A plus of arms `1.3 r` long and `0.9 r` wide, turned by `turn` (a cross at π/4).
+fn plus(r: f64, turn: f64) -> Vec<(i32, i32)> {
+    let (a, b) = (r * 1.3, r * 0.45);
+    [
+        (-b, -a),
+        (b, -a),
+        (b, -b),
+        (a, -b),
+        (a, b),
+        (b, b),
+        (b, a),
+        (-b, a),
+        (-b, b),
+        (-a, b),
+        (-a, -b),
+        (-b, -b),
+    ]
+    .into_iter()
+    .map(|(x, y)| {
+        let (sin, cos) = turn.sin_cos();
+        ((x * cos - y * sin).round() as i32, (x * sin + y * cos).round() as i32)
+    })
+    .collect()
 }
 
 /// Family `k`'s dash: None for a solid line, else (dash, gap) in units.
@@ -424,6 +436,12 @@ mod tests {
             assert_ne!(family(a), family(b));
             assert_ne!(Marker::of(a), Marker::of(b));
             assert_ne!(dash(a), dash(b));
+        }
+        // A 2 × 4 grid: eight families, each its own marker, and none both the colour and the
+        // dash of another.
+        for (a, b) in (0..8).flat_map(|a| (0..8).map(move |b| (a, b))).filter(|(a, b)| a < b) {
+            assert_ne!(Marker::of(a), Marker::of(b));
+            assert!(family(a) != family(b) || dash(a) != dash(b), "{a} and {b}");
         }
     }
 }

@@ -61,6 +61,25 @@ impl Default for Look {
     }
 }
 
+impl Look {
+    /// The flags of `tcpf sweep` that draw this look (none for the default one).
+    pub fn flags(self) -> Vec<String> {
+        let mut flags = Vec::new();
+        if self.band == Band::MinMax {
+            flags.extend(["--band".into(), "min-max".into()]);
+        }
+        if self.width != style::COLUMN {
+            let width = if self.width == style::DOUBLE_COLUMN {
+                "double".to_string()
+            } else {
+                self.width.to_string()
+            };
+            flags.extend(["--figure-width".into(), width]);
+        }
+        flags
+    }
+}
+
 /// A figure's height as a share of its width, legend aside.
 const ASPECT: f64 = 0.62;
 /// Labels along an axis, at most.

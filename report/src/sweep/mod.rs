@@ -208,6 +208,8 @@ pub struct Sweep {
     in_a_row: usize,
     /// `--series`: e(t) and d(t) of the runs this sweep runs, per grid point.
     series: Option<series::Series>,
+    /// How its figures are drawn.
+    look: figures::Look,
 }
 
 const RESUMING: &str = "runs.csv.resuming";
@@ -221,24 +223,9 @@ impl Sweep {
         let claimed = crate::rundir::claim_out(out, &name, "runs.csv")?;
         let dir = claimed.path;
         std::fs::write(dir.join("mission.toml"), mission)?;
-        let rerun = dir.join("rerun.sh");
-        std::fs::write(
-            &rerun,
-            format!(
-                "#!/bin/sh\n# This sweep again, from this directory's files alone, into the directory given\n# (default: rerun/ in this one). TCPF names the tcpf to run, if not the one on the PATH.\nhere=$(dirname \"$0\")\nexec \"${{TCPF:-tcpf}}\" {} --out \"${{1:-$here/rerun}}\"\n",
-                design
-                    .rerun()
-                    .trim_start_matches("tcpf ")
-                    .replacen("mission.toml", "\"$here/mission.toml\"", 1)
-            ),
-        )?;
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(&rerun, std::fs::Permissions::from_mode(0o755))?;
-        }
         let walls = std::fs::File::create(dir.join("wall_times.csv"))?;
         let mut sweep = Sweep::with(dir, design, provenance, claimed.file, walls, false)?;
+        sweep.write_rerun()?;
         writeln!(sweep.walls, "run,wall_time_s")?;
         // What the sweep is, from its start: a sweep killed before its end can be resumed.
         sweep.write_json()?;
@@ -269,6 +256,7 @@ impl Sweep {
             failed: Vec::new(),
             in_a_row: 0,
             series: None,
+            look: figures::Look::default(),
         })
     }
 
@@ -391,10 +379,42 @@ impl Sweep {
         Ok(())
     }
 
-    /// Keeps the series of every run pushed from now on (`push_series`) and writes them at the
-    /// end: `series.csv` and its figures.
-    pub fn keep_series(&mut self) {
-        self.series = Some(series::Series::new(self.points.len()));
+    /// What the sweep draws at its end: with `series`, it keeps the series of every run pushed
+    /// from now on (`push_series`) and writes them (`series.csv` and its figures); its figures
+    /// in `look`. rerun.sh says both.
+    pub fn draw(&mut self, series: bool, look: figures::Look) -> Result<()> {
+        self.series = series.then(|| series::Series::new(self.points.len()));
+        self.look = look;
+        self.write_rerun()
+    }
+
+    /// `rerun.sh`'s command: this sweep again, from this directory's files, drawn as this one.
+    fn rerun(&self) -> String {
+        let mut words = vec![self.design.rerun()];
+        if self.series.is_some() {
+            words.push("--series".into());
+        }
+        words.extend(self.look.flags());
+        words.join(" ")
+    }
+
+    fn write_rerun(&self) -> Result<()> {
+        let rerun = self.dir.join("rerun.sh");
+        std::fs::write(
+            &rerun,
+            format!(
+                "#!/bin/sh\n# This sweep again, from this directory's files alone, into the directory given\n# (default: rerun/ in this one). TCPF names the tcpf to run, if not the one on the PATH.\nhere=$(dirname \"$0\")\nexec \"${{TCPF:-tcpf}}\" {} --out \"${{1:-$here/rerun}}\"\n",
+                self.rerun()
+                    .trim_start_matches("tcpf ")
+                    .replacen("mission.toml", "\"$here/mission.toml\"", 1)
+            ),
+        )?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&rerun, std::fs::Permissions::from_mode(0o755))?;
+        }
+        Ok(())
     }
 
     /// Whether the sweep keeps series.
@@ -479,7 +499,7 @@ impl Sweep {
         SweepSummary {
             design: self.design.clone(),
             provenance,
-            rerun: self.design.rerun(),
+            rerun: self.rerun(),
             planned_runs: planned,
             done_runs: self.done,
             interrupted: !gave_up && self.done + (self.failed.len() as u64) < planned,
@@ -523,7 +543,8 @@ impl Sweep {
     /// Every row in runs.csv, then sweep.json, aggregate.csv, aggregate.tex, the figures and
     /// sweep.html.
     /// Returns the summary and its table.
-    pub fn finish(mut self, look: figures::Look) -> Result<(SweepSummary, String)> {
+    pub fn finish(mut self) -> Result<(SweepSummary, String)> {
+        let look = self.look;
         self.write_kept_before(u64::MAX)?;
         self.csv.flush()?;
         self.walls.flush()?;
@@ -829,7 +850,7 @@ mod tests {
         // Three in a row: the sweep gives up, which is no interrupt.
         assert!(!sweep.fail(failed(4)).unwrap());
         assert!(sweep.fail(failed(5)).unwrap());
-        let (summary, t) = sweep.finish(figures::Look::default()).unwrap();
+        let (summary, t) = sweep.finish().unwrap();
         assert!(summary.gave_up && !summary.interrupted);
         assert!(
             t.contains("gave up after 3 failed runs in a row: 1 of 6 runs done"),
@@ -853,7 +874,7 @@ mod tests {
         let whole = dir.join("whole");
         let mut sweep = Sweep::create(Some(&whole), &mission, provenance.clone(), design.clone()).unwrap();
         rows.iter().for_each(|r| sweep.push(r, None).unwrap());
-        sweep.finish(figures::Look::default()).unwrap();
+        sweep.finish().unwrap();
         // Runs 1 and 4 done, the rest missing: resumed, the rows come back in order.
         let part = dir.join("part");
         let mut sweep = Sweep::create(Some(&part), &mission, provenance.clone(), design.clone()).unwrap();
@@ -865,7 +886,7 @@ mod tests {
         for k in [0, 2, 3, 5] {
             sweep.push(&rows[k], None).unwrap();
         }
-        sweep.finish(figures::Look::default()).unwrap();
+        sweep.finish().unwrap();
         for file in ["runs.csv", "aggregate.csv"] {
             assert_eq!(
                 std::fs::read(whole.join(file)).unwrap(),
