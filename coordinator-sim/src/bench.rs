@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
@@ -531,7 +531,7 @@ pub async fn measure(
         median(&routed)
     ));
     say(format!(
-        "lockstep tick ({} vehicles, {} ticks): {:.1} µs; tick / round trip: {:.2} direct, {:.2} through a router",
+        "lockstep tick ({} vehicles, {} ticks, best of {ROUNDS} runs): {:.1} µs; tick / round trip: {:.2} direct, {:.2} through a router",
         plan.vehicles.len(),
         fleet.results.ticks,
         tick,
@@ -573,6 +573,12 @@ pub async fn measure(
     ));
     Ok(true)
 }
+
+/// Runs of each variant of the fleet whose ticks are compared, taken in turn, the best of them
+/// kept, none beside the footprint's sampler: on a shared machine of two cores one run alone, or
+/// one sharing its cores with a scan of /proc, said the access rules cost 1.4x one time and
+/// 0.86x the next.
+const ROUNDS: usize = 3;
 
 /// What the bench measures of processes: round trips, the fleet, the fleet speaking ROS 2, and
 /// the footprints of its agents and of as many idle clients.
@@ -640,33 +646,49 @@ async fn processes(
             }
         }
     });
-    let fleet = launcher::run(mission, plan, &dir, exe, launcher::Options::default()).await?;
+    let sampled = launcher::run(mission, plan, &dir, exe, launcher::Options::default()).await?;
     let running = tokio::time::timeout(Duration::from_secs(2), sampling).await;
     let running = running.ok().and_then(Result::ok).unwrap_or_default();
-    if fleet.interrupted {
+    if sampled.interrupted {
         return Ok(None);
     }
-    // The same fleet speaking ROS 2 beside its own protocol (odometry and /clock every tick), with
-    // no ROS 2 subscriber: what --ros2 costs the fleet itself.
-    let ros2 = launcher::Options {
-        ros2: Some(0),
-        ..launcher::Options::default()
-    };
-    let Some(ros2) = variant(mission, plan, exe, &scratch.join("ros2"), ros2, shutdown).await? else {
-        return Ok(None);
+    // Beside the fleet as it runs by default, each the best of `ROUNDS`: the same speaking ROS 2
+    // beside its own protocol (odometry and /clock every tick) with no ROS 2 subscriber, what
+    // --ros2 costs the fleet itself; and with no user, no password and no access rules.
+    let variants = [
+        launcher::Options::default(),
+        launcher::Options {
+            ros2: Some(0),
+            ..launcher::Options::default()
+        },
+        launcher::Options {
+            links: launcher::Links::Plain,
+            ..launcher::Options::default()
+        },
+    ];
+    let mut best: [Option<Summary>; 3] = Default::default();
+    for round in 0..ROUNDS {
+        for (k, options) in variants.iter().enumerate() {
+            let out = scratch.join(format!("variant-{k}-{round}"));
+            let Some(run) = variant(mission, plan, exe, &out, options.clone(), shutdown).await? else {
+                return Ok(None);
+            };
+            if best[k]
+                .as_ref()
+                .is_none_or(|b| run.tick_wall_time_us < b.tick_wall_time_us)
+            {
+                best[k] = Some(run);
+            }
+        }
+    }
+    let [Some(fleet), Some(ros2), Some(plain)] = best else {
+        bail!("a variant of the fleet did not run")
     };
     let settled = launcher::Options {
         rivals: Rivals::Possible,
         ..launcher::Options::default()
     };
     let Some(settled) = variant(mission, plan, exe, &scratch.join("settled"), settled, shutdown).await? else {
-        return Ok(None);
-    };
-    let plain = launcher::Options {
-        links: launcher::Links::Plain,
-        ..launcher::Options::default()
-    };
-    let Some(plain) = variant(mission, plan, exe, &scratch.join("plain"), plain, shutdown).await? else {
         return Ok(None);
     };
     let Some(idle) = shutdown.unless(idle_fleet(exe, plan.vehicles.len())).await else {
