@@ -324,11 +324,22 @@ pub enum Command {
         #[arg(long, default_value_t = 0)]
         id: u32,
     },
-    /// Make a fleet's credential (a Zenoh user and password, owner-only) for every role's and
-    /// the router's --credential.
+    /// Make a fleet's credentials for roles started by hand: with a mission, a directory of one
+    /// key per role and the router's access rules; without, one user and password that every
+    /// role and the router share.
     Credential {
-        /// The file to write; it must not exist.
-        file: PathBuf,
+        /// The directory (with a mission) or file to write; it must not exist.
+        path: PathBuf,
+        /// Mission file (TOML): its roles each get their own key, and the router (`tcpf router
+        /// --credential DIR`) lets each do only what its role does.
+        mission: Option<PathBuf>,
+        /// Override a mission key, as the roles will (its name and vehicles name the keys).
+        #[arg(long = "set", value_name = "K=V", requires = "mission")]
+        set: Vec<String>,
+        /// Keys for the fleet speaking ROS 2 in this domain too (a key per vehicle for the ROS 2
+        /// node that plays it), over the mission's `[ros2]`.
+        #[arg(long, value_name = "DOMAIN", requires = "mission")]
+        ros2: Option<u32>,
     },
     /// A Zenoh router for a testbed: every role connects to it (configs/zenoh/).
     Router {

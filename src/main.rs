@@ -198,7 +198,25 @@ fn main() -> ExitCode {
             })
             .map(|_| ExitCode::SUCCESS),
         Command::Planner { role } => roles::planner(&clocked(&role.mission, &role.clock), &role.zenoh),
-        Command::Credential { file } => roles::credential(&file),
+        Command::Credential {
+            path,
+            mission: None,
+            ..
+        } => roles::credential(&path),
+        Command::Credential {
+            path,
+            mission: Some(file),
+            set,
+            ros2,
+        } => roles::fleet_credentials(
+            &path,
+            &MissionArgs {
+                file,
+                set,
+                flags: Vec::new(),
+            },
+            ros2,
+        ),
         Command::Router { zenoh } => {
             // Every message of a fleet on a router passes through it: a realtime role is late
             // when its router is.

@@ -6,6 +6,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::anyhow;
+use tcpf_bus::acl::{Fleet, Identity};
+use tcpf_bus::keys::Keys;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_coordinator::planner_node;
 use tcpf_core::mission;
@@ -32,8 +34,42 @@ pub fn credential(file: &Path) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `tcpf credential DIR MISSION`: a key per role of the mission, and the router's dictionary and
+/// access rules, in a new owner-only directory.
+pub fn fleet_credentials(dir: &Path, args: &MissionArgs, ros2: Option<u32>) -> Result<ExitCode, Failure> {
+    let mission = load(args, None)?;
+    if dir.exists() {
+        return Err(Failure::Input(anyhow!(
+            "{}: exists; a fleet's keys are never overwritten (every host holding one would be locked out): remove it first to make new ones",
+            dir.display()
+        )));
+    }
+    let vehicles: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
+    let ros2 = mission.ros2(ros2);
+    let fleet = Fleet {
+        keys: Keys::new(&mission.mission.name),
+        vehicles: &vehicles,
+        ros2: ros2.as_ref(),
+        played: true,
+    };
+    let identities = tcpf_bus::credential::create_fleet(dir, &fleet).map_err(Failure::Input)?;
+    let keys: Vec<String> = identities.iter().map(|&i| tcpf_bus::credential::key_file(i)).collect();
+    sayln!(
+        "wrote {0} (owner-only) for mission {1}: a key per role ({2}), and for the router `credentials` and `access.json5`.\n\
+         On the router's host: tcpf router --credential {0} -l tcp/0.0.0.0:7447\n\
+         On each role's host, its own key alone, e.g.: tcpf agent MISSION --id {3} --credential {0}/agent-{3}.key -e tcp/ROUTER:7447\n\
+         Each key speaks only as its role: the router drops anything else it says.",
+        dir.display(),
+        mission.mission.name,
+        keys.join(", "),
+        vehicles.first().copied().unwrap_or(1)
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
+    zenoh.speaks_as(Identity::Planner).map_err(role_failure)?;
     let plan = solve(&mission, &args.file)?;
     let exit = role(planner_node::run(&mission, &plan, zenoh))?.map_err(role_failure)?;
     Ok(code(
@@ -60,6 +96,7 @@ pub fn world(args: &MissionArgs, zenoh: &ZenohArgs, options: tcpf_world::Options
             )));
         }
     }
+    zenoh.speaks_as(Identity::World).map_err(role_failure)?;
     realtime_priority(&mission, "world");
     let exit = role(tcpf_world::run(&mission, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
@@ -81,6 +118,7 @@ pub fn agent(
             args.file.display()
         )));
     }
+    zenoh.speaks_as(Identity::Agent(id)).map_err(role_failure)?;
     realtime_priority(&mission, &format!("agent {id}"));
     let exit = role(tcpf_agent::run(&mission, id, zenoh, &options))?.map_err(role_failure)?;
     Ok(code(
@@ -103,7 +141,7 @@ pub fn record(
     live_free(live)?;
     // Bad Zenoh options are bad input before the run directory is made, which they would
     // leave behind half written.
-    zenoh.config().map_err(role_failure)?;
+    zenoh.speaks_as(Identity::Recorder).map_err(role_failure)?;
     let dir = run_dir(out, &mission)?;
     // Only when asked: the world and agents speak ROS 2 for a mission with [ros2] already.
     let options = tcpf_coordinator::recording::RecordOptions {

@@ -897,3 +897,149 @@ async fn a_clock_answered_by_another_process_than_the_world_is_counted_and_not_l
     assert!(wrong >= 1, "{s}");
     assert_none_left(&s);
 }
+
+/// The `tcpf` binary with `args`, its standard error in `log`.
+fn tcpf_logged(args: &[&str], log: &Path) -> std::process::Child {
+    std::process::Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::fs::File::create(log).unwrap())
+        .spawn()
+        .unwrap()
+}
+
+/// A client of the router at `endpoint` presenting the key in `file` (`USER:PASSWORD`).
+fn presenting(file: &Path, endpoint: &str) -> zenoh::Config {
+    let text = std::fs::read_to_string(file).unwrap();
+    let (user, password) = text.trim().split_once(':').unwrap();
+    let config = serde_json::json!({
+        "mode": "client",
+        "scouting": { "multicast": { "enabled": false } },
+        "connect": { "endpoints": [endpoint] },
+        "transport": { "auth": { "usrpwd": { "user": user, "password": password } } },
+    });
+    zenoh::Config::from_json5(&config.to_string()).unwrap()
+}
+
+/// A fleet started by hand with a key per role (`tcpf credential DIR MISSION`, the router given
+/// the directory): a role given another role's key is refused by name before it starts; holding
+/// agent 1's, the observer's or the recorder's key, processes forge every word of the fleet that
+/// is not theirs while the run goes on, and the router drops each where it enters: the run is the
+/// in-process run, bit for bit, with nothing refused by any role.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_fleet_started_by_hand_with_a_key_per_role_lets_each_speak_only_as_itself() {
+    use std::os::unix::fs::PermissionsExt;
+    let _fleet = fleet();
+    let dir = scratch("keys");
+    let keys = dir.join("fleet");
+    let mission = paper("b-current");
+    let made = common::tcpf(&["credential", keys.to_str().unwrap(), &mission]);
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode(&keys), 0o700);
+    let mut files: Vec<String> = std::fs::read_dir(&keys)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(
+        files,
+        [
+            "access.json5",
+            "agent-1.key",
+            "agent-2.key",
+            "credentials",
+            "observer.key",
+            "planner.key",
+            "recorder.key",
+            "vehicle-1.key",
+            "vehicle-2.key",
+            "world.key"
+        ]
+    );
+    for file in &files {
+        assert_eq!(mode(&keys.join(file)), 0o600, "{file}");
+    }
+    let again = common::tcpf(&["credential", keys.to_str().unwrap(), &mission]);
+    assert_eq!(again.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("exists"));
+
+    let key = |identity: &str| keys.join(format!("{identity}.key")).to_str().unwrap().to_string();
+    let log = |name: &str| dir.join(format!("{name}.log"));
+    let (router, endpoint) = common::listening(|e| {
+        tcpf_logged(
+            &["router", "--credential", keys.to_str().unwrap(), "-l", e],
+            &log("router"),
+        )
+    });
+    let mut roles = vec![common::Reaper(router)];
+    // Another role's key: refused by name, before it says anything.
+    let wrong = common::tcpf(&[
+        "agent",
+        &mission,
+        "--id",
+        "2",
+        "--credential",
+        &key("agent-1"),
+        "-e",
+        &endpoint,
+    ]);
+    let said = String::from_utf8_lossy(&wrong.stderr);
+    assert_eq!(wrong.status.code(), Some(2), "{said}");
+    assert!(
+        said.contains("is agent-1's, and this process is agent-2") && said.contains(&key("agent-2")),
+        "{said}"
+    );
+    let role = |args: &[&str], identity: &str| {
+        let mut all: Vec<&str> = args.to_vec();
+        let own = key(identity);
+        all.extend(["--credential", &own, "-e", &endpoint]);
+        all.extend(SLOWER);
+        common::Reaper(tcpf_logged(&all, &log(identity)))
+    };
+    roles.push(role(&["planner", &mission], "planner"));
+    roles.push(role(&["world", &mission, "--recorders", "1"], "world"));
+    roles.push(role(&["agent", &mission, "--id", "1"], "agent-1"));
+    roles.push(role(&["agent", &mission, "--id", "2"], "agent-2"));
+    let out = dir.join("p");
+    let mut record = {
+        let own = key("recorder");
+        let mut all = vec!["record", &mission, "--credential", &own, "-e", &endpoint];
+        all.extend(["--out", out.to_str().unwrap()]);
+        all.extend(SLOWER);
+        common::Reaper(tcpf_logged(&all, &log("recorder")))
+    };
+    let mut forgers = Vec::new();
+    for identity in ["recorder", "observer", "agent-1"] {
+        forgers.push(open(presenting(&keys.join(format!("{identity}.key")), &endpoint)).await);
+    }
+    tokio::task::block_in_place(|| wait_until_simulated(&out, 1.0));
+    let mut answering = Vec::new();
+    for forger in &forgers {
+        answering.extend(forge_everything(forger).await);
+    }
+    let (during, _) = common::last_recorded(&out).expect("a tick in telemetry.csv");
+    let code =
+        tokio::task::block_in_place(|| common::wait_exit(&mut record.0, Duration::from_secs(120), "the recorder"));
+    drop(answering);
+    for forger in forgers {
+        forger.close().await.unwrap();
+    }
+    let said = std::fs::read_to_string(log("recorder")).unwrap();
+    assert_eq!(code, Some(0), "{said}");
+    let s = summary(&out);
+    assert!(
+        during < s["ticks"].as_u64().unwrap(),
+        "the forgeries were sent while the run went on (by tick {during})"
+    );
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["reproducible"], true, "{s}");
+    assert_eq!(
+        s["rejected_messages"], 0,
+        "nothing forged reached a role: {}",
+        s["rejections"]
+    );
+    run_in_process(&mission, &dir.join("i"), &SLOWER);
+    assert_same_run(&out, &dir.join("i"));
+    drop(roles);
+}

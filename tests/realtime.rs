@@ -9,9 +9,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    arrivals, assert_none_left, assert_played_together, config, credential, descendants, failure, fleet,
-    fleet_without_vehicle_2, kill, logged, paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary,
-    timing, wait_until_simulated, without_command, Launch, Reaper,
+    arrivals, assert_none_left, assert_played_together, config, descendants, failure, fleet, fleet_without_vehicle_2,
+    kill, logged, paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing,
+    wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -224,7 +224,12 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     let mission = paper("b-current");
     let clock = ["--clock", "realtime", "--time-scale", "5"];
     let logs = dir.join("logs");
-    let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &logs, &clock);
+    // A key per role: the program playing vehicle 2 holds vehicle 2's, which lets it publish
+    // that vehicle's states and nothing else.
+    let keys = dir.join("fleet");
+    let made = common::tcpf(&["credential", keys.to_str().unwrap(), &mission]);
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &logs, &clock, Some(&keys));
     let script = format!("{}/examples/python/vehicle.py", env!("CARGO_MANIFEST_DIR"));
     let mut vehicle = Reaper(logged(
         &logs,
@@ -242,11 +247,17 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
             "-e",
             &endpoint,
             "--credential",
-            credential().to_str().unwrap(),
+            keys.join("vehicle-2.key").to_str().unwrap(),
         ],
     ));
     let out = dir.join("run");
-    let recorded = record_by_hand(&mission, &endpoint, &out).args(clock).output().unwrap();
+    let recorded = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
+        .arg("--credential")
+        .arg(keys.join("recorder.key"))
+        .args(clock)
+        .output()
+        .unwrap();
     let s = assert_played_together(&recorded, &logs, &out, &mut vehicle);
     let world = timing(&s, "world", 0);
     assert!(
@@ -270,7 +281,7 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
         "--set",
         "mission.max_duration=6",
     ];
-    let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &dir.join("logs"), &settings);
+    let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &dir.join("logs"), &settings, None);
     let out = dir.join("run");
     let recorded = record_by_hand(&mission, &endpoint, &out)
         .args(settings)

@@ -335,7 +335,7 @@ fn a_ros2_node_plays_a_vehicle_beside_the_one_the_world_simulates() {
     let mission = mission.to_str().unwrap();
     let clock = ["--clock", "realtime", "--time-scale", "5"];
     let logs = dir.join("logs");
-    let (_fleet, endpoint) = fleet_without_vehicle_2(mission, &logs, &clock);
+    let (_fleet, endpoint) = fleet_without_vehicle_2(mission, &logs, &clock, None);
     let played = dir.join("vehicle.json");
     let script = format!("{}/tests/ros2/vehicle.py", env!("CARGO_MANIFEST_DIR"));
     // Case (b)'s current: 0.1 m/s towards π.

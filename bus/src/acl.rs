@@ -40,7 +40,7 @@ pub enum Identity {
     Recorder,
     /// An observer (a viewer, `ros2 topic echo`, a probe): it only listens.
     Observer,
-    /// Vehicle N played by a ROS 2 node: its odometry.
+    /// Vehicle N played by another program: its states, or as a ROS 2 node its odometry.
     Vehicle(u32),
 }
 
@@ -86,6 +86,9 @@ pub struct Fleet<'a> {
     pub vehicles: &'a [u32],
     /// The fleet's ROS 2 graph, if it speaks ROS 2.
     pub ros2: Option<&'a Ros2Config>,
+    /// Whether other programs may play its vehicles on the fleet's own protocol (their states,
+    /// for a world started by hand with `--vehicles`).
+    pub played: bool,
 }
 
 impl Fleet<'_> {
@@ -176,21 +179,25 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
                 vec![fleet.keys.alive(Role::Record, "*")],
             ),
         ],
-        Identity::Vehicle(id) => match fleet.ros2 {
-            Some(ros2) => vec![
-                (
+        Identity::Vehicle(id) => {
+            let mut rules = Vec::new();
+            if fleet.played {
+                rules.push(("states".into(), vec!["put"], vec![fleet.keys.state(id)]));
+            }
+            if let Some(ros2) = fleet.ros2 {
+                rules.push((
                     "odometry".into(),
                     vec!["put"],
                     vec![ros2.topic_keys(&ros2.odometry_topic(id))],
-                ),
-                (
+                ));
+                rules.push((
                     "node".into(),
                     vec!["liveliness_token"],
                     ros2.node_tokens(&format!("vehicle_{id}")).to_vec(),
-                ),
-            ],
-            None => Vec::new(),
-        },
+                ));
+            }
+            rules
+        }
         Identity::Observer => Vec::new(),
     }
 }
@@ -213,7 +220,7 @@ pub fn identities(fleet: &Fleet) -> Vec<Identity> {
         Identity::Observer,
     ];
     all.extend(fleet.vehicles.iter().map(|&id| Identity::Agent(id)));
-    if fleet.ros2.is_some() {
+    if fleet.ros2.is_some() || fleet.played {
         all.extend(fleet.vehicles.iter().map(|&id| Identity::Vehicle(id)));
     }
     all
@@ -327,6 +334,7 @@ mod tests {
             keys: Keys::new("m"),
             vehicles: &[1, 2],
             ros2: Some(&ros2),
+            played: false,
         };
         let acl = access_control(&fleet, Naming::Username);
         let puts = |identity| allowed(&acl, identity, "ingress", "put");
@@ -389,6 +397,20 @@ mod tests {
         );
         // Everyone hears the whole fleet.
         assert_eq!(allowed(&acl, Identity::Observer, "egress", "put"), fleet.all());
+        // A fleet whose vehicles other programs may play on its own protocol: vehicle N's
+        // player publishes its states, and nothing else; without ROS 2 it has no node.
+        let played = Fleet {
+            played: true,
+            ros2: None,
+            ..fleet
+        };
+        let acl = access_control(&played, Naming::Username);
+        assert_eq!(
+            allowed(&acl, Identity::Vehicle(2), "ingress", "put"),
+            ["tcpf/m/state/2"]
+        );
+        assert!(allowed(&acl, Identity::Vehicle(2), "ingress", "liveliness_token").is_empty());
+        assert_eq!(identities(&played).len(), 8);
     }
 
     #[test]
@@ -397,6 +419,7 @@ mod tests {
             keys: Keys::new("*"),
             vehicles: &[1, 2, 3],
             ros2: None,
+            played: true,
         };
         let mut config = zenoh::Config::default();
         config

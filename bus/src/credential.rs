@@ -1,13 +1,22 @@
-//! A fleet's credential: one Zenoh user and password, in a file that is at once what a process
-//! presents (`transport/auth/usrpwd/user`, `password`) and what it demands of others (the
-//! `dictionary_file`, one `user:password` per line). `tcpf credential FILE` makes one for a fleet
-//! started by hand; `tcpf run` makes one for each run.
+//! A fleet's credentials for roles started by hand, made by `tcpf credential`.
+//!
+//! - **One per role** (`tcpf credential DIR MISSION`): a fleet directory holding, for each role
+//!   of the mission (`acl::identities`), `<identity>.key` with its own user and password; the
+//!   `credentials` dictionary of them all and the access rules made from the mission
+//!   (`access.json5`), which the router (`tcpf router --credential DIR`) demands and enforces. A
+//!   host holds only its own role's key, and with it can speak only as that role.
+//! - **One for the whole fleet** (`tcpf credential FILE`): one user and password, in a file that
+//!   is at once what a process presents (`transport/auth/usrpwd/user`, `password`) and what it
+//!   demands of others (the `dictionary_file`). Whoever holds it may speak for every role: for a
+//!   fleet whose every host is trusted.
 
 use std::io::{Read, Write};
-use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt, PermissionsExt};
 use std::path::Path;
 
 use anyhow::{Context, Result};
+
+use crate::acl::{self, Fleet, Identity, Naming};
 
 /// The user every process of a fleet presents.
 pub const USER: &str = "tcpf";
@@ -40,14 +49,53 @@ pub fn create(path: &Path) -> Result<String> {
     Ok(password)
 }
 
-/// The user and password of the credential file at `path`, or why it cannot be one: a file that
-/// others may read is refused, as ssh refuses such a key, since anyone who reads it can speak
-/// for every role of the fleet.
-pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
-    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
-    if meta.is_dir() {
-        return Err("a directory, not a file".into());
+/// A fleet directory's dictionary of every role's user and password, for the router.
+pub const DICTIONARY: &str = "credentials";
+/// A fleet directory's access rules (Zenoh's `access_control` section), for the router.
+pub const ACCESS: &str = "access.json5";
+
+/// The file of `identity`'s key in a fleet directory.
+pub fn key_file(identity: Identity) -> String {
+    format!("{identity}.key")
+}
+
+/// Makes the fleet directory `dir` (new, owner-only) for `fleet`: a key per role, the dictionary
+/// and the access rules, by user name. Returns the roles, in the order of their keys.
+pub fn create_fleet(dir: &Path, fleet: &Fleet) -> Result<Vec<Identity>> {
+    std::fs::DirBuilder::new()
+        .mode(0o700)
+        .create(dir)
+        .with_context(|| format!("cannot make {}", dir.display()))?;
+    let identities = acl::identities(fleet);
+    let mut dictionary = String::new();
+    for &identity in &identities {
+        let line = format!("{identity}:{}\n", secret()?);
+        private(&dir.join(key_file(identity)), &line)?;
+        dictionary.push_str(&line);
     }
+    private(&dir.join(DICTIONARY), &dictionary)?;
+    let access = acl::access_control(fleet, Naming::Username);
+    private(&dir.join(ACCESS), &(serde_json::to_string_pretty(&access)? + "\n"))?;
+    Ok(identities)
+}
+
+/// What a router takes from the fleet directory `dir`: the dictionary's path and the access
+/// rules, or why they cannot be had.
+pub fn read_fleet(dir: &Path) -> std::result::Result<(std::path::PathBuf, serde_json::Value), String> {
+    let dictionary = dir.join(DICTIONARY);
+    std::fs::metadata(&dictionary)
+        .map_err(|e| e.to_string())
+        .and_then(|meta| owner_only(&meta, &dictionary))
+        .map_err(|why| format!("{}: {why}", dictionary.display()))?;
+    let access = dir.join(ACCESS);
+    let text = std::fs::read_to_string(&access).map_err(|e| format!("{}: {e}", access.display()))?;
+    let rules = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", access.display()))?;
+    Ok((dictionary, rules))
+}
+
+/// Refuses a file that others may read, as ssh refuses such a key: anyone who reads it could
+/// speak for the roles it names.
+fn owner_only(meta: &std::fs::Metadata, path: &Path) -> std::result::Result<(), String> {
     let mode = meta.permissions().mode() & 0o777;
     if mode & 0o077 != 0 {
         return Err(format!(
@@ -55,6 +103,21 @@ pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
             path.display()
         ));
     }
+    Ok(())
+}
+
+/// The user and password of the credential file at `path`, or why it cannot be one: a file that
+/// others may read is refused, as ssh refuses such a key, since anyone who reads it can speak
+/// for every role of the fleet.
+pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
+    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
+    if meta.is_dir() {
+        return Err(format!(
+            "a directory, not a file: a fleet directory of `tcpf credential DIR MISSION` is the router's; a role takes its own key, {}",
+            path.join("<role>.key").display()
+        ));
+    }
+    owner_only(&meta, path)?;
     let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
     let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
     let line = lines.next().unwrap_or("");

@@ -6,6 +6,7 @@ use std::time::Duration;
 use anyhow::{anyhow, Context, Result};
 use zenoh::{Config, Session};
 
+use crate::acl::Identity;
 use crate::credential;
 use crate::signals::{Interrupted, Shutdown};
 
@@ -228,8 +229,31 @@ fn set(config: &mut Config, key: &str, value: &str) -> Result<()> {
         .map_err(|e| anyhow!("zenoh {key}: {}", zenoh_words(e)))
 }
 
+/// A router of a fleet with a key per role (`tcpf credential DIR MISSION`): it demands one of
+/// the roles' users and passwords of every link (the dictionary), and lets each do only what
+/// its role does (the access rules made from the mission).
+fn guard(config: &mut Config, dir: &std::path::Path) -> Result<()> {
+    let (dictionary, rules) =
+        credential::read_fleet(dir).map_err(|why| bad(format!("--credential {}: {why}", dir.display())))?;
+    let dictionary =
+        std::fs::canonicalize(&dictionary).map_err(|e| bad(format!("--credential {}: {e}", dictionary.display())))?;
+    let auth = serde_json::json!({ "dictionary_file": dictionary });
+    config
+        .insert_json5("transport/auth/usrpwd", &auth.to_string())
+        .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
+    config.insert_json5("access_control", &rules.to_string()).map_err(|e| {
+        bad(format!(
+            "--credential {}: {}: {}",
+            dir.display(),
+            credential::ACCESS,
+            zenoh_words(e)
+        ))
+    })?;
+    set(config, "scouting/gossip/enabled", "false")
+}
+
 /// Why a role with no credential does not start unless told to (`--open`).
-const RUNS_OPEN: &str = "this role would run open: its Zenoh configuration demands no credential, so any process that reaches it could join the fleet and speak for any role. Make a credential once with `tcpf credential fleet.key`, copy it to every host (owner-only) and give every role and the router `--credential fleet.key`; or give -c a mutual-TLS configuration (configs/zenoh/tls/); or, on a network only you use, `--open`";
+const RUNS_OPEN: &str = "this role would run open: its Zenoh configuration demands no credential, so any process that reaches it could join the fleet and speak for any role. Make a key per role once with `tcpf credential fleet mission.toml`, give the router `--credential fleet` and each role its own key (`--credential fleet/agent-1.key`; docs/TESTBED.md); or, where every host is trusted, one for all with `tcpf credential fleet.key`; or give -c a mutual-TLS configuration (configs/zenoh/tls/); or, on a network only you use, `--open`";
 
 /// What `config` demands of the processes it meets, if anything: a user and password, or a
 /// certificate (mutual TLS).
@@ -347,8 +371,13 @@ impl ZenohArgs {
         }
     }
 
-    /// Makes `config` present and demand the credential in `file`, and suit the mode it implies.
+    /// Makes `config` present and demand the credential in `file`, and suit the mode it implies;
+    /// a router given a fleet directory (`guard`) demands every role's and enforces its rules.
     fn present(&self, config: &mut Config, file: &std::path::Path) -> Result<()> {
+        let mode = config.get_json("mode").unwrap_or_default();
+        if file.is_dir() && mode.trim_matches('"') == "router" {
+            return guard(config, file);
+        }
         let (user, password) =
             credential::read(file).map_err(|why| bad(format!("--credential {}: {why}", file.display())))?;
         let dictionary =
@@ -375,6 +404,35 @@ impl ZenohArgs {
                 )
             }
             None => Ok(()),
+        }
+    }
+
+    /// Refuses to speak as `identity` with another role's key (a fleet made by `tcpf credential DIR
+    /// MISSION`): the router would drop everything this process says, without a word to it. The
+    /// fleet's one shared user, or a configuration without a user, speaks for any role.
+    pub fn speaks_as(&self, identity: Identity) -> Result<()> {
+        let user = self
+            .config()?
+            .get_json("transport/auth/usrpwd/user")
+            .ok()
+            .and_then(|j| serde_json::from_str::<Option<String>>(&j).ok())
+            .flatten();
+        match user {
+            Some(user) if user != credential::USER && user != identity.to_string() => {
+                let own = credential::key_file(identity);
+                let (given, own) = match (&self.credential, &self.config) {
+                    (Some(file), _) => (
+                        format!("--credential {}", file.display()),
+                        file.with_file_name(own).display().to_string(),
+                    ),
+                    (None, Some(file)) => (format!("-c {}", file.display()), own),
+                    (None, None) => ("its configuration".to_string(), own),
+                };
+                Err(bad(format!(
+                    "{given} is {user}'s, and this process is {identity}: the router lets each role's key speak only as that role. Give it {own}"
+                )))
+            }
+            _ => Ok(()),
         }
     }
 
@@ -657,6 +715,67 @@ mod tests {
                 .starts_with(&format!("--credential {}: others may read it", file.display())),
             "{e}"
         );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_fleet_directory_makes_its_router_judge_and_each_key_speak_only_as_its_role() {
+        use crate::acl::{Fleet, Identity};
+        let dir = std::env::temp_dir().join(format!("tcpf-fleet-keys-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let fleet = Fleet {
+            keys: crate::keys::Keys::new("m"),
+            vehicles: &[1, 2],
+            ros2: None,
+            played: true,
+        };
+        credential::create_fleet(&dir, &fleet).unwrap();
+        let router = ZenohArgs {
+            credential: Some(dir.clone()),
+            listen: vec!["tcp/127.0.0.1:0".into()],
+            ..Default::default()
+        };
+        let config = router.config().unwrap();
+        assert_eq!(credential(&config), Some("a user and password"));
+        assert_eq!(config.get_json("access_control/enabled").unwrap(), "true");
+        assert_eq!(
+            config.get_json("access_control/default_permission").unwrap(),
+            "\"deny\""
+        );
+        assert!(config.get_json("transport/auth/usrpwd/user").unwrap() == "null");
+        // Given to a role, the directory is refused: a role takes its own key.
+        let role = ZenohArgs {
+            credential: Some(dir.clone()),
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            ..Default::default()
+        };
+        let e = role.config().unwrap_err().to_string();
+        assert!(e.contains("a role takes its own key"), "{e}");
+        let agent = |id: u32| ZenohArgs {
+            credential: Some(dir.join(credential::key_file(Identity::Agent(id)))),
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            ..Default::default()
+        };
+        agent(1).speaks_as(Identity::Agent(1)).unwrap();
+        let e = agent(1).speaks_as(Identity::Agent(2)).unwrap_err();
+        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+        let words = e.to_string();
+        assert!(words.contains("is agent-1's, and this process is agent-2"), "{words}");
+        assert!(
+            words.contains(&dir.join("agent-2.key").display().to_string()),
+            "{words}"
+        );
+        assert!(agent(1).speaks_as(Identity::World).is_err());
+        // The fleet's one shared user speaks for any role.
+        let shared = dir.join("fleet.key");
+        credential::create(&shared).unwrap();
+        let any = ZenohArgs {
+            credential: Some(shared),
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            ..Default::default()
+        };
+        any.speaks_as(Identity::World).unwrap();
+        any.speaks_as(Identity::Agent(2)).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

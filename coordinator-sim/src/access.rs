@@ -88,6 +88,8 @@ pub fn create(
         keys: Keys::new(&mission.mission.name),
         vehicles: &vehicles,
         ros2,
+        // Vehicles another program plays are a ROS 2 node's (`--ros2`).
+        played: false,
     };
     let dictionary_file = std::fs::canonicalize(dir)?.join("credentials");
     let mut dictionary = String::new();

@@ -544,23 +544,48 @@ pub fn logged(logs: &Path, name: &str, program: &str, args: &[&str]) -> Child {
 
 /// Case (b) by hand, its world simulating vehicle 1 alone (`--vehicles 1`): the planner, the
 /// world and both agents, `settings` given to each, logging into `logs`. Returns them and the
-/// endpoint; playing vehicle 2, and recording, is the caller's.
-pub fn fleet_without_vehicle_2(mission: &str, logs: &Path, settings: &[&str]) -> (Vec<Reaper>, String) {
+/// endpoint; playing vehicle 2, and recording, is the caller's. With the tests' shared
+/// credential the planner listens; with `keys`, a fleet directory of `tcpf credential DIR
+/// MISSION`, a router given it does, and each role presents its own key.
+pub fn fleet_without_vehicle_2(
+    mission: &str,
+    logs: &Path,
+    settings: &[&str],
+    keys: Option<&Path>,
+) -> (Vec<Reaper>, String) {
     std::fs::create_dir_all(logs).unwrap();
     let tcpf = env!("CARGO_BIN_EXE_tcpf");
     let role = |name: &str, args: &[&str]| {
-        let args = credentialed(&[args, settings].concat());
+        let own = keys.map(|k| k.join(format!("{name}.key")).display().to_string());
+        let mut args: Vec<&str> = [args, settings].concat();
+        if let Some(own) = &own {
+            args.extend(["--credential", own]);
+        }
+        let args = credentialed(&args);
         logged(logs, name, tcpf, &args.iter().map(String::as_str).collect::<Vec<_>>())
     };
-    let (planner, endpoint) = listening(|e| role("planner", &["planner", mission, "-l", e]));
+    let mut fleet = Vec::new();
+    let endpoint = match keys {
+        Some(keys) => {
+            let (router, endpoint) = listening(|e| {
+                let args = ["router", "--credential", keys.to_str().unwrap(), "-l", e];
+                logged(logs, "router", tcpf, &args)
+            });
+            fleet.push(Reaper(router));
+            fleet.push(Reaper(role("planner", &["planner", mission, "-e", &endpoint])));
+            endpoint
+        }
+        None => {
+            let (planner, endpoint) = listening(|e| role("planner", &["planner", mission, "-l", e]));
+            fleet.push(Reaper(planner));
+            endpoint
+        }
+    };
     let e = endpoint.as_str();
-    let mut fleet = vec![
-        Reaper(planner),
-        Reaper(role(
-            "world",
-            &["world", mission, "-e", e, "--recorders", "1", "--vehicles", "1"],
-        )),
-    ];
+    fleet.push(Reaper(role(
+        "world",
+        &["world", mission, "-e", e, "--recorders", "1", "--vehicles", "1"],
+    )));
     for id in ["1", "2"] {
         fleet.push(Reaper(role(
             &format!("agent-{id}"),
