@@ -340,6 +340,10 @@ pub enum Command {
         /// node that plays it), over the mission's `[ros2]`.
         #[arg(long, value_name = "DOMAIN", requires = "mission")]
         ros2: Option<u32>,
+        /// Vehicles another program plays on the fleet's own protocol (ids, comma-separated):
+        /// each gets a key, `vehicle-<id>.key`, that may publish that vehicle's states.
+        #[arg(long, value_delimiter = ',', value_name = "IDS", requires = "mission")]
+        played: Vec<u32>,
     },
     /// A Zenoh router for a testbed: every role connects to it (configs/zenoh/).
     Router {

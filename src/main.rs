@@ -208,6 +208,7 @@ fn main() -> ExitCode {
             mission: Some(file),
             set,
             ros2,
+            played,
         } => roles::fleet_credentials(
             &path,
             &MissionArgs {
@@ -216,6 +217,7 @@ fn main() -> ExitCode {
                 flags: Vec::new(),
             },
             ros2,
+            &played,
         ),
         Command::Router { zenoh } => {
             // Every message of a fleet on a router passes through it: a realtime role is late

@@ -36,8 +36,19 @@ pub fn credential(file: &Path) -> Result<ExitCode, Failure> {
 
 /// `tcpf credential DIR MISSION`: a key per role of the mission, and the router's dictionary and
 /// access rules, in a new owner-only directory.
-pub fn fleet_credentials(dir: &Path, args: &MissionArgs, ros2: Option<u32>) -> Result<ExitCode, Failure> {
+pub fn fleet_credentials(
+    dir: &Path,
+    args: &MissionArgs,
+    ros2: Option<u32>,
+    played: &[u32],
+) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
+    if let Some(id) = played.iter().find(|&&id| !mission.vehicles.iter().any(|v| v.id == id)) {
+        return Err(Failure::Input(anyhow!(
+            "--played: {} has no vehicle with id {id}",
+            args.file.display()
+        )));
+    }
     if dir.exists() {
         return Err(Failure::Input(anyhow!(
             "{}: exists; a fleet's keys are never overwritten (every host holding one would be locked out): remove it first to make new ones",
@@ -50,7 +61,7 @@ pub fn fleet_credentials(dir: &Path, args: &MissionArgs, ros2: Option<u32>) -> R
         keys: Keys::new(&mission.mission.name),
         vehicles: &vehicles,
         ros2: ros2.as_ref(),
-        played: true,
+        played,
     };
     let identities = tcpf_bus::credential::create_fleet(dir, &fleet).map_err(Failure::Input)?;
     let keys: Vec<String> = identities.iter().map(|&i| tcpf_bus::credential::key_file(i)).collect();

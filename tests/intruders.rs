@@ -952,8 +952,6 @@ async fn a_fleet_started_by_hand_with_a_key_per_role_lets_each_speak_only_as_its
             "observer.key",
             "planner.key",
             "recorder.key",
-            "vehicle-1.key",
-            "vehicle-2.key",
             "world.key"
         ]
     );

@@ -227,7 +227,7 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     // A key per role: the program playing vehicle 2 holds vehicle 2's, which lets it publish
     // that vehicle's states and nothing else.
     let keys = dir.join("fleet");
-    let made = common::tcpf(&["credential", keys.to_str().unwrap(), &mission]);
+    let made = common::tcpf(&["credential", keys.to_str().unwrap(), &mission, "--played", "2"]);
     assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
     let (_fleet, endpoint) = fleet_without_vehicle_2(&mission, &logs, &clock, Some(&keys));
     let script = format!("{}/examples/python/vehicle.py", env!("CARGO_MANIFEST_DIR"));

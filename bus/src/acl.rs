@@ -86,9 +86,9 @@ pub struct Fleet<'a> {
     pub vehicles: &'a [u32],
     /// The fleet's ROS 2 graph, if it speaks ROS 2.
     pub ros2: Option<&'a Ros2Config>,
-    /// Whether other programs may play its vehicles on the fleet's own protocol (their states,
-    /// for a world started by hand with `--vehicles`).
-    pub played: bool,
+    /// The vehicles other programs may play on the fleet's own protocol (their states; a world
+    /// started by hand with `--vehicles` simulates the others).
+    pub played: &'a [u32],
 }
 
 impl Fleet<'_> {
@@ -181,7 +181,7 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
         ],
         Identity::Vehicle(id) => {
             let mut rules = Vec::new();
-            if fleet.played {
+            if fleet.played.contains(&id) {
                 rules.push(("states".into(), vec!["put"], vec![fleet.keys.state(id)]));
             }
             if let Some(ros2) = fleet.ros2 {
@@ -220,9 +220,13 @@ pub fn identities(fleet: &Fleet) -> Vec<Identity> {
         Identity::Observer,
     ];
     all.extend(fleet.vehicles.iter().map(|&id| Identity::Agent(id)));
-    if fleet.ros2.is_some() || fleet.played {
-        all.extend(fleet.vehicles.iter().map(|&id| Identity::Vehicle(id)));
-    }
+    all.extend(
+        fleet
+            .vehicles
+            .iter()
+            .filter(|id| fleet.ros2.is_some() || fleet.played.contains(id))
+            .map(|&id| Identity::Vehicle(id)),
+    );
     all
 }
 
@@ -334,7 +338,7 @@ mod tests {
             keys: Keys::new("m"),
             vehicles: &[1, 2],
             ros2: Some(&ros2),
-            played: false,
+            played: &[],
         };
         let acl = access_control(&fleet, Naming::Username);
         let puts = |identity| allowed(&acl, identity, "ingress", "put");
@@ -397,10 +401,11 @@ mod tests {
         );
         // Everyone hears the whole fleet.
         assert_eq!(allowed(&acl, Identity::Observer, "egress", "put"), fleet.all());
-        // A fleet whose vehicles other programs may play on its own protocol: vehicle N's
-        // player publishes its states, and nothing else; without ROS 2 it has no node.
+        // A fleet whose vehicle 2 another program may play on its own protocol: its player
+        // publishes its states, and nothing else; without ROS 2 it has no node, and vehicle 1,
+        // which the world simulates, has no player at all.
         let played = Fleet {
-            played: true,
+            played: &[2],
             ros2: None,
             ..fleet
         };
@@ -410,7 +415,18 @@ mod tests {
             ["tcpf/m/state/2"]
         );
         assert!(allowed(&acl, Identity::Vehicle(2), "ingress", "liveliness_token").is_empty());
-        assert_eq!(identities(&played).len(), 8);
+        assert_eq!(
+            identities(&played),
+            [
+                Identity::World,
+                Identity::Planner,
+                Identity::Recorder,
+                Identity::Observer,
+                Identity::Agent(1),
+                Identity::Agent(2),
+                Identity::Vehicle(2)
+            ]
+        );
     }
 
     #[test]
@@ -419,7 +435,7 @@ mod tests {
             keys: Keys::new("*"),
             vehicles: &[1, 2, 3],
             ros2: None,
-            played: true,
+            played: &[1, 2, 3],
         };
         let mut config = zenoh::Config::default();
         config

@@ -88,8 +88,18 @@ pub fn read_fleet(dir: &Path) -> std::result::Result<(std::path::PathBuf, serde_
         .and_then(|meta| owner_only(&meta, &dictionary))
         .map_err(|why| format!("{}: {why}", dictionary.display()))?;
     let access = dir.join(ACCESS);
-    let text = std::fs::read_to_string(&access).map_err(|e| format!("{}: {e}", access.display()))?;
-    let rules = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", access.display()))?;
+    let at = |why: String| format!("{}: {why}", access.display());
+    let meta = std::fs::metadata(&access).map_err(|e| at(e.to_string()))?;
+    owner_only(&meta, &access).map_err(at)?;
+    let text = std::fs::read_to_string(&access).map_err(|e| at(e.to_string()))?;
+    let rules: serde_json::Value = serde_json::from_str(&text).map_err(|e| at(e.to_string()))?;
+    // Rules switched off, or allowing by default, would let every key speak for every role.
+    if rules["enabled"] != true || rules["default_permission"] != "deny" {
+        return Err(at(
+            "its rules must be enabled and deny by default (`enabled: true`, `default_permission: \"deny\"`), as `tcpf credential DIR MISSION` writes them"
+                .into(),
+        ));
+    }
     Ok((dictionary, rules))
 }
 
@@ -125,7 +135,7 @@ pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
     // would be another user it lets in, unseen.
     if lines.next().is_some() {
         return Err(
-            "more than one line: a fleet's credential is one USER:PASSWORD, and every further line would be a user let in (make one with `tcpf credential FILE`)"
+            "more than one line: a key is one USER:PASSWORD, and every further line would be a user let in (make them with `tcpf credential DIR MISSION`)"
                 .into(),
         );
     }
@@ -134,7 +144,7 @@ pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
             Ok((user.to_string(), password.to_string()))
         }
         _ => {
-            Err("not a credential: its first line must be USER:PASSWORD (make one with `tcpf credential FILE`)".into())
+            Err("not a credential: its first line must be USER:PASSWORD (make a key per role with `tcpf credential DIR MISSION`)".into())
         }
     }
 }

@@ -24,9 +24,11 @@ pub struct ZenohArgs {
     /// Zenoh mode: peer, client or router.
     #[arg(long = "mode", value_name = "MODE")]
     pub mode: Option<String>,
-    /// The fleet's credential (`tcpf credential FILE` makes one): this process presents it and
-    /// demands it of every link. Without -c or --mode, a process that listens is the fleet's
-    /// router and one that connects its client.
+    /// A role's own key (`tcpf credential DIR MISSION` makes one per role: DIR/<role>.key), which
+    /// it presents to the router; for `tcpf router`, that DIR, whose users it demands and whose
+    /// access rules it enforces. Or one credential the whole fleet shares (`tcpf credential
+    /// FILE`), presented and demanded by every process: without -c or --mode, one that listens
+    /// is then the fleet's router and one that connects its client.
     #[arg(long = "credential", value_name = "FILE", conflicts_with = "open")]
     pub credential: Option<PathBuf>,
     /// Run with no credential, on a network only you use: any process that reaches this one
@@ -283,7 +285,7 @@ pub fn warn_if_open(config: &Config) {
             .collect::<Vec<_>>()
             .join(" and ");
         tracing::warn!(
-            "this role runs open (--open): its Zenoh configuration demands no credential, so any process that reaches {at} can join this fleet and speak for any role; `tcpf credential FILE` makes a credential for every role's --credential (docs/TESTBED.md)"
+            "this role runs open (--open): its Zenoh configuration demands no credential, so any process that reaches {at} can join this fleet and speak for any role; `tcpf credential DIR MISSION` makes a key for each role's --credential and the router's (docs/TESTBED.md)"
         );
     }
 }
@@ -380,6 +382,14 @@ impl ZenohArgs {
         }
         let (user, password) =
             credential::read(file).map_err(|why| bad(format!("--credential {}: {why}", file.display())))?;
+        // A router with one role's key would let in that role alone, and every other role would
+        // wait out its timeout blaming the network.
+        if mode.trim_matches('"') == "router" && user != credential::USER {
+            return Err(bad(format!(
+                "--credential {}: it is {user}'s key, one role's, and this process would be the fleet's router, which must let every role in: give the router the directory the keys came from (`tcpf router --credential DIR -l ENDPOINT`) and connect every role to it with -e",
+                file.display()
+            )));
+        }
         let dictionary =
             std::fs::canonicalize(file).map_err(|e| bad(format!("--credential {}: {e}", file.display())))?;
         let auth = serde_json::json!({
@@ -464,7 +474,7 @@ impl ZenohArgs {
         match shutdown.unless(opening).await {
             Some(Ok(opened)) => opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
             Some(Err(_)) if trying => Err(anyhow!(
-                "cannot open the Zenoh session: nothing answered at {endpoints} within {} s (--startup-timeout), or it refused this process's credential; is the router up, reachable from this host, and given the same --credential? (RUST_LOG=zenoh=debug says which)",
+                "cannot open the Zenoh session: nothing answered at {endpoints} within {} s (--startup-timeout), or it refused this process's credential; is the router up, reachable from this host, and given the same --credential (the fleet's shared one, or the directory this role's key came from)? (RUST_LOG=zenoh=debug says which)",
                 within.as_secs_f64()
             )),
             Some(Err(_)) => Err(anyhow!(
@@ -727,7 +737,7 @@ mod tests {
             keys: crate::keys::Keys::new("m"),
             vehicles: &[1, 2],
             ros2: None,
-            played: true,
+            played: &[],
         };
         credential::create_fleet(&dir, &fleet).unwrap();
         let router = ZenohArgs {
@@ -766,6 +776,23 @@ mod tests {
             "{words}"
         );
         assert!(agent(1).speaks_as(Identity::World).is_err());
+        // One role's key makes no router: it would let that role alone in.
+        let listening = ZenohArgs {
+            credential: Some(dir.join("planner.key")),
+            listen: vec!["tcp/127.0.0.1:0".into()],
+            ..Default::default()
+        };
+        let e = listening.config().unwrap_err().to_string();
+        assert!(
+            e.contains("it is planner's key, one role's") && e.contains("tcpf router --credential DIR"),
+            "{e}"
+        );
+        // Rules switched off are no rules: the router refuses to start on them.
+        let access = dir.join(credential::ACCESS);
+        std::fs::remove_file(&access).unwrap();
+        credential::private(&access, "{ \"enabled\": false }").unwrap();
+        let e = router.config().unwrap_err().to_string();
+        assert!(e.contains("must be enabled and deny by default"), "{e}");
         // The fleet's one shared user speaks for any role.
         let shared = dir.join("fleet.key");
         credential::create(&shared).unwrap();

@@ -89,7 +89,7 @@ pub fn create(
         vehicles: &vehicles,
         ros2,
         // Vehicles another program plays are a ROS 2 node's (`--ros2`).
-        played: false,
+        played: &[],
     };
     let dictionary_file = std::fs::canonicalize(dir)?.join("credentials");
     let mut dictionary = String::new();

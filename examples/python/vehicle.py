@@ -339,7 +339,7 @@ def credential(path):
 
 def open_session(zenoh, args):
     if not (args.config or args.credential or args.open):
-        fail(2, "this vehicle would run open: give it the fleet's --credential FILE (`tcpf credential`), "
+        fail(2, "this vehicle would run open: give it its key, --credential DIR/vehicle-<id>.key (`tcpf credential`), "
                 "-c a Zenoh configuration that holds one, or --open on a network only you use")
     try:
         config = zenoh.Config.from_file(args.config) if args.config else zenoh.Config()
@@ -548,7 +548,7 @@ def main():
                    help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
     p.add_argument("-c", "--config", metavar="ZENOH_JSON5", help="Zenoh configuration file")
     p.add_argument("--credential", metavar="FILE",
-                   help="the fleet's credential (`tcpf credential FILE`): present it to the fleet")
+                   help="its key (vehicle-<id>.key of `tcpf credential DIR MISSION --played <id>`), or the fleet's shared credential: present it to the fleet's router")
     p.add_argument("--open", action="store_true",
                    help="run with no credential, on a network only you use")
     p.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
