@@ -60,18 +60,22 @@ fn holding(run: &Path, identity: &str) -> zenoh::Config {
         other => format!("{other}.json5"),
     };
     let text = std::fs::read_to_string(run.join(file)).unwrap();
-    let mut config: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let config: serde_json::Value = serde_json::from_str(&text).unwrap();
     if identity == "world" {
-        config = serde_json::json!({
-            "mode": "client",
-            "scouting": { "multicast": { "enabled": false } },
-            "connect": { "endpoints": config["listen"]["endpoints"].clone() },
-            "transport": { "auth": { "usrpwd": {
-                "user": config["transport"]["auth"]["usrpwd"]["user"].clone(),
-                "password": config["transport"]["auth"]["usrpwd"]["password"].clone(),
-            } } },
-        });
+        let usrpwd = &config["transport"]["auth"]["usrpwd"];
+        return client(&config["listen"]["endpoints"][0], &usrpwd["user"], &usrpwd["password"]);
     }
+    zenoh::Config::from_json5(&config.to_string()).unwrap()
+}
+
+/// A client of the router at `endpoint`, presenting `user` and `password`.
+fn client(endpoint: &serde_json::Value, user: &serde_json::Value, password: &serde_json::Value) -> zenoh::Config {
+    let config = serde_json::json!({
+        "mode": "client",
+        "scouting": { "multicast": { "enabled": false } },
+        "connect": { "endpoints": [endpoint] },
+        "transport": { "auth": { "usrpwd": { "user": user, "password": password } } },
+    });
     zenoh::Config::from_json5(&config.to_string()).unwrap()
 }
 
@@ -912,13 +916,7 @@ fn tcpf_logged(args: &[&str], log: &Path) -> std::process::Child {
 fn presenting(file: &Path, endpoint: &str) -> zenoh::Config {
     let text = std::fs::read_to_string(file).unwrap();
     let (user, password) = text.trim().split_once(':').unwrap();
-    let config = serde_json::json!({
-        "mode": "client",
-        "scouting": { "multicast": { "enabled": false } },
-        "connect": { "endpoints": [endpoint] },
-        "transport": { "auth": { "usrpwd": { "user": user, "password": password } } },
-    });
-    zenoh::Config::from_json5(&config.to_string()).unwrap()
+    client(&endpoint.into(), &user.into(), &password.into())
 }
 
 /// A fleet started by hand with a key per role (`tcpf credential DIR MISSION`, the router given

@@ -118,8 +118,11 @@ fn rule(id: &str, flow: &str, messages: &[&str], key_exprs: Vec<String>) -> Valu
     })
 }
 
-/// The rules `identity` may act by, beyond listening: `(name, messages, keys)`, all ingress.
-fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, Vec<String>)> {
+/// A rule an identity acts by, beyond listening: `(name, messages, keys)`, ingress.
+type Act = (String, Vec<&'static str>, Vec<String>);
+
+/// The rules `identity` may act by, beyond listening.
+fn speaks(fleet: &Fleet, identity: Identity) -> Vec<Act> {
     match identity {
         Identity::World => vec![("all".into(), ALL.to_vec(), fleet.all())],
         Identity::Planner => vec![
@@ -154,16 +157,7 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
                 ("report".into(), vec!["query"], vec![fleet.keys.report(Role::Agent, id)]),
             ];
             if let Some(ros2) = fleet.ros2 {
-                rules.push((
-                    "ros2-commands".into(),
-                    vec!["put"],
-                    vec![ros2.topic_keys(&ros2.command_topic(id))],
-                ));
-                rules.push((
-                    "ros2-node".into(),
-                    vec!["liveliness_token"],
-                    ros2.node_tokens(&format!("agent_{id}")).to_vec(),
-                ));
+                rules.extend(ros2_node(ros2, &format!("agent_{id}"), &ros2.command_topic(id)));
             }
             rules
         }
@@ -185,21 +179,25 @@ fn speaks(fleet: &Fleet, identity: Identity) -> Vec<(String, Vec<&'static str>, 
                 rules.push(("states".into(), vec!["put"], vec![fleet.keys.state(id)]));
             }
             if let Some(ros2) = fleet.ros2 {
-                rules.push((
-                    "odometry".into(),
-                    vec!["put"],
-                    vec![ros2.topic_keys(&ros2.odometry_topic(id))],
-                ));
-                rules.push((
-                    "node".into(),
-                    vec!["liveliness_token"],
-                    ros2.node_tokens(&format!("vehicle_{id}")).to_vec(),
-                ));
+                rules.extend(ros2_node(ros2, &format!("vehicle_{id}"), &ros2.odometry_topic(id)));
             }
             rules
         }
         Identity::Observer => Vec::new(),
     }
+}
+
+/// What the fleet's ROS 2 node `node` does, beyond listening: publish `topic`, and declare
+/// itself and its entities in the graph.
+fn ros2_node(ros2: &Ros2Config, node: &str, topic: &str) -> [Act; 2] {
+    [
+        ("ros2-topic".into(), vec!["put"], vec![ros2.topic_keys(topic)]),
+        (
+            "ros2-node".into(),
+            vec!["liveliness_token"],
+            ros2.node_tokens(node).to_vec(),
+        ),
+    ]
 }
 
 /// The tokens of the fleet's own ROS 2 nodes (the world, `agent_N`, `vehicle_N`) and their

@@ -82,15 +82,17 @@ pub fn create_fleet(dir: &Path, fleet: &Fleet) -> Result<Vec<Identity>> {
 /// What a router takes from the fleet directory `dir`: the dictionary's path and the access
 /// rules, or why they cannot be had.
 pub fn read_fleet(dir: &Path) -> std::result::Result<(std::path::PathBuf, serde_json::Value), String> {
+    let private_file = |path: &Path| {
+        std::fs::metadata(path)
+            .map_err(|e| e.to_string())
+            .and_then(|meta| owner_only(&meta, path))
+            .map_err(|why| format!("{}: {why}", path.display()))
+    };
     let dictionary = dir.join(DICTIONARY);
-    std::fs::metadata(&dictionary)
-        .map_err(|e| e.to_string())
-        .and_then(|meta| owner_only(&meta, &dictionary))
-        .map_err(|why| format!("{}: {why}", dictionary.display()))?;
+    private_file(&dictionary)?;
     let access = dir.join(ACCESS);
+    private_file(&access)?;
     let at = |why: String| format!("{}: {why}", access.display());
-    let meta = std::fs::metadata(&access).map_err(|e| at(e.to_string()))?;
-    owner_only(&meta, &access).map_err(at)?;
     let text = std::fs::read_to_string(&access).map_err(|e| at(e.to_string()))?;
     let rules: serde_json::Value = serde_json::from_str(&text).map_err(|e| at(e.to_string()))?;
     // Rules switched off, or allowing by default, would let every key speak for every role.

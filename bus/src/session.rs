@@ -172,16 +172,20 @@ const FILE_KEYS: [&str; 6] = [
     "transport/auth/usrpwd/dictionary_file",
 ];
 
+/// The string `config` holds at `key`, if it holds one.
+fn string_at(config: &Config, key: &str) -> Option<String> {
+    config
+        .get_json(key)
+        .ok()
+        .and_then(|j| serde_json::from_str::<Option<String>>(&j).ok())
+        .flatten()
+}
+
 /// Every file `config` (read from `path`) names can be read: a missing certificate made a client
 /// wait out its connect timeout and then blame the network.
 fn files_of(config: &Config, path: &std::path::Path) -> Result<()> {
     for key in FILE_KEYS {
-        let Some(file) = config
-            .get_json(key)
-            .ok()
-            .and_then(|j| serde_json::from_str::<Option<String>>(&j).ok())
-            .flatten()
-        else {
+        let Some(file) = string_at(config, key) else {
             continue;
         };
         readable(&file).map_err(|why| bad(format!("{}: {key}: {file}: {why}", path.display())))?;
@@ -376,15 +380,15 @@ impl ZenohArgs {
     /// Makes `config` present and demand the credential in `file`, and suit the mode it implies;
     /// a router given a fleet directory (`guard`) demands every role's and enforces its rules.
     fn present(&self, config: &mut Config, file: &std::path::Path) -> Result<()> {
-        let mode = config.get_json("mode").unwrap_or_default();
-        if file.is_dir() && mode.trim_matches('"') == "router" {
+        let router = string_at(config, "mode").as_deref() == Some("router");
+        if file.is_dir() && router {
             return guard(config, file);
         }
         let (user, password) =
             credential::read(file).map_err(|why| bad(format!("--credential {}: {why}", file.display())))?;
         // A router with one role's key would let in that role alone, and every other role would
         // wait out its timeout blaming the network.
-        if mode.trim_matches('"') == "router" && user != credential::USER {
+        if router && user != credential::USER {
             return Err(bad(format!(
                 "--credential {}: it is {user}'s key, one role's, and this process would be the fleet's router, which must let every role in: give the router the directory the keys came from (`tcpf router --credential DIR -l ENDPOINT`) and connect every role to it with -e",
                 file.display()
@@ -421,13 +425,7 @@ impl ZenohArgs {
     /// MISSION`): the router would drop everything this process says, without a word to it. The
     /// fleet's one shared user, or a configuration without a user, speaks for any role.
     pub fn speaks_as(&self, identity: Identity) -> Result<()> {
-        let user = self
-            .config()?
-            .get_json("transport/auth/usrpwd/user")
-            .ok()
-            .and_then(|j| serde_json::from_str::<Option<String>>(&j).ok())
-            .flatten();
-        match user {
+        match string_at(&self.config()?, "transport/auth/usrpwd/user") {
             Some(user) if user != credential::USER && user != identity.to_string() => {
                 let own = credential::key_file(identity);
                 let (given, own) = match (&self.credential, &self.config) {
