@@ -273,6 +273,10 @@ pub enum Command {
         /// is missing.
         #[arg(long, default_value = waits::STARTUP_S, value_parser = seconds, allow_hyphen_values = true, conflicts_with = "in_process")]
         startup_timeout: Duration,
+        /// How each role proves to the world which it is: its own certificate (mutual TLS), or
+        /// its own user and password over TCP, for tools whose Zenoh has no TLS.
+        #[arg(long, value_enum, default_value = "certificates", conflicts_with = "in_process")]
+        links: tcpf_coordinator::launcher::Links,
     },
     /// Solve the trajectory generation problem and print the plan.
     Plan {

@@ -155,6 +155,7 @@ fn main() -> ExitCode {
             recorders,
             startup_timeout,
             ros2,
+            links,
         } => run::run(
             &clocked(&mission, &clock),
             out.as_deref(),
@@ -167,6 +168,7 @@ fn main() -> ExitCode {
                 restart: restart == Restart::OnFailure,
                 recorders,
                 ros2,
+                links,
                 ..launcher::Options::default()
             },
         ),

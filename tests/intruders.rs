@@ -30,7 +30,7 @@ fn key(rest: &str) -> String {
 }
 
 fn endpoint(launch: &Launch) -> String {
-    launch.wait_for("endpoint", "tcp/");
+    launch.wait_for("endpoint", "tls/");
     std::fs::read_to_string(launch.out.join("endpoint"))
         .unwrap()
         .trim()
@@ -51,7 +51,7 @@ fn outsider(endpoint: &str) -> zenoh::Config {
     config
 }
 
-/// A client of the run holding `identity`'s user and password (`recorder`, `observer`, `agent-2`,
+/// A client of the run holding `identity`'s certificate (`recorder`, `observer`, `agent-2`,
 /// `world`, ...), from its configuration in the run directory, as a process of the run's owner
 /// could open; the world's, a router's, made a client of the world.
 fn holding(run: &Path, identity: &str) -> zenoh::Config {
@@ -62,8 +62,19 @@ fn holding(run: &Path, identity: &str) -> zenoh::Config {
     let text = std::fs::read_to_string(run.join(file)).unwrap();
     let config: serde_json::Value = serde_json::from_str(&text).unwrap();
     if identity == "world" {
-        let usrpwd = &config["transport"]["auth"]["usrpwd"];
-        return client(&config["listen"]["endpoints"][0], &usrpwd["user"], &usrpwd["password"]);
+        let tls = &config["transport"]["link"]["tls"];
+        let client = serde_json::json!({
+            "mode": "client",
+            "scouting": { "multicast": { "enabled": false } },
+            "connect": { "endpoints": [config["listen"]["endpoints"][0]] },
+            "transport": { "link": { "tls": {
+                "root_ca_certificate_base64": tls["root_ca_certificate_base64"],
+                "connect_certificate_base64": tls["listen_certificate_base64"],
+                "connect_private_key_base64": tls["listen_private_key_base64"],
+                "enable_mtls": true,
+            } } },
+        });
+        return zenoh::Config::from_json5(&client.to_string()).unwrap();
     }
     zenoh::Config::from_json5(&config.to_string()).unwrap()
 }
@@ -152,12 +163,35 @@ fn samples() -> (State, Command, Gamma) {
     (state, command, gamma)
 }
 
+/// A client of the run at `endpoint` that trusts the run's authority (its certificate is no
+/// secret) and presents a certificate named `world`, made by an authority of its own.
+fn impostor(run: &Path, endpoint: &str) -> zenoh::Config {
+    let text = std::fs::read_to_string(run.join("observer.json5")).unwrap();
+    let observer: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let own = tcpf_bus::certificate::Authority::new(MISSION).unwrap();
+    let world = own.issue(tcpf_bus::acl::Identity::World, &[]).unwrap();
+    let mut config = tcpf_bus::certificate::tls(&own.pem(), &world, false);
+    config["root_ca_certificate_base64"] = observer["transport"]["link"]["tls"]["root_ca_certificate_base64"].clone();
+    let client = serde_json::json!({
+        "mode": "client",
+        "scouting": { "multicast": { "enabled": false } },
+        "connect": { "endpoints": [endpoint], "timeout_ms": 2000 },
+        "transport": { "link": { "tls": config } },
+    });
+    zenoh::Config::from_json5(&client.to_string()).unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread")]
 async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
     let _fleet = fleet();
     let dir = scratch("outsider");
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &SLOWER);
     let endpoint = endpoint(&launch);
+    let refused = zenoh::open(impostor(&dir.join("p"), &endpoint)).await;
+    assert!(
+        refused.is_err(),
+        "a certificate named world but not of the run's authority was let in"
+    );
     let session = zenoh::open(outsider(&endpoint)).await.unwrap();
     // A session of its own, so as not to hear the forgeries below.
     let listener = zenoh::open(outsider(&endpoint)).await.unwrap();
@@ -220,7 +254,6 @@ async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
     assert_same_run(&dir.join("p"), &dir.join("i"));
     let modes = |f: &str| std::fs::metadata(dir.join("p").join(f)).unwrap().permissions();
     for file in [
-        "credentials",
         "zenoh.json5",
         "world.json5",
         "agent-1.json5",
@@ -580,7 +613,7 @@ fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
     );
     let endpoint = endpoint(&launch);
     let (stop, opened) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicU64::new(0)));
-    let address = endpoint.strip_prefix("tcp/").expect("a TCP endpoint").to_string();
+    let address = endpoint.strip_prefix("tls/").expect("a TLS endpoint").to_string();
     let flood = {
         let (stop, opened) = (stop.clone(), opened.clone());
         std::thread::spawn(move || hold_idle_connections(address, stop, opened))

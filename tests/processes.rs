@@ -1655,7 +1655,7 @@ fn a_run_waits_for_a_recorder_from_elsewhere_which_records_the_same_run() {
     let dir = scratch("joined");
     let mission = paper("b-current");
     let mut launch = Launch::start(&mission, &dir.join("p"), &["--recorders", "1"]);
-    launch.wait_for("endpoint", "tcp/");
+    launch.wait_for("endpoint", "tls/");
     launch.wait_for("logs/world.log", "a recorder is here (1 of 2)");
     // At the run's endpoint but without its credentials (its zenoh.json5): refused, and told so.
     let endpoint = std::fs::read_to_string(dir.join("p/endpoint")).unwrap();

@@ -104,7 +104,7 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     let dir = scratch("ros2");
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--ros2", "0", "--recorders", "1"]);
-    launch.wait_for("endpoint", "tcp/");
+    launch.wait_for("endpoint", "tls/");
     let seen = watch(&out.join("zenoh.json5"), "0", &dir.join("ros2.json"));
     assert!(launch.wait(Duration::from_secs(60)).success());
 
@@ -402,7 +402,7 @@ async fn a_killed_agent_leaves_the_ros2_graph_within_2_s() {
     let dir = scratch("ros2-kill");
     let out = dir.join("run");
     let launch = Launch::start(&paper("b-current"), &out, &["--ros2", "4", "--clock", "realtime"]);
-    launch.wait_for("endpoint", "tcp/");
+    launch.wait_for("endpoint", "tls/");
     let session = zenoh::open(zenoh::Config::from_file(out.join("zenoh.json5")).unwrap())
         .await
         .unwrap();

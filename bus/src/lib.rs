@@ -2,6 +2,7 @@
 //! key expressions, the message codec and typed publishers and subscribers.
 
 pub mod acl;
+pub mod certificate;
 pub mod claim;
 pub mod clock;
 pub mod codec;

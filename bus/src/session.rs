@@ -510,7 +510,7 @@ async fn open(config: Config) -> Result<Session> {
              router up and reachable? does it accept this host's certificate? is the router's \
              certificate valid for the address connected to, and signed by the CA this host \
              trusts? to join a `tcpf run`, use a configuration of its run directory, which holds a \
-             role's user and password: zenoh.json5 to record, observer.json5 to watch; \
+             role's certificate: zenoh.json5 to record, observer.json5 to watch; \
              RUST_LOG=zenoh=debug says which)",
     )
 }

@@ -1,22 +1,23 @@
-//! A user and password for each role of each `tcpf run`, and the world's access rules made from
-//! its mission. Every link to the world, the run's router, demands a role's user and password
-//! (Zenoh's user-password authentication), so the world knows which role sent each message, and
-//! lets each do only what that role does (`tcpf_bus::acl`, by user name). A process needs a
-//! role's configuration, an owner-only file of the run directory, to join, and holding one it can
-//! speak only as that role: the recorder's (`zenoh.json5`, what a joining recorder or tool gets)
-//! cannot forge a tick, an agent's cannot command another vehicle.
+//! A certificate for each role of each `tcpf run`, and the world's access rules made from its
+//! mission. Every link to the world, the run's router, is mutual TLS and demands a certificate
+//! signed by the run's own authority, made for this run and forgotten once the certificates are
+//! signed, so the world knows which role sent each message by its certificate's name, and lets
+//! each do only what that role does (`tcpf_bus::acl`). A process needs a role's configuration,
+//! an owner-only file of the run directory, to join, and holding one it can speak only as that
+//! role: the recorder's (`zenoh.json5`, what a joining recorder or tool gets) cannot forge a
+//! tick, an agent's cannot command another vehicle.
 //!
-//! Passwords over TCP, not certificates: Zenoh 1.10's `tls/` link reads and writes one TLS
-//! session from two threads at once, and under a lockstep fleet's load its links break
-//! (eclipse-zenoh/zenoh#2557, 2 runs of case (b) in 4 here); over QUIC a killed process's link
-//! is found dead only when its lease runs out (30 s here), where TCP's closes at once, so a
-//! killed agent went unnoticed and an interrupted fleet took that long to stop.
+//! TLS over TCP, not QUIC: a killed process's TCP link closes at once, where QUIC's is found dead
+//! only when its lease runs out (30 s here), so a killed agent would go unnoticed and an
+//! interrupted fleet take that long to stop. Zenoh 1.10's TLS link needed a fix for that
+//! (vendor/README.md).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use serde_json::json;
 use tcpf_bus::acl::{self, Fleet, Identity, Naming};
+use tcpf_bus::certificate::{self, Authority};
 use tcpf_bus::credential::{private, secret};
 use tcpf_bus::keys::Keys;
 use tcpf_bus::session::{ACCEPT_PENDING, ACCEPT_TIMEOUT_MS};
@@ -33,17 +34,31 @@ const CONNECT_TIMEOUT_MS: u64 = 60_000;
 const LINK_PATIENCE_MS: u64 = 60_000;
 
 /// What the links of a run are.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Links {
-    /// Each role with its own user and password, and the world's access rules.
-    PerRole,
-    /// No user, no password, no rules: any process that reaches the port may speak for any role.
-    /// Only `tcpf bench`'s baseline, on loopback, for what the rules cost.
+    /// Mutual TLS: each role with its own certificate, and the world's access rules by its name.
+    Certificates,
+    /// TCP, each role with its own user and password, and the access rules by user name: for a
+    /// Zenoh without TLS.
+    Passwords,
+    /// No credential, no rules: any process that reaches the port may speak for any role. Only
+    /// `tcpf bench`'s baseline, on loopback, for what the rest costs.
+    #[value(skip)]
     Plain,
 }
 
+impl Links {
+    /// The Zenoh protocol of the run's endpoint.
+    pub fn protocol(self) -> &'static str {
+        match self {
+            Links::Certificates => "tls",
+            Links::Passwords | Links::Plain => "tcp",
+        }
+    }
+}
+
 /// The Zenoh configurations of a run, each an owner-only file in its directory holding one
-/// role's user and password.
+/// role's certificate and key, or user and password.
 pub struct Configs {
     dir: PathBuf,
 }
@@ -58,7 +73,7 @@ impl Configs {
 /// The file of `identity`'s configuration: `zenoh.json5` for a recorder (the launcher's own
 /// session, and whoever joins the running fleet to record it), else
 /// `<identity>.json5` (the world's, the run's router, listens at the endpoint, demands a role's
-/// user and password of every link and enforces the access rules).
+/// credential of every link and enforces the access rules).
 fn file_name(identity: Identity) -> String {
     match identity {
         Identity::Recorder => "zenoh.json5".to_string(),
@@ -67,8 +82,9 @@ fn file_name(identity: Identity) -> String {
 }
 
 /// Writes a configuration for every role of `mission` into `dir` (`Configs`), for a world
-/// listening at `endpoint`, each with its role's user and a fresh password, and the world's
-/// `credentials`, the dictionary of them all.
+/// listening at `endpoint`, each with its role's credential: a certificate of the run's
+/// authority, or a user with a fresh password and, for the world, `credentials`, the dictionary
+/// of them all.
 ///
 /// Clients of one router, not peers: access control is enforced where a message passes, so a
 /// peer link between two roles would bypass it. A router also keeps the sockets of a fleet
@@ -93,18 +109,30 @@ pub fn create(
     };
     let dictionary_file = std::fs::canonicalize(dir)?.join("credentials");
     let mut dictionary = String::new();
-    let link = json!({ "tx": { "lease": LINK_PATIENCE_MS } });
+    let authority = match links {
+        Links::Certificates => Some(Authority::new(&mission.mission.name)?),
+        Links::Passwords | Links::Plain => None,
+    };
     for identity in acl::identities(&fleet) {
-        let password = secret()?;
-        dictionary.push_str(&format!("{identity}:{password}\n"));
-        let mut usrpwd = json!({ "user": identity.to_string(), "password": password });
-        if identity == Identity::World {
-            usrpwd["dictionary_file"] = json!(dictionary_file);
+        let listens = identity == Identity::World;
+        let mut auth = json!({});
+        let mut link = json!({ "tx": { "lease": LINK_PATIENCE_MS } });
+        if let Some(authority) = &authority {
+            let hosts = match listens {
+                true => vec![host_of(endpoint).to_string()],
+                false => Vec::new(),
+            };
+            let pair = authority.issue(identity, &hosts)?;
+            link["tls"] = certificate::tls(&authority.pem(), &pair, listens);
+        } else if links == Links::Passwords {
+            let password = secret()?;
+            dictionary.push_str(&format!("{identity}:{password}\n"));
+            let mut usrpwd = json!({ "user": identity.to_string(), "password": password });
+            if listens {
+                usrpwd["dictionary_file"] = json!(dictionary_file);
+            }
+            auth = json!({ "usrpwd": usrpwd });
         }
-        let auth = match links {
-            Links::PerRole => json!({ "usrpwd": usrpwd }),
-            Links::Plain => json!({}),
-        };
         let config = if identity == Identity::World {
             // A router's open sleeps the scouting delay (500 ms by default) for multicast to find
             // its peers; this one scouts for nothing, and every run's first tick waited on it.
@@ -119,7 +147,8 @@ pub fn create(
                     "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
                 },
                 "access_control": match links {
-                    Links::PerRole => acl::access_control(&fleet, Naming::Username),
+                    Links::Certificates => acl::access_control(&fleet, Naming::CommonName),
+                    Links::Passwords => acl::access_control(&fleet, Naming::Username),
                     Links::Plain => json!({ "enabled": false }),
                 },
             })
@@ -142,18 +171,30 @@ pub fn create(
             &(serde_json::to_string_pretty(&config)? + "\n"),
         )?;
     }
-    private(&dictionary_file, &dictionary)?;
+    if links == Links::Passwords {
+        private(&dictionary_file, &dictionary)?;
+    }
     Ok(Configs { dir: dir.to_path_buf() })
 }
 
-/// Whether `name` is a file of `create` that holds a password.
+/// The host of `endpoint` (`tls/127.0.0.1:7447` -> `127.0.0.1`), which the world's certificate
+/// names.
+fn host_of(endpoint: &str) -> &str {
+    let address = endpoint.split_once('/').map_or(endpoint, |(_, a)| a);
+    address
+        .rsplit_once(':')
+        .map_or(address, |(h, _)| h)
+        .trim_matches(['[', ']'])
+}
+
+/// Whether `name` is a file of `create` that holds a key or a password.
 fn is_secret(name: &str) -> bool {
     name.ends_with(".json5") || name == "credentials"
 }
 
-/// Removes the run's passwords from `dir` once its run is over: a sweep keeps hundreds of run
-/// directories, which are copied and shared, and a password of a fleet that is gone opens nothing
-/// but is still a password.
+/// Removes the run's keys and passwords from `dir` once its run is over: a sweep keeps hundreds
+/// of run directories, which are copied and shared, and a key of a fleet that is gone opens
+/// nothing but is still a key.
 pub fn forget(dir: &Path) -> Result<()> {
     for entry in std::fs::read_dir(dir)? {
         let entry = entry?;

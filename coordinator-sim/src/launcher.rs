@@ -358,8 +358,8 @@ pub struct Options {
     /// do, waiting for contemporaries that cannot exist here: the baseline `tcpf bench` sets
     /// a run's start-up beside.
     pub rivals: Rivals,
-    /// `Links::Plain` runs the fleet with no user, no password and no access rules: the baseline
-    /// `tcpf bench` sets a run's tick beside.
+    /// How each role proves which it is (a certificate by default); `Links::Plain` runs the fleet
+    /// with no credential and no access rules: the baseline `tcpf bench` sets a run's tick beside.
     pub links: Links,
 }
 
@@ -373,7 +373,7 @@ impl Default for Options {
             startup_timeout: waits::STARTUP,
             ros2: None,
             rivals: Rivals::None,
-            links: Links::PerRole,
+            links: Links::Certificates,
         }
     }
 }
@@ -499,7 +499,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     dir.write_mission(mission, tcpf_core::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
     let mission_file = dir.path.join("mission.toml").display().to_string();
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
+    let endpoint = format!("{}/127.0.0.1:{}", links.protocol(), free_port()?);
     // How another tool (a recorder, a testbed bridge, a probe) joins the running fleet: as a role,
     // with its configuration, which only the run directory's owner can read.
     let configs = crate::access::create(&dir.path, &endpoint, mission, mission.ros2(ros2).as_ref(), links)?;
