@@ -329,25 +329,38 @@ pub enum Command {
         id: u32,
     },
     /// Make a fleet's credentials for roles started by hand: with a mission, a directory of one
-    /// key per role and the router's access rules; without, one user and password that every
-    /// role and the router share.
+    /// certificate per role and the router's, with its access rules; without, one user and
+    /// password that every role and the router share.
     Credential {
         /// The directory (with a mission) or file to write; it must not exist.
         path: PathBuf,
-        /// Mission file (TOML): its roles each get their own key, and the router (`tcpf router
-        /// --credential DIR`) lets each do only what its role does.
+        /// Mission file (TOML): its roles each get their own certificate, and the router (`tcpf
+        /// router --credential DIR`) lets each do only what its role does.
         mission: Option<PathBuf>,
         /// Override a mission key, as the roles will (its name and vehicles name the keys).
         #[arg(long = "set", value_name = "K=V", requires = "mission")]
         set: Vec<String>,
-        /// Keys for the fleet speaking ROS 2 in this domain too (a key per vehicle for the ROS 2
-        /// node that plays it), over the mission's `[ros2]`.
+        /// Certificates for the fleet speaking ROS 2 in this domain too (one per vehicle for the
+        /// ROS 2 node that plays it), over the mission's `[ros2]`.
         #[arg(long, value_name = "DOMAIN", requires = "mission")]
         ros2: Option<u32>,
         /// Vehicles another program plays on the fleet's own protocol (ids, comma-separated):
-        /// each gets a key, `vehicle-<id>.key`, that may publish that vehicle's states.
+        /// each gets a certificate, `vehicle-<id>.pem`, that may publish that vehicle's states.
         #[arg(long, value_delimiter = ',', value_name = "IDS", requires = "mission")]
         played: Vec<u32>,
+        /// A name or address the router is reached at, besides this host's (localhost,
+        /// 127.0.0.1): its certificate is valid there alone. Repeat for each.
+        #[arg(
+            long = "host",
+            value_name = "HOST",
+            requires = "mission",
+            conflicts_with = "passwords"
+        )]
+        hosts: Vec<String>,
+        /// A user and password per role (`<identity>.key`) instead of a certificate, over TCP:
+        /// for a Zenoh without TLS.
+        #[arg(long, requires = "mission")]
+        passwords: bool,
     },
     /// A Zenoh router for a testbed: every role connects to it (configs/zenoh/).
     Router {

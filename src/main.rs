@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::anyhow;
 use clap::Parser;
+use tcpf_bus::credential::Proof;
 use tcpf_coordinator::{launcher, planning};
 use tcpf_core::mission::{self, Mission};
 use tcpf_core::planner::Plan;
@@ -211,6 +212,8 @@ fn main() -> ExitCode {
             set,
             ros2,
             played,
+            hosts,
+            passwords,
         } => roles::fleet_credentials(
             &path,
             &MissionArgs {
@@ -220,6 +223,10 @@ fn main() -> ExitCode {
             },
             ros2,
             &played,
+            match passwords {
+                true => Proof::Passwords,
+                false => Proof::Certificates { hosts: &hosts },
+            },
         ),
         Command::Router { zenoh } => {
             // Every message of a fleet on a router passes through it: a realtime role is late

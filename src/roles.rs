@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use anyhow::anyhow;
 use tcpf_bus::acl::{Fleet, Identity};
+use tcpf_bus::credential::Proof;
 use tcpf_bus::keys::Keys;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_coordinator::planner_node;
@@ -34,13 +35,14 @@ pub fn credential(file: &Path) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `tcpf credential DIR MISSION`: a key per role of the mission, and the router's dictionary and
-/// access rules, in a new owner-only directory.
+/// `tcpf credential DIR MISSION`: a certificate (or key) per role of the mission, and the
+/// router's and its access rules, in a new owner-only directory.
 pub fn fleet_credentials(
     dir: &Path,
     args: &MissionArgs,
     ros2: Option<u32>,
     played: &[u32],
+    proof: Proof,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     if let Some(id) = played.iter().find(|&&id| !mission.vehicles.iter().any(|v| v.id == id)) {
@@ -63,17 +65,36 @@ pub fn fleet_credentials(
         ros2: ros2.as_ref(),
         played,
     };
-    let identities = tcpf_bus::credential::create_fleet(dir, &fleet).map_err(Failure::Input)?;
-    let keys: Vec<String> = identities.iter().map(|&i| tcpf_bus::credential::key_file(i)).collect();
+    let identities =
+        tcpf_bus::credential::create_fleet(dir, &mission.mission.name, &fleet, proof).map_err(Failure::Input)?;
+    let files: Vec<String> = identities
+        .iter()
+        .map(|&i| tcpf_bus::credential::key_file(i, proof))
+        .collect();
+    let (what, router, protocol) = match proof {
+        Proof::Certificates { hosts } => {
+            let at: Vec<&str> = ["localhost", "127.0.0.1"]
+                .into_iter()
+                .chain(hosts.iter().map(String::as_str))
+                .collect();
+            (
+                "a certificate",
+                format!("`router.pem` (valid at {})", at.join(", ")),
+                "tls",
+            )
+        }
+        Proof::Passwords => ("a key", "`credentials`".to_string(), "tcp"),
+    };
     sayln!(
-        "wrote {0} (owner-only) for mission {1}: a key per role ({2}), and for the router `credentials` and `access.json5`.\n\
-         On the router's host: tcpf router --credential {0} -l tcp/0.0.0.0:7447\n\
-         On each role's host, its own key alone, e.g.: tcpf agent MISSION --id {3} --credential {0}/agent-{3}.key -e tcp/ROUTER:7447\n\
-         Each key speaks only as its role: the router drops anything else it says.",
+        "wrote {0} (owner-only) for mission {1}: {what} per role ({2}), and for the router {router} and `access.json5`.\n\
+         On the router's host: tcpf router --credential {0} -l {protocol}/0.0.0.0:7447\n\
+         On each role's host, its own file alone, e.g.: tcpf agent MISSION --id {3} --credential {0}/{4} -e {protocol}/ROUTER:7447\n\
+         Each speaks only as its role: the router drops anything else it says.",
         dir.display(),
         mission.mission.name,
-        keys.join(", "),
-        vehicles.first().copied().unwrap_or(1)
+        files.join(", "),
+        vehicles.first().copied().unwrap_or(1),
+        tcpf_bus::credential::key_file(Identity::Agent(vehicles.first().copied().unwrap_or(1)), proof),
     );
     Ok(ExitCode::SUCCESS)
 }

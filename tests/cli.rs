@@ -1039,14 +1039,21 @@ fn bench_prints_every_figure_beside_its_baseline() {
     };
     assert!(with > 10.0 && with < 1e5, "tick in µs: {ros2:?}");
     assert!((ratio - with / tick[3]).abs() < 0.01 * ratio, "{ros2:?} {tick:?}");
-    // The tick with a password per role and access rules beside the tick with neither.
-    let rules = numbers(&line("lockstep tick with a user and password per role"));
-    let [with, plain, ratio] = rules[rules.len() - 3..] else {
+    // The tick with a certificate per role, with a password per role, and with neither.
+    let rules = numbers(&line("lockstep tick with a certificate per role"));
+    let [with, passwords, plain, ratio, ratio_passwords] = rules[rules.len() - 5..] else {
         panic!("{rules:?}")
     };
     assert!((with - tick[3]).abs() < 0.1, "the fleet's own tick: {rules:?} {tick:?}");
-    assert!(plain > 10.0 && plain < 1e5, "tick in µs: {rules:?}");
+    assert!(
+        plain > 10.0 && plain < 1e5 && passwords > 10.0 && passwords < 1e5,
+        "ticks in µs: {rules:?}"
+    );
     assert!((ratio - with / plain).abs() < 0.01 * ratio, "{rules:?}");
+    assert!(
+        (ratio_passwords - passwords / plain).abs() < 0.01 * ratio_passwords,
+        "{rules:?}"
+    );
     // b-current's control period is 0.01 s: a tick's wall time says how fast it runs.
     let speed = numbers(&line("simulated / wall time:"));
     assert!(

@@ -1,5 +1,5 @@
-//! Other processes on the bus of a running fleet: one without a password of the run (an outsider
-//! that found the port); ones holding the user and password of a role an attacker would most
+//! Other processes on the bus of a running fleet: one without a certificate of the run (an outsider
+//! that found the port); ones holding the certificate of a role an attacker would most
 //! plausibly hold (a recorder's, an observer's, another vehicle's agent's), whose forgeries the
 //! world's access rules drop; and ones holding the very role's they forge for, which the fleet's
 //! own checks must catch. None may change a lockstep run's bits without the run
@@ -76,17 +76,6 @@ fn holding(run: &Path, identity: &str) -> zenoh::Config {
         });
         return zenoh::Config::from_json5(&client.to_string()).unwrap();
     }
-    zenoh::Config::from_json5(&config.to_string()).unwrap()
-}
-
-/// A client of the router at `endpoint`, presenting `user` and `password`.
-fn client(endpoint: &serde_json::Value, user: &serde_json::Value, password: &serde_json::Value) -> zenoh::Config {
-    let config = serde_json::json!({
-        "mode": "client",
-        "scouting": { "multicast": { "enabled": false } },
-        "connect": { "endpoints": [endpoint] },
-        "transport": { "auth": { "usrpwd": { "user": user, "password": password } } },
-    });
     zenoh::Config::from_json5(&config.to_string()).unwrap()
 }
 
@@ -169,7 +158,7 @@ fn impostor(run: &Path, endpoint: &str) -> zenoh::Config {
     let text = std::fs::read_to_string(run.join("observer.json5")).unwrap();
     let observer: serde_json::Value = serde_json::from_str(&text).unwrap();
     let own = tcpf_bus::certificate::Authority::new(MISSION).unwrap();
-    let world = own.issue(tcpf_bus::acl::Identity::World, &[]).unwrap();
+    let world = own.issue("world", &[]).unwrap();
     let mut config = tcpf_bus::certificate::tls(&own.pem(), &world, false);
     config["root_ca_certificate_base64"] = observer["transport"]["link"]["tls"]["root_ca_certificate_base64"].clone();
     let client = serde_json::json!({
@@ -326,7 +315,7 @@ impl Junk {
 
 const FLOOD: u64 = 100_000;
 
-/// The insider: joins with the world's password, copies every genuine state,
+/// The insider: joins with the world's certificate, copies every genuine state,
 /// command and γ it hears once as is and once with other values (for the tick under way), and
 /// in between sends junk: random bytes, messages for ticks far ahead, NaN. Stops at FLOOD.
 async fn flood(config: zenoh::Config, sent: Arc<Mutex<u64>>) {
@@ -452,7 +441,7 @@ async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
     let mut launch = Launch::start(&paper("b-current"), &dir.join("p"), &SLOWER);
     endpoint(&launch);
     let sent = Arc::new(Mutex::new(0u64));
-    // With the world's own password, which may say anything: what is sent is refused by the
+    // With the world's own certificate, which may say anything: what is sent is refused by the
     // roles' own checks.
     let flooder = tokio::spawn(flood(holding(&dir.join("p"), "world"), sent.clone()));
     let flooded = tokio::task::block_in_place(|| peaks(&mut launch, || {}));
@@ -699,14 +688,14 @@ async fn forge_everything(session: &zenoh::Session) -> Vec<zenoh::query::Queryab
     answering
 }
 
-/// Processes holding the users and passwords an attacker would most plausibly hold, a recorder's (any
+/// Processes holding the certificates an attacker would most plausibly hold, a recorder's (any
 /// tool that joins a run to record it gets one), an observer's and vehicle 1's agent's, forge
 /// every word of the fleet that is not theirs to say, while a lockstep run goes on: the world's
 /// access rules drop each where it enters, no role sees one (nothing refused, nothing counted),
 /// and the run is the in-process run's, bit for bit. With the shared password of before, each of
 /// these made the run fail, end early, or lose a vehicle.
 #[tokio::test(flavor = "multi_thread")]
-async fn a_recorders_an_observers_or_another_agents_password_forges_nothing() {
+async fn a_recorders_an_observers_or_another_agents_certificate_forges_nothing() {
     let _fleet = fleet();
     let dir = scratch("forgers");
     let out = dir.join("p");
@@ -744,7 +733,7 @@ async fn a_recorders_an_observers_or_another_agents_password_forges_nothing() {
     assert_none_left(&s);
 }
 
-/// An end for a tick the fleet is about to reach, sent with the world's own password: the
+/// An end for a tick the fleet is about to reach, sent with the world's own certificate: the
 /// recorder takes it (nothing tells it from the world's), but the fleet runs on past it, and every message of a later tick
 /// contradicts it. The run says so: not completed, not reproducible, the contradicted end named
 /// as the failure. Once, the recording stopped there with no failure while the fleet ran on.
@@ -779,7 +768,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
     assert!(s["rejections"]["conflict"].as_u64().unwrap() > 0, "{s}");
 }
 
-/// A loss of vehicle 2 at tick 1, sent with the world's own password: its agent obeys and stops, and the world, no longer
+/// A loss of vehicle 2 at tick 1, sent with the world's own certificate: its agent obeys and stops, and the world, no longer
 /// hearing from it, loses the vehicle itself a few seconds later. A genuine world loses a vehicle
 /// once: the second, different loss makes the run one that is not reproducible, and says that
 /// another process spoke for a role. Once, the summary blamed the command timeout alone.
@@ -813,7 +802,7 @@ async fn a_forged_loss_makes_the_run_say_another_process_spoke() {
     assert!(s["rejections"]["conflict"].as_u64().unwrap() >= 1, "{s}");
 }
 
-/// Vehicle 2's agent's own password commands vehicle 2 in a realtime run: for every command of its agent, one with
+/// Vehicle 2's agent's own certificate commands vehicle 2 in a realtime run: for every command of its agent, one with
 /// another speed stamped 20 ticks ahead (0.04 s of wall time at ×5, well within the skew allowed
 /// between hosts' clocks). The world holds the freshest, so the forger steers the vehicle and its
 /// agent's commands are refused as older. The run fails and says so. Once, it arrived with every
@@ -945,20 +934,28 @@ fn tcpf_logged(args: &[&str], log: &Path) -> std::process::Child {
         .unwrap()
 }
 
-/// A client of the router at `endpoint` presenting the key in `file` (`USER:PASSWORD`).
+/// A client of the router at `endpoint` presenting the certificate in `file` (a role's of
+/// `tcpf credential DIR MISSION`).
 fn presenting(file: &Path, endpoint: &str) -> zenoh::Config {
-    let text = std::fs::read_to_string(file).unwrap();
-    let (user, password) = text.trim().split_once(':').unwrap();
-    client(&endpoint.into(), &user.into(), &password.into())
+    let tcpf_bus::credential::Credential::Certificate(bundle) = tcpf_bus::credential::read(file).unwrap() else {
+        panic!("{}: not a certificate", file.display())
+    };
+    let config = serde_json::json!({
+        "mode": "client",
+        "scouting": { "multicast": { "enabled": false } },
+        "connect": { "endpoints": [endpoint] },
+        "transport": { "link": { "tls": tcpf_bus::certificate::tls(&bundle.authority, &bundle.pair, false) } },
+    });
+    zenoh::Config::from_json5(&config.to_string()).unwrap()
 }
 
-/// A fleet started by hand with a key per role (`tcpf credential DIR MISSION`, the router given
-/// the directory): a role given another role's key is refused by name before it starts; holding
-/// agent 1's, the observer's or the recorder's key, processes forge every word of the fleet that
-/// is not theirs while the run goes on, and the router drops each where it enters: the run is the
-/// in-process run, bit for bit, with nothing refused by any role.
+/// A fleet started by hand with a certificate per role (`tcpf credential DIR MISSION`, the
+/// router given the directory): a role given another role's certificate is refused by name
+/// before it starts; holding agent 1's, the observer's or the recorder's, processes forge every
+/// word of the fleet that is not theirs while the run goes on, and the router drops each where
+/// it enters: the run is the in-process run, bit for bit, with nothing refused by any role.
 #[tokio::test(flavor = "multi_thread")]
-async fn a_fleet_started_by_hand_with_a_key_per_role_lets_each_speak_only_as_itself() {
+async fn a_fleet_started_by_hand_with_a_certificate_per_role_lets_each_speak_only_as_itself() {
     use std::os::unix::fs::PermissionsExt;
     let _fleet = fleet();
     let dir = scratch("keys");
@@ -977,13 +974,13 @@ async fn a_fleet_started_by_hand_with_a_key_per_role_lets_each_speak_only_as_its
         files,
         [
             "access.json5",
-            "agent-1.key",
-            "agent-2.key",
-            "credentials",
-            "observer.key",
-            "planner.key",
-            "recorder.key",
-            "world.key"
+            "agent-1.pem",
+            "agent-2.pem",
+            "observer.pem",
+            "planner.pem",
+            "recorder.pem",
+            "router.pem",
+            "world.pem"
         ]
     );
     for file in &files {
@@ -993,16 +990,23 @@ async fn a_fleet_started_by_hand_with_a_key_per_role_lets_each_speak_only_as_its
     assert_eq!(again.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&again.stderr).contains("exists"));
 
-    let key = |identity: &str| keys.join(format!("{identity}.key")).to_str().unwrap().to_string();
+    let key = |identity: &str| keys.join(format!("{identity}.pem")).to_str().unwrap().to_string();
     let log = |name: &str| dir.join(format!("{name}.log"));
     let (router, endpoint) = common::listening(|e| {
         tcpf_logged(
-            &["router", "--credential", keys.to_str().unwrap(), "-l", e],
+            &[
+                "router",
+                "--credential",
+                keys.to_str().unwrap(),
+                "-l",
+                &common::over_tls(e),
+            ],
             &log("router"),
         )
     });
+    let endpoint = common::over_tls(&endpoint);
     let mut roles = vec![common::Reaper(router)];
-    // Another role's key: refused by name, before it says anything.
+    // Another role's certificate: refused by name, before it says anything.
     let wrong = common::tcpf(&[
         "agent",
         &mission,
@@ -1040,7 +1044,7 @@ async fn a_fleet_started_by_hand_with_a_key_per_role_lets_each_speak_only_as_its
     };
     let mut forgers = Vec::new();
     for identity in ["recorder", "observer", "agent-1"] {
-        forgers.push(open(presenting(&keys.join(format!("{identity}.key")), &endpoint)).await);
+        forgers.push(open(presenting(&keys.join(format!("{identity}.pem")), &endpoint)).await);
     }
     tokio::task::block_in_place(|| wait_until_simulated(&out, 1.0));
     let mut answering = Vec::new();

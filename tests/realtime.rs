@@ -224,7 +224,7 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
     let mission = paper("b-current");
     let clock = ["--clock", "realtime", "--time-scale", "5"];
     let logs = dir.join("logs");
-    // A key per role: the program playing vehicle 2 holds vehicle 2's, which lets it publish
+    // A certificate per role: the program playing vehicle 2 holds vehicle 2's, which lets it publish
     // that vehicle's states and nothing else.
     let keys = dir.join("fleet");
     let made = common::tcpf(&["credential", keys.to_str().unwrap(), &mission, "--played", "2"]);
@@ -247,14 +247,14 @@ fn a_vehicle_played_by_python_arrives_with_the_one_the_world_simulates() {
             "-e",
             &endpoint,
             "--credential",
-            keys.join("vehicle-2.key").to_str().unwrap(),
+            keys.join("vehicle-2.pem").to_str().unwrap(),
         ],
     ));
     let out = dir.join("run");
     let recorded = Command::new(env!("CARGO_BIN_EXE_tcpf"))
         .args(["record", &mission, "-e", &endpoint, "--out", out.to_str().unwrap()])
         .arg("--credential")
-        .arg(keys.join("recorder.key"))
+        .arg(keys.join("recorder.pem"))
         .args(clock)
         .output()
         .unwrap();

@@ -12,8 +12,6 @@ use rcgen::{
 
 use serde_json::{json, Value};
 
-use crate::acl::Identity;
-
 /// A certificate and its private key, in PEM.
 pub struct Pair {
     pub certificate: String,
@@ -44,19 +42,22 @@ impl Authority {
         self.issuer.pem()
     }
 
-    /// A certificate for `identity`, named after it. `hosts` are the names and addresses it may
-    /// be reached at, when it listens: a client checks that the router it reaches is the one it
-    /// meant, not only one of the fleet's.
-    pub fn issue(&self, identity: Identity, hosts: &[String]) -> Result<Pair> {
-        let mut params =
-            CertificateParams::new(hosts.to_vec()).with_context(|| format!("{identity}: hosts {hosts:?}"))?;
-        params.distinguished_name.push(DnType::CommonName, identity.to_string());
+    /// A certificate named `name` (an `Identity`, or the router of a fleet started by hand).
+    /// `hosts` are the names and addresses a router is reached at: a client checks that the
+    /// router it reaches is the one it meant. Only a certificate with hosts may serve as a
+    /// router's: a role's cannot pass for one.
+    pub fn issue(&self, name: &str, hosts: &[String]) -> Result<Pair> {
+        let mut params = CertificateParams::new(hosts.to_vec()).with_context(|| format!("{name}: hosts {hosts:?}"))?;
+        params.distinguished_name.push(DnType::CommonName, name);
         params.key_usages = vec![KeyUsagePurpose::DigitalSignature];
-        params.extended_key_usages = vec![ExtendedKeyUsagePurpose::ClientAuth, ExtendedKeyUsagePurpose::ServerAuth];
-        let key = KeyPair::generate().with_context(|| format!("cannot make {identity}'s key"))?;
+        params.extended_key_usages = vec![ExtendedKeyUsagePurpose::ClientAuth];
+        if !hosts.is_empty() {
+            params.extended_key_usages.push(ExtendedKeyUsagePurpose::ServerAuth);
+        }
+        let key = KeyPair::generate().with_context(|| format!("cannot make {name}'s key"))?;
         let certificate = params
             .signed_by(&key, &self.issuer)
-            .with_context(|| format!("cannot sign {identity}'s certificate"))?;
+            .with_context(|| format!("cannot sign {name}'s certificate"))?;
         Ok(Pair {
             certificate: certificate.pem(),
             key: key.serialize_pem(),
@@ -82,6 +83,77 @@ pub fn tls(authority: &str, pair: &Pair, listens: bool) -> Value {
     })
 }
 
+/// One process's whole credential, as `tcpf credential DIR MISSION` writes it to a file: its
+/// certificate, its key and the authority it trusts.
+pub struct Bundle {
+    pub pair: Pair,
+    pub authority: String,
+}
+
+impl Bundle {
+    /// The bundle as one PEM file.
+    pub fn pem(&self) -> String {
+        format!("{}{}{}", self.pair.certificate, self.pair.key, self.authority)
+    }
+
+    /// The bundle in `text`, or what it lacks: the first certificate is the holder's, the second
+    /// its authority's.
+    pub fn parse(text: &str) -> std::result::Result<Bundle, String> {
+        let mut certificates = Vec::new();
+        let mut key = None;
+        let mut rest = text;
+        while let Some(at) = rest.find("-----BEGIN ") {
+            let label_end = rest[at + 11..].find("-----").ok_or("a PEM header without its end")? + at + 11;
+            let label = &rest[at + 11..label_end];
+            let end = format!("-----END {label}-----");
+            let stop = rest
+                .find(&end)
+                .ok_or_else(|| format!("a {label} without its END line"))?
+                + end.len();
+            let block = format!("{}\n", &rest[at..stop]);
+            match label {
+                "CERTIFICATE" => certificates.push(block),
+                l if l.ends_with("PRIVATE KEY") => key = Some(block),
+                other => {
+                    return Err(format!(
+                        "a {other}, where a certificate, its key and the fleet's authority were expected"
+                    ))
+                }
+            }
+            rest = &rest[stop..];
+        }
+        match (certificates.as_slice(), key) {
+            ([certificate, authority], Some(key)) => Ok(Bundle {
+                pair: Pair {
+                    certificate: certificate.clone(),
+                    key,
+                },
+                authority: authority.clone(),
+            }),
+            (_, key) => Err(format!(
+                "{} certificate(s) and {} key: a role's certificate file holds its certificate, its private key and the fleet's authority (`tcpf credential DIR MISSION` makes them)",
+                certificates.len(),
+                if key.is_some() { "a" } else { "no" }
+            )),
+        }
+    }
+
+    /// The name of the bundle's holder (its certificate's Common Name).
+    pub fn name(&self) -> Result<String> {
+        common_name(self.pair.certificate.as_bytes())
+    }
+}
+
+/// Names the holder, never the key: a bundle may end up in an error message.
+impl std::fmt::Debug for Bundle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.name() {
+            Ok(name) => write!(f, "the certificate of {name}"),
+            Err(_) => f.write_str("a certificate without a name"),
+        }
+    }
+}
+
 /// The Common Name of the certificate in `pem`: the identity the router knows it by.
 pub fn common_name(pem: &[u8]) -> Result<String> {
     let (_, pem) = x509_parser::pem::parse_x509_pem(pem).map_err(|e| anyhow!("not a PEM certificate: {e}"))?;
@@ -100,11 +172,12 @@ pub fn common_name(pem: &[u8]) -> Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::acl::Identity;
 
     #[test]
     fn each_certificate_is_named_after_its_role_and_signed_by_the_fleet() {
         let authority = Authority::new("b-current").unwrap();
-        let agent = authority.issue(Identity::Agent(2), &[]).unwrap();
+        let agent = authority.issue(&Identity::Agent(2).to_string(), &[]).unwrap();
         assert_eq!(common_name(agent.certificate.as_bytes()).unwrap(), "agent-2");
         assert_eq!(common_name(authority.pem().as_bytes()).unwrap(), "tcpf fleet b-current");
         let (_, pem) = x509_parser::pem::parse_x509_pem(agent.certificate.as_bytes()).unwrap();
@@ -122,7 +195,7 @@ mod tests {
     fn a_listening_role_names_where_it_listens() {
         let authority = Authority::new("fleet").unwrap();
         let world = authority
-            .issue(Identity::World, &["127.0.0.1".into(), "shore.local".into()])
+            .issue("world", &["127.0.0.1".into(), "shore.local".into()])
             .unwrap();
         let (_, pem) = x509_parser::pem::parse_x509_pem(world.certificate.as_bytes()).unwrap();
         let certificate = pem.parse_x509().unwrap();
@@ -141,5 +214,22 @@ mod tests {
         );
         assert!(names.contains("shore.local"), "{names}");
         assert!(common_name(b"not a certificate").is_err());
+    }
+
+    #[test]
+    fn a_bundle_reads_back_and_says_what_it_lacks() {
+        let authority = Authority::new("fleet").unwrap();
+        let bundle = Bundle {
+            pair: authority.issue("observer", &[]).unwrap(),
+            authority: authority.pem(),
+        };
+        let again = Bundle::parse(&bundle.pem()).unwrap();
+        assert_eq!(again.name().unwrap(), "observer");
+        assert_eq!(again.authority, authority.pem());
+        assert_eq!(again.pair.key, bundle.pair.key);
+        let alone = Bundle::parse(&bundle.pair.certificate).unwrap_err();
+        assert!(alone.starts_with("1 certificate(s) and no key"), "{alone}");
+        let other = Bundle::parse("-----BEGIN PUBLIC KEY-----\nAA==\n-----END PUBLIC KEY-----\n").unwrap_err();
+        assert!(other.starts_with("a PUBLIC KEY"), "{other}");
     }
 }

@@ -1,10 +1,13 @@
 //! A fleet's credentials for roles started by hand, made by `tcpf credential`.
 //!
 //! - **One per role** (`tcpf credential DIR MISSION`): a fleet directory holding, for each role
-//!   of the mission (`acl::identities`), `<identity>.key` with its own user and password; the
-//!   `credentials` dictionary of them all and the access rules made from the mission
-//!   (`access.json5`), which the router (`tcpf router --credential DIR`) demands and enforces. A
-//!   host holds only its own role's key, and with it can speak only as that role.
+//!   of the mission (`acl::identities`), `<identity>.pem` with its own certificate, its key and
+//!   the fleet's authority (mutual TLS, `certificate`); `router.pem`, the router's, valid where
+//!   it listens; and the access rules made from the mission (`access.json5`), which the router
+//!   (`tcpf router --credential DIR`) demands and enforces. A host holds only its own role's
+//!   file, and with it can speak only as that role. With `--passwords`, `<identity>.key` holds a
+//!   user and password instead, and `credentials` the router's dictionary of them all, for a
+//!   Zenoh without TLS.
 //! - **One for the whole fleet** (`tcpf credential FILE`): one user and password, in a file that
 //!   is at once what a process presents (`transport/auth/usrpwd/user`, `password`) and what it
 //!   demands of others (the `dictionary_file`). Whoever holds it may speak for every role: for a
@@ -17,6 +20,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 
 use crate::acl::{self, Fleet, Identity, Naming};
+use crate::certificate::{Authority, Bundle};
 
 /// The user every process of a fleet presents.
 pub const USER: &str = "tcpf";
@@ -54,42 +58,104 @@ pub const DICTIONARY: &str = "credentials";
 /// A fleet directory's access rules (Zenoh's `access_control` section), for the router.
 pub const ACCESS: &str = "access.json5";
 
-/// The file of `identity`'s key in a fleet directory.
-pub fn key_file(identity: Identity) -> String {
-    format!("{identity}.key")
+/// A fleet directory's router certificate file.
+pub const ROUTER: &str = "router.pem";
+
+/// Where a router is reached, besides the hosts given: this host, by name and address.
+const HERE: [&str; 2] = ["localhost", "127.0.0.1"];
+
+/// How the roles of a fleet started by hand prove which they are.
+#[derive(Debug, Clone, Copy)]
+pub enum Proof<'a> {
+    /// A certificate per role; the router's valid at `hosts` and on this host.
+    Certificates { hosts: &'a [String] },
+    /// A user and password per role.
+    Passwords,
 }
 
-/// Makes the fleet directory `dir` (new, owner-only) for `fleet`: a key per role, the dictionary
-/// and the access rules, by user name. Returns the roles, in the order of their keys.
-pub fn create_fleet(dir: &Path, fleet: &Fleet) -> Result<Vec<Identity>> {
+/// The file of `identity`'s credential in a fleet directory.
+pub fn key_file(identity: Identity, proof: Proof) -> String {
+    match proof {
+        Proof::Certificates { .. } => format!("{identity}.pem"),
+        Proof::Passwords => format!("{identity}.key"),
+    }
+}
+
+/// Makes the fleet directory `dir` (new, owner-only) for `fleet`, named `name`: a credential per
+/// role, the router's, and the access rules. Returns the roles, in the order of their files.
+pub fn create_fleet(dir: &Path, name: &str, fleet: &Fleet, proof: Proof) -> Result<Vec<Identity>> {
     std::fs::DirBuilder::new()
         .mode(0o700)
         .create(dir)
         .with_context(|| format!("cannot make {}", dir.display()))?;
     let identities = acl::identities(fleet);
-    let mut dictionary = String::new();
-    for &identity in &identities {
-        let line = format!("{identity}:{}\n", secret()?);
-        private(&dir.join(key_file(identity)), &line)?;
-        dictionary.push_str(&line);
-    }
-    private(&dir.join(DICTIONARY), &dictionary)?;
-    let access = acl::access_control(fleet, Naming::Username);
+    let naming = match proof {
+        Proof::Certificates { hosts } => {
+            let authority = Authority::new(name)?;
+            let bundle = |name: &str, hosts: &[String]| -> Result<String> {
+                let pair = authority.issue(name, hosts)?;
+                Ok(Bundle {
+                    pair,
+                    authority: authority.pem(),
+                }
+                .pem())
+            };
+            for &identity in &identities {
+                private(
+                    &dir.join(key_file(identity, proof)),
+                    &bundle(&identity.to_string(), &[])?,
+                )?;
+            }
+            let mut at: Vec<String> = HERE.iter().map(|h| h.to_string()).collect();
+            at.extend(hosts.iter().filter(|h| !HERE.contains(&h.as_str())).cloned());
+            private(&dir.join(ROUTER), &bundle("router", &at)?)?;
+            Naming::CommonName
+        }
+        Proof::Passwords => {
+            let mut dictionary = String::new();
+            for &identity in &identities {
+                let line = format!("{identity}:{}\n", secret()?);
+                private(&dir.join(key_file(identity, proof)), &line)?;
+                dictionary.push_str(&line);
+            }
+            private(&dir.join(DICTIONARY), &dictionary)?;
+            Naming::Username
+        }
+    };
+    let access = acl::access_control(fleet, naming);
     private(&dir.join(ACCESS), &(serde_json::to_string_pretty(&access)? + "\n"))?;
     Ok(identities)
 }
 
-/// What a router takes from the fleet directory `dir`: the dictionary's path and the access
-/// rules, or why they cannot be had.
-pub fn read_fleet(dir: &Path) -> std::result::Result<(std::path::PathBuf, serde_json::Value), String> {
+/// What a router of a fleet directory demands of every link.
+pub enum Demand {
+    /// A certificate of the fleet's authority: the router presents its own, in this file.
+    Certificate(Bundle),
+    /// One of the users and passwords of this dictionary.
+    Dictionary(std::path::PathBuf),
+}
+
+/// What a router takes from the fleet directory `dir`: what it demands and the access rules, or
+/// why they cannot be had.
+pub fn read_fleet(dir: &Path) -> std::result::Result<(Demand, serde_json::Value), String> {
     let private_file = |path: &Path| {
         std::fs::metadata(path)
             .map_err(|e| e.to_string())
             .and_then(|meta| owner_only(&meta, path))
             .map_err(|why| format!("{}: {why}", path.display()))
     };
-    let dictionary = dir.join(DICTIONARY);
-    private_file(&dictionary)?;
+    let router = dir.join(ROUTER);
+    let demand = if router.exists() {
+        private_file(&router)?;
+        match read(&router).map_err(|why| format!("{}: {why}", router.display()))? {
+            Credential::Certificate(bundle) => Demand::Certificate(bundle),
+            Credential::Password { .. } => return Err(format!("{}: not a certificate", router.display())),
+        }
+    } else {
+        let dictionary = dir.join(DICTIONARY);
+        private_file(&dictionary)?;
+        Demand::Dictionary(dictionary)
+    };
     let access = dir.join(ACCESS);
     private_file(&access)?;
     let at = |why: String| format!("{}: {why}", access.display());
@@ -102,7 +168,7 @@ pub fn read_fleet(dir: &Path) -> std::result::Result<(std::path::PathBuf, serde_
                 .into(),
         ));
     }
-    Ok((dictionary, rules))
+    Ok((demand, rules))
 }
 
 /// Refuses a file that others may read, as ssh refuses such a key: anyone who reads it could
@@ -118,19 +184,39 @@ fn owner_only(meta: &std::fs::Metadata, path: &Path) -> std::result::Result<(), 
     Ok(())
 }
 
-/// The user and password of the credential file at `path`, or why it cannot be one: a file that
-/// others may read is refused, as ssh refuses such a key, since anyone who reads it can speak
-/// for every role of the fleet.
-pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
+/// What a credential file holds.
+pub enum Credential {
+    /// A user and password (`tcpf credential FILE`, or a role's `.key`).
+    Password { user: String, password: String },
+    /// A certificate, its key and the fleet's authority (a role's `.pem`).
+    Certificate(Bundle),
+}
+
+/// Names the holder, never the secret: a credential may end up in an error message.
+impl std::fmt::Debug for Credential {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Credential::Password { user, .. } => write!(f, "the password of {user}"),
+            Credential::Certificate(bundle) => bundle.fmt(f),
+        }
+    }
+}
+
+/// The credential in the file at `path`, or why it cannot be one: a file that others may read
+/// is refused, as ssh refuses such a key, since anyone who reads it can speak for a role.
+pub fn read(path: &Path) -> std::result::Result<Credential, String> {
     let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
     if meta.is_dir() {
         return Err(format!(
-            "a directory, not a file: a fleet directory of `tcpf credential DIR MISSION` is the router's; a role takes its own key, {}",
-            path.join("<role>.key").display()
+            "a directory, not a file: a fleet directory of `tcpf credential DIR MISSION` is the router's; a role takes its own file, {}",
+            path.join("<role>.pem").display()
         ));
     }
     owner_only(&meta, path)?;
     let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    if text.contains("-----BEGIN ") {
+        return Bundle::parse(&text).map(Credential::Certificate);
+    }
     let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
     let line = lines.next().unwrap_or("");
     // The file is also the dictionary every listener checks others against: each further line
@@ -142,11 +228,12 @@ pub fn read(path: &Path) -> std::result::Result<(String, String), String> {
         );
     }
     match line.split_once(':') {
-        Some((user, password)) if !user.is_empty() && !password.is_empty() => {
-            Ok((user.to_string(), password.to_string()))
-        }
+        Some((user, password)) if !user.is_empty() && !password.is_empty() => Ok(Credential::Password {
+            user: user.to_string(),
+            password: password.to_string(),
+        }),
         _ => {
-            Err("not a credential: its first line must be USER:PASSWORD (make a key per role with `tcpf credential DIR MISSION`)".into())
+            Err("not a credential: neither a certificate (PEM) nor a line USER:PASSWORD (make one per role with `tcpf credential DIR MISSION`)".into())
         }
     }
 }
@@ -162,17 +249,24 @@ mod tests {
         dir.join("fleet.key")
     }
 
+    fn user_and_password(path: &Path) -> (String, String) {
+        match read(path).unwrap() {
+            Credential::Password { user, password } => (user, password),
+            other => panic!("{other:?}"),
+        }
+    }
+
     #[test]
     fn a_new_credential_reads_back_and_is_owner_only() {
         let path = scratch("new");
         let password = create(&path).unwrap();
         assert_eq!(password.len(), 32);
-        assert_eq!(read(&path).unwrap(), (USER.to_string(), password));
+        assert_eq!(user_and_password(&path), (USER.to_string(), password));
         let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, 0o600);
         let again = create(&path).unwrap_err().to_string();
         assert!(again.contains("cannot write"), "{again}");
-        assert_eq!(read(&path).unwrap().0, USER, "an existing credential is kept");
+        assert_eq!(user_and_password(&path).0, USER, "an existing credential is kept");
     }
 
     #[test]
@@ -183,7 +277,7 @@ mod tests {
         let why = read(&path).unwrap_err();
         assert!(why.contains("mode 644") && why.contains("chmod 600"), "{why}");
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
-        assert_eq!(read(&path).unwrap(), ("tcpf".into(), "secret".into()));
+        assert_eq!(user_and_password(&path), ("tcpf".into(), "secret".into()));
         std::fs::write(&path, "tcpf\n").unwrap();
         assert!(read(&path).unwrap_err().contains("USER:PASSWORD"));
         std::fs::write(&path, "tcpf:secret\nmallory:open\n").unwrap();

@@ -7,7 +7,8 @@ use anyhow::{anyhow, Context, Result};
 use zenoh::{Config, Session};
 
 use crate::acl::Identity;
-use crate::credential;
+use crate::certificate;
+use crate::credential::{self, Credential, Demand, Proof};
 use crate::signals::{Interrupted, Shutdown};
 
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -58,12 +59,13 @@ fn bad(message: String) -> anyhow::Error {
 }
 
 /// A Zenoh error in a user's words: without the source file and line Zenoh appends to an error
-/// and to each of its causes (` at /…/src/lib.rs:62.`).
+/// and to each of its causes (` at /…/src/lib.rs:62.`, or a relative path for a crate of vendor/).
 pub fn zenoh_words(e: impl std::fmt::Display) -> String {
     let text = e.to_string();
     let mut words = String::with_capacity(text.len());
     let mut rest = text.as_str();
-    while let Some(at) = rest.find(" at /") {
+    // Zenoh's own crates give absolute paths; a patched one of vendor/ a relative path.
+    while let Some(at) = rest.find(" at ") {
         let path = &rest[at + 4..];
         let path = &path[..path.find(char::is_whitespace).unwrap_or(path.len())];
         // A source location may close a bracket: "(os error 98) at /…/tcp.rs:61.]".
@@ -235,18 +237,46 @@ fn set(config: &mut Config, key: &str, value: &str) -> Result<()> {
         .map_err(|e| anyhow!("zenoh {key}: {}", zenoh_words(e)))
 }
 
-/// A router of a fleet with a key per role (`tcpf credential DIR MISSION`): it demands one of
-/// the roles' users and passwords of every link (the dictionary), and lets each do only what
-/// its role does (the access rules made from the mission).
-fn guard(config: &mut Config, dir: &std::path::Path) -> Result<()> {
-    let (dictionary, rules) =
+/// A certificate is presented over TLS only: over another protocol a link would carry none, and
+/// the router would refuse it without a word of why.
+fn over_tls(config: &Config, key: &str, given: &std::path::Path) -> Result<()> {
+    for e in endpoints_of(config, key) {
+        if !(e.starts_with("tls/") || e.starts_with("quic/")) {
+            let address = e.split_once('/').map_or(e.as_str(), |(_, a)| a);
+            return Err(bad(format!(
+                "--credential {}: a certificate is presented over TLS, and {key} has {e}: give tls/{address}",
+                given.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// A router of a fleet with a credential per role (`tcpf credential DIR MISSION`): it demands
+/// one of the roles' certificates (or users and passwords) of every link, and lets each do only
+/// what its role does (the access rules made from the mission). `listen` is where it listens
+/// when told nowhere.
+fn guard(config: &mut Config, dir: &std::path::Path, listen: Option<&str>) -> Result<()> {
+    let (demand, rules) =
         credential::read_fleet(dir).map_err(|why| bad(format!("--credential {}: {why}", dir.display())))?;
-    let dictionary =
-        std::fs::canonicalize(&dictionary).map_err(|e| bad(format!("--credential {}: {e}", dictionary.display())))?;
-    let auth = serde_json::json!({ "dictionary_file": dictionary });
-    config
-        .insert_json5("transport/auth/usrpwd", &auth.to_string())
-        .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
+    match demand {
+        Demand::Certificate(bundle) => {
+            if let Some(listen) = listen {
+                set(config, "listen/endpoints", &format!("[\"tls/{listen}\"]"))?;
+            }
+            over_tls(config, "listen/endpoints", dir)?;
+            let tls = certificate::tls(&bundle.authority, &bundle.pair, true);
+            set(config, "transport/link/tls", &tls.to_string())?;
+        }
+        Demand::Dictionary(dictionary) => {
+            let dictionary = std::fs::canonicalize(&dictionary)
+                .map_err(|e| bad(format!("--credential {}: {e}", dictionary.display())))?;
+            let auth = serde_json::json!({ "dictionary_file": dictionary });
+            config
+                .insert_json5("transport/auth/usrpwd", &auth.to_string())
+                .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
+        }
+    }
     config.insert_json5("access_control", &rules.to_string()).map_err(|e| {
         bad(format!(
             "--credential {}: {}: {}",
@@ -259,7 +289,7 @@ fn guard(config: &mut Config, dir: &std::path::Path) -> Result<()> {
 }
 
 /// Why a role with no credential does not start unless told to (`--open`).
-const RUNS_OPEN: &str = "this role would run open: its Zenoh configuration demands no credential, so any process that reaches it could join the fleet and speak for any role. Make a key per role once with `tcpf credential fleet mission.toml`, give the router `--credential fleet` and each role its own key (`--credential fleet/agent-1.key`; docs/TESTBED.md); or, where every host is trusted, one for all with `tcpf credential fleet.key`; or give -c a mutual-TLS configuration (configs/zenoh/tls/); or, on a network only you use, `--open`";
+const RUNS_OPEN: &str = "this role would run open: its Zenoh configuration demands no credential, so any process that reaches it could join the fleet and speak for any role. Make a certificate per role once with `tcpf credential fleet mission.toml`, give the router `--credential fleet` and each role its own, over tls/ endpoints (`--credential fleet/agent-1.pem -e tls/HOST:PORT`; docs/TESTBED.md); or, where every host is trusted, one for all with `tcpf credential fleet.key`; or give -c a mutual-TLS configuration (configs/zenoh/tls/); or, on a network only you use, `--open`";
 
 /// What `config` demands of the processes it meets, if anything: a user and password, or a
 /// certificate (mutual TLS).
@@ -289,7 +319,7 @@ pub fn warn_if_open(config: &Config) {
             .collect::<Vec<_>>()
             .join(" and ");
         tracing::warn!(
-            "this role runs open (--open): its Zenoh configuration demands no credential, so any process that reaches {at} can join this fleet and speak for any role; `tcpf credential DIR MISSION` makes a key for each role's --credential and the router's (docs/TESTBED.md)"
+            "this role runs open (--open): its Zenoh configuration demands no credential, so any process that reaches {at} can join this fleet and speak for any role; `tcpf credential DIR MISSION` makes a certificate for each role's --credential and the router's (docs/TESTBED.md)"
         );
     }
 }
@@ -382,10 +412,28 @@ impl ZenohArgs {
     fn present(&self, config: &mut Config, file: &std::path::Path) -> Result<()> {
         let router = string_at(config, "mode").as_deref() == Some("router");
         if file.is_dir() && router {
-            return guard(config, file);
+            let told_nowhere = self.listen.is_empty() && self.config.is_none();
+            return guard(config, file, told_nowhere.then_some("127.0.0.1:0"));
         }
-        let (user, password) =
-            credential::read(file).map_err(|why| bad(format!("--credential {}: {why}", file.display())))?;
+        let given = |why: String| bad(format!("--credential {}: {why}", file.display()));
+        let (user, password) = match credential::read(file).map_err(given)? {
+            Credential::Password { user, password } => (user, password),
+            Credential::Certificate(bundle) => {
+                let name = bundle.name().map_err(|e| given(e.to_string()))?;
+                if router {
+                    return Err(given(format!(
+                        "it is {name}'s certificate, one role's, and this process would be the fleet's router, which must let every role in: give the router the directory the certificates came from (`tcpf router --credential DIR -l tls/HOST:PORT`) and connect every role to it with -e"
+                    )));
+                }
+                over_tls(config, "connect/endpoints", file)?;
+                set(
+                    config,
+                    "transport/link/tls",
+                    &certificate::tls(&bundle.authority, &bundle.pair, false).to_string(),
+                )?;
+                return self.suit_mode(config);
+            }
+        };
         // A router with one role's key would let in that role alone, and every other role would
         // wait out its timeout blaming the network.
         if router && user != credential::USER {
@@ -404,6 +452,11 @@ impl ZenohArgs {
         config
             .insert_json5("transport/auth/usrpwd", &auth.to_string())
             .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
+        self.suit_mode(config)
+    }
+
+    /// Makes `config` suit the mode its credential implies.
+    fn suit_mode(&self, config: &mut Config) -> Result<()> {
         match self.implied_mode() {
             // Its clients need no gossip to find each other.
             Some("router") => set(config, "scouting/gossip/enabled", "false"),
@@ -421,13 +474,27 @@ impl ZenohArgs {
         }
     }
 
-    /// Refuses to speak as `identity` with another role's key (a fleet made by `tcpf credential DIR
-    /// MISSION`): the router would drop everything this process says, without a word to it. The
-    /// fleet's one shared user, or a configuration without a user, speaks for any role.
+    /// Refuses to speak as `identity` with another role's certificate or key (a fleet made by
+    /// `tcpf credential DIR MISSION`): the router would drop everything this process says,
+    /// without a word to it. The fleet's one shared user, or a configuration without a user or a
+    /// certificate of `tcpf credential`, speaks for any role (a testbed's own certificates may
+    /// name hosts rather than roles: its router's rules judge them).
     pub fn speaks_as(&self, identity: Identity) -> Result<()> {
-        match string_at(&self.config()?, "transport/auth/usrpwd/user") {
+        let config = self.config()?;
+        let certificate = match &self.credential {
+            Some(file) => match credential::read(file) {
+                Ok(Credential::Certificate(bundle)) => Some(bundle.name()?),
+                _ => None,
+            },
+            None => None,
+        };
+        let (name, proof) = match certificate {
+            Some(name) => (Some(name), Proof::Certificates { hosts: &[] }),
+            None => (string_at(&config, "transport/auth/usrpwd/user"), Proof::Passwords),
+        };
+        match name {
             Some(user) if user != credential::USER && user != identity.to_string() => {
-                let own = credential::key_file(identity);
+                let own = credential::key_file(identity, proof);
                 let (given, own) = match (&self.credential, &self.config) {
                     (Some(file), _) => (
                         format!("--credential {}", file.display()),
@@ -437,7 +504,7 @@ impl ZenohArgs {
                     (None, None) => ("its configuration".to_string(), own),
                 };
                 Err(bad(format!(
-                    "{given} is {user}'s, and this process is {identity}: the router lets each role's key speak only as that role. Give it {own}"
+                    "{given} is {user}'s, and this process is {identity}: the router lets each role's credential speak only as that role. Give it {own}"
                 )))
             }
             _ => Ok(()),
@@ -534,6 +601,12 @@ mod tests {
             "Unable to bind UDP port 192.0.2.1:7446 - Caused by Cannot assign requested address"
         );
         assert_eq!(zenoh_words("see /etc at /home/my files"), "see /etc at /home/my files");
+        let vendored =
+            "127.0.0.1:36167: Address already in use (os error 98) at vendor/zenoh-link-tls/src/unicast.rs:458";
+        assert_eq!(
+            zenoh_words(vendored),
+            "127.0.0.1:36167: Address already in use (os error 98)"
+        );
 
         assert_eq!(
             zenoh_words("no route to host at the shore"),
@@ -727,70 +800,114 @@ mod tests {
     }
 
     #[test]
-    fn a_fleet_directory_makes_its_router_judge_and_each_key_speak_only_as_its_role() {
+    fn a_fleet_directory_makes_its_router_judge_and_each_credential_speak_only_as_its_role() {
         use crate::acl::{Fleet, Identity};
-        let dir = std::env::temp_dir().join(format!("tcpf-fleet-keys-{}", std::process::id()));
+        let hosts = ["shore.local".to_string()];
+        for (proof, protocol, demands, kind) in [
+            (
+                Proof::Certificates { hosts: &hosts },
+                "tls",
+                "a certificate (mutual TLS)",
+                "certificate",
+            ),
+            (Proof::Passwords, "tcp", "a user and password", "key"),
+        ] {
+            let dir = std::env::temp_dir().join(format!("tcpf-fleet-{kind}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&dir);
+            let fleet = Fleet {
+                keys: crate::keys::Keys::new("m"),
+                vehicles: &[1, 2],
+                ros2: None,
+                played: &[],
+            };
+            credential::create_fleet(&dir, "m", &fleet, proof).unwrap();
+            let router = ZenohArgs {
+                credential: Some(dir.clone()),
+                listen: vec![format!("{protocol}/127.0.0.1:0")],
+                ..Default::default()
+            };
+            let config = router.config().unwrap();
+            assert_eq!(credential(&config), Some(demands));
+            assert_eq!(config.get_json("access_control/enabled").unwrap(), "true");
+            assert_eq!(
+                config.get_json("access_control/default_permission").unwrap(),
+                "\"deny\""
+            );
+            assert!(config.get_json("transport/auth/usrpwd/user").unwrap() == "null");
+            // Given to a role, the directory is refused: a role takes its own file.
+            let role = ZenohArgs {
+                credential: Some(dir.clone()),
+                connect: vec![format!("{protocol}/127.0.0.1:7447")],
+                ..Default::default()
+            };
+            let e = role.config().unwrap_err().to_string();
+            assert!(e.contains("a role takes its own file"), "{e}");
+            let agent = |id: u32| ZenohArgs {
+                credential: Some(dir.join(credential::key_file(Identity::Agent(id), proof))),
+                connect: vec![format!("{protocol}/127.0.0.1:7447")],
+                ..Default::default()
+            };
+            assert_eq!(credential(&agent(1).config().unwrap()), Some(demands));
+            agent(1).speaks_as(Identity::Agent(1)).unwrap();
+            let e = agent(1).speaks_as(Identity::Agent(2)).unwrap_err();
+            assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+            let words = e.to_string();
+            assert!(words.contains("is agent-1's, and this process is agent-2"), "{words}");
+            let own = dir.join(credential::key_file(Identity::Agent(2), proof));
+            assert!(words.contains(&own.display().to_string()), "{words}");
+            assert!(agent(1).speaks_as(Identity::World).is_err());
+            // One role's credential makes no router: it would let that role alone in.
+            let listening = ZenohArgs {
+                credential: Some(dir.join(credential::key_file(Identity::Planner, proof))),
+                listen: vec![format!("{protocol}/127.0.0.1:0")],
+                ..Default::default()
+            };
+            let e = listening.config().unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("it is planner's {kind}, one role's"))
+                    && e.contains("tcpf router --credential DIR"),
+                "{e}"
+            );
+            // Rules switched off are no rules: the router refuses to start on them.
+            let access = dir.join(credential::ACCESS);
+            std::fs::remove_file(&access).unwrap();
+            credential::private(&access, "{ \"enabled\": false }").unwrap();
+            let e = router.config().unwrap_err().to_string();
+            assert!(e.contains("must be enabled and deny by default"), "{e}");
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_certificate_is_presented_over_tls_and_its_router_listens_there_unless_told() {
+        use crate::acl::{Fleet, Identity};
+        let dir = std::env::temp_dir().join(format!("tcpf-fleet-tls-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let fleet = Fleet {
             keys: crate::keys::Keys::new("m"),
-            vehicles: &[1, 2],
+            vehicles: &[1],
             ros2: None,
             played: &[],
         };
-        credential::create_fleet(&dir, &fleet).unwrap();
+        let proof = Proof::Certificates { hosts: &[] };
+        credential::create_fleet(&dir, "m", &fleet, proof).unwrap();
+        let agent = ZenohArgs {
+            credential: Some(dir.join(credential::key_file(Identity::Agent(1), proof))),
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            ..Default::default()
+        };
+        let e = agent.config().unwrap_err().to_string();
+        assert!(
+            e.contains("a certificate is presented over TLS, and connect/endpoints has tcp/127.0.0.1:7447: give tls/127.0.0.1:7447"),
+            "{e}"
+        );
         let router = ZenohArgs {
             credential: Some(dir.clone()),
-            listen: vec!["tcp/127.0.0.1:0".into()],
+            mode: Some("router".into()),
             ..Default::default()
         };
         let config = router.config().unwrap();
-        assert_eq!(credential(&config), Some("a user and password"));
-        assert_eq!(config.get_json("access_control/enabled").unwrap(), "true");
-        assert_eq!(
-            config.get_json("access_control/default_permission").unwrap(),
-            "\"deny\""
-        );
-        assert!(config.get_json("transport/auth/usrpwd/user").unwrap() == "null");
-        // Given to a role, the directory is refused: a role takes its own key.
-        let role = ZenohArgs {
-            credential: Some(dir.clone()),
-            connect: vec!["tcp/127.0.0.1:7447".into()],
-            ..Default::default()
-        };
-        let e = role.config().unwrap_err().to_string();
-        assert!(e.contains("a role takes its own key"), "{e}");
-        let agent = |id: u32| ZenohArgs {
-            credential: Some(dir.join(credential::key_file(Identity::Agent(id)))),
-            connect: vec!["tcp/127.0.0.1:7447".into()],
-            ..Default::default()
-        };
-        agent(1).speaks_as(Identity::Agent(1)).unwrap();
-        let e = agent(1).speaks_as(Identity::Agent(2)).unwrap_err();
-        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
-        let words = e.to_string();
-        assert!(words.contains("is agent-1's, and this process is agent-2"), "{words}");
-        assert!(
-            words.contains(&dir.join("agent-2.key").display().to_string()),
-            "{words}"
-        );
-        assert!(agent(1).speaks_as(Identity::World).is_err());
-        // One role's key makes no router: it would let that role alone in.
-        let listening = ZenohArgs {
-            credential: Some(dir.join("planner.key")),
-            listen: vec!["tcp/127.0.0.1:0".into()],
-            ..Default::default()
-        };
-        let e = listening.config().unwrap_err().to_string();
-        assert!(
-            e.contains("it is planner's key, one role's") && e.contains("tcpf router --credential DIR"),
-            "{e}"
-        );
-        // Rules switched off are no rules: the router refuses to start on them.
-        let access = dir.join(credential::ACCESS);
-        std::fs::remove_file(&access).unwrap();
-        credential::private(&access, "{ \"enabled\": false }").unwrap();
-        let e = router.config().unwrap_err().to_string();
-        assert!(e.contains("must be enabled and deny by default"), "{e}");
+        assert_eq!(config.get_json("listen/endpoints").unwrap(), "[\"tls/127.0.0.1:0\"]");
         // The fleet's one shared user speaks for any role.
         let shared = dir.join("fleet.key");
         credential::create(&shared).unwrap();

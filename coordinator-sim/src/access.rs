@@ -122,7 +122,7 @@ pub fn create(
                 true => vec![host_of(endpoint).to_string()],
                 false => Vec::new(),
             };
-            let pair = authority.issue(identity, &hosts)?;
+            let pair = authority.issue(&identity.to_string(), &hosts)?;
             link["tls"] = certificate::tls(&authority.pem(), &pair, listens);
         } else if links == Links::Passwords {
             let password = secret()?;

@@ -516,6 +516,7 @@ pub async fn measure(
         fleet,
         ros2,
         settled,
+        passwords,
         plain,
         running,
         idle,
@@ -539,10 +540,12 @@ pub async fn measure(
         tick / median(&routed)
     ));
     say(format!(
-        "lockstep tick with a user and password per role and the world's access rules: {:.1} µs; with neither (baseline) {:.1} µs: {:.2}x",
+        "lockstep tick with a certificate per role (mutual TLS) and the world's access rules: {:.1} µs; with a user and password per role over TCP {:.1} µs; with neither (baseline) {:.1} µs: {:.2}x and {:.2}x",
         tick,
+        passwords.tick_wall_time_us,
         plain.tick_wall_time_us,
-        tick / plain.tick_wall_time_us
+        tick / plain.tick_wall_time_us,
+        passwords.tick_wall_time_us / plain.tick_wall_time_us
     ));
     say(format!(
         "lockstep tick with --ros2 (the world and every agent as ROS 2 nodes, no subscriber): {:.1} µs; / without it: {:.2}",
@@ -589,7 +592,9 @@ struct Processes {
     ros2: Summary,
     /// The fleet whose world and agents claimed their roles as roles started by hand do.
     settled: Summary,
-    /// The fleet with no user, no password and no access rules.
+    /// The fleet with a user and password per role instead of a certificate.
+    passwords: Summary,
+    /// The fleet with no credential and no access rules.
     plain: Summary,
     running: Footprint,
     idle: Footprint,
@@ -654,7 +659,8 @@ async fn processes(
     }
     // Beside the fleet as it runs by default, each the best of `ROUNDS`: the same speaking ROS 2
     // beside its own protocol (odometry and /clock every tick) with no ROS 2 subscriber, what
-    // --ros2 costs the fleet itself; and with no user, no password and no access rules.
+    // --ros2 costs the fleet itself; with a password per role over TCP; and with no credential
+    // and no access rules.
     let variants = [
         launcher::Options::default(),
         launcher::Options {
@@ -662,11 +668,15 @@ async fn processes(
             ..launcher::Options::default()
         },
         launcher::Options {
+            links: launcher::Links::Passwords,
+            ..launcher::Options::default()
+        },
+        launcher::Options {
             links: launcher::Links::Plain,
             ..launcher::Options::default()
         },
     ];
-    let mut best: [Option<Summary>; 3] = Default::default();
+    let mut best: [Option<Summary>; 4] = Default::default();
     for round in 0..ROUNDS {
         for (k, options) in variants.iter().enumerate() {
             let out = scratch.join(format!("variant-{k}-{round}"));
@@ -681,7 +691,7 @@ async fn processes(
             }
         }
     }
-    let [Some(fleet), Some(ros2), Some(plain)] = best else {
+    let [Some(fleet), Some(ros2), Some(passwords), Some(plain)] = best else {
         bail!("a variant of the fleet did not run")
     };
     let settled = launcher::Options {
@@ -700,6 +710,7 @@ async fn processes(
         fleet,
         ros2,
         settled,
+        passwords,
         plain,
         running,
         idle: idle?,

@@ -12,9 +12,11 @@ Needs Python >= 3.11 (tomllib) and `pip install eclipse-zenoh==1.10.2`.
 """
 
 import argparse
+import base64
 import json
 import math
 import os
+import re
 import signal
 import struct
 import sys
@@ -322,24 +324,40 @@ def load_mission(path, vid):
 
 
 def credential(path):
-    """The user and password of a `tcpf credential` file, refused, as tcpf refuses it, when
-    others may read it."""
+    """Where and what of a `tcpf credential` file goes into a Zenoh configuration: a role's
+    certificate, its key and the fleet's authority (mutual TLS), or a user and password. Refused,
+    as tcpf refuses it, when others may read it."""
     try:
         if os.stat(path).st_mode & 0o077:
             fail(2, f"--credential {path}: others may read it; `chmod 600 {path}` and keep it so")
         with open(path) as f:
-            line = next((l.strip() for l in f if l.strip()), "")
+            text = f.read()
     except OSError as e:
         fail(2, f"--credential {path}: {e.strerror}")
+    if "-----BEGIN " in text:
+        pems = [(m.group(1), m.group(0)) for m in re.finditer(r"-----BEGIN ([A-Z ]+)-----.*?-----END \1-----\n?", text, re.S)]
+        certificates = [pem for label, pem in pems if label == "CERTIFICATE"]
+        keys = [pem for label, pem in pems if label.endswith("PRIVATE KEY")]
+        if len(certificates) != 2 or len(keys) != 1:
+            fail(2, f"--credential {path}: a role's certificate file holds its certificate, its private key "
+                    "and the fleet's authority (`tcpf credential DIR MISSION` makes them)")
+        inline = lambda pem: base64.b64encode(pem.encode()).decode()
+        return "transport/link/tls", {
+            "root_ca_certificate_base64": inline(certificates[1]),
+            "connect_certificate_base64": inline(certificates[0]),
+            "connect_private_key_base64": inline(keys[0]),
+            "enable_mtls": True,
+        }
+    line = next((l.strip() for l in text.splitlines() if l.strip()), "")
     user, _, password = line.partition(":")
     if not user or not password:
-        fail(2, f"--credential {path}: not a credential: its first line must be USER:PASSWORD")
-    return {"user": user, "password": password}
+        fail(2, f"--credential {path}: not a credential: neither a certificate (PEM) nor a line USER:PASSWORD")
+    return "transport/auth/usrpwd", {"user": user, "password": password}
 
 
 def open_session(zenoh, args):
     if not (args.config or args.credential or args.open):
-        fail(2, "this vehicle would run open: give it its key, --credential DIR/vehicle-<id>.key (`tcpf credential`), "
+        fail(2, "this vehicle would run open: give it its certificate, --credential DIR/vehicle-<id>.pem (`tcpf credential`), "
                 "-c a Zenoh configuration that holds one, or --open on a network only you use")
     try:
         config = zenoh.Config.from_file(args.config) if args.config else zenoh.Config()
@@ -354,7 +372,8 @@ def open_session(zenoh, args):
         if args.connect:
             config.insert_json5("connect/endpoints", json.dumps(args.connect))
         if args.credential:
-            config.insert_json5("transport/auth/usrpwd", json.dumps(credential(args.credential)))
+            key, value = credential(args.credential)
+            config.insert_json5(key, json.dumps(value))
             if not args.config:
                 # Wait for the router, as a tcpf client does, up to the startup timeout.
                 config.insert_json5("connect/timeout_ms", str(int(args.startup_timeout * 1000)))

@@ -404,6 +404,11 @@ pub fn free_endpoint() -> String {
 /// The process `start` makes on a loopback endpoint, once it listens there, and that endpoint.
 /// A port free a moment ago may be taken (by another test's process) before the one started
 /// binds it: then it starts again on another port, until it holds the listening socket itself.
+/// `endpoint` (`tcp/HOST:PORT`) over TLS: where a fleet of certificates meets.
+pub fn over_tls(endpoint: &str) -> String {
+    endpoint.replacen("tcp/", "tls/", 1)
+}
+
 pub fn listening(start: impl Fn(&str) -> Child) -> (Child, String) {
     let mut exits = Vec::new();
     for _ in 0..5 {
@@ -546,7 +551,7 @@ pub fn logged(logs: &Path, name: &str, program: &str, args: &[&str]) -> Child {
 /// world and both agents, `settings` given to each, logging into `logs`. Returns them and the
 /// endpoint; playing vehicle 2, and recording, is the caller's. With the tests' shared
 /// credential the planner listens; with `keys`, a fleet directory of `tcpf credential DIR
-/// MISSION`, a router given it does, and each role presents its own key.
+/// MISSION`, a router given it does, over TLS, and each role presents its own certificate.
 pub fn fleet_without_vehicle_2(
     mission: &str,
     logs: &Path,
@@ -556,7 +561,7 @@ pub fn fleet_without_vehicle_2(
     std::fs::create_dir_all(logs).unwrap();
     let tcpf = env!("CARGO_BIN_EXE_tcpf");
     let role = |name: &str, args: &[&str]| {
-        let own = keys.map(|k| k.join(format!("{name}.key")).display().to_string());
+        let own = keys.map(|k| k.join(format!("{name}.pem")).display().to_string());
         let mut args: Vec<&str> = [args, settings].concat();
         if let Some(own) = &own {
             args.extend(["--credential", own]);
@@ -568,9 +573,10 @@ pub fn fleet_without_vehicle_2(
     let endpoint = match keys {
         Some(keys) => {
             let (router, endpoint) = listening(|e| {
-                let args = ["router", "--credential", keys.to_str().unwrap(), "-l", e];
+                let args = ["router", "--credential", keys.to_str().unwrap(), "-l", &over_tls(e)];
                 logged(logs, "router", tcpf, &args)
             });
+            let endpoint = over_tls(&endpoint);
             fleet.push(Reaper(router));
             fleet.push(Reaper(role("planner", &["planner", mission, "-e", &endpoint])));
             endpoint

@@ -1,7 +1,9 @@
 //! ROS 2 nodes of another implementation than tcpf's own: hiroz (ZettaScale's ROS 2 over Zenoh in
 //! Rust, with the rmw_zenoh key format) subscribes to a lockstep fleet on sim time, and plays
-//! vehicle 2 of a realtime fleet whose world simulates vehicle 1. The tcpf binary is
-//! `$TCPF_BIN` (by default the workspace's release build); each test kills what it started.
+//! vehicle 2 of a realtime fleet whose world simulates vehicle 1. They present a certificate and
+//! nothing else, as a stock rmw_zenoh (whose Zenoh has TLS but no user-password authentication)
+//! can. The tcpf binary is `$TCPF_BIN` (by default the workspace's release build); each test
+//! kills what it started.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -89,7 +91,30 @@ fn free_endpoint() -> String {
         .local_addr()
         .unwrap()
         .port();
-    format!("tcp/127.0.0.1:{port}")
+    format!("tls/127.0.0.1:{port}")
+}
+
+/// Zenoh's `transport/link/tls` for a client presenting the certificate file of `tcpf credential
+/// DIR MISSION` at `path`: its certificate, its key, then the fleet's authority, in PEM.
+fn presenting(path: &Path) -> Value {
+    use base64::Engine;
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut pems = Vec::new();
+    let mut rest = text.as_str();
+    while let Some(at) = rest.find("-----BEGIN ") {
+        let label = &rest[at + 11..at + 11 + rest[at + 11..].find("-----").unwrap()];
+        let end = format!("-----END {label}-----");
+        let stop = rest.find(&end).unwrap() + end.len();
+        pems.push(format!("{}\n", &rest[at..stop]));
+        rest = &rest[stop..];
+    }
+    let inline = |pem: &String| base64::engine::general_purpose::STANDARD.encode(pem);
+    serde_json::json!({
+        "connect_certificate_base64": inline(&pems[0]),
+        "connect_private_key_base64": inline(&pems[1]),
+        "root_ca_certificate_base64": inline(&pems[2]),
+        "enable_mtls": true,
+    })
 }
 
 fn seconds(t: &Time) -> f64 {
@@ -131,7 +156,7 @@ async fn a_hiroz_node_on_sim_time_hears_every_tick_and_every_odometry() {
         "1",
     ];
     let mut run = spawn(&dir, "run", &args);
-    wait_for(&out.join("endpoint"), "tcp/", Duration::from_secs(60));
+    wait_for(&out.join("endpoint"), "tls/", Duration::from_secs(60));
     let ctx = ZContextBuilder::default()
         .with_config_file(out.join("zenoh.json5"))
         .with_domain_id(6)
@@ -332,18 +357,23 @@ fn play(ctx: &ZContext, id: u32, time_scale: f64, period: f64, current: [f64; 2]
 async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() {
     let dir = scratch("plays");
     let mission = repo("configs/paper/b-current.toml");
-    let key = dir.join("fleet.key");
+    // A certificate per role, the ROS 2 graph's rules among the router's.
+    let fleet = dir.join("fleet");
     let made = Command::new(tcpf_bin())
-        .args(["credential", key.to_str().unwrap()])
+        .args(["credential", fleet.to_str().unwrap(), &mission, "--ros2", "7"])
         .output()
         .unwrap();
     assert!(made.status.success(), "{made:?}");
-    let credential = key.to_str().unwrap();
+    let own = |identity: &str| fleet.join(format!("{identity}.pem")).display().to_string();
     let endpoint = free_endpoint();
     let e = endpoint.as_str();
-    let clock = ["--clock", "realtime", "--time-scale", "5", "--credential", credential];
-    let role = |name: &str, args: &[&str]| spawn(&dir, name, &[args, &clock].concat());
-    let _planner = role("planner", &["planner", &mission, "-l", e]);
+    let clock = ["--clock", "realtime", "--time-scale", "5"];
+    let role = |name: &str, args: &[&str]| {
+        let credential = own(name);
+        spawn(&dir, name, &[args, &clock, &["--credential", &credential]].concat())
+    };
+    let _router = spawn(&dir, "router", &["router", "--credential", fleet.to_str().unwrap(), "-l", e]);
+    let _planner = role("planner", &["planner", &mission, "-e", e]);
     let _world = role(
         "world",
         &[
@@ -361,16 +391,11 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
     );
     let _agent_1 = role("agent-1", &["agent", &mission, "--id", "1", "-e", e, "--ros2", "7"]);
     let _agent_2 = role("agent-2", &["agent", &mission, "--id", "2", "-e", e, "--ros2", "7"]);
-    let (user, password) = {
-        let text = std::fs::read_to_string(&key).unwrap();
-        let (u, p) = text.trim().split_once(':').unwrap();
-        (u.to_string(), p.to_string())
-    };
-    // The planner is the router: the node connects once it listens.
-    let address = endpoint.trim_start_matches("tcp/").to_string();
+    // The node connects once the router listens.
+    let address = endpoint.trim_start_matches("tls/").to_string();
     let deadline = Instant::now() + Duration::from_secs(30);
     while std::net::TcpStream::connect(&address).is_err() {
-        assert!(Instant::now() < deadline, "the planner does not listen at {address}");
+        assert!(Instant::now() < deadline, "the router does not listen at {address}");
         std::thread::sleep(Duration::from_millis(20));
     }
     let ctx = ZContextBuilder::default()
@@ -378,8 +403,7 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
         .with_mode("client")
         .with_connect_endpoints([e])
         .disable_multicast_scouting()
-        .with_json("transport/auth/usrpwd/user", user)
-        .with_json("transport/auth/usrpwd/password", password)
+        .with_json("transport/link/tls", presenting(Path::new(&own("vehicle-2"))))
         .build()
         .unwrap();
     let stop = Arc::new(Mutex::new(false));
@@ -390,12 +414,12 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
         std::thread::spawn(move || play(&ctx, 2, 5.0, 0.002, current, &stop))
     };
     let out = dir.join("run");
-    let mut record = role("record", &["record", &mission, "-e", e, "--out", out.to_str().unwrap()]);
+    let mut record = role("recorder", &["record", &mission, "-e", e, "--out", out.to_str().unwrap()]);
     let status = wait_exit(&mut record, Duration::from_secs(120));
     *stop.lock().unwrap() = true;
     let (commands, published) = playing.join().unwrap();
     let log = |name: &str| std::fs::read_to_string(dir.join(format!("{name}.log"))).unwrap_or_default();
-    assert!(status.success(), "record: {}\nworld: {}", log("record"), log("world"));
+    assert!(status.success(), "record: {}\nworld: {}", log("recorder"), log("world"));
     let s = summary(&out);
     let arrivals: Vec<f64> = s["vehicles"]
         .as_array()
