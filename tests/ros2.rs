@@ -107,6 +107,20 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     launch.wait_for("endpoint", "tls/");
     let seen = watch(&out.join("zenoh.json5"), "0", &dir.join("ros2.json"));
     assert!(launch.wait(Duration::from_secs(60)).success());
+    // The run said how a ROS 2 shell joins it, and where.
+    let mut said = String::new();
+    std::io::Read::read_to_string(&mut launch.child.stderr.take().unwrap(), &mut said).unwrap();
+    let endpoint = std::fs::read_to_string(out.join("endpoint")).unwrap();
+    for line in [
+        format!("listens at {}", endpoint.trim()),
+        "export RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID=0".to_string(),
+        format!(
+            "export ZENOH_SESSION_CONFIG_URI={}",
+            out.join("observer.json5").display()
+        ),
+    ] {
+        assert!(said.contains(&line), "{line}: {said}");
+    }
 
     // Every key carries the hash rosbags computes for its type, and rmw_zenoh's type name.
     let keys: Vec<&str> = seen["keys"]

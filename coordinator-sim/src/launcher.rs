@@ -563,6 +563,15 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     };
     let ready = async {
         crate::access::announce(&dir.path, &endpoint)?;
+        if let Some(domain) = ros2 {
+            eprintln!(
+                "the fleet's router, the world, listens at {endpoint}. A ROS 2 node (rmw_zenoh) joins it on domain {domain} with a role's certificate:\n  \
+                 export RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={domain}\n  \
+                 export ZENOH_SESSION_CONFIG_URI={}   # to listen; {} to play vehicle <id>",
+                configs.of(Identity::Observer).display(),
+                dir.path.join("vehicle-<id>.json5").display(),
+            );
+        }
         if recorders > 0 {
             eprintln!(
                 "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
