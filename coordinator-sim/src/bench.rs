@@ -665,6 +665,7 @@ async fn processes(
         launcher::Options::default(),
         launcher::Options {
             ros2: Some(0),
+            announce: false,
             ..launcher::Options::default()
         },
         launcher::Options {

@@ -361,6 +361,9 @@ pub struct Options {
     /// How each role proves which it is (a certificate by default); `Links::Plain` runs the fleet
     /// with no credential and no access rules: the baseline `tcpf bench` sets a run's tick beside.
     pub links: Links,
+    /// Whether to say on standard error how a ROS 2 shell joins the run (with `ros2`); `tcpf
+    /// bench`'s runs are joined by nobody.
+    pub announce: bool,
 }
 
 impl Default for Options {
@@ -374,6 +377,7 @@ impl Default for Options {
             ros2: None,
             rivals: Rivals::None,
             links: Links::Certificates,
+            announce: true,
         }
     }
 }
@@ -490,6 +494,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         ros2,
         rivals,
         links,
+        announce,
     } = options;
     let begun = Instant::now();
     let mut shutdown = Shutdown::new()?;
@@ -563,7 +568,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     };
     let ready = async {
         crate::access::announce(&dir.path, &endpoint)?;
-        if let Some(domain) = ros2 {
+        if let (Some(domain), true) = (ros2, announce) {
             eprintln!(
                 "the fleet's router, the world, listens at {endpoint}. A ROS 2 node (rmw_zenoh) joins it on domain {domain} with a role's certificate:\n  \
                  export RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={domain}\n  \
