@@ -16,6 +16,7 @@ use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::CongestionControl;
 use zenoh::query::Queryable;
+use zenoh::time::Timestamp;
 use zenoh::{Session, Wait};
 
 use crate::typed::{enqueue, queue, Received, Rejected};
@@ -31,25 +32,36 @@ struct Topic {
 impl Topic {
     /// Publishes `payload` with the attachment the RMW reads, and returns that attachment.
     fn put(&mut self, payload: Vec<u8>, stamp: Stamp) -> Result<[u8; 33]> {
+        self.put_at(payload, stamp, None)
+    }
+
+    /// `put`, the sample carrying `timestamp`.
+    fn put_at(&mut self, payload: Vec<u8>, stamp: Stamp, timestamp: Option<Timestamp>) -> Result<[u8; 33]> {
         let attachment = ros2::attachment(self.sequence, stamp.nanos(), self.gid);
         self.sequence += 1;
         self.publisher
             .put(payload)
             .attachment(attachment.to_vec())
+            .timestamp(timestamp)
             .wait()
             .map_err(|e| anyhow!("publish on {}: {e}", self.publisher.key_expr()))?;
         Ok(attachment)
     }
 }
 
-/// A latched publisher's last sample and its attachment, for the late subscribers who ask.
-type LastSample = Arc<Mutex<Option<(Vec<u8>, [u8; 33])>>>;
+/// A latched publisher's last sample, its attachment and its timestamp, for the late subscribers
+/// who ask.
+type LastSample = Arc<Mutex<Option<(Vec<u8>, [u8; 33], Timestamp)>>>;
 
 /// A transient-local publisher as rmw_zenoh makes one with Zenoh's advanced publisher, built from
 /// plain Zenoh: it keeps its last sample and answers a late subscriber's query for it on
-/// `<key>/@adv/pub/<zid>/uhlc/_`, where a token says it is there.
+/// `<key>/@adv/pub/<zid>/uhlc/_`, where a token says it is there. The sample carries one
+/// timestamp, live and in every answer: a subscriber (zenoh-ext's `AdvancedSubscriber`, which
+/// rmw_zenoh's is) asks when it starts and again when it sees the token, and takes from a `uhlc`
+/// publisher only what is newer than what it has, so it takes the sample once.
 struct Latched {
     topic: Topic,
+    session: Session,
     last: LastSample,
     _cache: Queryable<()>,
     _detection: LivelinessToken,
@@ -57,8 +69,9 @@ struct Latched {
 
 impl Latched {
     fn put(&mut self, payload: Vec<u8>, stamp: Stamp) -> Result<()> {
-        let attachment = self.topic.put(payload.clone(), stamp)?;
-        *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some((payload, attachment));
+        let timestamp = self.session.new_timestamp();
+        let attachment = self.topic.put_at(payload.clone(), stamp, Some(timestamp))?;
+        *self.last.lock().unwrap_or_else(|e| e.into_inner()) = Some((payload, attachment, timestamp));
         Ok(())
     }
 }
@@ -142,9 +155,13 @@ impl Declaring {
             .declare_queryable(adv.clone())
             .callback(move |query| {
                 let last = held.lock().unwrap_or_else(|e| e.into_inner()).clone();
-                if let Some((payload, attachment)) = last {
+                if let Some((payload, attachment, timestamp)) = last {
                     // The sample under the topic's own key: the subscriber's query accepts any.
-                    if let Err(e) = query.reply(key.clone(), payload).attachment(attachment.to_vec()).wait() {
+                    let reply = query
+                        .reply(key.clone(), payload)
+                        .attachment(attachment.to_vec())
+                        .timestamp(timestamp);
+                    if let Err(e) = reply.wait() {
                         tracing::debug!("a late subscriber of {key} asked and was not answered: {e}");
                     }
                 }
@@ -153,6 +170,7 @@ impl Declaring {
             .map_err(|e| anyhow!("cannot serve the history of {adv}: {e}"))?;
         Ok(Latched {
             topic,
+            session: self.session.clone(),
             last,
             _cache: cache,
             _detection: self.declare_token(adv, "transient-local publisher").await?,

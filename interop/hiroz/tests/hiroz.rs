@@ -255,8 +255,10 @@ struct Body {
 /// Plays vehicle `id` in namespace `/tcpf` until `stop`: its start from the planned path
 /// (transient local), then every `period` of wall time the kinematics of docs/MODEL.md §2 over
 /// `period × time_scale` of simulated time in `current`, its odometry stamped with the wall clock.
-/// Returns the commands it heard and the odometry it published.
-fn play(ctx: &ZContext, id: u32, time_scale: f64, period: f64, current: [f64; 2], stop: &Mutex<bool>) -> (u64, u64) {
+/// Returns the commands it heard, the odometry it published and the copies of its path it was
+/// given after the first (a transient-local subscriber asks twice: at its start, and when it
+/// sees the publisher's token).
+fn play(ctx: &ZContext, id: u32, time_scale: f64, period: f64, current: [f64; 2], stop: &Mutex<bool>) -> (u64, u64, u64) {
     let node = ctx.create_node(format!("hiroz_vehicle_{id}")).build().unwrap();
     let latched = QosProfile {
         durability: QosDurability::TransientLocal,
@@ -347,7 +349,11 @@ fn play(ctx: &ZContext, id: u32, time_scale: f64, period: f64, current: [f64; 2]
         std::thread::sleep(Duration::from_secs_f64(period).saturating_sub(spent));
     }
     let heard = *commands.lock().unwrap();
-    (heard, published)
+    let mut copies = 0;
+    while path.recv_timeout(Duration::from_millis(10)).is_ok() {
+        copies += 1;
+    }
+    (heard, published, copies)
 }
 
 /// Case (b) in realtime at time scale 5, by hand: the world simulates vehicle 1 (`--vehicles 1`)
@@ -413,11 +419,43 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
         let current = [0.1 * std::f64::consts::PI.cos(), 0.1 * std::f64::consts::PI.sin()];
         std::thread::spawn(move || play(&ctx, 2, 5.0, 0.002, current, &stop))
     };
+    // A late joiner: a transient-local subscriber that comes once the run is under way, as an
+    // observer, is given vehicle 1's path once, though it asks twice.
+    let late = {
+        let ctx = ZContextBuilder::default()
+            .with_domain_id(7)
+            .with_mode("client")
+            .with_connect_endpoints([e])
+            .disable_multicast_scouting()
+            .with_json("transport/link/tls", presenting(Path::new(&own("observer"))))
+            .build()
+            .unwrap();
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_secs(3));
+            let node = ctx.create_node("hiroz_late").build().unwrap();
+            let latched = QosProfile {
+                durability: QosDurability::TransientLocal,
+                ..Default::default()
+            };
+            let path = node
+                .create_sub::<RosPath>("/tcpf/vehicle_1/path")
+                .with_qos(latched)
+                .build()
+                .unwrap();
+            let mut given = 0;
+            while path.recv_timeout(Duration::from_secs(2)).is_ok() {
+                given += 1;
+            }
+            given
+        })
+    };
     let out = dir.join("run");
     let mut record = role("recorder", &["record", &mission, "-e", e, "--out", out.to_str().unwrap()]);
     let status = wait_exit(&mut record, Duration::from_secs(120));
+    assert_eq!(late.join().unwrap(), 1, "copies of vehicle 1's path given to a late joiner");
     *stop.lock().unwrap() = true;
-    let (commands, published) = playing.join().unwrap();
+    let (commands, published, copies) = playing.join().unwrap();
+    assert_eq!(copies, 0, "the path again, {copies} time(s), after the first");
     let log = |name: &str| std::fs::read_to_string(dir.join(format!("{name}.log"))).unwrap_or_default();
     assert!(status.success(), "record: {}\nworld: {}", log("recorder"), log("world"));
     let s = summary(&out);
