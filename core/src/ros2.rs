@@ -613,6 +613,10 @@ pub enum Refused {
     Early,
     /// Older than one already taken (overtaken on the way).
     Stale,
+    /// Of a tick whose state an earlier odometry already made: a tick has one state, which the
+    /// world has published (a driver faster than the control period, or its jitter, puts two
+    /// in one tick; taken, each would be a different state of that tick, a conflict).
+    Taken,
     /// Stamped more than `LEAD` ahead of the fleet's clock: a wrong clock, not a skew. Taken,
     /// it would be the vehicle's newest state until the fleet caught up with it, and every
     /// genuine one before then "older".
@@ -637,16 +641,18 @@ impl Played {
     }
 
     /// The state of vehicle `id` that its node's odometry `cdr` says, the fleet's clock at tick
-    /// `now`: refused if it is no odometry, stamped more than `LEAD` ahead of `now`, or older
-    /// than one already taken (a newer one of the same tick replaces it).
+    /// `now`: refused if it is no odometry, stamped more than `LEAD` ahead of `now`, older than
+    /// one already taken, or of the same tick as one taken (the first of a tick is its state).
     pub fn on_odometry(&mut self, id: u32, cdr: &[u8], now: u64) -> Result<State, Refused> {
         let odometry = Odometry::from_cdr(id, cdr).map_err(|Malformed| Refused::Malformed)?;
         let state = self.state(&odometry)?;
         if state.t > now as f64 * self.control_period + LEAD {
             return Err(Refused::Ahead);
         }
-        if self.newest.get(&id).is_some_and(|held| held.tick > state.tick) {
-            return Err(Refused::Stale);
+        match self.newest.get(&id) {
+            Some(held) if held.tick > state.tick => return Err(Refused::Stale),
+            Some(held) if held.tick == state.tick => return Err(Refused::Taken),
+            _ => {}
         }
         self.newest.insert(id, state);
         Ok(state)
@@ -991,11 +997,16 @@ mod tests {
             stamp: Stamp::from_seconds(t),
             ..o
         };
+        let again = Odometry {
+            position: [1.5, 2.0],
+            ..at(1_002.0)
+        };
         assert_eq!(
-            played.on_odometry(2, &at(1_002.0).cdr(), 1000).map(|s| s.tick),
-            Ok(1000),
-            "the same tick again"
+            played.on_odometry(2, &again.cdr(), 1000),
+            Err(Refused::Taken),
+            "the same tick again: its state is the first's"
         );
+        assert_eq!(played.states().next().map(|s| s.position), Some([1.0, 2.0]));
         assert_eq!(played.on_odometry(2, &at(1_001.0).cdr(), 1000), Err(Refused::Stale));
         // 0.5 wall s ahead at 5x: 2.5 s of the fleet's time ahead of tick 1000; 2038, years.
         assert_eq!(played.on_odometry(2, &at(1_002.5).cdr(), 1000), Err(Refused::Ahead));

@@ -646,9 +646,9 @@ impl Shell {
                         (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
                         (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
                         (Err(Refused::Ahead), _) => self.rejected.reject(Reject::Future, &o.key),
-                        // Odometry flows before the run starts, and may be overtaken: neither is
-                        // wrong, and neither is a state of the run.
-                        (Err(Refused::Early | Refused::Stale), _) => {}
+                        // Odometry flows before the run starts, may be overtaken, and may come
+                        // faster than the ticks: none is wrong, and none is a new state of the run.
+                        (Err(Refused::Early | Refused::Stale | Refused::Taken), _) => {}
                     }
                 }
                 Some(p) = self.presence.recv() => {

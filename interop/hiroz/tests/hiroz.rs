@@ -415,9 +415,11 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
     let stop = Arc::new(Mutex::new(false));
     let playing = {
         let stop = stop.clone();
-        // Case (b)'s current: 0.1 m/s towards π.
+        // Case (b)'s current: 0.1 m/s towards π. Twice a control period (0.01 s of the fleet's
+        // time, 0.002 s of the wall's at 5x), as a driver faster than the fleet publishes: two
+        // odometries in one tick, and one state of it.
         let current = [0.1 * std::f64::consts::PI.cos(), 0.1 * std::f64::consts::PI.sin()];
-        std::thread::spawn(move || play(&ctx, 2, 5.0, 0.002, current, &stop))
+        std::thread::spawn(move || play(&ctx, 2, 5.0, 0.001, current, &stop))
     };
     // A late joiner: a transient-local subscriber that comes once the run is under way, as an
     // observer, is given vehicle 1's path once, though it asks twice.
