@@ -121,6 +121,19 @@ fn seconds(t: &Time) -> f64 {
     f64::from(t.sec) + f64::from(t.nanosec) * 1e-9
 }
 
+/// A ROS 2 context on domain 7, a client of the router at `endpoint` presenting the certificate
+/// file at `pem`.
+fn client(endpoint: &str, pem: &str) -> ZContext {
+    ZContextBuilder::default()
+        .with_domain_id(7)
+        .with_mode("client")
+        .with_connect_endpoints([endpoint])
+        .disable_multicast_scouting()
+        .with_json("transport/link/tls", presenting(Path::new(pem)))
+        .build()
+        .unwrap()
+}
+
 fn telemetry(dir: &Path) -> Vec<Vec<String>> {
     let text = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
     text.lines()
@@ -258,7 +271,14 @@ struct Body {
 /// Returns the commands it heard, the odometry it published and the copies of its path it was
 /// given after the first (a transient-local subscriber asks twice: at its start, and when it
 /// sees the publisher's token).
-fn play(ctx: &ZContext, id: u32, time_scale: f64, period: f64, current: [f64; 2], stop: &Mutex<bool>) -> (u64, u64, u64) {
+fn play(
+    ctx: &ZContext,
+    id: u32,
+    time_scale: f64,
+    period: f64,
+    current: [f64; 2],
+    stop: &Mutex<bool>,
+) -> (u64, u64, u64) {
     let node = ctx.create_node(format!("hiroz_vehicle_{id}")).build().unwrap();
     let latched = QosProfile {
         durability: QosDurability::TransientLocal,
@@ -378,7 +398,11 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
         let credential = own(name);
         spawn(&dir, name, &[args, &clock, &["--credential", &credential]].concat())
     };
-    let _router = spawn(&dir, "router", &["router", "--credential", fleet.to_str().unwrap(), "-l", e]);
+    let _router = spawn(
+        &dir,
+        "router",
+        &["router", "--credential", fleet.to_str().unwrap(), "-l", e],
+    );
     let _planner = role("planner", &["planner", &mission, "-e", e]);
     let _world = role(
         "world",
@@ -404,14 +428,7 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
         assert!(Instant::now() < deadline, "the router does not listen at {address}");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let ctx = ZContextBuilder::default()
-        .with_domain_id(7)
-        .with_mode("client")
-        .with_connect_endpoints([e])
-        .disable_multicast_scouting()
-        .with_json("transport/link/tls", presenting(Path::new(&own("vehicle-2"))))
-        .build()
-        .unwrap();
+    let ctx = client(e, &own("vehicle-2"));
     let stop = Arc::new(Mutex::new(false));
     let playing = {
         let stop = stop.clone();
@@ -424,14 +441,7 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
     // A late joiner: a transient-local subscriber that comes once the run is under way, as an
     // observer, is given vehicle 1's path once, though it asks twice.
     let late = {
-        let ctx = ZContextBuilder::default()
-            .with_domain_id(7)
-            .with_mode("client")
-            .with_connect_endpoints([e])
-            .disable_multicast_scouting()
-            .with_json("transport/link/tls", presenting(Path::new(&own("observer"))))
-            .build()
-            .unwrap();
+        let ctx = client(e, &own("observer"));
         std::thread::spawn(move || {
             std::thread::sleep(Duration::from_secs(3));
             let node = ctx.create_node("hiroz_late").build().unwrap();
@@ -452,9 +462,16 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
         })
     };
     let out = dir.join("run");
-    let mut record = role("recorder", &["record", &mission, "-e", e, "--out", out.to_str().unwrap()]);
+    let mut record = role(
+        "recorder",
+        &["record", &mission, "-e", e, "--out", out.to_str().unwrap()],
+    );
     let status = wait_exit(&mut record, Duration::from_secs(120));
-    assert_eq!(late.join().unwrap(), 1, "copies of vehicle 1's path given to a late joiner");
+    assert_eq!(
+        late.join().unwrap(),
+        1,
+        "copies of vehicle 1's path given to a late joiner"
+    );
     *stop.lock().unwrap() = true;
     let (commands, published, copies) = playing.join().unwrap();
     assert_eq!(copies, 0, "the path again, {copies} time(s), after the first");
