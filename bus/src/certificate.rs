@@ -103,12 +103,18 @@ impl Bundle {
         let mut key = None;
         let mut rest = text;
         while let Some(at) = rest.find("-----BEGIN ") {
-            let label_end = rest[at + 11..].find("-----").ok_or("a PEM header without its end")? + at + 11;
-            let label = &rest[at + 11..label_end];
+            // The label is the rest of the header's line, and only capitals and spaces: nothing
+            // of a key's body ever gets into a message.
+            let line = rest[at + 11..].lines().next().unwrap_or("");
+            let label = line
+                .strip_suffix("-----")
+                .filter(|l| !l.is_empty() && l.bytes().all(|b| b.is_ascii_uppercase() || b == b' '))
+                .ok_or("a PEM header that is not `-----BEGIN <LABEL>-----`")?;
             let end = format!("-----END {label}-----");
-            let stop = rest
+            let stop = rest[at..]
                 .find(&end)
                 .ok_or_else(|| format!("a {label} without its END line"))?
+                + at
                 + end.len();
             let block = format!("{}\n", &rest[at..stop]);
             match label {
@@ -231,5 +237,19 @@ mod tests {
         assert!(alone.starts_with("1 certificate(s) and no key"), "{alone}");
         let other = Bundle::parse("-----BEGIN PUBLIC KEY-----\nAA==\n-----END PUBLIC KEY-----\n").unwrap_err();
         assert!(other.starts_with("a PUBLIC KEY"), "{other}");
+        // A header that lost a dash: the key's body is no label, and is never said.
+        let torn = bundle
+            .pem()
+            .replacen("-----BEGIN PRIVATE KEY-----", "-----BEGIN PRIVATE KEY----", 1);
+        let why = Bundle::parse(&torn).unwrap_err();
+        assert!(
+            why.starts_with("a PEM header that is not") && !why.contains("MI"),
+            "{why}"
+        );
+        // An END before its BEGIN (a certificate that lost its head) is an error, not a panic.
+        let headless = format!("-----END CERTIFICATE-----\n{}", bundle.pem());
+        assert!(Bundle::parse(&headless).is_ok());
+        let cut = bundle.pem().replacen("-----END CERTIFICATE-----", "", 1);
+        assert!(Bundle::parse(&format!("-----END CERTIFICATE-----\n{cut}")).is_err());
     }
 }

@@ -252,6 +252,15 @@ fn over_tls(config: &Config, key: &str, given: &std::path::Path) -> Result<()> {
     Ok(())
 }
 
+/// Sets each of `tls`'s keys in `config`'s `transport/link/tls`, keeping what a `-c` file says of
+/// the others (its socket buffers, say).
+fn present_tls(config: &mut Config, tls: serde_json::Value) -> Result<()> {
+    for (key, value) in tls.as_object().into_iter().flatten() {
+        set(config, &format!("transport/link/tls/{key}"), &value.to_string())?;
+    }
+    Ok(())
+}
+
 /// A router of a fleet with a credential per role (`tcpf credential DIR MISSION`): it demands
 /// one of the roles' certificates (or users and passwords) of every link, and lets each do only
 /// what its role does (the access rules made from the mission). `listen` is where it listens
@@ -265,8 +274,7 @@ fn guard(config: &mut Config, dir: &std::path::Path, listen: Option<&str>) -> Re
                 set(config, "listen/endpoints", &format!("[\"tls/{listen}\"]"))?;
             }
             over_tls(config, "listen/endpoints", dir)?;
-            let tls = certificate::tls(&bundle.authority, &bundle.pair, true);
-            set(config, "transport/link/tls", &tls.to_string())?;
+            present_tls(config, certificate::tls(&bundle.authority, &bundle.pair, true))?;
         }
         Demand::Dictionary(dictionary) => {
             let dictionary = std::fs::canonicalize(&dictionary)
@@ -426,11 +434,11 @@ impl ZenohArgs {
                     )));
                 }
                 over_tls(config, "connect/endpoints", file)?;
-                set(
-                    config,
-                    "transport/link/tls",
-                    &certificate::tls(&bundle.authority, &bundle.pair, false).to_string(),
-                )?;
+                // A peer listens, and a plain listener would let in anyone with no certificate.
+                if string_at(config, "mode").as_deref() != Some("client") {
+                    over_tls(config, "listen/endpoints", file)?;
+                }
+                present_tls(config, certificate::tls(&bundle.authority, &bundle.pair, false))?;
                 return self.suit_mode(config);
             }
         };
@@ -901,6 +909,20 @@ mod tests {
             e.contains("a certificate is presented over TLS, and connect/endpoints has tcp/127.0.0.1:7447: give tls/127.0.0.1:7447"),
             "{e}"
         );
+        // A peer with a certificate would listen where anyone gets in without one.
+        let peer = ZenohArgs {
+            credential: agent.credential.clone(),
+            mode: Some("peer".into()),
+            ..Default::default()
+        };
+        let e = peer.config().unwrap_err().to_string();
+        assert!(e.contains("listen/endpoints has tcp/127.0.0.1:0"), "{e}");
+        let client = ZenohArgs {
+            connect: vec!["tls/127.0.0.1:7447".into()],
+            ..agent.clone()
+        };
+        let config = client.config().unwrap();
+        assert_eq!(config.get_json("transport/link/tls/enable_mtls").unwrap(), "true");
         let router = ZenohArgs {
             credential: Some(dir.clone()),
             mode: Some("router".into()),

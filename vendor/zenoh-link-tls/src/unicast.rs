@@ -149,14 +149,26 @@ impl LinkUnicastTls {
         }
     }
 
-    /// Polls the stream with the lock held for this poll only.
-    fn poll_stream<R>(
+    /// Polls the stream with the lock held for this poll only. A session that a panic left
+    /// half-way is not used again: the link fails and closes.
+    fn poll_stream<T>(
         &self,
         cx: &mut Context<'_>,
-        f: impl FnOnce(Pin<&mut TlsStream<TcpStream>>, &mut Context<'_>) -> Poll<R>,
-    ) -> Poll<R> {
-        let mut stream = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-        f(Pin::new(&mut *stream), cx)
+        f: impl FnOnce(Pin<&mut TlsStream<TcpStream>>, &mut Context<'_>) -> Poll<io::Result<T>>,
+    ) -> Poll<io::Result<T>> {
+        match self.inner.lock() {
+            Ok(mut stream) => f(Pin::new(&mut *stream), cx),
+            Err(_) => Poll::Ready(Err(io::Error::new(
+                io::ErrorKind::BrokenPipe,
+                "the TLS session was left unusable by a panic",
+            ))),
+        }
+    }
+
+    /// Sends what the TLS session holds: a write that found the socket full leaves its records
+    /// in rustls, and with nothing written after them they would wait for the next keep-alive.
+    async fn flush(&self) -> io::Result<()> {
+        poll_fn(|cx| self.poll_stream(cx, |s, cx| s.poll_flush(cx))).await
     }
 
     async fn read_some(&self, buffer: &mut [u8]) -> io::Result<usize> {
@@ -176,7 +188,7 @@ impl LinkUnicastTls {
         tracing::trace!("Closing TLS link: {}", self);
         // Flush the TLS stream
         let _guard = zasynclock!(self.write_mtx);
-        let res = poll_fn(|cx| self.poll_stream(cx, |s, cx| s.poll_flush(cx))).await;
+        let res = self.flush().await;
         tracing::trace!("TLS link flush {}: {:?}", self, res);
         // Close the underlying TCP stream
         let res = poll_fn(|cx| {
@@ -207,7 +219,11 @@ impl LinkUnicastTrait for LinkUnicastTls {
 
     async fn write(&self, buffer: &[u8], _priority: Option<Priority>) -> ZResult<usize> {
         let _guard = zasynclock!(self.write_mtx);
-        self.write_some(buffer).await.map_err(|e| {
+        let written = match self.write_some(buffer).await {
+            Ok(n) => self.flush().await.map(|()| n),
+            Err(e) => Err(e),
+        };
+        written.map_err(|e| {
             tracing::trace!("Write error on TLS link {}: {}", self, e);
             zerror!(e).into()
         })
@@ -226,7 +242,10 @@ impl LinkUnicastTrait for LinkUnicastTls {
                 }
             }
         }
-        Ok(())
+        self.flush().await.map_err(|e| {
+            tracing::trace!("Write error on TLS link {}: {}", self, e);
+            zerror!(e).into()
+        })
     }
 
     async fn read(&self, buffer: &mut [u8], _priority: Option<Priority>) -> ZResult<usize> {
@@ -312,6 +331,7 @@ impl LinkWithCertExpiration for LinkUnicastTls {
 impl Drop for LinkUnicastTls {
     fn drop(&mut self) {
         // Close the underlying TCP stream
+        // Shut down even a session a panic left: only its socket is touched.
         let stream = self.inner.get_mut().unwrap_or_else(|e| e.into_inner());
         let (tcp_stream, _) = stream.get_mut();
         let _ = zenoh_runtime::ZRuntime::Acceptor
