@@ -25,11 +25,12 @@ pub struct ZenohArgs {
     /// Zenoh mode: peer, client or router.
     #[arg(long = "mode", value_name = "MODE")]
     pub mode: Option<String>,
-    /// A role's own key (`tcpf credential DIR MISSION` makes one per role: DIR/<role>.key), which
-    /// it presents to the router; for `tcpf router`, that DIR, whose users it demands and whose
-    /// access rules it enforces. Or one credential the whole fleet shares (`tcpf credential
-    /// FILE`), presented and demanded by every process: without -c or --mode, one that listens
-    /// is then the fleet's router and one that connects its client.
+    /// A role's own certificate (`tcpf credential DIR MISSION` makes one per role:
+    /// DIR/<role>.pem, presented over tls/ endpoints; with --passwords a key, DIR/<role>.key),
+    /// which it presents to the router; for `tcpf router`, that DIR, whose certificates it
+    /// demands and whose access rules it enforces. Or one credential the whole fleet shares
+    /// (`tcpf credential FILE`), presented and demanded by every process: without -c or --mode,
+    /// one that listens is then the fleet's router and one that connects its client.
     #[arg(long = "credential", value_name = "FILE", conflicts_with = "open")]
     pub credential: Option<PathBuf>,
     /// Run with no credential, on a network only you use: any process that reaches this one
