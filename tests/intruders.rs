@@ -63,19 +63,25 @@ fn holding(run: &Path, identity: &str) -> zenoh::Config {
     let config: serde_json::Value = serde_json::from_str(&text).unwrap();
     if identity == "world" {
         let tls = &config["transport"]["link"]["tls"];
-        let client = serde_json::json!({
-            "mode": "client",
-            "scouting": { "multicast": { "enabled": false } },
-            "connect": { "endpoints": [config["listen"]["endpoints"][0]] },
-            "transport": { "link": { "tls": {
-                "root_ca_certificate_base64": tls["root_ca_certificate_base64"],
-                "connect_certificate_base64": tls["listen_certificate_base64"],
-                "connect_private_key_base64": tls["listen_private_key_base64"],
-                "enable_mtls": true,
-            } } },
+        let as_client = serde_json::json!({
+            "root_ca_certificate_base64": tls["root_ca_certificate_base64"],
+            "connect_certificate_base64": tls["listen_certificate_base64"],
+            "connect_private_key_base64": tls["listen_private_key_base64"],
+            "enable_mtls": true,
         });
-        return zenoh::Config::from_json5(&client.to_string()).unwrap();
+        return client(&config["listen"]["endpoints"][0], as_client);
     }
+    zenoh::Config::from_json5(&config.to_string()).unwrap()
+}
+
+/// A client of the router at `endpoint` presenting Zenoh's `transport/link/tls` section `tls`.
+fn client(endpoint: &serde_json::Value, tls: serde_json::Value) -> zenoh::Config {
+    let config = serde_json::json!({
+        "mode": "client",
+        "scouting": { "multicast": { "enabled": false } },
+        "connect": { "endpoints": [endpoint] },
+        "transport": { "link": { "tls": tls } },
+    });
     zenoh::Config::from_json5(&config.to_string()).unwrap()
 }
 
@@ -161,13 +167,9 @@ fn impostor(run: &Path, endpoint: &str) -> zenoh::Config {
     let world = own.issue("world", &[]).unwrap();
     let mut config = tcpf_bus::certificate::tls(&own.pem(), &world, false);
     config["root_ca_certificate_base64"] = observer["transport"]["link"]["tls"]["root_ca_certificate_base64"].clone();
-    let client = serde_json::json!({
-        "mode": "client",
-        "scouting": { "multicast": { "enabled": false } },
-        "connect": { "endpoints": [endpoint], "timeout_ms": 2000 },
-        "transport": { "link": { "tls": config } },
-    });
-    zenoh::Config::from_json5(&client.to_string()).unwrap()
+    let mut impostor = client(&endpoint.into(), config);
+    impostor.insert_json5("connect/timeout_ms", "2000").unwrap();
+    impostor
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -940,13 +942,10 @@ fn presenting(file: &Path, endpoint: &str) -> zenoh::Config {
     let tcpf_bus::credential::Credential::Certificate(bundle) = tcpf_bus::credential::read(file).unwrap() else {
         panic!("{}: not a certificate", file.display())
     };
-    let config = serde_json::json!({
-        "mode": "client",
-        "scouting": { "multicast": { "enabled": false } },
-        "connect": { "endpoints": [endpoint] },
-        "transport": { "link": { "tls": tcpf_bus::certificate::tls(&bundle.authority, &bundle.pair, false) } },
-    });
-    zenoh::Config::from_json5(&config.to_string()).unwrap()
+    client(
+        &endpoint.into(),
+        tcpf_bus::certificate::tls(&bundle.authority, &bundle.pair, false),
+    )
 }
 
 /// A fleet started by hand with a certificate per role (`tcpf credential DIR MISSION`, the
