@@ -3,10 +3,13 @@
 vehicles' keys. Random bytes and well-formed commands and γ (encoded with the example vehicle's
 codec), or ROS 2 samples, for a bounded time and count. Used by tests/testbed.rs to check access control.
 
-    intruder.py ZENOH_JSON5 ENDPOINT SECONDS KEY...
+    intruder.py ZENOH_JSON5 CREDENTIAL ENDPOINT SECONDS KEY...
+
+CREDENTIAL is its genuine certificate (`tcpf credential`'s agent-1.pem, say).
 """
 
 import importlib.util
+import json
 import os
 import random
 import sys
@@ -42,9 +45,12 @@ def forged(key, rng):
 
 
 def main():
-    config_file, endpoint, seconds, keys = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.argv[4:]
+    config_file, credential, endpoint = sys.argv[1:4]
+    seconds, keys = float(sys.argv[4]), sys.argv[5:]
     config = zenoh.Config.from_file(config_file)
     config.insert_json5("connect/endpoints", f'["{endpoint}"]')
+    key, value = vehicle.credential(credential)
+    config.insert_json5(key, json.dumps(value))
     config.insert_json5("scouting/multicast/enabled", "false")
     rng = random.Random(1)
     sent = 0

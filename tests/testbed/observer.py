@@ -5,21 +5,33 @@ hears per topic and whether any of it is an intruder's (a payload with `intruder
 to publish a command of its own (which the router must drop), and stops when the fleet's world
 leaves the graph. Used by tests/testbed.rs.
 
-    observer.py ZENOH_JSON5 ENDPOINT DOMAIN OUT.json
+    observer.py ZENOH_JSON5 CREDENTIAL ENDPOINT DOMAIN OUT.json
+
+CREDENTIAL is its certificate (`tcpf credential`'s observer.pem).
 """
 
+import importlib.util
 import json
+import os
 import sys
 import threading
 import time
 
 import zenoh
 
+here = os.path.dirname(os.path.abspath(__file__))
+spec = importlib.util.spec_from_file_location(
+    "vehicle", os.path.join(here, "..", "..", "examples", "python", "vehicle.py"))
+vehicle = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(vehicle)
+
 
 def main():
-    config_file, endpoint, domain, out = sys.argv[1:5]
+    config_file, credential, endpoint, domain, out = sys.argv[1:6]
     config = zenoh.Config.from_file(config_file)
     config.insert_json5("connect/endpoints", f'["{endpoint}"]')
+    key, value = vehicle.credential(credential)
+    config.insert_json5(key, json.dumps(value))
     config.insert_json5("scouting/multicast/enabled", "false")
     heard, forged, lock = {}, [0], threading.Lock()
     world_here, world_gone = threading.Event(), threading.Event()
