@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use tcpf_core::msg::{Command, End, Gamma, State, PROTOCOL_VERSION};
+use tcpf_core::msg::{Arrival, Command, End, Gamma, State, PROTOCOL_VERSION};
 use zenoh::qos::CongestionControl;
 
 mod common;
@@ -208,6 +208,7 @@ async fn a_process_without_the_runs_credential_can_neither_listen_nor_steer() {
                 version: PROTOCOL_VERSION,
                 ticks: tick + 1,
                 lost: vec![],
+                arrived: everyone_arrived(tick),
             };
             put(&session, &key("end"), postcard::to_stdvec(&end).unwrap()).await;
         }
@@ -418,6 +419,7 @@ async fn flood(config: zenoh::Config, sent: Arc<Mutex<u64>>) {
                     version: PROTOCOL_VERSION,
                     ticks: far,
                     lost: vec![],
+                    arrived: everyone_arrived(far - 1),
                 })
                 .unwrap()
             } else {
@@ -641,6 +643,11 @@ fn idle_connections_to_the_runs_port_keep_no_recorder_out() {
     );
 }
 
+/// A forged verdict: both vehicles of case (b) arrived at `tick`.
+fn everyone_arrived(tick: u64) -> Vec<Arrival> {
+    vec![Arrival { id: 1, tick }, Arrival { id: 2, tick }]
+}
+
 /// Forges, with `session`, every word of the fleet a role other than its own says: an end and a
 /// loss (published and handed over), states, commands and γ of vehicle 2 for ticks to come, a
 /// tick record, and answers for the paths and the clock. Returns the queryables it declared,
@@ -652,6 +659,7 @@ async fn forge_everything(session: &zenoh::Session) -> Vec<zenoh::query::Queryab
         version: PROTOCOL_VERSION,
         ticks: 10,
         lost: vec![],
+        arrived: everyone_arrived(9),
     };
     as_the_world(session, &key("end"), postcard::to_stdvec(&end).unwrap()).await;
     let loss = tcpf_core::msg::Loss::from(tcpf_core::msg::Lost {
@@ -754,6 +762,7 @@ async fn a_forged_end_is_named_not_taken_for_the_runs_own() {
         version: PROTOCOL_VERSION,
         ticks: last + 100,
         lost: vec![],
+        arrived: everyone_arrived(last + 99),
     };
     as_the_world(&session, &key("end"), postcard::to_stdvec(&forged).unwrap()).await;
     let status = tokio::task::block_in_place(|| launch.wait(Duration::from_secs(120)));

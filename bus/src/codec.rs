@@ -66,7 +66,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x0a, 0xac, 0x02, 0x02, 0x01,
+            0x0b, 0xac, 0x02, 0x02, 0x01,
             0, 0, 0, 0, 0, 0, 0x08, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
@@ -76,16 +76,16 @@ mod tests {
         ];
         assert_eq!(encode(&g), bytes);
         let silent = Gamma { sample: None, ..g };
-        assert_eq!(encode(&silent), [0x0a, 0xac, 0x02, 0x02, 0x00, 0x00]);
+        assert_eq!(encode(&silent), [0x0b, 0xac, 0x02, 0x02, 0x00, 0x00]);
         let busy = Gamma { busy: true, ..silent };
-        assert_eq!(encode(&busy), [0x0a, 0xac, 0x02, 0x02, 0x00, 0x01]);
+        assert_eq!(encode(&busy), [0x0b, 0xac, 0x02, 0x02, 0x00, 0x01]);
         let loss = Loss {
             version: PROTOCOL_VERSION,
             id: 2,
             tick: 300,
             reason: LossReason::Silent,
         };
-        assert_eq!(encode(&loss), [0x0a, 0x02, 0xac, 0x02, 0x01]);
+        assert_eq!(encode(&loss), [0x0b, 0x02, 0xac, 0x02, 0x01]);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
@@ -96,7 +96,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x0a, 0x01,
+            0x0b, 0x01,
             0, 0, 0, 0, 0, 0, 0x24, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0xac, 0x02, 0x05,

@@ -16,7 +16,7 @@ use tokio::sync::{mpsc, oneshot};
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Reliability};
 use zenoh::query::{ConsolidationMode, QueryTarget};
-use zenoh::sample::SampleKind;
+use zenoh::sample::{Locality, SampleKind};
 use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode, Invalid};
@@ -176,6 +176,26 @@ where
     .await
 }
 
+/// As `subscribe_as`, hearing other sessions only: a process that publishes on `key` too does
+/// not take its own words for another's.
+pub async fn subscribe_from_others_as<T, M>(
+    session: &Session,
+    key: &str,
+    rejected: &Rejected,
+    tx: mpsc::Sender<Received<M>>,
+    wrap: fn(T) -> M,
+) -> Result<Subscriber<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+    M: Send + 'static,
+{
+    let overflowed = rejected.clone();
+    let take = move |key: &str, message| {
+        enqueue(&tx, key, wrap(message), &overflowed);
+    };
+    subscribe_from(session, key, Locality::Remote, rejected, take).await
+}
+
 /// Queues what came on `key` for its receiver, counted as dropped if the queue is full; whether
 /// it was queued.
 pub(crate) fn enqueue<M>(tx: &mpsc::Sender<Received<M>>, key: &str, message: M, rejected: &Rejected) -> bool {
@@ -204,9 +224,24 @@ pub async fn subscribe_with<T>(
 where
     T: DeserializeOwned + Checked + Send + 'static,
 {
+    subscribe_from(session, key, Locality::Any, rejected, take).await
+}
+
+/// As `subscribe_with`, hearing the sessions `origin` says.
+async fn subscribe_from<T>(
+    session: &Session,
+    key: &str,
+    origin: Locality,
+    rejected: &Rejected,
+    take: impl Fn(&str, T) + Send + Sync + 'static,
+) -> Result<Subscriber<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+{
     let rejected = rejected.clone();
     let subscriber = session
         .declare_subscriber(key)
+        .allowed_origin(origin)
         .callback(move |sample| {
             let key = sample.key_expr().as_str();
             match decode::<T>(&sample.payload().to_bytes()) {

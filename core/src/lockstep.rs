@@ -11,7 +11,7 @@ use crate::roster::Roster;
 use crate::agent::Agent;
 use crate::mission::{neighbour_lists, Mission};
 use crate::msg::{
-    tally, Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, TickRecord, PROTOCOL_VERSION,
+    tally, Arrival, Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, TickRecord, PROTOCOL_VERSION,
 };
 use crate::path::GeneralizedPath;
 use crate::world::World;
@@ -69,9 +69,9 @@ impl Reject {
 
 pub struct WorldNode {
     world: World,
-    /// Per vehicle: γ_i has reached t_f where the vehicle is (the run ends when every live
-    /// vehicle has). The metrics are the recorder's; the world needs only this.
-    arrived: Vec<bool>,
+    /// Per vehicle, the tick γ_i reached t_f where the vehicle is (the run ends when every live
+    /// vehicle has): the world's verdict, which `End` carries.
+    arrived: Vec<Option<u64>>,
     /// Each vehicle's path, in roster order: where its γ says it should be.
     paths: Vec<GeneralizedPath>,
     max_ticks: u64,
@@ -91,7 +91,7 @@ impl WorldNode {
         world.states(&mut states);
         WorldNode {
             states,
-            arrived: vec![false; ids.len()],
+            arrived: vec![None; ids.len()],
             paths: paths.iter().map(|p| p.1).collect(),
             max_ticks: mission.max_ticks(),
             pending: vec![None; ids.len()],
@@ -148,7 +148,7 @@ impl WorldNode {
     /// The vehicles neither arrived nor lost: at the end, those the mission failed to bring in.
     pub fn not_arrived(&self) -> usize {
         (0..self.arrived.len())
-            .filter(|&n| !self.arrived[n] && !self.world.is_lost(n))
+            .filter(|&n| self.arrived[n].is_none() && !self.world.is_lost(n))
             .count()
     }
 
@@ -185,9 +185,12 @@ impl WorldNode {
         // A lost vehicle's pending command was dropped when it was lost: what is pending is held.
         for (n, arrived) in self.arrived.iter_mut().enumerate() {
             let position = self.states[n].position;
-            *arrived |= self.pending[n]
+            let now = self.pending[n]
                 .as_ref()
                 .is_some_and(|c| self.paths[n].arrived(c.gamma, position));
+            if now && arrived.is_none() {
+                *arrived = Some(tick);
+            }
         }
         observe(TickRecord {
             version: PROTOCOL_VERSION,
@@ -210,6 +213,7 @@ impl WorldNode {
             version: PROTOCOL_VERSION,
             ticks: self.tick() + 1,
             lost: self.lost.clone(),
+            arrived: Arrival::of(self.ids.ids(), &self.arrived),
         }
     }
 
@@ -219,6 +223,7 @@ impl WorldNode {
             version: PROTOCOL_VERSION,
             ticks: self.tick(),
             lost: self.lost.clone(),
+            arrived: Arrival::of(self.ids.ids(), &self.arrived),
         }
     }
 }
@@ -512,6 +517,7 @@ mod tests {
             version: PROTOCOL_VERSION,
             ticks: 2,
             lost: vec![],
+            arrived: vec![],
         };
         assert_eq!(
             node.on_end(&End {
@@ -642,6 +648,7 @@ mod tests {
             version: PROTOCOL_VERSION,
             ticks: 3,
             lost: vec![],
+            arrived: vec![],
         };
         assert_eq!(node.on_end(&end), Err(Reject::Past), "the run went past tick 3");
     }

@@ -11,7 +11,7 @@ use crate::links::LinkStats;
 /// frame at different ticks (D23), never 64 frames apart (6.4 s of periodic sending, 9.6 km of
 /// sound).
 const COUNTED_BROADCASTS: usize = 64;
-use crate::msg::{Command, LossReason, Player, State};
+use crate::msg::{Arrival, Command, LossReason, Player, State};
 use crate::roster::Roster;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -159,7 +159,10 @@ pub struct Metrics {
     previous_tick: Option<u64>,
     spare: Option<(Vec<f64>, Vec<[f64; 2]>)>,
     ids: Roster,
+    /// Per vehicle, when its γ reached t_f (D16), interpolated over the ticks `crossings` says.
     arrivals: Vec<Option<f64>>,
+    /// Per vehicle, the ticks its arrival was interpolated between: after the first, by the second.
+    crossings: Vec<Option<(u64, u64)>>,
     lost: Vec<Option<LossReason>>,
     en_route: (f64, f64),
     to_last: (f64, f64),
@@ -249,6 +252,7 @@ impl Metrics {
             spare: None,
             ids: Roster::new(ids),
             arrivals: vec![None; ids.len()],
+            crossings: vec![None; ids.len()],
             lost: vec![None; ids.len()],
             en_route: (0.0, f64::INFINITY),
             to_last: (0.0, f64::INFINITY),
@@ -387,6 +391,7 @@ impl Metrics {
         for (n, &g) in gammas.iter().enumerate() {
             if self.arrivals[n].is_none() && g >= self.t_f {
                 let prev = self.previous.as_ref().map(|p| p.0[n]);
+                self.crossings[n] = Some((self.previous_tick.unwrap_or(tick), tick));
                 self.arrivals[n] = Some(match prev {
                     Some(p) if g > p => t - span + span * (self.t_f - p) / (g - p),
                     _ => t,
@@ -485,14 +490,24 @@ impl Metrics {
         self.integral.2 += span;
     }
 
-    pub fn all_arrived(&self) -> bool {
-        self.arrivals
-            .iter()
-            .zip(&self.lost)
-            .all(|(a, lost)| a.is_some() || lost.is_some())
+    /// When vehicle `n` arrived, by the world's verdict that it did at tick `judged`: its γ's
+    /// crossing of t_f (D16) where the world's tick falls within the ticks the crossing was
+    /// interpolated over, else the world's tick (its γ crossed t_f away from where the world
+    /// saw the vehicle, or the recorder missed it).
+    fn arrival(&self, n: usize, judged: u64) -> f64 {
+        match (self.arrivals[n], self.crossings[n]) {
+            (Some(t), Some((after, by))) if judged <= by && (judged > after || judged == by) => t,
+            _ => judged as f64 * self.dt,
+        }
     }
 
-    pub fn results(&self) -> Results {
+    /// The results, with the arrivals the world judged (`End::arrived`); none without its
+    /// verdict (a run that never ended).
+    pub fn results(&self, verdict: Option<&[Arrival]>) -> Results {
+        let arrivals = self.ids.ids().iter().enumerate().map(|(n, &id)| {
+            let judged = verdict?.iter().find(|a| a.id == id)?;
+            Some(self.arrival(n, judged.tick))
+        });
         Results {
             t_f: self.t_f,
             ticks: self.ticks,
@@ -500,12 +515,12 @@ impl Metrics {
                 .ids
                 .ids()
                 .iter()
-                .zip(&self.arrivals)
+                .zip(arrivals)
                 .zip(&self.lost)
                 .zip(&self.gamma_sent)
                 .zip(&self.thrusters)
                 .map(
-                    |((((&id, &arrival_time), &lost), &gamma_sent), &thrusters)| VehicleSummary {
+                    |((((&id, arrival_time), &lost), &gamma_sent), &thrusters)| VehicleSummary {
                         id,
                         arrival_time,
                         lost: lost.is_some(),
@@ -585,7 +600,7 @@ mod tests {
             &[state(1, 20), state(2, 20)],
             &[command(1, 20, 1.05), command(2, 20, 0.85)],
         );
-        let r = m.results();
+        let r = m.results(Some(&[Arrival { id: 1, tick: 20 }]));
         let arrival = r.vehicles[0].arrival_time.unwrap();
         assert!((arrival - 0.15).abs() < 1e-12, "halfway between the rows: {arrival}");
         assert!(
@@ -593,6 +608,36 @@ mod tests {
             "the spread there: {}",
             r.max_coordination_error
         );
+    }
+
+    /// The world alone says whether a vehicle arrived: its γ's crossing of t_f is the time where
+    /// the world judged it in the ticks of the crossing, its own tick where it judged later (the
+    /// vehicle was far from where γ said), never where it did not judge.
+    #[test]
+    fn arrivals_are_the_worlds_verdict_timed_by_the_crossing_of_t_f() {
+        let dt = 0.01;
+        let state = |id: u32, tick: u64| state_at(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let command = |id, tick, gamma| Some(crate::fixtures::command_at(id, tick, gamma));
+        let mut m = Metrics::new(&[1, 2, 3], 1.0, dt);
+        for (k, gamma) in [(10, 0.95), (11, 1.05), (12, 1.15)] {
+            m.record(
+                k,
+                &[state(1, k), state(2, k), state(3, k)],
+                &[command(1, k, gamma), command(2, k, gamma), command(3, k, gamma)],
+            );
+        }
+        let arrivals = |verdict| -> Vec<Option<f64>> {
+            m.results(verdict).vehicles.iter().map(|v| v.arrival_time).collect()
+        };
+        let at_11 = 0.1 + 0.01 * 0.5;
+        let verdict = [Arrival { id: 1, tick: 11 }, Arrival { id: 2, tick: 12 }];
+        let [one, two, three] = arrivals(Some(&verdict))[..] else {
+            panic!("three vehicles")
+        };
+        assert!((one.unwrap() - at_11).abs() < 1e-12, "γ crossed t_f halfway: {one:?}");
+        assert_eq!(two, Some(0.12), "judged a tick after γ crossed t_f");
+        assert_eq!(three, None, "γ crossed t_f, the world never judged it arrived");
+        assert_eq!(arrivals(None), [None, None, None], "no end, no verdict");
     }
 
     /// Two vehicles 10 m apart whose γ differ by `error(t)`, one row per tick from 0 to `ticks`.
@@ -620,7 +665,7 @@ mod tests {
                 ],
             );
         }
-        m.results()
+        m.results(None)
     }
 
     #[test]
@@ -699,7 +744,7 @@ mod tests {
                 ],
             );
         }
-        let r = m.results();
+        let r = m.results(None);
         assert_eq!(r.faults.len(), 1, "{:?}", r.faults);
         let w = r.faults[0];
         assert_eq!(
@@ -711,8 +756,8 @@ mod tests {
         m.ranges.push((0, 1, 5.0));
         m.track_range(1.0, &[[0.0, 0.0], [0.0, 10.0]]);
         m.previous_tick = Some(6);
-        assert_eq!(m.results().faults[0].end, 3.0);
-        assert_eq!(m.results().resync_time(), Some(f64::INFINITY));
+        assert_eq!(m.results(None).faults[0].end, 3.0);
+        assert_eq!(m.results(None).resync_time(), Some(f64::INFINITY));
     }
 
     #[test]
@@ -738,7 +783,7 @@ mod tests {
                 &[Some(crate::fixtures::command_at(1, k, t)), two, three],
             );
         }
-        let r = m.results();
+        let r = m.results(None);
         let kinds: Vec<FaultKind> = r.faults.iter().map(|f| f.kind).collect();
         assert_eq!(kinds, [FaultKind::Rejoined, FaultKind::Lost], "{:?}", r.faults);
         let back = r.faults[0];

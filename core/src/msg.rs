@@ -16,7 +16,7 @@ use crate::path::GeneralizedPath;
 /// velocity and thrusters in `State::dynamics`, the fed-forward acceleration in `Command::accel`.
 /// 9: who played each vehicle in `Report`. 10: a reception's sending instant, distance, SINR and
 /// cause, and `Gamma::busy` (the acoustic modem, D23).
-pub const PROTOCOL_VERSION: u16 = 10;
+pub const PROTOCOL_VERSION: u16 = 11;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -364,12 +364,32 @@ impl Checked for Loss {
     }
 }
 
-/// World → everyone: the run is over after `ticks` ticks (0..ticks were run).
+/// A vehicle the world judged arrived, at tick `tick`: the γ of its command had reached t_f and,
+/// where the world knew where the vehicle was, it was within `ARRIVAL_RADIUS` of where γ says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Arrival {
+    pub id: u32,
+    pub tick: u64,
+}
+
+impl Arrival {
+    /// The verdict on vehicles `ids`, each arrived at its tick or not at all.
+    pub fn of(ids: &[u32], arrived: &[Option<u64>]) -> Vec<Arrival> {
+        ids.iter()
+            .zip(arrived)
+            .filter_map(|(&id, tick)| tick.map(|tick| Arrival { id, tick }))
+            .collect()
+    }
+}
+
+/// World → everyone: the run is over after `ticks` ticks (0..ticks were run). The world is the
+/// only judge of arrival: `arrived` is its verdict, which the summary takes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct End {
     pub version: u16,
     pub ticks: u64,
     pub lost: Vec<Lost>,
+    pub arrived: Vec<Arrival>,
 }
 
 impl Checked for End {

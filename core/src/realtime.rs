@@ -8,7 +8,7 @@ use crate::agent::Agent;
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
 use crate::mission::{neighbour_lists, Graph, Mission};
-use crate::msg::{tally, Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
+use crate::msg::{tally, Arrival, Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
 use crate::path::GeneralizedPath;
 use crate::roster::Roster;
 use crate::world::World;
@@ -263,8 +263,8 @@ impl RealtimeAgent {
 }
 
 /// The world's side: integrates the vehicles it simulates every period with each one's freshest
-/// command, and decides when the run is over from every vehicle's commands (those it does not
-/// simulate too: their γ says whether they arrived).
+/// command, and decides when the run is over from every vehicle's commands and where it is
+/// (a vehicle another process plays, where that process's states say).
 pub struct RealtimeWorld {
     world: World,
     /// Every vehicle of the mission.
@@ -273,14 +273,16 @@ pub struct RealtimeWorld {
     neighbours: Vec<Vec<u32>>,
     /// Per simulated body, its index in `ids`.
     bodies: Vec<usize>,
-    /// Per simulated body, its path.
+    /// Per vehicle, its path.
     paths: Vec<GeneralizedPath>,
+    /// Per vehicle another process plays, the newest state it published.
+    played: Vec<Option<State>>,
     held: Vec<Option<Command>>,
     gone: Vec<bool>,
     /// Per vehicle, whether its agent was ever gone (for `End`).
     ever_gone: Vec<Option<u64>>,
-    arrived: Vec<bool>,
-    t_f: f64,
+    /// Per vehicle, the tick the world judged it arrived (`End` carries the verdict).
+    arrived: Vec<Option<u64>>,
     max_ticks: u64,
     /// `HOLD_LIMIT_S` in ticks.
     hold_ticks: u64,
@@ -295,7 +297,7 @@ pub struct RealtimeWorld {
 impl RealtimeWorld {
     /// The world of `mission`, simulating the vehicles of `simulated` (ids; the others are
     /// played by processes of their own).
-    pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)], t_f: f64, simulated: &[u32]) -> RealtimeWorld {
+    pub fn new(mission: &Mission, paths: &[(u32, GeneralizedPath)], simulated: &[u32]) -> RealtimeWorld {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         let ours: Vec<(u32, GeneralizedPath)> = paths.iter().filter(|p| simulated.contains(&p.0)).copied().collect();
         let world = World::new(mission, &ours);
@@ -310,12 +312,12 @@ impl RealtimeWorld {
             neighbours: neighbour_lists(&mission.graph(), &ids),
             world,
             bodies,
-            paths: ours.iter().map(|p| p.1).collect(),
+            paths: paths.iter().map(|p| p.1).collect(),
+            played: vec![None; n],
             held: vec![None; n],
             gone: vec![false; n],
             ever_gone: vec![None; n],
-            arrived: vec![false; n],
-            t_f,
+            arrived: vec![None; n],
             max_ticks: mission.max_ticks(),
             hold_ticks: (HOLD_LIMIT_S / mission.mission.control_period).ceil() as u64,
             states,
@@ -356,16 +358,45 @@ impl RealtimeWorld {
         if let Some(held) = &self.held[n] {
             older(held.tick, command.tick, held, &command)?;
         }
-        // Where the world simulates the vehicle, it checks the arrival against where it is; a
-        // vehicle another program plays is taken at its γ.
-        self.arrived[n] |= command.gamma >= self.t_f
-            && self
-                .bodies
-                .iter()
-                .position(|&b| b == n)
-                .is_none_or(|b| self.paths[b].arrived(command.gamma, self.states[b].position));
         self.held[n] = Some(command);
+        self.judge(n);
         Ok(())
+    }
+
+    /// A state of vehicle `id`, played by another process, `horizon` the latest tick the world's
+    /// clock allows: the newest is where the world judges its arrival.
+    pub fn on_played(&mut self, state: State, horizon: u64) -> Result<(), Reject> {
+        let n = self
+            .ids
+            .position(state.id)
+            .filter(|n| !self.bodies.contains(n))
+            .ok_or(Reject::UnknownVehicle)?;
+        if !state.finite() {
+            return Err(Reject::NonFinite);
+        }
+        not_ahead(state.tick, horizon)?;
+        if let Some(held) = &self.played[n] {
+            older(held.tick, state.tick, held, &state)?;
+        }
+        self.played[n] = Some(state);
+        self.judge(n);
+        Ok(())
+    }
+
+    /// Whether vehicle `n` has arrived, as lockstep's world judges it: its command's γ reached
+    /// t_f where the vehicle is, the world's own body or the newest state of its player (one
+    /// never heard from never arrives). Judged at the later of the command's tick and the state's.
+    fn judge(&mut self, n: usize) {
+        let (Some(command), None) = (&self.held[n], self.arrived[n]) else {
+            return;
+        };
+        let at = match self.bodies.iter().position(|&b| b == n) {
+            Some(b) => Some((self.states[b].position, command.tick)),
+            None => self.played[n].as_ref().map(|s| (s.position, s.tick.max(command.tick))),
+        };
+        if let Some((_, tick)) = at.filter(|(p, _)| self.paths[n].arrived(command.gamma, *p)) {
+            self.arrived[n] = Some(tick);
+        }
     }
 
     /// Vehicle `id`'s agent is gone (its token went away) or back. While it is gone its vehicle
@@ -387,7 +418,7 @@ impl RealtimeWorld {
     /// losses): at the end, those the mission failed to bring in.
     pub fn not_arrived(&self) -> usize {
         (0..self.arrived.len())
-            .filter(|&n| !self.arrived[n] && self.ever_gone[n].is_none())
+            .filter(|&n| self.arrived[n].is_none() && self.ever_gone[n].is_none())
             .count()
     }
 
@@ -399,7 +430,7 @@ impl RealtimeWorld {
         self.lateness.record(late_s, period_s, skipped);
         while self.world.tick() < tick {
             let now = self.world.tick();
-            let done = self.arrived.iter().zip(&self.gone).all(|(a, g)| *a || *g);
+            let done = self.arrived.iter().zip(&self.gone).all(|(a, g)| a.is_some() || *g);
             if done || now >= self.max_ticks {
                 return Some(self.end());
             }
@@ -435,6 +466,7 @@ impl RealtimeWorld {
                     reason: LossReason::Gone,
                 })
                 .collect(),
+            arrived: Arrival::of(self.ids.ids(), &self.arrived),
         }
     }
 
@@ -689,8 +721,9 @@ impl Sampler {
         self.last.map_or(0, |l| l + 1)
     }
 
+    /// The results, arrivals as the world's `End` judged them.
     pub fn results(&self) -> Results {
-        self.metrics.results()
+        self.metrics.results(self.end.as_ref().map(|e| &e.arrived[..]))
     }
 }
 
@@ -723,7 +756,7 @@ mod tests {
     fn a_vehicle_whose_states_never_come_is_told_once_when_they_are_due() {
         let (m, paths, t_f) = case_b();
         let dt = m.mission.control_period;
-        let world = RealtimeWorld::new(&m, &paths, t_f, &[1]);
+        let world = RealtimeWorld::new(&m, &paths, &[1]);
         let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
         let due = (STATES_DUE_S / dt).ceil() as u64;
         let mut rows = 0;
@@ -746,7 +779,7 @@ mod tests {
         assert_eq!(sampler.without_state(), vec![2]);
         // Every vehicle heard from in time: nothing to tell.
         let mut both = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
-        for &state in RealtimeWorld::new(&m, &paths, t_f, &[1, 2]).states() {
+        for &state in RealtimeWorld::new(&m, &paths, &[1, 2]).states() {
             both.on_state(State { tick: due, ..state }, HORIZON).unwrap();
         }
         assert_eq!(both.overdue_states(), None);
@@ -754,7 +787,7 @@ mod tests {
         // A recorder that joins a run under way counts from the first state it took: vehicle 2's
         // coming a tick after vehicle 1's is not overdue.
         let mut late = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
-        let states = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]).states().to_vec();
+        let states = RealtimeWorld::new(&m, &paths, &[1, 2]).states().to_vec();
         late.on_state(
             State {
                 tick: 5 * due,
@@ -792,7 +825,7 @@ mod tests {
     /// recorder recorded, and whether the world and the agents kept their periods.
     fn on_time(sampled: u64, forged: bool) -> (Results, bool) {
         let (m, paths, t_f) = case_b();
-        let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]);
+        let mut world = RealtimeWorld::new(&m, &paths, &[1, 2]);
         let mut agents: Vec<RealtimeAgent> = paths
             .iter()
             .map(|&(id, p)| RealtimeAgent::new(Agent::new(&m, id, p), false))
@@ -927,6 +960,7 @@ mod tests {
                 version: PROTOCOL_VERSION,
                 ticks: 100,
                 lost: vec![],
+                arrived: vec![Arrival { id: 1, tick: 100 }],
             })
             .unwrap();
         sampler.finish(|_, _| rows += 1);
@@ -961,6 +995,13 @@ mod tests {
         sampler.on_state(state(15), HORIZON).unwrap();
         sampler.on_command(after, HORIZON).unwrap();
         sampler.sample(15, |_, _| {});
+        let judged = End {
+            version: PROTOCOL_VERSION,
+            ticks: 16,
+            lost: vec![],
+            arrived: vec![Arrival { id: 1, tick: 15 }],
+        };
+        sampler.on_end(judged).unwrap();
         let arrival = sampler.results().vehicles[0].arrival_time.expect("arrived");
         assert!(
             (arrival - 12.5 * dt).abs() < 1e-9,
@@ -985,10 +1026,34 @@ mod tests {
         assert_eq!(sampler.newest_state(), Some(15));
     }
 
+    /// A vehicle another process plays is judged where its states say it is, as the world's own
+    /// are: a command with γ past t_f from a vehicle never heard from, or 15 m off its path,
+    /// brings nothing in; the same γ where the path ends does, at the later of the two ticks.
+    #[test]
+    fn a_played_vehicle_arrives_where_its_states_say() {
+        let (m, paths, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let mut world = RealtimeWorld::new(&m, &paths, &[1]);
+        let done = crate::fixtures::command_at(2, 40, t_f + 0.5);
+        world.on_command(done.clone(), HORIZON).unwrap();
+        assert_eq!(world.not_arrived(), 2, "vehicle 2 never heard from");
+        let there = paths[1].1.derivatives(t_f + 0.5)[0];
+        world.on_played(still(2, 41, dt, [there.x + 15.0, there.y]), HORIZON).unwrap();
+        assert_eq!(world.not_arrived(), 2, "15 m from where γ says");
+        assert_eq!(
+            world.on_played(still(1, 42, dt, [0.0, 0.0]), HORIZON),
+            Err(Reject::UnknownVehicle),
+            "vehicle 1 is the world's own"
+        );
+        world.on_played(still(2, 42, dt, [there.x, there.y]), HORIZON).unwrap();
+        assert_eq!(world.not_arrived(), 1);
+        assert_eq!(world.end().arrived, [Arrival { id: 2, tick: 42 }]);
+    }
+
     #[test]
     fn the_freshest_message_wins_and_older_ones_are_refused() {
-        let (m, paths, t_f) = case_b();
-        let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1]);
+        let (m, paths, _) = case_b();
+        let mut world = RealtimeWorld::new(&m, &paths, &[1]);
         assert_eq!(world.states().len(), 1, "vehicle 2 is played by another process");
         let mut agent = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), false);
         assert!(
@@ -1060,7 +1125,7 @@ mod tests {
     #[test]
     fn a_command_that_heard_from_a_stranger_is_refused() {
         let (m, paths, t_f) = case_b();
-        let mut world = RealtimeWorld::new(&m, &paths, t_f, &[1, 2]);
+        let mut world = RealtimeWorld::new(&m, &paths, &[1, 2]);
         let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, m.mission.control_period);
         let stranger = Command {
             receptions: vec![Reception::of(99, Cause::Delivered, 0.0, None)],

@@ -240,8 +240,9 @@ impl Recorder {
         self.next
     }
 
+    /// The results, arrivals as the world's `End` judged them.
     pub fn results(&self) -> Results {
-        self.metrics.results()
+        self.metrics.results(self.end.as_ref().map(|e| &e.arrived[..]))
     }
 }
 
@@ -258,6 +259,21 @@ mod tests {
     use crate::planner;
     use crate::sim::Fleet;
     use crate::telemetry;
+
+    /// The world's verdict behind `results`: each arrival at the tick it falls in.
+    fn verdict(results: &Results, dt: f64) -> Vec<crate::msg::Arrival> {
+        results
+            .vehicles
+            .iter()
+            .filter_map(|v| {
+                let t = v.arrival_time?;
+                Some(crate::msg::Arrival {
+                    id: v.id,
+                    tick: (t / dt - 1e-6).ceil() as u64,
+                })
+            })
+            .collect()
+    }
 
     fn recorded_run() -> (Vec<(State, Command)>, String, Results, f64, f64) {
         let text = include_str!("../../configs/paper/d-lossy.toml");
@@ -303,6 +319,7 @@ mod tests {
             version: PROTOCOL_VERSION,
             ticks,
             lost: vec![],
+            arrived: verdict(&results, dt),
         };
         assert_eq!(
             recorder.on_end(End {
@@ -355,6 +372,7 @@ mod tests {
                 version: PROTOCOL_VERSION,
                 ticks: results.ticks,
                 lost: vec![],
+                arrived: verdict(&results, dt),
             })
             .unwrap();
         assert!(recorder.complete());
@@ -418,6 +436,7 @@ mod tests {
                     tick: lost_at,
                     reason: crate::msg::LossReason::Gone,
                 }],
+                arrived: vec![],
             })
             .unwrap();
         recorder.drain(|_, c| {
@@ -486,6 +505,7 @@ mod tests {
             version: crate::msg::PROTOCOL_VERSION,
             ticks: 3,
             lost: vec![],
+            arrived: vec![],
         };
         recorder.on_end(end).unwrap();
         assert_eq!(recorder.contradicted_end(), None, "an end alone contradicts nothing");

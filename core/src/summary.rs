@@ -205,7 +205,7 @@ impl Summary {
             failure,
             reproducible: !realtime,
             reproducible_reasons: realtime.then(|| REALTIME.to_string()).into_iter().collect(),
-            results: Metrics::new(&ids, t_f, mission.mission.control_period).results(),
+            results: Metrics::new(&ids, t_f, mission.mission.control_period).results(None),
             sim_time_s: 0.0,
             wall_time_s,
             first_tick_s: None,
@@ -662,6 +662,7 @@ mod tests {
                 tick: 50,
                 reason: LossReason::Gone,
             }],
+            arrived: vec![],
         };
         assert_eq!(unreported(&[1, 2, 3], None, &[]), vec![], "nothing before the end");
         assert_eq!(

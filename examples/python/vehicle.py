@@ -24,7 +24,7 @@ import threading
 import time
 import tomllib
 
-VERSION = 10
+VERSION = 11
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
 # The longest a vehicle holds its agent's last command, in simulated seconds (the world's
@@ -54,7 +54,8 @@ COMMAND = record(("version", U16), ("tick", U64), ("id", U32), ("v", F), ("r", F
                  ("gamma", F), ("gamma_dot", F), ("v_d", F), ("x_e", F), ("y_e", F), ("psi_e", F),
                  ("receptions", ("vec", RECEPTION)))
 LOST = record(("id", U32), ("tick", U64), ("reason", ("enum", ("gone", "silent"))))
-END = record(("version", U16), ("ticks", U64), ("lost", ("vec", LOST)))
+ARRIVAL = record(("id", U32), ("tick", U64))
+END = record(("version", U16), ("ticks", U64), ("lost", ("vec", LOST)), ("arrived", ("vec", ARRIVAL)))
 CLOCK = record(("version", U16), ("realtime", BOOL), ("time_scale", F), ("epoch", F), ("tick", U64), ("mission", U64))
 # For the self-test (PROTOCOL.md's worked example) and tests/testbed/intruder.py: this vehicle sends no γ.
 GAMMA = record(("version", U16), ("tick", U64), ("from", U32),
@@ -506,10 +507,11 @@ def self_test():
     receptions = [{"from": 1, "delivered": False, "sent": 3.0, "distance": 1500.0, "sinr_db": -2.5,
                    "cause": "collision"},
                   {"from": 3, "delivered": False, "sent": 3.0, "distance": None, "sinr_db": None, "cause": "busy"}]
-    end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}]}
+    end = {"version": VERSION, "ticks": 12001, "lost": [{"id": 3, "tick": 500, "reason": "silent"}],
+           "arrived": [{"id": 1, "tick": 12000}]}
     clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12,
              "mission": 0x72b3548f8bc2f98c}
-    gamma_bytes = ("0aac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+    gamma_bytes = ("0bac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
                    "0000000000000040" "000000000000e0bf" "00")
     receptions_bytes = ("02"
                         "0100" "0000000000000840" "01" "0000000000709740" "01" "00000000000004c0" "03"
@@ -517,10 +519,10 @@ def self_test():
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("0aac02020000"),
-        "Gamma busy": encode(GAMMA, dict(gamma, sample=None, busy=True)) == bytes.fromhex("0aac02020001"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("0bac02020000"),
+        "Gamma busy": encode(GAMMA, dict(gamma, sample=None, busy=True)) == bytes.fromhex("0bac02020001"),
         "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300, mission=5))
-        == bytes.fromhex("0a01" "0000000000002440" "000000000000f83f" "ac02" "05"),
+        == bytes.fromhex("0b01" "0000000000002440" "000000000000f83f" "ac02" "05"),
         "Reception example": encode(("vec", RECEPTION), receptions) == bytes.fromhex(receptions_bytes),
         "the Command ends with its receptions": encode(COMMAND, dict(command, receptions=receptions))
         .endswith(bytes.fromhex(receptions_bytes)),

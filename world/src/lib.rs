@@ -17,13 +17,13 @@ use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    fetch_paths, linger, linger_within, presence, report, say_now, subscribe, subscribe_with, ClockServer, Outlet,
-    Presence, RealtimeReport, Received, Rejected,
+    fetch_paths, linger, linger_within, presence, queue, report, say_now, subscribe_as, subscribe_from_others_as,
+    subscribe_with, ClockServer, Outlet, Presence, RealtimeReport, Received, Rejected,
 };
 use tcpf_core::lockstep::{Reject, Timing, WorldNode};
 use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
-use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, PROTOCOL_VERSION};
+use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
 use tcpf_core::ros2::{Played, Refused, Stamp};
@@ -104,6 +104,13 @@ async fn played_odometry(ros2: &mut Option<Ros2Side>) -> Option<Received<(u32, V
     }
 }
 
+/// What the realtime world hears: every vehicle's commands, and the states of those other
+/// processes play.
+enum Heard {
+    Command(Command),
+    State(State),
+}
+
 /// The realtime world's ROS 2 node, and where the states of vehicles played by ROS 2 nodes go.
 struct Ros2Side {
     node: tcpf_bus::ros2::World,
@@ -116,7 +123,7 @@ struct Ros2Side {
 /// Where the agents' commands go.
 enum Inbound {
     /// Realtime: queued for the loop, which integrates on its own beat.
-    Queued(Receiver<Received<Command>>),
+    Queued(Receiver<Received<Heard>>),
     /// Lockstep: into the node on Zenoh's thread.
     Fed {
         stepper: Arc<Stepper>,
@@ -351,8 +358,15 @@ async fn serve(
     let end_out = Arc::new(Outlet::last_words(session, keys.end()).await?);
     let clock = Arc::new(ClockServer::declare(session, keys).await?);
     let (_commands, inbound) = if realtime {
-        let (subscriber, commands) = subscribe::<Command>(session, &keys.cmd("*"), &rejected).await?;
-        (vec![subscriber], Inbound::Queued(commands))
+        let (tx, heard) = queue();
+        let mut subscribers = vec![subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Heard::Command).await?];
+        // The states of the vehicles other processes play, by which the world judges their
+        // arrival; not its own, which it publishes for those ROS 2 nodes play.
+        for id in ids.iter().filter(|id| !simulated.contains(id)) {
+            let key = keys.state(id);
+            subscribers.push(subscribe_from_others_as(session, &key, &rejected, tx.clone(), Heard::State).await?);
+        }
+        (subscribers, Inbound::Queued(heard))
     } else {
         let (ends_tx, ends) = mpsc::unbounded_channel();
         let stepper = Arc::new(Stepper {
@@ -591,11 +605,10 @@ impl Shell {
         digest: u64,
         paths: &[(u32, GeneralizedPath)],
         simulated: &[u32],
-        mut commands: Receiver<Received<Command>>,
+        mut heard: Receiver<Received<Heard>>,
     ) -> Result<Exit> {
-        let t_f = paths[0].1.t_f();
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
-        let mut node = RealtimeWorld::new(mission, paths, t_f, simulated);
+        let mut node = RealtimeWorld::new(mission, paths, simulated);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
@@ -635,13 +648,19 @@ impl Shell {
                         ros2.node.put(fleet.map(|s| (s, node.command_of(s.id))), stamp_of(t))?;
                     }
                 }
-                Some(c) = commands.recv() => {
-                    self.rejected.check(&c.key, c.message.id, || node.on_command(c.message, fleet.horizon()));
-                }
+                Some(h) = heard.recv() => match h.message {
+                    Heard::Command(c) => self.rejected.check(&h.key, c.id, || node.on_command(c, fleet.horizon())),
+                    Heard::State(s) => self.rejected.check(&h.key, s.id, || node.on_played(s, fleet.horizon())),
+                },
                 Some(o) = played_odometry(&mut self.ros2) => {
                     let (id, cdr) = &o.message;
                     match (played.on_odometry(*id, cdr, node.tick()), &mut self.ros2) {
-                        (Ok(state), Some(ros2)) => ros2.outlets[id].put(&state).await?,
+                        (Ok(state), Some(ros2)) => {
+                            ros2.outlets[id].put(&state).await?;
+                            if let Err(e) = node.on_played(state, fleet.horizon()) {
+                                self.rejected.reject(e, &o.key);
+                            }
+                        }
                         (Ok(_), None) => {}
                         (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
                         (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
