@@ -700,6 +700,7 @@ impl Shell {
                 timing,
                 published,
                 played: Vec::new(),
+                wrong_frames: Vec::new(),
             }),
         )
         .await?;

@@ -1,5 +1,6 @@
 //! Payloads are postcard-encoded serde structs (docs/PROTOCOL.md). A payload is used only if it
-//! decodes exactly (no trailing bytes), has our protocol version and finite numbers.
+//! is no longer than its kind allows, decodes exactly (no trailing bytes), has our protocol
+//! version and finite numbers.
 
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -11,12 +12,16 @@ pub fn encode<T: Serialize>(message: &T) -> Vec<u8> {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Invalid {
+    TooLarge,
     Undecodable,
     Version,
     NonFinite,
 }
 
 pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid> {
+    if bytes.len() > T::MAX_BYTES {
+        return Err(Invalid::TooLarge);
+    }
     let (message, rest) = postcard::take_from_bytes::<T>(bytes).map_err(|_| Invalid::Undecodable)?;
     if !rest.is_empty() {
         return Err(Invalid::Undecodable);
@@ -170,6 +175,148 @@ mod tests {
             ..record
         };
         assert_eq!(decode::<TickRecord>(&encode(&nan)), Err(Invalid::NonFinite));
+    }
+
+    /// The largest message of each kind that the largest mission tcpf accepts can make: every
+    /// varint at its longest, every option present, every list as long as the mission allows.
+    #[test]
+    fn the_largest_messages_a_mission_makes_fit_their_kinds_limits_and_longer_are_refused_unread() {
+        use tcpf_core::mission::{MAX_LINKS, MAX_VEHICLES};
+        use tcpf_core::msg::{
+            Arrival, Checked, Command, Dynamics, End, Lost, PeriodTiming, Player, Rejections, Report,
+        };
+        let state = State {
+            tick: u64::MAX,
+            id: u32::MAX,
+            dynamics: Some(Dynamics {
+                surge: 1.0,
+                sway: 0.0,
+                yaw_rate: 0.0,
+                command: [0.0; 2],
+                motor: [0.0; 2],
+                thrust: [0.0; 2],
+            }),
+            ..state()
+        };
+        let reception = Reception {
+            from: u32::MAX,
+            delivered: false,
+            sent: 1.0,
+            distance: Some(1.0),
+            sinr_db: Some(1.0),
+            cause: Cause::Collision,
+        };
+        let command = |receptions: usize| Command {
+            version: PROTOCOL_VERSION,
+            tick: u64::MAX,
+            id: u32::MAX,
+            v: 1.0,
+            r: 0.0,
+            accel: 0.0,
+            hold: false,
+            gamma: 1.0,
+            gamma_dot: 1.0,
+            v_d: 1.0,
+            x_e: 0.0,
+            y_e: 0.0,
+            psi_e: 0.0,
+            receptions: vec![reception; receptions],
+        };
+        let gamma = Gamma {
+            version: PROTOCOL_VERSION,
+            tick: u64::MAX,
+            from: u32::MAX,
+            sample: Some(Sample {
+                t: 1.0,
+                gamma: 1.0,
+                gamma_dot: 1.0,
+                position: [0.0; 2],
+            }),
+            busy: true,
+        };
+        // A command a tick for each of 1000 vehicles, 11 receptions a tick on each link.
+        let per_vehicle = 11 * MAX_LINKS / MAX_VEHICLES;
+        let states = vec![state; MAX_VEHICLES];
+        let commands = vec![Some(command(per_vehicle)); MAX_VEHICLES];
+        let record = TickRecord {
+            version: PROTOCOL_VERSION,
+            tick: u64::MAX,
+            states: states.into(),
+            commands: commands.into(),
+        };
+        let ids = 0..MAX_VEHICLES as u32;
+        let end = End {
+            version: PROTOCOL_VERSION,
+            ticks: u64::MAX,
+            lost: ids
+                .clone()
+                .map(|id| Lost {
+                    id: u32::MAX - id,
+                    tick: u64::MAX,
+                    reason: LossReason::Silent,
+                })
+                .collect(),
+            arrived: ids
+                .clone()
+                .map(|id| Arrival {
+                    id: u32::MAX - id,
+                    tick: u64::MAX,
+                })
+                .collect(),
+        };
+        let each: Vec<(u32, u64)> = ids.clone().map(|id| (u32::MAX - id, u64::MAX)).collect();
+        let report = Report {
+            late_gammas: each.clone(),
+            timing: Some(PeriodTiming {
+                periods: u64::MAX,
+                without_command: each.clone(),
+                rejoins: each.clone(),
+                overtaken: each,
+                ..PeriodTiming::default()
+            }),
+            rejected: Rejections {
+                undecodable: u64::MAX,
+                ..Rejections::default()
+            },
+            played: ids.map(|id| (u32::MAX - id, Player::Ros2)).collect(),
+            wrong_frames: vec![(u32::MAX, "f".repeat(64), u64::MAX); 17],
+            ..Report::new(tcpf_core::msg::Role::Record, u32::MAX, u32::MAX)
+        };
+        let clock = Clock {
+            version: PROTOCOL_VERSION,
+            realtime: true,
+            time_scale: 1.0,
+            epoch: 1.0,
+            tick: u64::MAX,
+            mission: u64::MAX,
+        };
+        let loss = Loss {
+            version: PROTOCOL_VERSION,
+            id: u32::MAX,
+            tick: u64::MAX,
+            reason: LossReason::Silent,
+        };
+        /// Within its limit, and the limit not many times what a mission can make of it.
+        fn fits<T: Serialize + DeserializeOwned + Checked + PartialEq + std::fmt::Debug>(m: &T, what: &str) {
+            let bytes = encode(m);
+            let (len, max) = (bytes.len(), T::MAX_BYTES);
+            assert!(
+                len <= max && 4 * len > max,
+                "{what}: {len} bytes against a limit of {max}"
+            );
+            assert_eq!(decode::<T>(&bytes).as_ref(), Ok(m), "{what}: the largest is taken");
+            let mut longer = bytes;
+            longer.resize(max + 1, 0);
+            assert_eq!(decode::<T>(&longer), Err(Invalid::TooLarge), "{what}");
+        }
+        fits(&state, "state");
+        fits(&command(7 * (MAX_VEHICLES - 1)), "command");
+        fits(&gamma, "γ");
+        fits(&record, "tick record");
+        fits(&end, "end");
+        fits(&report, "report");
+        fits(&clock, "clock");
+        fits(&loss, "loss");
     }
 
     #[test]

@@ -10,6 +10,7 @@ use crate::acl::Identity;
 use crate::certificate;
 use crate::credential::{self, Credential, Demand, Proof};
 use crate::signals::{Interrupted, Shutdown};
+use tcpf_core::msg::{Checked, TickRecord};
 
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct ZenohArgs {
@@ -333,6 +334,19 @@ pub fn warn_if_open(config: &Config) {
     }
 }
 
+/// The longest message Zenoh reassembles: the longest of any kind (`TickRecord`'s) and room for
+/// Zenoh's own headers and a ROS 2 path. A longer one is dropped where it first arrives, unread
+/// and not forwarded, instead of Zenoh's 1 GiB, which let a forger's 29 MB records stall a link.
+const MAX_MESSAGE_BYTES: usize = <TickRecord as Checked>::MAX_BYTES + 1024 * 1024;
+
+/// At most `MAX_MESSAGE_BYTES`, or less where a config file says so.
+fn cap_messages(config: &mut Config) -> Result<()> {
+    let key = "transport/link/rx/max_message_size";
+    let given = config.get_json(key).ok().and_then(|v| v.parse::<usize>().ok());
+    let cap = given.map_or(MAX_MESSAGE_BYTES, |g| g.min(MAX_MESSAGE_BYTES));
+    set(config, key, &cap.to_string())
+}
+
 impl ZenohArgs {
     /// Without a config file: peer mode on 127.0.0.1, no multicast scouting, an ephemeral port,
     /// a handshake queue that idle connections do not fill (`ACCEPT_PENDING`), so that nothing
@@ -398,6 +412,7 @@ impl ZenohArgs {
         if credential(&config).is_none() && !self.open {
             return Err(bad(RUNS_OPEN.to_string()));
         }
+        cap_messages(&mut config)?;
         Ok(config)
     }
 
@@ -594,6 +609,24 @@ async fn open(config: Config) -> Result<Session> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every role's Zenoh reassembles no message longer than the longest kind, whatever its
+    /// config file allows; a file that allows less keeps its own.
+    #[test]
+    fn no_role_reassembles_a_message_longer_than_the_protocols_longest() {
+        let key = "transport/link/rx/max_message_size";
+        let open = ZenohArgs {
+            open: true,
+            ..ZenohArgs::default()
+        };
+        let size = |c: &Config| c.get_json(key).unwrap().parse::<usize>().unwrap();
+        assert_eq!(size(&open.config().unwrap()), MAX_MESSAGE_BYTES);
+        assert_eq!(size(&Config::default()), 1 << 30, "Zenoh's own: 1 GiB");
+        let mut small = Config::default();
+        set(&mut small, key, "65536").unwrap();
+        cap_messages(&mut small).unwrap();
+        assert_eq!(size(&small), 65536);
+    }
 
     #[test]
     fn zenoh_errors_lose_their_source_paths() {

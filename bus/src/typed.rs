@@ -45,6 +45,7 @@ impl Rejected {
     /// A payload that `decode` refused.
     pub fn invalid(&self, why: Invalid, key: &str) {
         self.bump(key, |r| match why {
+            Invalid::TooLarge => r.too_large += 1,
             Invalid::Undecodable => r.undecodable += 1,
             Invalid::Version => r.wrong_version += 1,
             Invalid::NonFinite => r.non_finite += 1,
@@ -606,6 +607,7 @@ pub struct RealtimeReport {
     pub timing: PeriodTiming,
     pub published: u64,
     pub played: Vec<(u32, Player)>,
+    pub wrong_frames: Vec<(u32, String, u64)>,
 }
 
 /// Tells the recorder who this process was, what it refused and, in realtime, how it kept its
@@ -631,6 +633,7 @@ pub async fn report(
             timing: Some(r.timing),
             published: r.published,
             played: r.played,
+            wrong_frames: r.wrong_frames,
             ..base
         },
         None => base,

@@ -626,9 +626,8 @@ mod tests {
                 &[command(1, k, gamma), command(2, k, gamma), command(3, k, gamma)],
             );
         }
-        let arrivals = |verdict| -> Vec<Option<f64>> {
-            m.results(verdict).vehicles.iter().map(|v| v.arrival_time).collect()
-        };
+        let arrivals =
+            |verdict| -> Vec<Option<f64>> { m.results(verdict).vehicles.iter().map(|v| v.arrival_time).collect() };
         let at_11 = 0.1 + 0.01 * 0.5;
         let verdict = [Arrival { id: 1, tick: 11 }, Arrival { id: 2, tick: 12 }];
         let [one, two, three] = arrivals(Some(&verdict))[..] else {

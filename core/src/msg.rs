@@ -209,6 +209,11 @@ fn all_finite<const N: usize>(xs: [f64; N]) -> bool {
 }
 
 pub trait Checked {
+    /// The longest payload of this kind a receiver decodes (docs/PROTOCOL.md, "Sizes"): what
+    /// the largest mission tcpf accepts can make, with room to spare. A longer one is refused
+    /// unread, so a flood of large forgeries costs a receiver no decoding and no memory.
+    const MAX_BYTES: usize;
+
     fn version(&self) -> u16;
     /// Every number in it is finite.
     fn finite(&self) -> bool;
@@ -225,6 +230,8 @@ pub trait Checked {
 }
 
 impl Checked for State {
+    /// 155 bytes at most: fixed fields and the dynamic vehicle's.
+    const MAX_BYTES: usize = 256;
     fn version(&self) -> u16 {
         self.version
     }
@@ -243,6 +250,9 @@ impl Checked for State {
 }
 
 impl Checked for Command {
+    /// 101 bytes and 33 a reception: a tick's frames from up to 999 neighbours, seven each (a
+    /// delayed link's frames bunch into one tick; a realtime agent late by a few periods).
+    const MAX_BYTES: usize = 256 * 1024;
     fn version(&self) -> u16 {
         self.version
     }
@@ -262,6 +272,8 @@ impl Checked for Command {
 }
 
 impl Checked for Gamma {
+    /// 60 bytes at most.
+    const MAX_BYTES: usize = 128;
     fn version(&self) -> u16 {
         self.version
     }
@@ -272,6 +284,9 @@ impl Checked for Gamma {
 }
 
 impl Checked for TickRecord<'_> {
+    /// 1000 vehicles' states and commands (257 kB) and 33 bytes a reception: eleven a tick on
+    /// each of the 20 000 links a mission may have.
+    const MAX_BYTES: usize = 8 * 1024 * 1024;
     /// Its own version, or the first of its parts' that differs from it.
     fn version(&self) -> u16 {
         let parts = self.states.iter().map(|s| s.version);
@@ -286,6 +301,8 @@ impl Checked for TickRecord<'_> {
 }
 
 impl Checked for PathMsg {
+    /// 200 bytes: the coefficients and ends.
+    const MAX_BYTES: usize = 512;
     fn version(&self) -> u16 {
         self.version
     }
@@ -356,6 +373,8 @@ impl From<Lost> for Loss {
 }
 
 impl Checked for Loss {
+    /// 23 bytes at most.
+    const MAX_BYTES: usize = 64;
     fn version(&self) -> u16 {
         self.version
     }
@@ -393,6 +412,8 @@ pub struct End {
 }
 
 impl Checked for End {
+    /// 31 bytes a vehicle at most (lost and arrived), 1000 vehicles.
+    const MAX_BYTES: usize = 64 * 1024;
     fn version(&self) -> u16 {
         self.version
     }
@@ -401,13 +422,16 @@ impl Checked for End {
     }
 }
 
-/// Messages a process refused, by why. The first three are found by decoding, the rest by the
-/// protocol's rules (`lockstep::Reject`), `overflow` by the shell when a queue was full.
+/// Messages a process refused, by why. The first four are found before or by decoding, the rest
+/// by the protocol's rules (`lockstep::Reject`), `overflow` by the shell when a queue was full.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Rejections {
     pub undecodable: u64,
     pub wrong_version: u64,
     pub non_finite: u64,
+    /// Longer than its kind's `Checked::MAX_BYTES`: refused unread.
+    #[serde(default)]
+    pub too_large: u64,
     /// The message names another vehicle than its key, or a vehicle the mission does not have.
     pub wrong_sender: u64,
     /// γ from a vehicle that is not a neighbour in the communication graph.
@@ -428,11 +452,12 @@ pub struct Rejections {
 
 impl Rejections {
     /// Every kind with its count, in a fixed order, for logs and summaries.
-    pub fn kinds(&self) -> [(&'static str, u64); 11] {
+    pub fn kinds(&self) -> [(&'static str, u64); 12] {
         [
             ("undecodable", self.undecodable),
             ("wrong_version", self.wrong_version),
             ("non_finite", self.non_finite),
+            ("too_large", self.too_large),
             ("wrong_sender", self.wrong_sender),
             ("not_a_neighbour", self.not_a_neighbour),
             ("past", self.past),
@@ -454,6 +479,7 @@ impl Rejections {
         self.undecodable = self.undecodable.saturating_add(other.undecodable);
         self.wrong_version = self.wrong_version.saturating_add(other.wrong_version);
         self.non_finite = self.non_finite.saturating_add(other.non_finite);
+        self.too_large = self.too_large.saturating_add(other.too_large);
         self.wrong_sender = self.wrong_sender.saturating_add(other.wrong_sender);
         self.not_a_neighbour = self.not_a_neighbour.saturating_add(other.not_a_neighbour);
         self.past = self.past.saturating_add(other.past);
@@ -483,6 +509,8 @@ pub struct Clock {
 }
 
 impl Checked for Clock {
+    /// 40 bytes at most.
+    const MAX_BYTES: usize = 64;
     fn version(&self) -> u16 {
         self.version
     }
@@ -609,6 +637,9 @@ pub struct Report {
     pub published: u64,
     /// Realtime world: the vehicles it did not simulate, and who played each.
     pub played: Vec<(u32, Player)>,
+    /// Realtime world: the odometries of ROS 2 players refused for their frame, by vehicle and
+    /// frame name (`ros2::Played::wrong_frames`).
+    pub wrong_frames: Vec<(u32, String, u64)>,
 }
 
 /// Who played a vehicle the world did not simulate (`tcpf world --vehicles`).
@@ -635,11 +666,15 @@ impl Report {
             timing: None,
             published: 0,
             played: Vec::new(),
+            wrong_frames: Vec::new(),
         }
     }
 }
 
 impl Checked for Report {
+    /// 15 bytes a vehicle in each of its four lists (late γ, uncommanded, rejoins, overtaken), 6
+    /// in `played`: 66 kB for 1000 vehicles, and 17 frame names of 64 bytes at most.
+    const MAX_BYTES: usize = 128 * 1024;
     fn version(&self) -> u16 {
         self.version
     }

@@ -387,8 +387,13 @@ impl Odometry {
 
     /// nav_msgs/msg/Odometry, covariances zero: the simulation knows its state exactly.
     pub fn cdr(&self) -> Vec<u8> {
+        self.cdr_in(MAP_FRAME)
+    }
+
+    /// As `cdr`, its pose said to be in `frame`.
+    fn cdr_in(&self, frame: &str) -> Vec<u8> {
         let mut cdr = Cdr::new();
-        cdr.header(self.stamp, MAP_FRAME);
+        cdr.header(self.stamp, frame);
         cdr.string(&body_frame(self.id));
         let (sin, cos) = (self.yaw / 2.0).sin_cos();
         cdr.f64s(&[self.position[0], self.position[1], 0.0]);
@@ -586,6 +591,13 @@ impl Odometry {
             yaw_rate,
         })
     }
+
+    /// The frame an odometry's pose is in: its header's `frame_id`.
+    pub fn frame_of(bytes: &[u8]) -> Result<&str, Malformed> {
+        let mut r = Reader::new(bytes)?;
+        r.stamp()?;
+        r.string()
+    }
 }
 
 /// Vehicles played by ROS 2 nodes, as the fleet sees them: each one's odometry made the `State`
@@ -601,11 +613,22 @@ pub struct Played {
     control_period: f64,
     /// Per vehicle, its newest state.
     newest: BTreeMap<u32, State>,
+    /// Odometries refused for their frame, by vehicle and frame name (`WRONG_FRAMES` names at
+    /// most, each cut to `FRAME_NAME` bytes, the rest counted under `OTHER_FRAMES`).
+    wrong_frames: BTreeMap<(u32, String), u64>,
 }
+
+/// How many frame names `Played` counts apart: a node that changes its frame every message
+/// makes a count, not a list.
+const WRONG_FRAMES: usize = 16;
+const FRAME_NAME: usize = 64;
+const OTHER_FRAMES: &str = "(other frames)";
 
 /// Why a played vehicle's odometry made no state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Refused {
+    /// Longer than `ODOMETRY_MAX_BYTES`: refused unread.
+    TooLarge,
     /// Not a nav_msgs/msg/Odometry in CDR.
     Malformed,
     NonFinite,
@@ -621,7 +644,13 @@ pub enum Refused {
     /// it would be the vehicle's newest state until the fleet caught up with it, and every
     /// genuine one before then "older".
     Ahead,
+    /// Its pose is in another frame than `MAP_FRAME`, the fleet's: taken, a driver's `odom`
+    /// pose would put the vehicle where it is not. Counted by frame name (`Played::wrong_frames`).
+    Frame,
 }
+
+/// The longest odometry taken: its numbers are 700 bytes, and its two frame names a few dozen.
+pub const ODOMETRY_MAX_BYTES: usize = 4096;
 
 /// s of fleet time: how far ahead of the fleet's clock a played vehicle's stamp may be (two
 /// machines' clocks, a driver's latency).
@@ -637,14 +666,24 @@ impl Played {
             time_scale: mission.mission.time_scale,
             control_period: mission.mission.control_period,
             newest: BTreeMap::new(),
+            wrong_frames: BTreeMap::new(),
         }
     }
 
     /// The state of vehicle `id` that its node's odometry `cdr` says, the fleet's clock at tick
-    /// `now`: refused if it is no odometry, stamped more than `LEAD` ahead of `now`, older than
-    /// one already taken, or of the same tick as one taken (the first of a tick is its state).
+    /// `now`: refused if it is no odometry, in another frame than the map, stamped more than
+    /// `LEAD` ahead of `now`, older than one already taken, or of the same tick as one taken
+    /// (the first of a tick is its state).
     pub fn on_odometry(&mut self, id: u32, cdr: &[u8], now: u64) -> Result<State, Refused> {
+        if cdr.len() > ODOMETRY_MAX_BYTES {
+            return Err(Refused::TooLarge);
+        }
         let odometry = Odometry::from_cdr(id, cdr).map_err(|Malformed| Refused::Malformed)?;
+        let frame = Odometry::frame_of(cdr).map_err(|Malformed| Refused::Malformed)?;
+        if frame != MAP_FRAME {
+            self.count_frame(id, frame);
+            return Err(Refused::Frame);
+        }
         let state = self.state(&odometry)?;
         if state.t > now as f64 * self.control_period + LEAD {
             return Err(Refused::Ahead);
@@ -656,6 +695,22 @@ impl Played {
         }
         self.newest.insert(id, state);
         Ok(state)
+    }
+
+    fn count_frame(&mut self, id: u32, frame: &str) {
+        let mut name: String = frame.chars().take(FRAME_NAME).collect();
+        if !self.wrong_frames.contains_key(&(id, name.clone())) && self.wrong_frames.len() >= WRONG_FRAMES {
+            name = OTHER_FRAMES.into();
+        }
+        *self.wrong_frames.entry((id, name)).or_default() += 1;
+    }
+
+    /// The odometries refused for their frame: vehicle, frame name and how many, in that order.
+    pub fn wrong_frames(&self) -> Vec<(u32, String, u64)> {
+        self.wrong_frames
+            .iter()
+            .map(|((id, frame), &n)| (*id, frame.clone(), n))
+            .collect()
     }
 
     /// Whether a node played vehicle `id`: its odometry made a state.
@@ -1024,6 +1079,30 @@ mod tests {
             Err(Refused::Early),
             "before t = 0"
         );
+        let mut long = at(1_003.0).cdr();
+        long.resize(ODOMETRY_MAX_BYTES + 1, 0);
+        assert_eq!(
+            played.on_odometry(2, &long, 1000),
+            Err(Refused::TooLarge),
+            "refused unread"
+        );
+        // A driver's own odometry frame is no map: refused, and counted under its name.
+        let odom = at(1_003.0).cdr_in("odom");
+        assert_eq!(Odometry::frame_of(&odom), Ok("odom"));
+        assert_eq!(played.on_odometry(2, &odom, 1000), Err(Refused::Frame));
+        assert_eq!(played.on_odometry(2, &odom, 1000), Err(Refused::Frame));
+        for n in 0..WRONG_FRAMES + 3 {
+            let frame = format!("frame_{n}_{}", "x".repeat(100));
+            assert_eq!(
+                played.on_odometry(3, &at(1_003.0).cdr_in(&frame), 1000),
+                Err(Refused::Frame)
+            );
+        }
+        let counted = played.wrong_frames();
+        assert_eq!(counted.len(), WRONG_FRAMES + 1, "{counted:?}");
+        assert_eq!(counted[0], (2, "odom".to_string(), 2));
+        assert!(counted.iter().all(|(_, f, _)| f.len() <= FRAME_NAME), "{counted:?}");
+        assert!(counted.contains(&(3, OTHER_FRAMES.to_string(), 4)), "{counted:?}");
         let nan = Odometry {
             position: [f64::NAN, 0.0],
             ..o

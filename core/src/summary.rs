@@ -152,7 +152,8 @@ pub struct Summary {
     /// The coordination gain the agents used: k_c, capped by the largest delay (D19).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coordination_gain: Option<crate::agent::CoordinationGain>,
-    /// What went wrong without failing the run: the planner gone once the fleet ran.
+    /// What went wrong without failing the run: the planner gone once the fleet ran, ticks
+    /// missing from the telemetry.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
     /// What made the run (older summaries have none).
@@ -405,7 +406,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         first_tick_s,
         children,
         restarts,
-        warnings,
+        mut warnings,
     } = how;
     // Cut short by a signal or by what stopped it: its roles may not have reported.
     let cut_short = interrupted || failure.is_some();
@@ -431,6 +432,12 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
             if let Some(v) = results.vehicles.iter_mut().find(|v| v.id == id) {
                 v.played_by = Some(player);
             }
+        }
+        for (id, frame, n) in &r.wrong_frames {
+            warnings.push(format!(
+                "vehicle {id}: {n} odometry message(s) refused, their pose in frame '{frame}': the fleet takes poses in '{}' only (docs/ROS2.md)",
+                crate::ros2::MAP_FRAME
+            ));
         }
     }
     let agent_reports = || reports.iter().filter(|r| r.role == Role::Agent.as_str());

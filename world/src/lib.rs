@@ -26,7 +26,7 @@ use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, PROTOCOL_VERSION};
 use tcpf_core::path::GeneralizedPath;
 use tcpf_core::realtime::RealtimeWorld;
-use tcpf_core::ros2::{Played, Refused, Stamp};
+use tcpf_core::ros2::{Played, Refused, Stamp, MAP_FRAME};
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
@@ -662,9 +662,18 @@ impl Shell {
                             }
                         }
                         (Ok(_), None) => {}
+                        (Err(Refused::TooLarge), _) => self.rejected.invalid(Invalid::TooLarge, &o.key),
                         (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
                         (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
                         (Err(Refused::Ahead), _) => self.rejected.reject(Reject::Future, &o.key),
+                        (Err(Refused::Frame), _) => {
+                            let frames: Vec<_> = played.wrong_frames().into_iter().filter(|w| w.0 == *id).collect();
+                            if let [(_, frame, 1)] = &frames[..] {
+                                tracing::warn!(
+                                    "world: vehicle {id}'s odometry is in frame '{frame}', not '{MAP_FRAME}', the fleet's: refused, as is every one not in '{MAP_FRAME}' (the summary counts them by frame)"
+                                );
+                            }
+                        }
                         // Odometry flows before the run starts, may be overtaken, and may come
                         // faster than the ticks: none is wrong, and none is a new state of the run.
                         (Err(Refused::Early | Refused::Stale | Refused::Taken), _) => {}
@@ -723,6 +732,7 @@ impl Shell {
                         )
                     })
                     .collect(),
+                wrong_frames: played.wrong_frames(),
             }),
         )
         .await?;

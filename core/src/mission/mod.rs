@@ -7,7 +7,7 @@ pub mod generate;
 mod graph;
 mod overrides;
 mod validate;
-pub use validate::{MAX_TIME_SCALE, MIN_TIME_SCALE};
+pub use validate::{MAX_LINKS, MAX_TIME_SCALE, MAX_VEHICLES, MIN_TIME_SCALE};
 
 use serde::{Deserialize, Serialize};
 use toml::de::DeTable;

@@ -11,9 +11,9 @@ const MAX_TICKS: f64 = 2_000_000.0;
 /// Shortest path duration the planner considers: a path of a few control periods is no path.
 const MIN_TF: f64 = 1.0;
 /// A fleet larger than this is a typo, not a mission.
-const MAX_VEHICLES: usize = 1000;
+pub const MAX_VEHICLES: usize = 1000;
 /// Directed links of a communication graph, at most: the complete graph of 141 vehicles.
-const MAX_LINKS: usize = 20_000;
+pub const MAX_LINKS: usize = 20_000;
 /// γ messages a run may decide and write to messages.csv (about 1.5 GB of it).
 const MAX_LINK_MESSAGES: f64 = 5e7;
 /// A mission name is part of every key expression and file name.
