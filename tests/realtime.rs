@@ -513,3 +513,88 @@ fn the_python_vehicle_encodes_the_protocol_documents_examples() {
     let o = Command::new("python3").args([&script, "--self-test"]).output().unwrap();
     assert!(o.status.success(), "{}", common::text(&o));
 }
+
+/// Case (b) in realtime at ×5 as ROS 2 sees it, beside two processes that keep both cores busy:
+/// the world's realtime outlets drop rather than wait, so the recorder may miss a tick's states,
+/// but never without a word. Every tick the world ran is in telemetry.csv (both vehicles' states)
+/// or named in the summary's `missing_ticks`, never both, and the warning counts them.
+#[test]
+fn every_tick_a_realtime_world_ran_is_recorded_or_named_beside_a_cpu_hog() {
+    let _fleet = fleet();
+    let out = scratch("realtime-hog");
+    let _hogs: Vec<Reaper> = (0..2)
+        .map(|_| {
+            // Bounded: the Reaper kills it with the test, `timeout` if the test is killed.
+            let hog = Command::new("timeout")
+                .args(["120", "sh", "-c", "while :; do :; done"])
+                .spawn()
+                .unwrap();
+            Reaper(hog)
+        })
+        .collect();
+    let o = Command::new(env!("CARGO_BIN_EXE_tcpf"))
+        .args([
+            "run",
+            &paper("b-current"),
+            "--clock",
+            "realtime",
+            "--time-scale",
+            "5",
+            "--ros2",
+        ])
+        .args(["--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let s = summary(&out);
+    let ran = s["ticks"].as_u64().unwrap();
+    // A tick is recorded where every vehicle has a row with its state of that tick (a row may
+    // hold one vehicle's state of a tick beside the other's of the tick before).
+    let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
+    let of = |id: &str| -> std::collections::BTreeSet<u64> {
+        telemetry
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|row| row[2] == id)
+            .map(|row| row[0].parse().unwrap())
+            .filter(|&k| k < ran)
+            .collect()
+    };
+    let recorded: std::collections::BTreeSet<u64> = of("1").intersection(&of("2")).copied().collect();
+    let mut named = std::collections::BTreeSet::new();
+    for range in s["missing_ticks"].as_array().into_iter().flatten() {
+        let (a, b) = (range[0].as_u64().unwrap(), range[1].as_u64().unwrap());
+        for k in a..=b {
+            assert!(!recorded.contains(&k), "tick {k} is recorded and named missing");
+            named.insert(k);
+        }
+    }
+    let missing: Vec<u64> = (0..ran)
+        .filter(|k| !recorded.contains(k) && !named.contains(k))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "ticks of the {ran} the world ran neither recorded nor named: {missing:?}"
+    );
+    let warned = s["warnings"].as_array().into_iter().flatten().filter_map(Value::as_str);
+    let said = format!("telemetry.csv lacks {} of {ran} ticks the world ran", named.len());
+    match named.len() {
+        0 => assert!(
+            warned.clone().all(|w| !w.starts_with("telemetry.csv lacks")),
+            "{}",
+            s["warnings"]
+        ),
+        _ => assert!(
+            warned.clone().any(|w| w.starts_with(&said)),
+            "{said}: {}",
+            s["warnings"]
+        ),
+    }
+    assert_eq!(s["completed"], true, "{}", s["failure"]);
+}

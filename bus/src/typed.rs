@@ -170,18 +170,15 @@ where
     T: DeserializeOwned + Checked + Send + 'static,
     M: Send + 'static,
 {
-    let overflowed = rejected.clone();
-    subscribe_with(session, key, rejected, move |key, message| {
-        enqueue(&tx, key, wrap(message), &overflowed);
-    })
-    .await
+    subscribe_origin_as(session, key, Locality::Any, rejected, tx, wrap).await
 }
 
-/// As `subscribe_as`, hearing other sessions only: a process that publishes on `key` too does
-/// not take its own words for another's.
-pub async fn subscribe_from_others_as<T, M>(
+/// As `subscribe_as`, hearing the sessions `origin` says: `Locality::Remote` for a process
+/// that publishes on `key` too, and must not take its own words for another's.
+pub async fn subscribe_origin_as<T, M>(
     session: &Session,
     key: &str,
+    origin: Locality,
     rejected: &Rejected,
     tx: mpsc::Sender<Received<M>>,
     wrap: fn(T) -> M,
@@ -194,7 +191,7 @@ where
     let take = move |key: &str, message| {
         enqueue(&tx, key, wrap(message), &overflowed);
     };
-    subscribe_from(session, key, Locality::Remote, rejected, take).await
+    subscribe_from(session, key, origin, rejected, take).await
 }
 
 /// Queues what came on `key` for its receiver, counted as dropped if the queue is full; whether

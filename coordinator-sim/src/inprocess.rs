@@ -69,6 +69,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         unreported: Vec::new(),
         coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         warnings: Vec::new(),
+        missing_ticks: Vec::new(),
         provenance: Provenance::of(mission),
     };
     summary.name_the_shortfall();

@@ -455,6 +455,7 @@ impl Recording {
                 Recorded::Realtime {
                     never_heard: sampler.never_heard(),
                     newest_state: sampler.newest_state(),
+                    missing_ticks: sampler.missing_ticks(),
                 }
             }
             Machine::Lockstep(recorder) => Recorded::Lockstep {

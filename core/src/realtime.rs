@@ -8,7 +8,9 @@ use crate::agent::Agent;
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
 use crate::mission::{neighbour_lists, Graph, Mission};
-use crate::msg::{tally, Arrival, Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION};
+use crate::msg::{
+    tally, Arrival, Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION,
+};
 use crate::path::GeneralizedPath;
 use crate::roster::Roster;
 use crate::world::World;
@@ -113,6 +115,18 @@ fn older<T: PartialEq>(held_tick: u64, tick: u64, held: &T, message: &T) -> Resu
     }
 }
 
+/// Whether `state` may replace `held`, the freshest so far: finite, within `horizon`, newer.
+fn fresher(held: Option<&State>, state: &State, horizon: u64) -> Result<(), Reject> {
+    if !state.finite() {
+        return Err(Reject::NonFinite);
+    }
+    not_ahead(state.tick, horizon)?;
+    match held {
+        Some(held) => older(held.tick, state.tick, held, state),
+        None => Ok(()),
+    }
+}
+
 /// The agent's side: the freshest state, the newest γ of each neighbour since the last instant,
 /// and a command every period.
 pub struct RealtimeAgent {
@@ -167,14 +181,9 @@ impl RealtimeAgent {
         if state.id != self.agent.id() {
             return Err(Reject::UnknownVehicle);
         }
-        if !state.finite() {
-            return Err(Reject::NonFinite);
-        }
-        not_ahead(state.tick, horizon)?;
-        match &self.state {
-            Some(held) => older(held.tick, state.tick, held, &state)?,
-            None if self.rejoin && state.tick > 0 => self.agent.rejoin(state.position),
-            None => {}
+        fresher(self.state.as_ref(), &state, horizon)?;
+        if self.state.is_none() && self.rejoin && state.tick > 0 {
+            self.agent.rejoin(state.position);
         }
         self.state = Some(state);
         Ok(())
@@ -371,13 +380,7 @@ impl RealtimeWorld {
             .position(state.id)
             .filter(|n| !self.bodies.contains(n))
             .ok_or(Reject::UnknownVehicle)?;
-        if !state.finite() {
-            return Err(Reject::NonFinite);
-        }
-        not_ahead(state.tick, horizon)?;
-        if let Some(held) = &self.played[n] {
-            older(held.tick, state.tick, held, &state)?;
-        }
+        fresher(self.played[n].as_ref(), &state, horizon)?;
         self.played[n] = Some(state);
         self.judge(n);
         Ok(())
@@ -524,6 +527,11 @@ pub struct Sampler {
     /// The tick of the first state this recorder took: one that joins a run under way counts
     /// the time due from there.
     first_state: Option<u64>,
+    /// Per vehicle, the newest of its states a row held, and the ticks before it of which no
+    /// row held its state, as inclusive ranges: what telemetry.csv lacks of the ticks the world
+    /// ran.
+    newest_recorded: Vec<Option<u64>>,
+    gaps: Vec<Vec<(u64, u64)>>,
 }
 
 impl Sampler {
@@ -551,6 +559,8 @@ impl Sampler {
             due_ticks: (STATES_DUE_S / dt).ceil() as u64,
             told_overdue: false,
             first_state: None,
+            newest_recorded: vec![None; ids.len()],
+            gaps: vec![Vec::new(); ids.len()],
         }
     }
 
@@ -599,13 +609,7 @@ impl Sampler {
     /// A vehicle's state, `horizon` the latest tick the recorder's clock allows.
     pub fn on_state(&mut self, state: State, horizon: u64) -> Result<(), Reject> {
         let n = self.index(state.id)?;
-        if !state.finite() {
-            return Err(Reject::NonFinite);
-        }
-        not_ahead(state.tick, horizon)?;
-        if let Some(held) = &self.states[n] {
-            older(held.tick, state.tick, held, &state)?;
-        }
+        fresher(self.states[n].as_ref(), &state, horizon)?;
         self.states[n] = Some(state);
         self.first_state.get_or_insert(state.tick);
         self.moved = true;
@@ -701,6 +705,13 @@ impl Sampler {
                 *command = None;
             }
         }
+        for ((state, newest), gaps) in self.row.iter().zip(&mut self.newest_recorded).zip(&mut self.gaps) {
+            let expected = newest.map_or(0, |n| n + 1);
+            if state.tick > expected {
+                gaps.push((expected, state.tick - 1));
+            }
+            *newest = Some(newest.map_or(state.tick, |n| n.max(state.tick)));
+        }
         self.metrics.record(tick, &self.row, &self.commands);
         emit(&self.row, &self.commands);
         for c in self.commands.iter_mut().flatten() {
@@ -719,6 +730,29 @@ impl Sampler {
 
     pub fn ticks_recorded(&self) -> u64 {
         self.last.map_or(0, |l| l + 1)
+    }
+
+    /// Per vehicle, the ticks the world ran (0 to its end, or to the newest state without one)
+    /// of which no row holds its state, as inclusive ranges: the states that never reached this
+    /// recorder in time (the world's realtime outlets drop rather than wait), the periods the
+    /// world skipped, those before a recorder that joined under way came, and, for a vehicle
+    /// another program plays, the ticks it published no state for.
+    pub fn missing_ticks(&self) -> Vec<(u32, Vec<(u64, u64)>)> {
+        let ran = self
+            .end
+            .as_ref()
+            .map(|e| e.ticks)
+            .or(self.newest_state().map(|k| k + 1));
+        let vehicles = self.ids.ids().iter().zip(&self.newest_recorded).zip(&self.gaps);
+        vehicles
+            .map(|((&id, newest), gaps)| {
+                let from = newest.map_or(0, |n| n + 1);
+                let mut missing = gaps.clone();
+                missing.extend(ran.filter(|&ran| ran > from).map(|ran| (from, ran - 1)));
+                (id, missing)
+            })
+            .filter(|(_, missing)| !missing.is_empty())
+            .collect()
     }
 
     /// The results, arrivals as the world's `End` judged them.
@@ -1026,6 +1060,61 @@ mod tests {
         assert_eq!(sampler.newest_state(), Some(15));
     }
 
+    /// Ticks whose states never came are named, whether the world's states were dropped on the
+    /// way (mid-run), came before the recorder did (at the start) or stopped before the end.
+    #[test]
+    fn the_ticks_the_world_ran_that_no_row_holds_are_named() {
+        let (m, _, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        let both = |sampler: &mut Sampler, tick: u64| {
+            for id in [1, 2] {
+                sampler
+                    .on_state(still(id, tick, dt, [0.0, 10.0 * id as f64]), HORIZON)
+                    .unwrap();
+            }
+            sampler.sample(tick, |_, _| {});
+        };
+        for tick in [2, 3, 6, 7, 8, 10] {
+            both(&mut sampler, tick);
+        }
+        let each = |gaps: &[(u64, u64)]| vec![(1, gaps.to_vec()), (2, gaps.to_vec())];
+        assert_eq!(
+            sampler.missing_ticks(),
+            each(&[(0, 1), (4, 5), (9, 9)]),
+            "to the newest state"
+        );
+        // Vehicle 1's state of tick 11 alone: the row of tick 11 repeats vehicle 2's of tick 10,
+        // whose state of tick 11 is lost; its state of tick 12 comes late, beside vehicle 1's of 13.
+        sampler.on_state(still(1, 11, dt, [0.0, 10.0]), HORIZON).unwrap();
+        sampler.sample(11, |_, _| {});
+        sampler.on_state(still(1, 13, dt, [0.0, 10.0]), HORIZON).unwrap();
+        sampler.on_state(still(2, 12, dt, [0.0, 20.0]), HORIZON).unwrap();
+        sampler.sample(13, |_, _| {});
+        sampler
+            .on_end(End {
+                version: PROTOCOL_VERSION,
+                ticks: 15,
+                lost: vec![],
+                arrived: vec![],
+            })
+            .unwrap();
+        let lacking = vec![
+            (1, vec![(0, 1), (4, 5), (9, 9), (12, 12), (14, 14)]),
+            (2, vec![(0, 1), (4, 5), (9, 9), (11, 11), (13, 14)]),
+        ];
+        assert_eq!(sampler.missing_ticks(), lacking);
+        sampler.finish(|_, _| {});
+        assert_eq!(
+            sampler.missing_ticks(),
+            lacking,
+            "the last row repeats the states of 13 and 12"
+        );
+        let mut whole = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        (0..15).for_each(|tick| both(&mut whole, tick));
+        assert_eq!(whole.missing_ticks(), []);
+    }
+
     /// A vehicle another process plays is judged where its states say it is, as the world's own
     /// are: a command with γ past t_f from a vehicle never heard from, or 15 m off its path,
     /// brings nothing in; the same γ where the path ends does, at the later of the two ticks.
@@ -1038,7 +1127,9 @@ mod tests {
         world.on_command(done.clone(), HORIZON).unwrap();
         assert_eq!(world.not_arrived(), 2, "vehicle 2 never heard from");
         let there = paths[1].1.derivatives(t_f + 0.5)[0];
-        world.on_played(still(2, 41, dt, [there.x + 15.0, there.y]), HORIZON).unwrap();
+        world
+            .on_played(still(2, 41, dt, [there.x + 15.0, there.y]), HORIZON)
+            .unwrap();
         assert_eq!(world.not_arrived(), 2, "15 m from where γ says");
         assert_eq!(
             world.on_played(still(1, 42, dt, [0.0, 0.0]), HORIZON),

@@ -156,6 +156,11 @@ pub struct Summary {
     /// missing from the telemetry.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// Realtime: the ticks the world ran of which telemetry.csv lacks the state of a vehicle the
+    /// world simulates, as inclusive ranges `[first, last]` (their states never reached the
+    /// recorder in time).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub missing_ticks: Vec<(u64, u64)>,
     /// What made the run (older summaries have none).
     #[serde(default)]
     pub provenance: Provenance,
@@ -225,6 +230,7 @@ impl Summary {
             children,
             coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
             warnings: Vec::new(),
+            missing_ticks: Vec::new(),
             provenance: Provenance::of(mission),
         }
     }
@@ -362,6 +368,9 @@ pub enum Recorded {
         never_heard: Vec<u32>,
         /// The newest tick of which a state came.
         newest_state: Option<u64>,
+        /// Per vehicle, the ticks the world ran that no row of telemetry.csv holds its state
+        /// for (`Sampler::missing_ticks`).
+        missing_ticks: Vec<(u32, Vec<(u64, u64)>)>,
     },
 }
 
@@ -454,10 +463,27 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
     }
     let realtime = mission.mission.clock == ClockKind::Realtime;
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
-    if let Recorded::Realtime { newest_state, .. } = &recorded {
+    let mut missing_ticks = Vec::new();
+    if let Recorded::Realtime {
+        newest_state,
+        missing_ticks: missing,
+        ..
+    } = &recorded
+    {
+        // A vehicle another program plays publishes at its own rate: the world runs no tick
+        // of it, and the ticks it left out are none the telemetry lost.
+        let played: Vec<u32> = reports
+            .iter()
+            .filter(|r| r.role == Role::World.as_str())
+            .flat_map(|r| r.played.iter().map(|p| p.0))
+            .collect();
+        missing_ticks = merged(missing.iter().filter(|(id, _)| !played.contains(id)).flat_map(|m| &m.1));
         // The metrics count the periods this recorder sampled; the run lasted the world's
         // ticks: as many as its end says, or, without one, to its newest state.
         results.ticks = end.map_or_else(|| newest_state.map_or(0, |k| k + 1), |end| end.ticks);
+        if newest_state.is_some() {
+            warnings.extend(lacking(&missing_ticks, results.ticks));
+        }
         // What each sender published, against what reached its receivers (judged at an
         // instant, or overtaken before one): the network's own loss. An agent started again
         // reports once per life.
@@ -569,10 +595,49 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
         coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
         warnings,
+        missing_ticks,
         provenance: Provenance::of(mission),
     };
     summary.name_the_shortfall();
     summary
+}
+
+/// Inclusive ranges of ticks as one sorted list, overlapping and adjacent ones joined.
+fn merged<'a>(ranges: impl Iterator<Item = &'a (u64, u64)>) -> Vec<(u64, u64)> {
+    let mut sorted: Vec<(u64, u64)> = ranges.copied().collect();
+    sorted.sort_unstable();
+    let mut out: Vec<(u64, u64)> = Vec::with_capacity(sorted.len());
+    for (a, b) in sorted {
+        match out.last_mut() {
+            Some(last) if a <= last.1.saturating_add(1) => last.1 = last.1.max(b),
+            _ => out.push((a, b)),
+        }
+    }
+    out
+}
+
+/// How many ranges of missing ticks a warning names; `missing_ticks` has them all.
+const NAMED_RANGES: usize = 12;
+
+/// "telemetry.csv lacks 7 of 5532 ticks the world ran: 62, 101–106", or nothing if it lacks none.
+fn lacking(missing: &[(u64, u64)], ran: u64) -> Option<String> {
+    let count: u64 = missing.iter().map(|(a, b)| b - a + 1).sum();
+    let named: Vec<String> = missing
+        .iter()
+        .take(NAMED_RANGES)
+        .map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}–{b}") })
+        .collect();
+    let more = if missing.len() > NAMED_RANGES {
+        ", … (missing_ticks has every one)"
+    } else {
+        ""
+    };
+    (count > 0).then(|| {
+        format!(
+            "telemetry.csv lacks {count} of {ran} ticks the world ran: {}{more}; their states never reached the recorder in time (the world's realtime outlets drop rather than wait, and a late world skips periods)",
+            named.join(", ")
+        )
+    })
 }
 
 /// A realtime vehicle's γ broadcasts, from what the neighbours' sampled commands show (`sampled`:
@@ -658,6 +723,28 @@ pub fn unreported(ids: &[u32], end: Option<&End>, reports: &[Report]) -> Vec<(Ro
 mod tests {
     use super::*;
     use crate::msg::{Lost, PROTOCOL_VERSION};
+
+    /// The fleet lacks a tick where any vehicle does; the warning counts them and names the
+    /// first ranges, `missing_ticks` every one.
+    #[test]
+    fn ticks_missing_for_any_vehicle_are_counted_and_named() {
+        let one = [(3, 4), (9, 9), (20, 25)];
+        let two = [(5, 5), (9, 10), (22, 30)];
+        let all = merged(one.iter().chain(&two));
+        assert_eq!(all, [(3, 5), (9, 10), (20, 30)]);
+        assert_eq!(
+            lacking(&all, 100).unwrap(),
+            "telemetry.csv lacks 16 of 100 ticks the world ran: 3–5, 9–10, 20–30; their states never reached the recorder in time (the world's realtime outlets drop rather than wait, and a late world skips periods)"
+        );
+        assert_eq!(lacking(&[], 100), None);
+        let many: Vec<(u64, u64)> = (0..20).map(|k| (2 * k, 2 * k)).collect();
+        let said = lacking(&many, 100).unwrap();
+        assert!(
+            said.starts_with("telemetry.csv lacks 20 of 100 ticks the world ran: 0, 2, 4,"),
+            "{said}"
+        );
+        assert!(said.contains(", 22, … (missing_ticks has every one)"), "{said}");
+    }
 
     #[test]
     fn the_end_calls_for_the_worlds_report_and_every_live_agents() {

@@ -17,7 +17,7 @@ use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    fetch_paths, linger, linger_within, presence, queue, report, say_now, subscribe_as, subscribe_from_others_as,
+    fetch_paths, linger, linger_within, presence, queue, report, say_now, subscribe_as, subscribe_origin_as,
     subscribe_with, ClockServer, Outlet, Presence, RealtimeReport, Received, Rejected,
 };
 use tcpf_core::lockstep::{Reject, Timing, WorldNode};
@@ -29,6 +29,7 @@ use tcpf_core::realtime::RealtimeWorld;
 use tcpf_core::ros2::{Played, Refused, Stamp, MAP_FRAME};
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
+use zenoh::sample::Locality;
 use zenoh::Session;
 
 /// How far ahead of now a realtime world sets t = 0: every process waiting for the clock (each
@@ -364,7 +365,8 @@ async fn serve(
         // arrival; not its own, which it publishes for those ROS 2 nodes play.
         for id in ids.iter().filter(|id| !simulated.contains(id)) {
             let key = keys.state(id);
-            subscribers.push(subscribe_from_others_as(session, &key, &rejected, tx.clone(), Heard::State).await?);
+            subscribers
+                .push(subscribe_origin_as(session, &key, Locality::Remote, &rejected, tx.clone(), Heard::State).await?);
         }
         (subscribers, Inbound::Queued(heard))
     } else {
