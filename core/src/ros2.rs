@@ -705,6 +705,15 @@ impl Played {
         *self.wrong_frames.entry((id, name)).or_default() += 1;
     }
 
+    /// The frames vehicle `id`'s odometries were refused for, each with how many.
+    pub fn refused_frames(&self, id: u32) -> impl Iterator<Item = (&str, u64)> {
+        let from = (id, String::new());
+        self.wrong_frames
+            .range(from..)
+            .take_while(move |((v, _), _)| *v == id)
+            .map(|((_, frame), &n)| (frame.as_str(), n))
+    }
+
     /// The odometries refused for their frame: vehicle, frame name and how many, in that order.
     pub fn wrong_frames(&self) -> Vec<(u32, String, u64)> {
         self.wrong_frames
@@ -1103,6 +1112,8 @@ mod tests {
         assert_eq!(counted[0], (2, "odom".to_string(), 2));
         assert!(counted.iter().all(|(_, f, _)| f.len() <= FRAME_NAME), "{counted:?}");
         assert!(counted.contains(&(3, OTHER_FRAMES.to_string(), 4)), "{counted:?}");
+        assert_eq!(played.refused_frames(2).collect::<Vec<_>>(), [("odom", 2)]);
+        assert_eq!(played.refused_frames(3).count(), WRONG_FRAMES);
         let nan = Odometry {
             position: [f64::NAN, 0.0],
             ..o

@@ -669,8 +669,8 @@ impl Shell {
                         (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
                         (Err(Refused::Ahead), _) => self.rejected.reject(Reject::Future, &o.key),
                         (Err(Refused::Frame), _) => {
-                            let frames: Vec<_> = played.wrong_frames().into_iter().filter(|w| w.0 == *id).collect();
-                            if let [(_, frame, 1)] = &frames[..] {
+                            let mut frames = played.refused_frames(*id);
+                            if let (Some((frame, 1)), None) = (frames.next(), frames.next()) {
                                 tracing::warn!(
                                     "world: vehicle {id}'s odometry is in frame '{frame}', not '{MAP_FRAME}', the fleet's: refused, as is every one not in '{MAP_FRAME}' (the summary counts them by frame)"
                                 );
