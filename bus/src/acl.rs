@@ -4,8 +4,8 @@
 //! another: access control is enforced where a message passes.
 //!
 //! What each may send (ingress):
-//! - everyone may subscribe, watch liveliness, and ask for paths and the clock (listening says
-//!   nothing in anyone's name);
+//! - everyone may subscribe, watch liveliness, and ask for paths, the clock and the world's
+//!   history (listening says nothing in anyone's name);
 //! - the world: everything (in `tcpf run` it is the router, whose own messages no rule stops);
 //! - the planner: paths (published, and as answers to `plan/<id>`), its token, its exit report;
 //! - agent N: its own commands and γ, its own tokens (alive, claim), its own exit report, and as
@@ -231,7 +231,7 @@ pub fn identities(fleet: &Fleet) -> Vec<Identity> {
 /// The router's `access_control` section for `fleet`, knowing each identity by `naming`: deny by
 /// default, and allow each identity what its role needs.
 pub fn access_control(fleet: &Fleet, naming: Naming) -> Value {
-    let mut ask_keys = vec![fleet.keys.plan("*"), fleet.keys.clock()];
+    let mut ask_keys = vec![fleet.keys.plan("*"), fleet.keys.clock(), fleet.keys.history()];
     if let Some(ros2) = fleet.ros2 {
         // A transient-local subscription asks for what was published before it came.
         ask_keys.push(format!("{}/@adv/**", ros2.topic_keys(&ros2.namespace)));
@@ -362,10 +362,13 @@ mod tests {
             [
                 "tcpf/m/plan/*",
                 "tcpf/m/clock",
+                "tcpf/m/history",
                 "7/tcpf/**/@adv/**",
                 "tcpf/m/report/agent/1"
             ]
         );
+        // The world alone answers for its history: a recorder may ask, never answer.
+        assert!(!allowed(&acl, Identity::Recorder, "ingress", "declare_queryable").contains(&"tcpf/m/history".into()));
         assert_eq!(
             allowed(&acl, Identity::Agent(1), "ingress", "liveliness_token"),
             [

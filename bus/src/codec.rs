@@ -183,7 +183,7 @@ mod tests {
     fn the_largest_messages_a_mission_makes_fit_their_kinds_limits_and_longer_are_refused_unread() {
         use tcpf_core::mission::{MAX_LINKS, MAX_VEHICLES};
         use tcpf_core::msg::{
-            Arrival, Checked, Command, Dynamics, End, Lost, PeriodTiming, Player, Rejections, Report,
+            Arrival, Checked, Command, Dynamics, End, Fetch, Lost, PeriodTiming, Player, Rejections, Report,
         };
         let state = State {
             tick: u64::MAX,
@@ -317,6 +317,13 @@ mod tests {
         fits(&report, "report");
         fits(&clock, "clock");
         fits(&loss, "loss");
+        let fetch = Fetch {
+            version: PROTOCOL_VERSION,
+            from: u64::MAX,
+            to: u64::MAX,
+            ids: (0..MAX_VEHICLES as u32).map(|id| u32::MAX - id).collect(),
+        };
+        fits(&fetch, "fetch");
     }
 
     #[test]

@@ -67,6 +67,12 @@ impl Keys {
         format!("{}/tick", self.root)
     }
 
+    /// The realtime world's history of the states it ran, which a recorder fetches what it
+    /// missed from (a queryable).
+    pub fn history(&self) -> String {
+        format!("{}/history", self.root)
+    }
+
     pub fn end(&self) -> String {
         format!("{}/end", self.root)
     }
@@ -104,6 +110,7 @@ mod tests {
         assert_eq!(k.cmd("*"), "tcpf/paper-b-current/cmd/*");
         assert_eq!(k.gamma(1), "tcpf/paper-b-current/gamma/1");
         assert_eq!(k.tick(), "tcpf/paper-b-current/tick");
+        assert_eq!(k.history(), "tcpf/paper-b-current/history");
         assert_eq!(k.alive(Role::Agent, 3), "tcpf/paper-b-current/alive/agent/3");
         assert_eq!(
             k.parse_alive("tcpf/paper-b-current/alive/world/0"),

@@ -9,6 +9,7 @@ pub mod codec;
 pub mod credential;
 pub mod footprint;
 pub mod handover;
+pub mod history;
 pub mod keys;
 pub mod priority;
 pub mod ros2;

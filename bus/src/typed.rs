@@ -72,7 +72,7 @@ impl Rejected {
         self.bump(key, |r| r.wrong_sender += 1);
     }
 
-    fn overflow(&self, key: &str) {
+    pub(crate) fn overflow(&self, key: &str) {
         self.bump(key, |r| r.overflow += 1);
     }
 

@@ -70,6 +70,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
         warnings: Vec::new(),
         missing_ticks: Vec::new(),
+        recovered_states: 0,
         provenance: Provenance::of(mission),
     };
     summary.name_the_shortfall();

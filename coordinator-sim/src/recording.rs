@@ -1,14 +1,16 @@
 //! The recorder's Zenoh shell: the world's record of each tick (lockstep), or every state and
 //! command (realtime), and every end, loss and exit report of a mission, fed to core's `Recorder`
 //! (lockstep), which hands complete ticks to `telemetry.csv` in order, or to its `Sampler`
-//! (realtime), which a metronome samples once a period on the fleet's clock.
+//! (realtime), which writes every tick the world ran, in order, asking the world's history for
+//! the states that never came.
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::clock::{check_clock, metronome, Beat, Expected, FleetClock, Monotonic};
+use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
 use tcpf_bus::handover::take_over;
+use tcpf_bus::history;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
 use tcpf_core::metrics::Results;
@@ -17,7 +19,7 @@ use tcpf_core::msg::{Clock, Command, End, Loss, Report, State, TickRecord};
 use tcpf_core::realtime::{Sampler, STATES_DUE_S};
 use tcpf_core::record::Recorder;
 use tcpf_core::watch::{Due, RecorderWaits};
-use tokio::sync::mpsc::{self, Receiver};
+use tokio::sync::mpsc::{self, Receiver, Sender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::query::Queryable;
@@ -45,29 +47,33 @@ enum Message {
     End(End),
     Loss(Loss),
     Report(Report),
+    /// Realtime: a state the world's history gave, and the end of its answer (the vehicles it
+    /// keeps none of).
+    History(State),
+    Fetched(Vec<u32>),
 }
 
 impl Message {
     /// Sent by the world: what says it is still there.
     fn is_the_worlds(&self) -> bool {
-        matches!(self, Message::Tick(_) | Message::State(_) | Message::End(_))
+        matches!(
+            self,
+            Message::Tick(_) | Message::State(_) | Message::End(_) | Message::History(_)
+        )
     }
 }
-
-/// Where in its period the realtime recorder samples: after the agents' commands of the period
-/// (at half of it), before the world's next states.
-const RECORDER_PHASE: f64 = 0.9;
 /// How long `tcpf record` waits after the end for the roles' exit reports.
 const REPORT_GRACE: Duration = Duration::from_secs(2);
 /// How often the recorder asks for the clock before the world has started.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
 
+/// Each machine boxed: both are large (their metrics), and a recording holds one.
 enum Machine {
-    Lockstep(Recorder),
+    Lockstep(Box<Recorder>),
     Realtime {
-        sampler: Sampler,
-        /// Once the world has started its clock: the fleet's clock here, and its beats.
-        beats: Option<(FleetClock, Receiver<Beat>)>,
+        sampler: Box<Sampler>,
+        /// Once the world has started its clock: the fleet's clock here.
+        fleet: Option<FleetClock>,
         control_period: f64,
     },
 }
@@ -93,6 +99,8 @@ pub struct Recording {
     /// earlier tick that came before it, or the recorder would refuse a genuine message as one
     /// too far ahead once it lags.
     inbox: Receiver<Received<Message>>,
+    /// Where the world's history answers, into the inbox.
+    answers: Sender<Received<Message>>,
     pub exit_reports: Vec<Report>,
     pub end: Option<End>,
     /// When the last tick was written.
@@ -116,6 +124,9 @@ pub struct Recording {
     expected: Expected,
     /// `tcpf record --ros2`: the fleet as a ROS 2 node, for a world that does not speak it.
     ros2: Option<Speaking>,
+    /// When every subscription was in place, Unix seconds: what the world published since, this
+    /// recorder heard (or may fetch).
+    subscribed: f64,
 }
 
 /// What `tcpf record --ros2` publishes of each tick it writes, as the node `recorder`: what a
@@ -176,15 +187,15 @@ impl Recording {
         let queryables = vec![
             take_over(session, &keys.end(), &rejected, tx.clone(), Message::End).await?,
             take_over(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?,
-            take_over(session, &keys.reports(), &rejected, tx, Message::Report).await?,
+            take_over(session, &keys.reports(), &rejected, tx.clone(), Message::Report).await?,
         ];
         let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
         let dt = mission.mission.control_period;
         let machine = match mission.mission.clock {
-            ClockKind::Lockstep => Machine::Lockstep(Recorder::new(&ids, t_f, dt).with_faults(mission)),
+            ClockKind::Lockstep => Machine::Lockstep(Box::new(Recorder::new(&ids, t_f, dt).with_faults(mission))),
             ClockKind::Realtime => Machine::Realtime {
-                sampler: Sampler::new(&ids, &mission.graph(), t_f, dt).with_faults(mission),
-                beats: None,
+                sampler: Box::new(Sampler::new(&ids, &mission.graph(), t_f, dt).with_faults(mission)),
+                fleet: None,
                 control_period: dt,
             },
         };
@@ -196,6 +207,7 @@ impl Recording {
             keys,
             telemetry,
             inbox,
+            answers: tx,
             exit_reports: Vec::new(),
             end: None,
             progress: Instant::now(),
@@ -209,6 +221,7 @@ impl Recording {
             ticking: false,
             expected: Expected::of(mission),
             ros2: None,
+            subscribed: unix_now(),
         })
     }
 
@@ -259,12 +272,6 @@ impl Recording {
         Ok(())
     }
 
-    fn take_report(&mut self, key: &str, report: Report) {
-        if !keep_report(&mut self.exit_reports, &self.keys, key, report) {
-            self.rejected.wrong_sender(key);
-        }
-    }
-
     /// Takes one message (or, in realtime, one beat of the clock), and writes every tick it
     /// completes.
     pub async fn step(&mut self) -> Result<()> {
@@ -299,12 +306,12 @@ impl Recording {
                             }
                         }
                         // A lockstep recorder takes states and commands from the tick record.
-                        Message::State(_) | Message::Command(_) => {}
+                        Message::State(_) | Message::Command(_) | Message::History(_) | Message::Fetched(_) => {}
                         Message::End(e) => match recorder.on_end(e.clone()) {
                             Ok(()) => self.end = Some(e),
                             Err(why) => self.rejected.reject(why, &m.key),
                         },
-                        Message::Report(r) => self.take_report(&m.key, r),
+                        Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, r),
                         Message::Loss(l) => self.rejected.check(&m.key, l.id, || recorder.on_lost(l.into())),
                     }
                 }
@@ -316,21 +323,9 @@ impl Recording {
             },
             Machine::Realtime {
                 sampler,
-                beats,
+                fleet,
                 control_period,
             } => tokio::select! {
-                Some(beat) = async { beats.as_mut()?.1.recv().await }, if beats.is_some() => {
-                    let mut failure = Ok(());
-                    let (telemetry, ros2) = (&mut self.telemetry, &mut self.ros2);
-                    sampler.sample(beat.tick, |states, commands| failure = write_tick(telemetry, ros2, states, commands));
-                    failure?;
-                    if let Some(ids) = sampler.overdue_states() {
-                        tracing::warn!(
-                            "recorder: no state of {} has come in {STATES_DUE_S} s of the run (simulated), so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?",
-                            tcpf_core::summary::vehicles(&ids)
-                        );
-                    }
-                }
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
                     let clock = answer?;
@@ -340,13 +335,16 @@ impl Recording {
                         ros2.clock = Some(clock);
                         ros2.put_paths()?;
                     }
-                    let fleet = FleetClock::new(&clock, *control_period);
-                    *beats = Some((fleet, metronome(fleet, RECORDER_PHASE, fleet.periods_now().floor() as u64)));
+                    // The tick under way when the subscriptions were in place, on the fleet's
+                    // clock (never later than the one the clock's answer names).
+                    let subscribed = (self.subscribed - clock.epoch) * clock.time_scale / *control_period;
+                    sampler.start_at(clock.tick.min(subscribed.max(0.0) as u64));
+                    *fleet = Some(FleetClock::new(&clock, *control_period));
                 }
                 // Messages wait for the clock, which says how far ahead of it they may be.
-                Some(m) = self.inbox.recv(), if beats.is_some() => {
+                Some(m) = self.inbox.recv(), if fleet.is_some() => {
                     self.from_world += m.message.is_the_worlds() as u64;
-                    let Some((fleet, _)) = beats else {
+                    let Some(fleet) = fleet else {
                         unreachable!("taken only once the clock is known")
                     };
                     let horizon = fleet.horizon();
@@ -354,11 +352,36 @@ impl Recording {
                         Message::Tick(_) | Message::Loss(_) => {}
                         Message::State(s) => self.rejected.check(&m.key, s.id, || sampler.on_state(s, horizon)),
                         Message::Command(c) => self.rejected.check(&m.key, c.id, || sampler.on_command(c, horizon)),
+                        // On the history's key, which names no vehicle: the fetch says which.
+                        Message::History(s) => {
+                            if let Err(why) = sampler.on_history(s) {
+                                self.rejected.reject(why, &m.key);
+                            }
+                        }
+                        Message::Fetched(unkept) => sampler.on_fetched(&unkept),
                         Message::End(e) => match sampler.on_end(e.clone()) {
                             Ok(()) => self.end = Some(e),
                             Err(why) => self.rejected.reject(why, &m.key),
                         },
-                        Message::Report(r) => self.take_report(&m.key, r),
+                        Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, r),
+                    }
+                    let mut failure = Ok(());
+                    let (telemetry, ros2) = (&mut self.telemetry, &mut self.ros2);
+                    sampler.drain(|states, commands| {
+                        if failure.is_ok() {
+                            failure = write_tick(telemetry, ros2, states, commands);
+                        }
+                    });
+                    failure?;
+                    if let Some(fetch) = sampler.fetch() {
+                        let answers = self.answers.clone();
+                        history::ask(&self.session, &self.keys, fetch, &self.rejected, answers, Message::History, Message::Fetched);
+                    }
+                    if let Some(ids) = sampler.overdue_states() {
+                        tracing::warn!(
+                            "recorder: no state of {} has come in {STATES_DUE_S} s of the run (simulated), so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?",
+                            tcpf_core::summary::vehicles(&ids)
+                        );
                     }
                 }
             },
@@ -391,7 +414,8 @@ impl Recording {
     pub fn complete(&self) -> bool {
         match &self.machine {
             Machine::Lockstep(recorder) => recorder.complete(),
-            Machine::Realtime { sampler, .. } => sampler.ended(),
+            // Not while the rows wait for the world's history.
+            Machine::Realtime { sampler, .. } => sampler.ended() && !sampler.fetching(),
         }
     }
 
@@ -456,6 +480,8 @@ impl Recording {
                     never_heard: sampler.never_heard(),
                     newest_state: sampler.newest_state(),
                     missing_ticks: sampler.missing_ticks(),
+                    came_at: sampler.came_at().unwrap_or(0),
+                    recovered: sampler.recovered(),
                 }
             }
             Machine::Lockstep(recorder) => Recorded::Lockstep {
@@ -656,6 +682,14 @@ pub async fn record(
             warnings: Vec::new(),
         },
     )
+}
+
+/// Keeps a process's exit report if its key names the role and id its body does, else counts it
+/// as from the wrong sender.
+fn take_report(reports: &mut Vec<Report>, keys: &Keys, rejected: &Rejected, key: &str, report: Report) {
+    if !keep_report(reports, keys, key, report) {
+        rejected.wrong_sender(key);
+    }
 }
 
 /// Keeps a process's exit report if its key names the role and id its body does (false if

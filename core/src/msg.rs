@@ -422,6 +422,30 @@ impl Checked for End {
     }
 }
 
+/// Recorder → world, realtime: the states of vehicles `ids` from tick `from` to `to` (inclusive)
+/// that never reached the recorder (the world's realtime outlets drop rather than wait, and a
+/// period the world skips publishes none). The world answers from its history (`History`) with
+/// each state it holds, and, as an error reply, with a `Fetch` naming the vehicles it keeps no
+/// history of (those another program plays).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Fetch {
+    pub version: u16,
+    pub from: u64,
+    pub to: u64,
+    pub ids: Vec<u32>,
+}
+
+impl Checked for Fetch {
+    /// 5 bytes a vehicle at most, 1000 vehicles.
+    const MAX_BYTES: usize = 8 * 1024;
+    fn version(&self) -> u16 {
+        self.version
+    }
+    fn finite(&self) -> bool {
+        true
+    }
+}
+
 /// Messages a process refused, by why. The first four are found before or by decoding, the rest
 /// by the protocol's rules (`lockstep::Reject`), `overflow` by the shell when a queue was full.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]

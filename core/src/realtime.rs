@@ -1,15 +1,18 @@
 //! The realtime clock (docs/PROTOCOL.md, "Realtime"): nobody waits. The world integrates every
 //! control period holding each vehicle's freshest command, each agent acts every control period
-//! on the freshest state it has, and a recorder samples the freshest of both. The shells keep
+//! on the freshest state it has, and a recorder writes every tick the world ran, fetching from
+//! the world's bounded history what its outlets dropped. The shells keep
 //! the time (absolute deadlines on the wall clock, scaled) and tell these machines which tick it
 //! is and how late they woke; the machines decide everything else.
+
+use std::collections::{BTreeMap, VecDeque};
 
 use crate::agent::Agent;
 use crate::lockstep::Reject;
 use crate::metrics::{Metrics, Results};
 use crate::mission::{neighbour_lists, Graph, Mission};
 use crate::msg::{
-    tally, Arrival, Checked, Command, End, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION,
+    tally, Arrival, Checked, Command, End, Fetch, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION,
 };
 use crate::path::GeneralizedPath;
 use crate::roster::Roster;
@@ -271,6 +274,52 @@ impl RealtimeAgent {
     }
 }
 
+/// Simulated seconds of its states a realtime world keeps for recorders that missed some.
+pub const HISTORY_S: f64 = 30.0;
+/// And at most this many states (a large fleet keeps less time).
+const HISTORY_STATES: usize = 1 << 16;
+
+/// The states a realtime world ran, the last `HISTORY_S` of them (`HISTORY_STATES` at most), in
+/// tick order: its outlets drop rather than wait, and a period it skips publishes none, so a
+/// recorder fetches from here what never reached it (`Fetch`).
+pub struct History {
+    states: VecDeque<State>,
+    ticks: u64,
+}
+
+impl History {
+    pub fn new(dt: f64) -> History {
+        History {
+            states: VecDeque::new(),
+            ticks: (HISTORY_S / dt).ceil() as u64,
+        }
+    }
+
+    /// The states of one tick, after those of every earlier one.
+    pub fn push(&mut self, states: &[State]) {
+        self.states.extend(states);
+        let Some(newest) = states.first().map(|s| s.tick) else {
+            return;
+        };
+        while self
+            .states
+            .front()
+            .is_some_and(|s| s.tick + self.ticks <= newest || self.states.len() > HISTORY_STATES)
+        {
+            self.states.pop_front();
+        }
+    }
+
+    /// The states `fetch` asks for that are still here.
+    pub fn of<'a>(&'a self, fetch: &'a Fetch) -> impl Iterator<Item = &'a State> {
+        let from = self.states.partition_point(|s| s.tick < fetch.from);
+        self.states
+            .range(from..)
+            .take_while(|s| s.tick <= fetch.to)
+            .filter(|s| fetch.ids.contains(&s.id))
+    }
+}
+
 /// The world's side: integrates the vehicles it simulates every period with each one's freshest
 /// command, and decides when the run is over from every vehicle's commands and where it is
 /// (a vehicle another process plays, where that process's states say).
@@ -292,6 +341,8 @@ pub struct RealtimeWorld {
     ever_gone: Vec<Option<u64>>,
     /// Per vehicle, the tick the world judged it arrived (`End` carries the verdict).
     arrived: Vec<Option<u64>>,
+    /// The states of the ticks run, each skipped period's among them.
+    history: History,
     max_ticks: u64,
     /// `HOLD_LIMIT_S` in ticks.
     hold_ticks: u64,
@@ -316,6 +367,8 @@ impl RealtimeWorld {
             .collect();
         let mut states = Vec::with_capacity(ours.len());
         world.states(&mut states);
+        let mut history = History::new(mission.mission.control_period);
+        history.push(&states);
         let n = ids.len();
         RealtimeWorld {
             neighbours: neighbour_lists(&mission.graph(), &ids),
@@ -327,6 +380,7 @@ impl RealtimeWorld {
             gone: vec![false; n],
             ever_gone: vec![None; n],
             arrived: vec![None; n],
+            history,
             max_ticks: mission.max_ticks(),
             hold_ticks: (HOLD_LIMIT_S / mission.mission.control_period).ceil() as u64,
             states,
@@ -447,9 +501,18 @@ impl RealtimeWorld {
                 slot.clone_from(&held.cloned());
             }
             self.world.step(&self.body_commands);
+            self.world.states(&mut self.states);
+            self.history.push(&self.states);
         }
-        self.world.states(&mut self.states);
         None
+    }
+
+    /// What the world answers a recorder's fetch: the states of its history, and the vehicles
+    /// it keeps none of (another program plays them).
+    pub fn answer<'a>(&'a self, fetch: &'a Fetch) -> (impl Iterator<Item = &'a State>, Vec<u32>) {
+        let simulated = |id: &u32| self.ids.position(*id).is_some_and(|n| self.bodies.contains(&n));
+        let unkept = fetch.ids.iter().copied().filter(|id| !simulated(id)).collect();
+        (self.history.of(fetch), unkept)
     }
 
     fn end(&self) -> End {
@@ -497,26 +560,46 @@ impl RealtimeWorld {
     }
 }
 
-/// The recorder's side: the freshest state and command of every vehicle, sampled once a period
-/// into the telemetry and the metrics.
+/// Simulated seconds one vehicle's states may run ahead of another's before the rows of the
+/// ticks between are written without waiting for it: a player gone quiet, or slower than the
+/// control rate, must not hold the recording back.
+const STALL_S: f64 = 1.0;
+
+/// The recorder's side: a row for every tick the world ran, in order, each vehicle's state of
+/// that tick beside its newest command of the tick or before, whenever the messages come (a
+/// recorder whose own periods fall behind under load loses none). A tick's row is written once
+/// every vehicle has a state of a later one (the world publishes a tick's states together, after
+/// the commands of the tick before have come), or once some vehicle is `STALL_S` ahead. A state
+/// that did not come by then is fetched from the world's history (`fetch`, `on_history`,
+/// `on_fetched`) first; where the history has none, the row repeats the vehicle's state before,
+/// and the tick is named missing (`missing_ticks`).
 pub struct Sampler {
     ids: Roster,
-    states: Vec<Option<State>>,
+    /// Per vehicle, the newest state taken: what a fresher one must beat.
+    newest: Vec<Option<State>>,
+    /// The states of the ticks no row holds yet, a slot per vehicle.
+    pending: BTreeMap<u64, Vec<Option<State>>>,
+    /// Per vehicle, its commands of ticks no row has reached yet, oldest first.
+    queued: Vec<VecDeque<Command>>,
+    /// Per vehicle, its state and command in the last row (or, before the first row, the
+    /// newest of the ticks passed without one).
+    carried: Vec<Option<State>>,
     commands: Vec<Option<Command>>,
     metrics: Metrics,
+    /// The tick of the last row written, and the next tick to be written or passed.
     last: Option<u64>,
-    /// A command came since the last period sampled.
+    next: Option<u64>,
+    /// A command came into the rows since the last one written.
     fresh: bool,
-    /// A state came since the last period sampled: a period without one (the world late, or
-    /// gone) repeats the last row, and is not one.
-    moved: bool,
     end: Option<End>,
     row: Vec<State>,
-    /// `HOLD_LIMIT_S` in ticks: a command older than this at a period is not held by the world
+    /// `HOLD_LIMIT_S` in ticks: a command older than this at a row is not held by the world
     /// either, and its vehicle is uncommanded (its agent silent, hung or gone).
     hold_ticks: u64,
+    /// `STALL_S` in ticks.
+    stall_ticks: u64,
     /// The newest tick of each vehicle's commands, held or let go.
-    newest: Vec<Option<u64>>,
+    newest_command: Vec<Option<u64>>,
     /// Whether the held command has been in a row: its receptions are counted.
     sampled: Vec<bool>,
     /// Each vehicle's neighbours, in roster order.
@@ -532,6 +615,18 @@ pub struct Sampler {
     /// ran.
     newest_recorded: Vec<Option<u64>>,
     gaps: Vec<Vec<(u64, u64)>>,
+    /// The fetch the rows wait for, once asked; and the one to ask, until `fetch` hands it on.
+    fetching: Option<Fetch>,
+    to_ask: Option<Fetch>,
+    /// Per vehicle, the tick up to which the world's history was asked and answered; and
+    /// whether the world keeps none of it (another program plays it).
+    fetched_through: Vec<Option<u64>>,
+    unkept: Vec<bool>,
+    /// States the world's history gave.
+    recovered: u64,
+    /// The tick under way when this recorder came (the world's clock said): the rows start
+    /// there.
+    came_at: Option<u64>,
 }
 
 impl Sampler {
@@ -542,26 +637,49 @@ impl Sampler {
     }
 
     pub fn new(ids: &[u32], graph: &Graph, t_f: f64, dt: f64) -> Sampler {
+        let n = ids.len();
         Sampler {
             neighbours: neighbour_lists(graph, ids),
             ids: Roster::new(ids),
-            states: vec![None; ids.len()],
-            commands: vec![None; ids.len()],
+            newest: vec![None; n],
+            pending: BTreeMap::new(),
+            queued: vec![VecDeque::new(); n],
+            carried: vec![None; n],
+            commands: vec![None; n],
             hold_ticks: (HOLD_LIMIT_S / dt).ceil() as u64,
-            newest: vec![None; ids.len()],
-            sampled: vec![false; ids.len()],
+            stall_ticks: (STALL_S / dt).ceil() as u64,
+            newest_command: vec![None; n],
+            sampled: vec![false; n],
             metrics: Metrics::new(ids, t_f, dt),
             last: None,
+            next: None,
             fresh: false,
-            moved: false,
             end: None,
-            row: Vec::with_capacity(ids.len()),
+            row: Vec::with_capacity(n),
             due_ticks: (STATES_DUE_S / dt).ceil() as u64,
             told_overdue: false,
             first_state: None,
-            newest_recorded: vec![None; ids.len()],
-            gaps: vec![Vec::new(); ids.len()],
+            newest_recorded: vec![None; n],
+            gaps: vec![Vec::new(); n],
+            fetching: None,
+            to_ask: None,
+            fetched_through: vec![None; n],
+            unkept: vec![false; n],
+            recovered: 0,
+            came_at: None,
         }
+    }
+
+    /// The world's clock says tick `tick` is under way: the rows start there, what came before
+    /// this recorder is not its to write (`came_at`).
+    pub fn start_at(&mut self, tick: u64) {
+        self.came_at.get_or_insert(tick);
+        self.next.get_or_insert(tick);
+    }
+
+    /// The tick under way when this recorder came, if the world's clock said.
+    pub fn came_at(&self) -> Option<u64> {
+        self.came_at
     }
 
     fn index(&self, id: u32) -> Result<usize, Reject> {
@@ -573,7 +691,7 @@ impl Sampler {
         self.ids
             .ids()
             .iter()
-            .zip(&self.states)
+            .zip(&self.newest)
             .filter(|(_, s)| s.is_none())
             .map(|(&id, _)| id)
             .collect()
@@ -609,16 +727,88 @@ impl Sampler {
     /// A vehicle's state, `horizon` the latest tick the recorder's clock allows.
     pub fn on_state(&mut self, state: State, horizon: u64) -> Result<(), Reject> {
         let n = self.index(state.id)?;
-        fresher(self.states[n].as_ref(), &state, horizon)?;
-        self.states[n] = Some(state);
+        fresher(self.newest[n].as_ref(), &state, horizon)?;
+        self.newest[n] = Some(state);
         self.first_state.get_or_insert(state.tick);
-        self.moved = true;
+        self.keep(n, state);
         Ok(())
+    }
+
+    /// A state the world's history gave for the fetch under way: one of a tick no row has
+    /// passed, of a vehicle and range it asked for (one it has already is no news).
+    pub fn on_history(&mut self, state: State) -> Result<(), Reject> {
+        let n = self.index(state.id)?;
+        if !state.finite() {
+            return Err(Reject::NonFinite);
+        }
+        let asked = self
+            .fetching
+            .as_ref()
+            .filter(|f| f.ids.contains(&state.id))
+            .ok_or(Reject::UnknownVehicle)?;
+        if state.tick > asked.to {
+            return Err(Reject::Future);
+        }
+        if state.tick < asked.from || self.next.is_some_and(|next| state.tick < next) {
+            return Err(Reject::Past);
+        }
+        // A range asked for may hold states that came on their own meanwhile: no news.
+        if let Some(held) = self.pending.get(&state.tick).and_then(|t| t[n].as_ref()) {
+            return if *held == state { Ok(()) } else { Err(Reject::Conflict) };
+        }
+        self.recovered += 1;
+        self.keep(n, state);
+        Ok(())
+    }
+
+    /// Holds `state` for its tick's row; one for a tick already passed is carried into the next.
+    fn keep(&mut self, n: usize, state: State) {
+        if self.next.is_some_and(|next| state.tick < next) {
+            if self.carried[n].is_none_or(|c| c.tick < state.tick) {
+                self.carried[n] = Some(state);
+            }
+            return;
+        }
+        let len = self.ids.len();
+        self.pending.entry(state.tick).or_insert_with(|| vec![None; len])[n] = Some(state);
+    }
+
+    /// The fetch to ask the world's history for, once: the rows wait until `on_fetched`.
+    pub fn fetch(&mut self) -> Option<Fetch> {
+        self.to_ask.take()
+    }
+
+    /// The world has answered the fetch under way (or not, in time): its states are in (by
+    /// `on_history`), and the vehicles of `unkept` have no history there.
+    pub fn on_fetched(&mut self, unkept: &[u32]) {
+        let Some(done) = self.fetching.take() else {
+            return;
+        };
+        for id in &done.ids {
+            if let Ok(n) = self.index(*id) {
+                self.fetched_through[n] = Some(self.fetched_through[n].map_or(done.to, |t| t.max(done.to)));
+            }
+        }
+        for id in unkept.iter().filter(|id| done.ids.contains(id)) {
+            if let Ok(n) = self.index(*id) {
+                self.unkept[n] = true;
+            }
+        }
+    }
+
+    /// Waiting for the world's history to answer.
+    pub fn fetching(&self) -> bool {
+        self.fetching.is_some()
+    }
+
+    /// States the world's history gave that never came on their own.
+    pub fn recovered(&self) -> u64 {
+        self.recovered
     }
 
     /// The newest tick of any state received: how far the world got.
     pub fn newest_state(&self) -> Option<u64> {
-        self.states.iter().flatten().map(|s| s.tick).max()
+        self.newest.iter().flatten().map(|s| s.tick).max()
     }
 
     /// A vehicle's command, `horizon` the latest tick the recorder's clock allows.
@@ -631,25 +821,15 @@ impl Sampler {
             return Err(Reject::NotANeighbour);
         }
         not_ahead(command.tick, horizon)?;
-        if let Some(newest) = self.newest[n].filter(|&t| t >= command.tick) {
+        if let Some(newest) = self.newest_command[n].filter(|&t| t >= command.tick) {
             return Err(if newest > command.tick {
                 Reject::Past
             } else {
                 Reject::Duplicate
             });
         }
-        self.newest[n] = Some(command.tick);
-        let mut command = command;
-        if let Some(held) = &mut self.commands[n] {
-            // A command replaced before a period sampled it: its receptions go on with the
-            // newer one, or a recorder behind its beat would count them as lost by the network.
-            let mut receptions = std::mem::take(&mut held.receptions);
-            receptions.append(&mut command.receptions);
-            command.receptions = receptions;
-        }
-        self.commands[n] = Some(command);
-        self.sampled[n] = false;
-        self.fresh = true;
+        self.newest_command[n] = Some(command.tick);
+        self.queued[n].push_back(command);
         Ok(())
     }
 
@@ -666,37 +846,139 @@ impl Sampler {
         Ok(())
     }
 
-    /// The period of `tick`: hands on each vehicle's freshest state and command (once every
-    /// vehicle has a state). A command's receptions count once, the first time it is sampled.
-    pub fn sample(&mut self, tick: u64, emit: impl FnOnce(&[State], &[Option<Command>])) {
-        if self.last.is_some_and(|l| l >= tick) || self.end.as_ref().is_some_and(|e| tick >= e.ticks) || !self.moved {
-            return;
+    /// Writes the row of every tick that is over, in order, up to the first that waits for a
+    /// vehicle's state: for the world's history to answer, or for the state itself.
+    pub fn drain(&mut self, mut emit: impl FnMut(&[State], &[Option<Command>])) {
+        while let Some(tick) = self.next_tick() {
+            if !self.over(tick) || self.waits_for_history(tick) {
+                return;
+            }
+            self.write(tick, &mut emit);
         }
-        self.record(tick, emit);
     }
 
-    /// After the end, once the roles have reported: one period more with the freshest of each
-    /// vehicle, the one before the end if the samples stopped short of it, else the one after
-    /// the last if a command came since (so an arrival is stamped at most a period late). A
-    /// recorder whose beat fell behind, or whose last command of an agent came after the world's
-    /// `End` on another path, would otherwise miss the commands that ended the run.
-    pub fn finish(&mut self, emit: impl FnOnce(&[State], &[Option<Command>])) {
-        let Some(before_end) = self.end.as_ref().map(|e| e.ticks.saturating_sub(1)) else {
+    /// The next tick to write, if any state has come for it or after it.
+    fn next_tick(&self) -> Option<u64> {
+        let first = *self.pending.keys().next()?;
+        Some(self.next.unwrap_or(first))
+    }
+
+    /// Every vehicle has a state of a later tick, or one is `STALL_S` ahead; a tick the end
+    /// says was never run is never over.
+    fn over(&self, tick: u64) -> bool {
+        if self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
+            return false;
+        }
+        let later = |s: &Option<State>| s.is_some_and(|s| s.tick > tick);
+        self.newest.iter().all(later) || self.newest_state().is_some_and(|k| k >= tick + self.stall_ticks)
+    }
+
+    /// The vehicles without a state of `tick` that the world's history may still give.
+    fn lacking(&self, tick: u64) -> Vec<u32> {
+        let slots = self.pending.get(&tick);
+        (0..self.ids.len())
+            .filter(|&n| slots.is_none_or(|s| s[n].is_none()))
+            .filter(|&n| !self.unkept[n] && self.fetched_through[n].is_none_or(|t| t < tick))
+            .map(|n| self.ids.ids()[n])
+            .collect()
+    }
+
+    /// Whether `tick`'s row waits for the world's history: asked now, if it was not, for every
+    /// vehicle without a state of it, from it to the newest state heard.
+    fn waits_for_history(&mut self, tick: u64) -> bool {
+        if self.fetching.is_some() {
+            return true;
+        }
+        let ids = self.lacking(tick);
+        if ids.is_empty() {
+            return false;
+        }
+        let to = self.newest_state().map_or(tick, |k| k.max(tick + 1) - 1);
+        let fetch = Fetch {
+            version: PROTOCOL_VERSION,
+            from: tick,
+            to,
+            ids,
+        };
+        self.fetching = Some(fetch.clone());
+        self.to_ask = Some(fetch);
+        true
+    }
+
+    /// The row of `tick`: each vehicle's state of it, or the one before; each one's newest
+    /// command up to it. None until every vehicle has a state, nor for a tick none has one of.
+    fn write(&mut self, tick: u64, emit: &mut impl FnMut(&[State], &[Option<Command>])) {
+        self.next = Some(tick + 1);
+        let slots = self.pending.remove(&tick);
+        let moved = slots.as_ref().is_some_and(|s| s.iter().any(Option::is_some));
+        for (carried, state) in self.carried.iter_mut().zip(slots.into_iter().flatten()) {
+            if state.is_some() {
+                *carried = state;
+            }
+        }
+        self.take_commands(tick);
+        if moved {
+            self.record(tick, emit);
+        }
+    }
+
+    /// After the end, once the roles have reported: the rows of every tick the end says was
+    /// run that still wait (a vehicle's state, or the world's history, came too late); then
+    /// one more after the last row (at the tick before the end, if no row reached it) if a
+    /// command came since: the one that ended the run, which follows the states of the end's
+    /// own tick.
+    pub fn finish(&mut self, mut emit: impl FnMut(&[State], &[Option<Command>])) {
+        let Some(ticks) = self.end.as_ref().map(|e| e.ticks) else {
             return;
         };
-        match self.last {
-            Some(l) if l >= before_end && self.fresh => self.record(l + 1, emit),
-            Some(l) if l >= before_end => {}
-            _ => self.record(before_end, emit),
+        self.fetching = None;
+        self.to_ask = None;
+        while let Some(tick) = self.next_tick().filter(|&t| t < ticks) {
+            self.write(tick, &mut emit);
+        }
+        let before_end = ticks.saturating_sub(1);
+        let after = match self.last {
+            Some(l) if l >= before_end => l + 1,
+            _ => before_end,
+        };
+        for slots in std::mem::take(&mut self.pending).into_values() {
+            for (carried, state) in self.carried.iter_mut().zip(slots) {
+                if state.is_some() {
+                    *carried = state;
+                }
+            }
+        }
+        self.take_commands(u64::MAX);
+        self.next = Some(after + 1);
+        if self.fresh {
+            self.record(after, &mut emit);
         }
     }
 
-    fn record(&mut self, tick: u64, emit: impl FnOnce(&[State], &[Option<Command>])) {
-        if self.states.iter().any(Option::is_none) {
+    /// Takes every command queued for `tick` or before into the rows, the newest held. One
+    /// replaced before a row had it hands its receptions on to the newer, or they would look
+    /// lost by the network.
+    fn take_commands(&mut self, tick: u64) {
+        for n in 0..self.ids.len() {
+            while let Some(mut command) = self.queued[n].pop_front_if(|c| c.tick <= tick) {
+                if let (Some(held), false) = (&mut self.commands[n], self.sampled[n]) {
+                    let mut receptions = std::mem::take(&mut held.receptions);
+                    receptions.append(&mut command.receptions);
+                    command.receptions = receptions;
+                }
+                self.commands[n] = Some(command);
+                self.sampled[n] = false;
+                self.fresh = true;
+            }
+        }
+    }
+
+    fn record(&mut self, tick: u64, emit: &mut impl FnMut(&[State], &[Option<Command>])) {
+        if self.carried.iter().any(Option::is_none) {
             return;
         }
         self.row.clear();
-        self.row.extend(self.states.iter().flatten());
+        self.row.extend(self.carried.iter().flatten());
         // A vehicle the world no longer commands has no command in the row, and its frozen γ
         // leaves the coordination error until its agent speaks again, as a lost vehicle's does;
         // a command is let go once a row had it, so that its receptions count.
@@ -720,9 +1002,7 @@ impl Sampler {
         self.sampled.iter_mut().for_each(|s| *s = true);
         self.last = Some(tick);
         self.fresh = false;
-        self.moved = false;
     }
-
     /// The world said the run is over.
     pub fn ended(&self) -> bool {
         self.end.is_some()
@@ -804,7 +1084,7 @@ mod tests {
                     HORIZON,
                 )
                 .unwrap();
-            sampler.sample(tick, |_, _| rows += 1);
+            sampler.drain(|_, _| rows += 1);
             let told = sampler.overdue_states();
             assert_eq!(told, (tick == due).then(|| vec![2]), "tick {tick}");
         }
@@ -854,7 +1134,7 @@ mod tests {
     const HORIZON: u64 = 1_000;
 
     /// Case (b) with every machine on time, the agents phased half a period after the world as
-    /// the shells do; the recorder samples every `sampled`-th period. With `forged`, at tick 100
+    /// the shells do; the recorder writes its rows every `sampled`-th period. With `forged`, at tick 100
     /// every machine is also handed a message stamped a billion ticks ahead. Returns what the
     /// recorder recorded, and whether the world and the agents kept their periods.
     fn on_time(sampled: u64, forged: bool) -> (Results, bool) {
@@ -911,7 +1191,7 @@ mod tests {
                 sampler.on_command(action.command.clone(), horizon).unwrap();
             }
             if tick.is_multiple_of(sampled) {
-                sampler.sample(tick, |_, _| {});
+                sampler.drain(|_, _| {});
             }
             tick += 1;
             if let Some(end) = world.advance_to(tick, 0.0, 0.001, 0) {
@@ -957,16 +1237,14 @@ mod tests {
         assert!(kept);
     }
 
-    /// A recorder that samples one period in fifty (its beat far behind) still records the
-    /// arrivals that ended the run (finishing samples the period before the end) and every γ
-    /// judged.
+    /// A recorder that gets to its rows one period in fifty (its beat far behind) records
+    /// what one on time does: every tick, the arrivals that ended the run, every γ judged.
     #[test]
-    fn a_recorder_behind_its_beat_still_sees_the_arrivals_that_ended_the_run() {
+    fn a_recorder_behind_its_beat_records_what_one_on_time_does() {
         let (behind, _) = on_time(50, false);
         assert_arrived_as_lockstep(&behind);
-        // Nor does it lose the receptions of the commands it never sampled.
         let (on_time, _) = on_time(1, false);
-        assert_eq!(behind.links, on_time.links);
+        assert_eq!(behind, on_time);
         assert!(on_time.links.iter().all(|l| l.sent > 500), "{:?}", on_time.links);
     }
 
@@ -988,7 +1266,8 @@ mod tests {
         sampler.on_state(state, HORIZON).unwrap();
         sampler.on_command(before, HORIZON).unwrap();
         let mut rows = 0;
-        sampler.sample(99, |_, _| rows += 1);
+        sampler.drain(|_, _| rows += 1);
+        assert_eq!(rows, 0, "tick 99 may still have states to come");
         sampler
             .on_end(End {
                 version: PROTOCOL_VERSION,
@@ -998,7 +1277,7 @@ mod tests {
             })
             .unwrap();
         sampler.finish(|_, _| rows += 1);
-        assert_eq!(rows, 1, "nothing new since tick 99: no period more");
+        assert_eq!(rows, 1, "tick 99, then nothing new: no row more");
         sampler.on_command(after, HORIZON).unwrap();
         sampler.finish(|_, _| rows += 1);
         assert_eq!(rows, 2);
@@ -1006,9 +1285,10 @@ mod tests {
         assert!((arrival - 99.1 * dt).abs() < 1e-9, "{arrival}");
     }
 
-    /// An arrival between two rows periods apart is interpolated over the periods between them.
+    /// An arrival between two rows periods apart (the states between lost, and not in the
+    /// world's history) is interpolated over the periods between them.
     #[test]
-    fn an_arrival_across_unsampled_periods_is_placed_between_the_rows() {
+    fn an_arrival_across_unrecorded_periods_is_placed_between_the_rows() {
         let (m, paths, t_f) = case_b();
         let dt = m.mission.control_period;
         let mut agent = Agent::new(&m, 1, paths[0].1);
@@ -1020,15 +1300,23 @@ mod tests {
         };
         let (before, after) = (command(10, t_f - 0.05), command(15, t_f + 0.05));
         let mut sampler = Sampler::new(&[1], &m.graph(), t_f, dt);
+        let mut rows = Vec::new();
         sampler.on_state(state(10), HORIZON).unwrap();
         sampler.on_command(before, HORIZON).unwrap();
-        sampler.sample(10, |_, _| {});
-        for tick in 11..15 {
-            sampler.sample(tick, |_, _| panic!("no state since tick 10: no row"));
-        }
         sampler.on_state(state(15), HORIZON).unwrap();
         sampler.on_command(after, HORIZON).unwrap();
-        sampler.sample(15, |_, _| {});
+        sampler.drain(|s, _| rows.push(s[0].tick));
+        assert_eq!(rows, [10], "then ticks 11 to 14 wait for the world's history");
+        let asked = sampler.fetch().expect("a fetch");
+        assert_eq!((asked.from, asked.to, &asked.ids[..]), (11, 14, &[1][..]));
+        assert_eq!(sampler.fetch(), None, "asked once");
+        sampler.on_fetched(&[]);
+        sampler.drain(|s, _| rows.push(s[0].tick));
+        assert_eq!(
+            rows,
+            [10],
+            "the history had none of them; tick 15 may have more to come"
+        );
         let judged = End {
             version: PROTOCOL_VERSION,
             ticks: 16,
@@ -1036,61 +1324,122 @@ mod tests {
             arrived: vec![Arrival { id: 1, tick: 15 }],
         };
         sampler.on_end(judged).unwrap();
+        sampler.finish(|s, _| rows.push(s[0].tick));
+        assert_eq!(rows, [10, 15]);
         let arrival = sampler.results().vehicles[0].arrival_time.expect("arrived");
         assert!(
             (arrival - 12.5 * dt).abs() < 1e-9,
             "halfway between ticks 10 and 15: {arrival}"
         );
+        assert_eq!(sampler.missing_ticks(), [(1, vec![(0, 9), (11, 14)])]);
     }
 
-    /// A world that went quiet (late, or gone) leaves no rows that repeat its last state.
+    /// A world that went quiet (late, or gone) leaves no rows that repeat its last state, and
+    /// one that skipped periods leaves the ticks between without rows.
     #[test]
-    fn a_period_without_a_new_state_is_not_sampled() {
+    fn a_tick_without_a_state_has_no_row() {
         let (m, _, t_f) = case_b();
         let dt = m.mission.control_period;
         let mut sampler = Sampler::new(&[1], &m.graph(), t_f, dt);
         let mut rows = Vec::new();
         sampler.on_state(still(1, 10, dt, [0.0, 0.0]), HORIZON).unwrap();
-        for tick in 10..15 {
-            sampler.sample(tick, |s, _| rows.push(s[0].tick));
-        }
+        sampler.drain(|s, _| rows.push(s[0].tick));
         sampler.on_state(still(1, 15, dt, [0.0, 0.0]), HORIZON).unwrap();
-        sampler.sample(15, |s, _| rows.push(s[0].tick));
+        sampler.drain(|s, _| rows.push(s[0].tick));
+        assert!(sampler.fetching());
+        sampler.on_fetched(&[]);
+        sampler.on_state(still(1, 16, dt, [0.0, 0.0]), HORIZON).unwrap();
+        sampler.drain(|s, _| rows.push(s[0].tick));
         assert_eq!(rows, [10, 15]);
-        assert_eq!(sampler.newest_state(), Some(15));
+        assert_eq!(sampler.newest_state(), Some(16));
     }
 
-    /// Ticks whose states never came are named, whether the world's states were dropped on the
-    /// way (mid-run), came before the recorder did (at the start) or stopped before the end.
+    /// A recorder that lags (its periods late, its inbox long) writes every tick the states of
+    /// which came, each with the commands of its own tick, never a later one's.
     #[test]
-    fn the_ticks_the_world_ran_that_no_row_holds_are_named() {
+    fn a_lagging_recorder_writes_each_tick_with_its_own_commands() {
         let (m, _, t_f) = case_b();
         let dt = m.mission.control_period;
         let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
-        let both = |sampler: &mut Sampler, tick: u64| {
+        for tick in 0..20 {
             for id in [1, 2] {
                 sampler
                     .on_state(still(id, tick, dt, [0.0, 10.0 * id as f64]), HORIZON)
                     .unwrap();
+                let gamma = tick as f64 * dt;
+                sampler
+                    .on_command(crate::fixtures::command_at(id, tick, gamma), HORIZON)
+                    .unwrap();
             }
-            sampler.sample(tick, |_, _| {});
-        };
-        for tick in [2, 3, 6, 7, 8, 10] {
-            both(&mut sampler, tick);
         }
-        let each = |gaps: &[(u64, u64)]| vec![(1, gaps.to_vec()), (2, gaps.to_vec())];
+        let mut rows = Vec::new();
+        sampler.drain(|s, c| {
+            for (s, c) in s.iter().zip(c) {
+                rows.push((s.tick, c.as_ref().map(|c| c.tick)));
+            }
+        });
+        let every: Vec<(u64, Option<u64>)> = (0..19).flat_map(|k| [(k, Some(k)), (k, Some(k))]).collect();
+        assert_eq!(rows, every, "19 rows at once, tick 19's waits for a later state");
+        assert_eq!(sampler.missing_ticks(), [(1, vec![(19, 19)]), (2, vec![(19, 19)])]);
+    }
+
+    /// Ticks whose states never came are fetched from the world's history; those it no longer
+    /// has (or never had: a vehicle another program plays) are named, whether the world's
+    /// states were dropped on the way (mid-run), came before the recorder did (at the start) or
+    /// stopped before the end.
+    #[test]
+    fn the_ticks_the_world_ran_that_no_row_holds_are_fetched_or_named() {
+        let (m, _, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let at = |id: u32, tick| still(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        let mut rows = Vec::new();
+        let both = |sampler: &mut Sampler, tick: u64| {
+            for id in [1, 2] {
+                sampler.on_state(at(id, tick), HORIZON).unwrap();
+            }
+        };
+        let drain =
+            |sampler: &mut Sampler, rows: &mut Vec<(u64, u64)>| sampler.drain(|s, _| rows.push((s[0].tick, s[1].tick)));
+        for tick in [2, 3, 6, 7, 8, 10, 11] {
+            both(&mut sampler, tick);
+            drain(&mut sampler, &mut rows);
+        }
+        // Ticks 4 and 5 (both lost): asked for once tick 6 came, and the rows wait.
+        let asked = sampler.fetch().expect("a fetch");
+        assert_eq!((asked.from, asked.to, &asked.ids[..]), (4, 5, &[1, 2][..]));
+        // The history still has tick 5 of vehicle 1, and vehicle 2's of 4 and 5.
+        for state in [at(1, 5), at(2, 4), at(2, 5)] {
+            sampler.on_history(state).unwrap();
+        }
+        assert_eq!(sampler.on_history(at(2, 5)), Ok(()), "had already: no news");
+        let moved = State {
+            position: [1.0, 20.0],
+            ..at(2, 5)
+        };
+        assert_eq!(sampler.on_history(moved), Err(Reject::Conflict));
+        assert_eq!(sampler.on_history(at(2, 6)), Err(Reject::Future), "not asked for");
+        sampler.on_fetched(&[]);
+        drain(&mut sampler, &mut rows);
+        // Tick 9 is asked for next; the world keeps vehicle 2's history only (1 is played).
+        let asked = sampler.fetch().expect("a fetch");
+        assert_eq!((asked.from, asked.to, &asked.ids[..]), (9, 10, &[1, 2][..]));
+        sampler.on_history(at(2, 9)).unwrap();
+        sampler.on_fetched(&[1]);
+        drain(&mut sampler, &mut rows);
         assert_eq!(
-            sampler.missing_ticks(),
-            each(&[(0, 1), (4, 5), (9, 9)]),
-            "to the newest state"
+            rows,
+            [(2, 2), (3, 3), (3, 4), (5, 5), (6, 6), (7, 7), (8, 8), (8, 9), (10, 10)],
+            "tick 4 repeats vehicle 1's state of 3, tick 9 its of 8"
         );
-        // Vehicle 1's state of tick 11 alone: the row of tick 11 repeats vehicle 2's of tick 10,
-        // whose state of tick 11 is lost; its state of tick 12 comes late, beside vehicle 1's of 13.
-        sampler.on_state(still(1, 11, dt, [0.0, 10.0]), HORIZON).unwrap();
-        sampler.sample(11, |_, _| {});
-        sampler.on_state(still(1, 13, dt, [0.0, 10.0]), HORIZON).unwrap();
-        sampler.on_state(still(2, 12, dt, [0.0, 20.0]), HORIZON).unwrap();
-        sampler.sample(13, |_, _| {});
+        assert_eq!(sampler.recovered(), 4);
+        assert_eq!(sampler.fetch(), None, "vehicle 1 is not asked for again");
+        // Vehicle 1's state of 12 is lost; 2's comes in time but 1 is played: no fetch.
+        sampler.on_state(at(1, 13), HORIZON).unwrap();
+        sampler.on_state(at(2, 12), HORIZON).unwrap();
+        sampler.on_state(at(2, 13), HORIZON).unwrap();
+        drain(&mut sampler, &mut rows);
+        assert_eq!(sampler.fetch(), None);
         sampler
             .on_end(End {
                 version: PROTOCOL_VERSION,
@@ -1099,20 +1448,48 @@ mod tests {
                 arrived: vec![],
             })
             .unwrap();
+        sampler.finish(|s, _| rows.push((s[0].tick, s[1].tick)));
+        assert_eq!(&rows[9..], [(11, 11), (11, 12), (13, 13)], "13 then ends the rows");
         let lacking = vec![
-            (1, vec![(0, 1), (4, 5), (9, 9), (12, 12), (14, 14)]),
-            (2, vec![(0, 1), (4, 5), (9, 9), (11, 11), (13, 14)]),
+            (1, vec![(0, 1), (4, 4), (9, 9), (12, 12), (14, 14)]),
+            (2, vec![(0, 1), (14, 14)]),
         ];
         assert_eq!(sampler.missing_ticks(), lacking);
-        sampler.finish(|_, _| {});
-        assert_eq!(
-            sampler.missing_ticks(),
-            lacking,
-            "the last row repeats the states of 13 and 12"
-        );
         let mut whole = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
-        (0..15).for_each(|tick| both(&mut whole, tick));
+        (0..16).for_each(|tick| both(&mut whole, tick));
+        whole.drain(|_, _| {});
+        whole
+            .on_end(End {
+                version: PROTOCOL_VERSION,
+                ticks: 15,
+                lost: vec![],
+                arrived: vec![],
+            })
+            .unwrap();
+        whole.finish(|_, _| {});
         assert_eq!(whole.missing_ticks(), []);
+    }
+
+    /// A vehicle whose states stop (its player gone quiet) holds the rows back `STALL_S`, no
+    /// longer.
+    #[test]
+    fn a_vehicle_gone_quiet_holds_the_rows_back_for_a_while() {
+        let (m, _, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let stall = (STALL_S / dt).ceil() as u64;
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        let mut rows = Vec::new();
+        sampler.on_state(still(2, 0, dt, [0.0, 20.0]), HORIZON).unwrap();
+        for tick in 0..=stall + 1 {
+            sampler.on_state(still(1, tick, dt, [0.0, 10.0]), HORIZON).unwrap();
+            sampler.drain(|s, _| rows.push(s[0].tick));
+            if let Some(asked) = sampler.fetch() {
+                assert_eq!((asked.from, asked.to, &asked.ids[..]), (1, stall, &[2][..]));
+                sampler.on_fetched(&[2]);
+                sampler.drain(|s, _| rows.push(s[0].tick));
+            }
+        }
+        assert_eq!(rows, [0, 1], "each once vehicle 1 is {stall} ticks ahead of it");
     }
 
     /// A vehicle another process plays is judged where its states say it is, as the world's own
@@ -1247,7 +1624,7 @@ mod tests {
             if k <= 50 {
                 sampler.on_command(command(2, k, k as f64 * dt), HORIZON).unwrap();
             }
-            sampler.sample(k, |_, commands| uncommanded.push(commands[1].is_none()));
+            sampler.drain(|_, commands| uncommanded.push(commands[1].is_none()));
         }
         let hold = (HOLD_LIMIT_S / dt).ceil() as usize;
         assert!(uncommanded[..=50 + hold].iter().all(|u| !u), "held for {hold} ticks");
@@ -1269,9 +1646,9 @@ mod tests {
                     .on_state(still(id, k, dt, [0.0, 10.0 * id as f64]), HORIZON)
                     .unwrap();
             }
-            sampler.sample(k, |_, commands| rows.push(commands[1].is_some()));
+            sampler.drain(|_, commands| rows.push(commands[1].is_some()));
         }
-        assert_eq!(rows, [true, false], "sampled once, then let go");
+        assert_eq!(rows, [true, false], "in one row (tick 299), then let go");
         let link = sampler.results().links.into_iter().find(|l| (l.from, l.to) == (1, 2));
         assert_eq!(link.map(|l| l.delivered), Some(1), "its reception counts");
     }
@@ -1305,6 +1682,37 @@ mod tests {
         assert_eq!(two.on_gamma(gamma(instants[2]), HORIZON), Err(Reject::Duplicate));
         two.on_gamma(gamma(instants[3]), HORIZON).unwrap();
         assert_eq!(two.timing().overtaken, vec![(1, 1)], "waiting, not yet overtaken");
+    }
+
+    /// The world keeps every tick it ran, the periods it skipped among them, for `HISTORY_S`;
+    /// of a vehicle another program plays it keeps nothing, and says so.
+    #[test]
+    fn the_world_answers_a_fetch_from_its_history_of_every_tick_it_ran() {
+        let (m, paths, _) = case_b();
+        let dt = m.mission.control_period;
+        let mut world = RealtimeWorld::new(&m, &paths, &[1]);
+        world.advance_to(5, 0.0, 0.001, 3);
+        let fetch = |from, to| Fetch {
+            version: PROTOCOL_VERSION,
+            from,
+            to,
+            ids: vec![1, 2],
+        };
+        let asked = fetch(0, 4);
+        let (states, unkept) = world.answer(&asked);
+        let ticks: Vec<(u32, u64)> = states.map(|s| (s.id, s.tick)).collect();
+        assert_eq!(
+            ticks,
+            (0..5).map(|k| (1, k)).collect::<Vec<_>>(),
+            "every tick, none published but 5"
+        );
+        assert_eq!(unkept, [2], "vehicle 2 is played");
+        let kept = (HISTORY_S / dt).ceil() as u64;
+        world.advance_to(5 + kept, 0.0, 0.001, 0);
+        let asked = fetch(0, 5 + kept);
+        let (states, _) = world.answer(&asked);
+        let ticks: Vec<u64> = states.map(|s| s.tick).collect();
+        assert_eq!(ticks, (6..=5 + kept).collect::<Vec<_>>(), "the last {kept} ticks");
     }
 
     #[test]

@@ -5,6 +5,7 @@ use crate::links::LinkStats;
 use crate::metrics::{Metrics, Results, VehicleSummary};
 use crate::mission::{ClockKind, Mission};
 use crate::msg::{End, LossReason, PeriodTiming, Rejections, Report, Role};
+use crate::realtime::HISTORY_S;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -161,9 +162,17 @@ pub struct Summary {
     /// recorder in time).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub missing_ticks: Vec<(u64, u64)>,
+    /// Realtime: states that never reached the recorder on their own, which it fetched from the
+    /// world's history.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub recovered_states: u64,
     /// What made the run (older summaries have none).
     #[serde(default)]
     pub provenance: Provenance,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// "vehicle 2", "vehicles 1, 3".
@@ -231,6 +240,7 @@ impl Summary {
             coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
             warnings: Vec::new(),
             missing_ticks: Vec::new(),
+            recovered_states: 0,
             provenance: Provenance::of(mission),
         }
     }
@@ -371,6 +381,11 @@ pub enum Recorded {
         /// Per vehicle, the ticks the world ran that no row of telemetry.csv holds its state
         /// for (`Sampler::missing_ticks`).
         missing_ticks: Vec<(u32, Vec<(u64, u64)>)>,
+        /// The tick under way when the recorder came: what it lacks of the ticks before is
+        /// what it never saw, not what it lost.
+        came_at: u64,
+        /// States the world's history gave that never came on their own.
+        recovered: u64,
     },
 }
 
@@ -464,12 +479,16 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
     let realtime = mission.mission.clock == ClockKind::Realtime;
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let mut missing_ticks = Vec::new();
+    let mut recovered_states = 0;
     if let Recorded::Realtime {
         newest_state,
         missing_ticks: missing,
+        came_at,
+        recovered,
         ..
     } = &recorded
     {
+        recovered_states = *recovered;
         // A vehicle another program plays publishes at its own rate: the world runs no tick
         // of it, and the ticks it left out are none the telemetry lost.
         let played: Vec<u32> = reports
@@ -482,7 +501,20 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         // ticks: as many as its end says, or, without one, to its newest state.
         results.ticks = end.map_or_else(|| newest_state.map_or(0, |k| k + 1), |end| end.ticks);
         if newest_state.is_some() {
-            warnings.extend(lacking(&missing_ticks, results.ticks));
+            // What went by before the recorder came it never saw; what it lost since, neither
+            // the world's outlets nor its history gave: the recording is not whole.
+            let (before, since) = split_at(&missing_ticks, *came_at);
+            if !before.is_empty() {
+                warnings.push(format!(
+                    "the recorder came at tick {came_at}: telemetry.csv holds none of the ticks before it"
+                ));
+            }
+            match lacking(&since, results.ticks) {
+                Some(lost) if !cut_short => {
+                    failure.get_or_insert(lost);
+                }
+                lost => warnings.extend(lost),
+            }
         }
         // What each sender published, against what reached its receivers (judged at an
         // instant, or overtaken before one): the network's own loss. An agent started again
@@ -596,6 +628,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
         warnings,
         missing_ticks,
+        recovered_states,
         provenance: Provenance::of(mission),
     };
     summary.name_the_shortfall();
@@ -619,6 +652,19 @@ fn merged<'a>(ranges: impl Iterator<Item = &'a (u64, u64)>) -> Vec<(u64, u64)> {
 /// How many ranges of missing ticks a warning names; `missing_ticks` has them all.
 const NAMED_RANGES: usize = 12;
 
+/// Inclusive ranges of ticks.
+type Ranges = Vec<(u64, u64)>;
+
+/// Inclusive tick ranges before `tick`, and from it on.
+fn split_at(ranges: &[(u64, u64)], tick: u64) -> (Ranges, Ranges) {
+    let before = ranges
+        .iter()
+        .filter(|r| r.0 < tick)
+        .map(|&(a, b)| (a, b.min(tick.saturating_sub(1))));
+    let since = ranges.iter().filter(|r| r.1 >= tick).map(|&(a, b)| (a.max(tick), b));
+    (before.collect(), since.collect())
+}
+
 /// "telemetry.csv lacks 7 of 5532 ticks the world ran: 62, 101–106", or nothing if it lacks none.
 fn lacking(missing: &[(u64, u64)], ran: u64) -> Option<String> {
     let count: u64 = missing.iter().map(|(a, b)| b - a + 1).sum();
@@ -634,7 +680,7 @@ fn lacking(missing: &[(u64, u64)], ran: u64) -> Option<String> {
     };
     (count > 0).then(|| {
         format!(
-            "telemetry.csv lacks {count} of {ran} ticks the world ran: {}{more}; their states never reached the recorder in time (the world's realtime outlets drop rather than wait, and a late world skips periods)",
+            "telemetry.csv lacks {count} of {ran} ticks the world ran: {}{more}; their states never reached the recorder, and the world's history no longer had them when it asked (it keeps {HISTORY_S} s of simulated time)",
             named.join(", ")
         )
     })
@@ -734,8 +780,10 @@ mod tests {
         assert_eq!(all, [(3, 5), (9, 10), (20, 30)]);
         assert_eq!(
             lacking(&all, 100).unwrap(),
-            "telemetry.csv lacks 16 of 100 ticks the world ran: 3–5, 9–10, 20–30; their states never reached the recorder in time (the world's realtime outlets drop rather than wait, and a late world skips periods)"
+            "telemetry.csv lacks 16 of 100 ticks the world ran: 3–5, 9–10, 20–30; their states never reached the recorder, and the world's history no longer had them when it asked (it keeps 30 s of simulated time)"
         );
+        assert_eq!(split_at(&all, 10), (vec![(3, 5), (9, 9)], vec![(10, 10), (20, 30)]));
+        assert_eq!(split_at(&all, 0), (vec![], all.clone()));
         assert_eq!(lacking(&[], 100), None);
         let many: Vec<(u64, u64)> = (0..20).map(|k| (2 * k, 2 * k)).collect();
         let said = lacking(&many, 100).unwrap();

@@ -1,7 +1,8 @@
 //! tcpf-world: the world process. A Zenoh shell around core's `WorldNode` in lockstep (it
 //! publishes every vehicle's state, waits for every live agent's command and integrates: it is
 //! the clock) or `RealtimeWorld` in realtime (it integrates on a metronome with the freshest
-//! commands, and serves the wall-clock epoch everyone keeps time by).
+//! commands, serves the wall-clock epoch everyone keeps time by, and answers recorders from its
+//! history of the states it ran).
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -628,6 +629,8 @@ impl Shell {
             ros2.node.put_paths(paths, stamp_of)?;
             ros2.odometry = Some(ros2.node.listen(&self.rejected).await?);
         }
+        // Before the first states: a recorder that missed them may ask at once.
+        let (_history, mut fetches) = tcpf_bus::history::serve(&self.session, &self.keys, &self.rejected).await?;
         for (outlet, state) in self.outlets.iter().zip(node.states()) {
             outlet.put(state).await?;
         }
@@ -648,6 +651,14 @@ impl Shell {
                         let t = node.tick() as f64 * mission.mission.control_period;
                         let fleet = node.states().iter().chain(played.states());
                         ros2.node.put(fleet.map(|s| (s, node.command_of(s.id))), stamp_of(t))?;
+                    }
+                }
+                Some(asked) = fetches.recv() => {
+                    let fetch = asked.fetch.clone();
+                    let (states, unkept) = node.answer(&fetch);
+                    // A recorder gone while it was answered costs it the ticks, not the run.
+                    if let Err(e) = tcpf_bus::history::answer(asked, states, unkept) {
+                        tracing::warn!("world: {e}");
                     }
                 }
                 Some(h) = heard.recv() => match h.message {
