@@ -621,6 +621,8 @@ pub struct Sampler {
     /// Per vehicle, the tick up to which the world's history was asked and answered; and
     /// whether the world keeps none of it (another program plays it).
     fetched_through: Vec<Option<u64>>,
+    /// Per vehicle, the tick up to which the fetch under way asks for it.
+    asked_through: Vec<Option<u64>>,
     unkept: Vec<bool>,
     /// States the world's history gave.
     recovered: u64,
@@ -664,6 +666,7 @@ impl Sampler {
             fetching: None,
             to_ask: None,
             fetched_through: vec![None; n],
+            asked_through: vec![None; n],
             unkept: vec![false; n],
             recovered: 0,
             came_at: None,
@@ -784,9 +787,9 @@ impl Sampler {
         let Some(done) = self.fetching.take() else {
             return;
         };
-        for id in &done.ids {
-            if let Ok(n) = self.index(*id) {
-                self.fetched_through[n] = Some(self.fetched_through[n].map_or(done.to, |t| t.max(done.to)));
+        for (through, asked) in self.fetched_through.iter_mut().zip(&mut self.asked_through) {
+            if let Some(asked) = asked.take() {
+                *through = Some(through.map_or(asked, |t| t.max(asked)));
             }
         }
         for id in unkept.iter().filter(|id| done.ids.contains(id)) {
@@ -893,7 +896,13 @@ impl Sampler {
         if ids.is_empty() {
             return false;
         }
-        let to = self.newest_state().map_or(tick, |k| k.max(tick + 1) - 1);
+        // Each vehicle up to its own newest state: a later tick of it has not been missed yet
+        // (another's states, a player's, may run ahead of the world's).
+        for &id in &ids {
+            let n = self.ids.position(id).expect("a vehicle of the roster");
+            self.asked_through[n] = Some(self.newest[n].map_or(tick, |s| s.tick.max(tick + 1) - 1));
+        }
+        let to = self.asked_through.iter().flatten().copied().max().unwrap_or(tick);
         let fetch = Fetch {
             version: PROTOCOL_VERSION,
             from: tick,
@@ -1470,6 +1479,28 @@ mod tests {
         assert_eq!(whole.missing_ticks(), []);
     }
 
+    /// A player's states stamped ahead of the world's do not make a fetch cover ticks of a
+    /// simulated vehicle it has not missed yet: lost later, those are asked for again.
+    #[test]
+    fn a_fetch_covers_each_vehicle_up_to_its_own_newest_state() {
+        let (m, _, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let at = |id: u32, tick| still(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        for state in [at(1, 0), at(2, 0), at(2, 9), at(1, 2)] {
+            sampler.on_state(state, HORIZON).unwrap();
+        }
+        sampler.drain(|_, _| {});
+        let asked = sampler.fetch().expect("tick 1 of both");
+        assert_eq!((asked.from, asked.to, &asked.ids[..]), (1, 8, &[1, 2][..]));
+        sampler.on_fetched(&[2]);
+        // Vehicle 1's states of 3 and 4 are lost: asked for, though the first fetch reached 8.
+        sampler.on_state(at(1, 5), HORIZON).unwrap();
+        sampler.drain(|_, _| {});
+        let asked = sampler.fetch().expect("ticks 3 and 4 of vehicle 1");
+        assert_eq!((asked.from, asked.to, &asked.ids[..]), (3, 4, &[1][..]));
+    }
+
     /// A vehicle whose states stop (its player gone quiet) holds the rows back `STALL_S`, no
     /// longer.
     #[test]
@@ -1484,7 +1515,7 @@ mod tests {
             sampler.on_state(still(1, tick, dt, [0.0, 10.0]), HORIZON).unwrap();
             sampler.drain(|s, _| rows.push(s[0].tick));
             if let Some(asked) = sampler.fetch() {
-                assert_eq!((asked.from, asked.to, &asked.ids[..]), (1, stall, &[2][..]));
+                assert_eq!((asked.from, asked.to, &asked.ids[..]), (1, 1, &[2][..]));
                 sampler.on_fetched(&[2]);
                 sampler.drain(|s, _| rows.push(s[0].tick));
             }
