@@ -265,6 +265,11 @@ pub enum Command {
         /// [ros2] domain: the world and every agent as ROS 2 nodes (docs/ROS2.md).
         #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain(), conflicts_with = "in_process")]
         ros2: Option<u32>,
+        /// With ROS 2, the world also listens here with no credential (by default where
+        /// rmw_zenohd would, tcp/127.0.0.1:7447): a stock ROS 2 node on this machine joins with
+        /// no configuration at all, and may only listen. For a network only you use.
+        #[arg(long, value_name = "ENDPOINT", num_args = 0..=1, default_missing_value = "tcp/127.0.0.1:7447", conflicts_with = "in_process")]
+        ros2_open: Option<String>,
         /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
         /// own, with the run directory's `zenoh.json5` (-c).
         #[arg(long, value_name = "N", default_value_t = 0, value_parser = more_recorders(), conflicts_with = "in_process")]

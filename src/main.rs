@@ -156,6 +156,7 @@ fn main() -> ExitCode {
             recorders,
             startup_timeout,
             ros2,
+            ros2_open,
             links,
         } => run::run(
             &clocked(&mission, &clock),
@@ -169,6 +170,7 @@ fn main() -> ExitCode {
                 restart: restart == Restart::OnFailure,
                 recorders,
                 ros2,
+                ros2_open,
                 links,
                 ..launcher::Options::default()
             },

@@ -4,6 +4,7 @@ use std::net::SocketAddr;
 use std::path::Path;
 
 use anyhow::anyhow;
+use tcpf_coordinator::launcher::Links;
 use tcpf_core::mission::Mission;
 use tcpf_report::rundir::RunDir;
 
@@ -18,6 +19,33 @@ pub fn live_free(live: Option<SocketAddr>) -> Result<(), Failure> {
             live.expect("given")
         ))),
         _ => Ok(()),
+    }
+}
+
+/// Where `--ros2-open` would have the world listen with no credential: a `tcp/HOST:PORT` that is
+/// free, of a run that speaks ROS 2 over certificates (an open link may only listen, and the
+/// rules that say so name the fleet's links by their certificates).
+pub fn ros2_open_free(open: Option<&str>, ros2: bool, links: Links) -> Result<(), Failure> {
+    let Some(endpoint) = open else {
+        return Ok(());
+    };
+    let refuse = |why: String| Err(Failure::Input(anyhow!("--ros2-open {endpoint}: {why}")));
+    if !ros2 {
+        return refuse("the run speaks no ROS 2: give --ros2 DOMAIN, or a mission with a [ros2] table".into());
+    }
+    if links != Links::Certificates {
+        return refuse(
+            "an open endpoint is for a fleet whose own links present certificates (--links certificates)".into(),
+        );
+    }
+    let Some(address) = endpoint.strip_prefix("tcp/") else {
+        return refuse("a ROS 2 node with no configuration connects over TCP: give tcp/HOST:PORT".into());
+    };
+    match std::net::TcpListener::bind(address) {
+        Ok(_) => Ok(()),
+        Err(e) => refuse(format!(
+            "cannot listen there: {e} (is an rmw_zenohd running? stop it, or give another endpoint)"
+        )),
     }
 }
 

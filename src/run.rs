@@ -9,7 +9,7 @@ use tcpf_core::mission;
 use tcpf_report::table;
 
 use crate::cli::MissionArgs;
-use crate::outputs::{fresh_out, live_free, run_dir};
+use crate::outputs::{fresh_out, live_free, ros2_open_free, run_dir};
 use crate::{code, load, role_failure, runtime, solve, Failure};
 
 pub fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
@@ -60,6 +60,13 @@ pub fn run(
     let plan = solve(&mission, &args.file)?;
     fresh_out(out)?;
     live_free(options.live)?;
+    if !in_process {
+        ros2_open_free(
+            options.ros2_open.as_deref(),
+            mission.ros2(options.ros2).is_some(),
+            options.links,
+        )?;
+    }
     let dir = run_dir(out, &mission)?;
     let summary = if in_process {
         inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::Failed)?

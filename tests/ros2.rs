@@ -114,10 +114,7 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
     for line in [
         format!("listens at {}", endpoint.trim()),
         "export RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID=0".to_string(),
-        format!(
-            "export ZENOH_SESSION_CONFIG_URI={}",
-            out.join("observer.json5").display()
-        ),
+        format!("export ZENOH_SESSION_CONFIG_URI={}", out.join("ros2.json5").display()),
     ] {
         assert!(said.contains(&line), "{line}: {said}");
     }

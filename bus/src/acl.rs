@@ -294,6 +294,24 @@ pub fn access_control(fleet: &Fleet, naming: Naming) -> Value {
     })
 }
 
+/// Lets links with no credential, over `protocol` (the open endpoint of `tcpf run --ros2-open`,
+/// where a stock ROS 2 node connects with no configuration), do what an observer does: listen,
+/// and declare a listening ROS 2 node in the graph. A link over the fleet's own TLS has a
+/// certificate's name and never matches. `acl` is `access_control` of a fleet that speaks ROS 2.
+pub fn open_to_listeners(acl: &mut Value, protocol: &str) {
+    let observer = acl["policies"]
+        .as_array()
+        .and_then(|p| p.iter().find(|p| p["id"] == "observer"))
+        .map(|p| p["rules"].clone())
+        .unwrap_or_else(|| json!([]));
+    if let Some(subjects) = acl["subjects"].as_array_mut() {
+        subjects.push(json!({ "id": "open", "link_protocols": [protocol] }));
+    }
+    if let Some(policies) = acl["policies"].as_array_mut() {
+        policies.push(json!({ "id": "open", "subjects": ["open"], "rules": observer }));
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -428,6 +446,38 @@ mod tests {
                 Identity::Vehicle(2)
             ]
         );
+    }
+
+    #[test]
+    fn an_open_link_may_do_what_an_observer_does() {
+        let ros2 = Ros2Config::on(7);
+        let fleet = Fleet {
+            keys: Keys::new("m"),
+            vehicles: &[1, 2],
+            ros2: Some(&ros2),
+            played: &[],
+        };
+        let mut acl = access_control(&fleet, Naming::CommonName);
+        open_to_listeners(&mut acl, "tcp");
+        let policy = |id: &str| {
+            acl["policies"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|p| p["id"] == id)
+                .unwrap()["rules"]
+                .clone()
+        };
+        assert_eq!(policy("open"), policy("observer"));
+        let open = acl["subjects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["id"] == "open")
+            .unwrap();
+        assert_eq!(open, &json!({ "id": "open", "link_protocols": ["tcp"] }));
+        let mut config = zenoh::Config::default();
+        config.insert_json5("access_control", &acl.to_string()).unwrap();
     }
 
     #[test]

@@ -57,6 +57,9 @@ impl Links {
     }
 }
 
+/// The configuration a ROS 2 node (rmw_zenoh) listens to the run with: the observer's.
+pub const ROS2_CONFIG: &str = "ros2.json5";
+
 /// The Zenoh configurations of a run, each an owner-only file in its directory holding one
 /// role's certificate and key, or user and password.
 pub struct Configs {
@@ -92,12 +95,19 @@ fn file_name(identity: Identity) -> String {
 /// each state and command is then one hop, not two through the launcher (measured, runs
 /// interleaved with the launcher as router: case (b) 0.20-0.26 -> 0.15-0.20 ms a tick, 10 agents
 /// 0.49-0.54 -> 0.47-0.49 ms, 50 agents 2.46-2.77 -> 2.13-2.57 ms).
+///
+/// With ROS 2, `ros2.json5` is the observer's configuration again, under the name a ROS 2 user
+/// looks for: what a stock rmw_zenoh loads through `ZENOH_SESSION_CONFIG_URI` to listen. `open`,
+/// a `tcp/` endpoint, is where the world also listens with no credential, for ROS 2 nodes that
+/// come with none (rmw_zenoh's default configuration connects to `tcp/localhost:7447`): a link
+/// there may do what an observer does, and nothing else.
 pub fn create(
     dir: &Path,
     endpoint: &str,
     mission: &Mission,
     ros2: Option<&Ros2Config>,
     links: Links,
+    open: Option<&str>,
 ) -> Result<Configs> {
     let vehicles: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let fleet = Fleet {
@@ -139,7 +149,7 @@ pub fn create(
             json!({
                 "mode": "router",
                 "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false }, "delay": 0 },
-                "listen": { "endpoints": [endpoint] },
+                "listen": { "endpoints": std::iter::once(endpoint).chain(open).collect::<Vec<_>>() },
                 "connect": { "endpoints": [] },
                 "transport": {
                     "auth": auth,
@@ -147,7 +157,13 @@ pub fn create(
                     "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
                 },
                 "access_control": match links {
-                    Links::Certificates => acl::access_control(&fleet, Naming::CommonName),
+                    Links::Certificates => {
+                        let mut rules = acl::access_control(&fleet, Naming::CommonName);
+                        if open.is_some() {
+                            acl::open_to_listeners(&mut rules, "tcp");
+                        }
+                        rules
+                    }
                     Links::Passwords => acl::access_control(&fleet, Naming::Username),
                     Links::Plain => json!({ "enabled": false }),
                 },
@@ -166,10 +182,11 @@ pub fn create(
                 "transport": { "auth": auth, "link": link },
             })
         };
-        private(
-            &dir.join(file_name(identity)),
-            &(serde_json::to_string_pretty(&config)? + "\n"),
-        )?;
+        let text = serde_json::to_string_pretty(&config)? + "\n";
+        private(&dir.join(file_name(identity)), &text)?;
+        if identity == Identity::Observer && ros2.is_some() {
+            private(&dir.join(ROS2_CONFIG), &text)?;
+        }
     }
     if links == Links::Passwords {
         private(&dictionary_file, &dictionary)?;

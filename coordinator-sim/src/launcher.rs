@@ -15,12 +15,13 @@ use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::{Interrupted, Shutdown};
 use tcpf_bus::waits;
-use tcpf_core::mission::{ClockKind, Mission};
+use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::msg::Report;
 use tcpf_core::planner::Plan;
 use tokio::process::{Child, Command};
 
 pub use crate::access::Links;
+use crate::access::ROS2_CONFIG;
 use crate::progress::Ticks;
 use crate::recording::Recording;
 use tcpf_core::summary::{ChildSummary, Closing, Mode, Restarts, Summary};
@@ -354,6 +355,9 @@ pub struct Options {
     pub startup_timeout: Duration,
     /// The ROS 2 domain the world speaks rmw_zenoh on, if any.
     pub ros2: Option<u32>,
+    /// A `tcp/` endpoint where the world also listens with no credential, for ROS 2 nodes that
+    /// only listen (`--ros2-open`).
+    pub ros2_open: Option<String>,
     /// `Rivals::Possible` makes the world and agents claim their roles as roles started by hand
     /// do, waiting for contemporaries that cannot exist here: the baseline `tcpf bench` sets
     /// a run's start-up beside.
@@ -375,6 +379,7 @@ impl Default for Options {
             recorders: 0,
             startup_timeout: waits::STARTUP,
             ros2: None,
+            ros2_open: None,
             rivals: Rivals::None,
             links: Links::Certificates,
             announce: true,
@@ -483,6 +488,32 @@ fn child_summary(c: &Process, report: Option<&Report>) -> ChildSummary {
     }
 }
 
+/// How to join the run, said as it can be joined: where the world listens, and with ROS 2 the
+/// lines a ROS 2 shell needs (rmw_zenoh reads its session configuration once per process, and
+/// the `ros2` CLI's daemon keeps the one it started with).
+fn joining(endpoint: &str, dir: &Path, ros2: Option<&Ros2Config>, open: Option<&str>) -> String {
+    let mut text = format!("the fleet's router, the world, listens at {endpoint}");
+    let Some(ros2) = ros2 else {
+        return text;
+    };
+    let domain = ros2.domain;
+    text.push_str(&format!(
+        ". A ROS 2 shell (rmw_zenoh) joins it on domain {domain} with the run's certificate for listening:\n  \
+         export RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={domain}\n  \
+         export ZENOH_SESSION_CONFIG_URI={}\n  \
+         ros2 daemon stop   # the CLI's daemon keeps the configuration it started with\n\
+         to play vehicle <id> instead: ZENOH_SESSION_CONFIG_URI={}",
+        dir.join(ROS2_CONFIG).display(),
+        dir.join("vehicle-<id>.json5").display(),
+    ));
+    if let Some(open) = open {
+        text.push_str(&format!(
+            "\nOPEN to listeners: the world also listens at {open} with no credential, where a stock ROS 2 node connects with no configuration (RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={domain}); anything that reaches it may hear the whole fleet, and may say nothing"
+        ));
+    }
+    text
+}
+
 /// Runs the mission as processes and writes the run directory. `exe` is the tcpf binary.
 pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, options: Options) -> Result<Summary> {
     let Options {
@@ -492,6 +523,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         recorders,
         startup_timeout,
         ros2,
+        ros2_open,
         rivals,
         links,
         announce,
@@ -507,7 +539,15 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let endpoint = format!("{}/127.0.0.1:{}", links.protocol(), free_port()?);
     // How another tool (a recorder, a testbed bridge, a probe) joins the running fleet: as a role,
     // with its configuration, which only the run directory's owner can read.
-    let configs = crate::access::create(&dir.path, &endpoint, mission, mission.ros2(ros2).as_ref(), links)?;
+    let graph = mission.ros2(ros2);
+    let configs = crate::access::create(
+        &dir.path,
+        &endpoint,
+        mission,
+        graph.as_ref(),
+        links,
+        ros2_open.as_deref(),
+    )?;
     let lockstep = mission.mission.clock == ClockKind::Lockstep;
     let as_role = |identity| {
         let mut args = vec![
@@ -568,13 +608,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     };
     let ready = async {
         crate::access::announce(&dir.path, &endpoint)?;
-        if let (Some(domain), true) = (ros2, announce) {
+        if announce {
             eprintln!(
-                "the fleet's router, the world, listens at {endpoint}. A ROS 2 node (rmw_zenoh) joins it on domain {domain} with a role's certificate:\n  \
-                 export RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={domain}\n  \
-                 export ZENOH_SESSION_CONFIG_URI={}   # to listen; {} to play vehicle <id>",
-                configs.of(Identity::Observer).display(),
-                dir.path.join("vehicle-<id>.json5").display(),
+                "{}",
+                joining(&endpoint, &dir.path, graph.as_ref(), ros2_open.as_deref())
             );
         }
         if recorders > 0 {

@@ -5,8 +5,8 @@
 //! can. The tcpf binary is `$TCPF_BIN` (by default the workspace's release build); each test
 //! kills what it started.
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::path::Path;
+use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -20,70 +20,11 @@ use hiroz_msgs::rosgraph_msgs::Clock;
 use hiroz_msgs::std_msgs::Header;
 use serde_json::Value;
 
-fn repo(path: &str) -> String {
-    format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn tcpf_bin() -> String {
-    std::env::var("TCPF_BIN").unwrap_or_else(|_| repo("target/release/tcpf"))
-}
-
-/// A fresh directory of this test's own.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tcpf-hiroz-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// A child killed, with its own children, when dropped.
-struct Reaper(Child);
-
-impl Drop for Reaper {
-    fn drop(&mut self) {
-        // Its children first: `tcpf run` stops its roles on SIGTERM, not on SIGKILL.
-        let _ = Command::new("kill")
-            .args(["-TERM", &self.0.id().to_string()])
-            .stderr(Stdio::null())
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while self.0.try_wait().ok().flatten().is_none() && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn spawn(logs: &Path, name: &str, args: &[&str]) -> Reaper {
-    let log = std::fs::File::create(logs.join(format!("{name}.log"))).unwrap();
-    let child = Command::new(tcpf_bin())
-        .args(args)
-        .stdout(Stdio::from(log.try_clone().unwrap()))
-        .stderr(Stdio::from(log))
-        .spawn()
-        .unwrap();
-    Reaper(child)
-}
-
-fn wait_for(file: &Path, text: &str, limit: Duration) {
-    let deadline = Instant::now() + limit;
-    while !std::fs::read_to_string(file).unwrap_or_default().contains(text) {
-        assert!(Instant::now() < deadline, "{} never said {text:?}", file.display());
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
-fn wait_exit(child: &mut Reaper, limit: Duration) -> std::process::ExitStatus {
-    let deadline = Instant::now() + limit;
-    loop {
-        if let Some(status) = child.0.try_wait().unwrap() {
-            return status;
-        }
-        assert!(Instant::now() < deadline, "still running after {limit:?}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
+#[path = "../../common/fleet.rs"]
+// Shared by the interop crates: not every one uses every helper.
+#[allow(dead_code)]
+mod fleet;
+use fleet::{repo, scratch, spawn, summary, tcpf_bin, telemetry, wait_exit, wait_for};
 
 fn free_endpoint() -> String {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
@@ -132,18 +73,6 @@ fn client(endpoint: &str, pem: &str) -> ZContext {
         .with_json("transport/link/tls", presenting(Path::new(pem)))
         .build()
         .unwrap()
-}
-
-fn telemetry(dir: &Path) -> Vec<Vec<String>> {
-    let text = std::fs::read_to_string(dir.join("telemetry.csv")).unwrap();
-    text.lines()
-        .skip(1)
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect()
-}
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
 }
 
 /// An odometry as heard: its child frame, stamp (s) and position.
