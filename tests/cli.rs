@@ -65,6 +65,36 @@ fn missing_file_and_bad_override_exit_2() {
     assert!(text(&o).contains("comms.loss"), "{}", text(&o));
 }
 
+/// An open endpoint for ROS 2 nodes that come with no credential is refused, before a run
+/// directory is made, where it cannot be what it says: without ROS 2, off TCP, already taken.
+#[test]
+fn ros2_open_where_it_cannot_be_exits_2_saying_why() {
+    let dir = scratch("ros2-open");
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let taken = format!("tcp/{}", taken.local_addr().unwrap());
+    let mission = paper("b-current");
+    for (extra, why) in [
+        (vec!["--ros2-open"], "the run speaks no ROS 2"),
+        (
+            vec!["--ros2", "--ros2-open", "udp/127.0.0.1:7447"],
+            "give tcp/HOST:PORT",
+        ),
+        (vec!["--ros2", "--ros2-open", &taken], "cannot listen there"),
+        (
+            vec!["--ros2", "--ros2-open", "--links", "passwords"],
+            "--links certificates",
+        ),
+    ] {
+        let out = dir.join("run");
+        let mut args = vec!["run", &mission, "--out", out.to_str().unwrap()];
+        args.extend(&extra);
+        let o = tcpf(&args);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", text(&o));
+        assert!(text(&o).contains(why), "{extra:?}: {}", text(&o));
+        assert!(!out.exists(), "{extra:?}: a run directory for bad input");
+    }
+}
+
 #[test]
 fn infeasible_plan_exits_1_with_the_binding_constraint() {
     let o = tcpf(&["plan", &paper("a-nominal"), "--set", "planner.clearance=5"]);
