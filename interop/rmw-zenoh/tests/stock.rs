@@ -266,6 +266,24 @@ fn assert_heard_the_run(heard: &Heard, out: &Path) {
     }
 }
 
+/// A session opened from `config` sees the fleet's ROS 2 graph, hears the whole held run, and
+/// what it says reaches no one.
+async fn listens_only(config: &Path, run: &mut Reaper, dir: &Path) {
+    let session = open(config).await.unwrap();
+    assert_eq!(
+        nodes(&session).await,
+        ["/tcpf/agent_1", "/tcpf/agent_2", "/tcpf/world"],
+        "the fleet's ROS 2 graph"
+    );
+    let (heard, _subscriber) = listen(&session).await;
+    let recorder = Recorder::join(dir).await;
+    probe(&session).await;
+    let forged = recorder.release(run, dir).await;
+    assert!(forged.is_empty(), "a listener spoke: {forged:?}");
+    assert_heard_the_run(&heard, &dir.join("run"));
+    session.close().await.unwrap();
+}
+
 /// The run's `ros2.json5`, as rmw_zenoh loads it, sees the fleet's ROS 2 graph and hears every
 /// odometry and /clock of a lockstep run. The same file without its TLS settings, or presenting
 /// no certificate of its own, joins nothing.
@@ -298,19 +316,7 @@ async fn ros2_json5_lets_a_stock_rmw_zenoh_hear_the_whole_run() {
         assert!(open(&file).await.is_err(), "a session with {name} joined the fleet");
     }
 
-    let session = open(&config).await.unwrap();
-    assert_eq!(
-        nodes(&session).await,
-        ["/tcpf/agent_1", "/tcpf/agent_2", "/tcpf/world"],
-        "the fleet's ROS 2 graph"
-    );
-    let (heard, _subscriber) = listen(&session).await;
-    let recorder = Recorder::join(&dir).await;
-    probe(&session).await;
-    let forged = recorder.release(&mut run, &dir).await;
-    assert!(forged.is_empty(), "a listener spoke: {forged:?}");
-    assert_heard_the_run(&heard, &out);
-    session.close().await.unwrap();
+    listens_only(&config, &mut run, &dir).await;
 }
 
 /// `--ros2-open`: where rmw_zenoh's default configuration connects (`tcp/localhost:7447`, a
@@ -319,7 +325,6 @@ async fn ros2_json5_lets_a_stock_rmw_zenoh_hear_the_whole_run() {
 #[tokio::test(flavor = "multi_thread")]
 async fn an_open_run_lets_a_ros2_node_with_no_configuration_listen_and_only_listen() {
     let dir = scratch("open");
-    let out = dir.join("run");
     let mut run = held_run(&dir, &["--ros2-open"]);
     wait_for(
         &dir.join("run.log"),
@@ -333,17 +338,5 @@ async fn an_open_run_lets_a_ros2_node_with_no_configuration_listen_and_only_list
             scouting: { multicast: { enabled: false } } }"#,
     )
     .unwrap();
-    let session = open(&defaults).await.unwrap();
-    assert_eq!(
-        nodes(&session).await,
-        ["/tcpf/agent_1", "/tcpf/agent_2", "/tcpf/world"],
-        "the fleet's ROS 2 graph"
-    );
-    let (heard, _subscriber) = listen(&session).await;
-    let recorder = Recorder::join(&dir).await;
-    probe(&session).await;
-    let forged = recorder.release(&mut run, &dir).await;
-    assert!(forged.is_empty(), "an open link spoke: {forged:?}");
-    assert_heard_the_run(&heard, &out);
-    session.close().await.unwrap();
+    listens_only(&defaults, &mut run, &dir).await;
 }
