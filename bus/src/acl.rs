@@ -299,11 +299,9 @@ pub fn access_control(fleet: &Fleet, naming: Naming) -> Value {
 /// and declare a listening ROS 2 node in the graph. A link over the fleet's own TLS has a
 /// certificate's name and never matches. `acl` is `access_control` of a fleet that speaks ROS 2.
 pub fn open_to_listeners(acl: &mut Value, protocol: &str) {
-    let observer = acl["policies"]
-        .as_array()
-        .and_then(|p| p.iter().find(|p| p["id"] == "observer"))
-        .map(|p| p["rules"].clone())
-        .unwrap_or_else(|| json!([]));
+    let observer = rules_of(acl, &Identity::Observer.to_string())
+        .unwrap_or(&json!([]))
+        .clone();
     if let Some(subjects) = acl["subjects"].as_array_mut() {
         subjects.push(json!({ "id": "open", "link_protocols": [protocol] }));
     }
@@ -312,19 +310,22 @@ pub fn open_to_listeners(acl: &mut Value, protocol: &str) {
     }
 }
 
+/// The rules of the policy `id` in `acl`, an `access_control` section.
+fn rules_of<'a>(acl: &'a Value, id: &str) -> Option<&'a Value> {
+    acl["policies"]
+        .as_array()?
+        .iter()
+        .find(|p| p["id"] == id)
+        .map(|p| &p["rules"])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn allowed(acl: &Value, identity: Identity, flow: &str, message: &str) -> Vec<String> {
-        let name = identity.to_string();
-        let policy = acl["policies"]
-            .as_array()
+        let own: Vec<&str> = rules_of(acl, &identity.to_string())
             .unwrap()
-            .iter()
-            .find(|p| p["id"] == name.as_str())
-            .unwrap();
-        let own: Vec<&str> = policy["rules"]
             .as_array()
             .unwrap()
             .iter()
@@ -397,12 +398,7 @@ mod tests {
             ]
         );
         // A ROS 2 tool that listens declares its node and subscriptions, never the fleet's nodes.
-        let observer = &acl["policies"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["id"] == "observer")
-            .unwrap()["rules"];
+        let observer = rules_of(&acl, "observer").unwrap();
         assert!(observer.as_array().unwrap().contains(&json!("ros2-not-the-fleet")));
         let deny = acl["rules"]
             .as_array()
@@ -459,16 +455,7 @@ mod tests {
         };
         let mut acl = access_control(&fleet, Naming::CommonName);
         open_to_listeners(&mut acl, "tcp");
-        let policy = |id: &str| {
-            acl["policies"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .find(|p| p["id"] == id)
-                .unwrap()["rules"]
-                .clone()
-        };
-        assert_eq!(policy("open"), policy("observer"));
+        assert_eq!(rules_of(&acl, "open").unwrap(), rules_of(&acl, "observer").unwrap());
         let open = acl["subjects"]
             .as_array()
             .unwrap()
