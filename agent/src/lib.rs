@@ -628,7 +628,7 @@ impl Shell {
         let period = fleet.period().as_secs_f64();
         // γ_i starts at 0 for an agent there from the beginning, from wherever the vehicle is
         // for one that finds the run under way (started again, or late).
-        let mut node = RealtimeAgent::new(queued.agent, true);
+        let mut node = RealtimeAgent::new(queued.agent, mission, true);
         let mut beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
         let exit = loop {
             tokio::select! {
@@ -699,8 +699,7 @@ impl Shell {
             Some(RealtimeReport {
                 timing,
                 published,
-                played: Vec::new(),
-                wrong_frames: Vec::new(),
+                ..RealtimeReport::default()
             }),
         )
         .await?;

@@ -71,7 +71,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x0b, 0xac, 0x02, 0x02, 0x01,
+            0x0c, 0xac, 0x02, 0x02, 0x01,
             0, 0, 0, 0, 0, 0, 0x08, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0, 0, 0, 0, 0, 0, 0xf0, 0x3f,
@@ -81,16 +81,16 @@ mod tests {
         ];
         assert_eq!(encode(&g), bytes);
         let silent = Gamma { sample: None, ..g };
-        assert_eq!(encode(&silent), [0x0b, 0xac, 0x02, 0x02, 0x00, 0x00]);
+        assert_eq!(encode(&silent), [0x0c, 0xac, 0x02, 0x02, 0x00, 0x00]);
         let busy = Gamma { busy: true, ..silent };
-        assert_eq!(encode(&busy), [0x0b, 0xac, 0x02, 0x02, 0x00, 0x01]);
+        assert_eq!(encode(&busy), [0x0c, 0xac, 0x02, 0x02, 0x00, 0x01]);
         let loss = Loss {
             version: PROTOCOL_VERSION,
             id: 2,
             tick: 300,
             reason: LossReason::Silent,
         };
-        assert_eq!(encode(&loss), [0x0b, 0x02, 0xac, 0x02, 0x01]);
+        assert_eq!(encode(&loss), [0x0c, 0x02, 0xac, 0x02, 0x01]);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
@@ -101,7 +101,7 @@ mod tests {
         };
         #[rustfmt::skip]
         let bytes = [
-            0x0b, 0x01,
+            0x0c, 0x01,
             0, 0, 0, 0, 0, 0, 0x24, 0x40,
             0, 0, 0, 0, 0, 0, 0xf8, 0x3f,
             0xac, 0x02, 0x05,
@@ -271,7 +271,7 @@ mod tests {
                 periods: u64::MAX,
                 without_command: each.clone(),
                 rejoins: each.clone(),
-                overtaken: each,
+                overtaken: each.clone(),
                 ..PeriodTiming::default()
             }),
             rejected: Rejections {
@@ -280,6 +280,7 @@ mod tests {
             },
             played: ids.map(|id| (u32::MAX - id, Player::Ros2)).collect(),
             wrong_frames: vec![(u32::MAX, "f".repeat(64), u64::MAX); 17],
+            surplus_odometries: each,
             ..Report::new(tcpf_core::msg::Role::Record, u32::MAX, u32::MAX)
         };
         let clock = Clock {

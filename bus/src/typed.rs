@@ -600,11 +600,13 @@ pub async fn answered(answer: &mut Option<ClockAnswer>) -> Result<Clock> {
 
 /// What a realtime role adds to its exit report: how it kept its period, the γ it published
 /// (an agent), the vehicles it left to others (the world).
+#[derive(Default)]
 pub struct RealtimeReport {
     pub timing: PeriodTiming,
     pub published: u64,
     pub played: Vec<(u32, Player)>,
     pub wrong_frames: Vec<(u32, String, u64)>,
+    pub surplus_odometries: Vec<(u32, u64)>,
 }
 
 /// Tells the recorder who this process was, what it refused and, in realtime, how it kept its
@@ -631,6 +633,7 @@ pub async fn report(
             published: r.published,
             played: r.played,
             wrong_frames: r.wrong_frames,
+            surplus_odometries: r.surplus_odometries,
             ..base
         },
         None => base,

@@ -46,7 +46,7 @@ enum Message {
     Command(Command),
     End(End),
     Loss(Loss),
-    Report(Report),
+    Report(Box<Report>),
     /// Realtime: a state the world's history gave, and the end of its answer (the vehicles it
     /// keeps none of).
     History(State),
@@ -187,7 +187,10 @@ impl Recording {
         let queryables = vec![
             take_over(session, &keys.end(), &rejected, tx.clone(), Message::End).await?,
             take_over(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?,
-            take_over(session, &keys.reports(), &rejected, tx.clone(), Message::Report).await?,
+            take_over(session, &keys.reports(), &rejected, tx.clone(), |r| {
+                Message::Report(Box::new(r))
+            })
+            .await?,
         ];
         let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
         let dt = mission.mission.control_period;
@@ -311,7 +314,7 @@ impl Recording {
                             Ok(()) => self.end = Some(e),
                             Err(why) => self.rejected.reject(why, &m.key),
                         },
-                        Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, r),
+                        Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, *r),
                         Message::Loss(l) => self.rejected.check(&m.key, l.id, || recorder.on_lost(l.into())),
                     }
                 }
@@ -363,7 +366,7 @@ impl Recording {
                             Ok(()) => self.end = Some(e),
                             Err(why) => self.rejected.reject(why, &m.key),
                         },
-                        Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, r),
+                        Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, *r),
                     }
                     let mut failure = Ok(());
                     let (telemetry, ros2) = (&mut self.telemetry, &mut self.ros2);
@@ -481,6 +484,7 @@ impl Recording {
                     newest_state: sampler.newest_state(),
                     missing_ticks: sampler.missing_ticks(),
                     came_at: sampler.came_at().unwrap_or(0),
+                    players_from: sampler.players_from().cloned(),
                     recovered: sampler.recovered(),
                 }
             }

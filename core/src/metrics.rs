@@ -31,6 +31,10 @@ pub struct VehicleSummary {
     /// Who played the vehicle, if the world did not simulate it (realtime `--vehicles`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub played_by: Option<Player>,
+    /// A vehicle played by a ROS 2 node: its odometries that fell in a tick whose state an
+    /// earlier one had made (a driver faster than the control period, or its jitter).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surplus_odometries: Option<u64>,
 }
 
 /// How hard a dynamic vehicle's thrusters worked, from the commands its states report: per
@@ -528,6 +532,7 @@ impl Metrics {
                         gamma_sent,
                         thrusters,
                         played_by: None,
+                        surplus_odometries: None,
                     },
                 )
                 .collect(),

@@ -15,8 +15,9 @@ use crate::path::GeneralizedPath;
 /// `TickRecord`, which recorders take instead of every state and command. 8: a dynamic vehicle's
 /// velocity and thrusters in `State::dynamics`, the fed-forward acceleration in `Command::accel`.
 /// 9: who played each vehicle in `Report`. 10: a reception's sending instant, distance, SINR and
-/// cause, and `Gamma::busy` (the acoustic modem, D23).
-pub const PROTOCOL_VERSION: u16 = 11;
+/// cause, and `Gamma::busy` (the acoustic modem, D23). 12: the ages of the states an agent acted
+/// on in `PeriodTiming`, the surplus odometries of ROS 2 players in `Report`.
+pub const PROTOCOL_VERSION: u16 = 12;
 
 /// World → agent and recorder: a vehicle's measured state at tick k.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -558,8 +559,8 @@ pub struct PeriodTiming {
     /// World: vehicle-periods integrated with the command of an earlier tick held, because this
     /// tick's had not come.
     pub late_commands: u64,
-    /// Agent: periods in which the freshest state was older than one period, or none had come
-    /// (after tick 0).
+    /// Agent: periods in which the freshest state was older than the mission's `max_state_age`,
+    /// or none had come (after tick 0).
     pub stale_states: u64,
     /// World: per vehicle, periods integrated with no command at all (none yet, or its agent gone).
     pub without_command: Vec<(u32, u64)>,
@@ -569,6 +570,15 @@ pub struct PeriodTiming {
     /// instant used them (the agent woke too late to use each): not lost by the network.
     #[serde(default)]
     pub overtaken: Vec<(u32, u64)>,
+    /// Agent: how old, in simulated seconds, the states it acted on were: the median, the 99th
+    /// percentile and the oldest (a vehicle of the world's is a period old, one played by a
+    /// slower driver older).
+    #[serde(default)]
+    pub state_age_p50_s: f64,
+    #[serde(default)]
+    pub state_age_p99_s: f64,
+    #[serde(default)]
+    pub state_age_max_s: f64,
 }
 
 /// The share of a role's periods that may go wrong in each way (overrun, skipped, a late command,
@@ -664,6 +674,9 @@ pub struct Report {
     /// Realtime world: the odometries of ROS 2 players refused for their frame, by vehicle and
     /// frame name (`ros2::Played::wrong_frames`).
     pub wrong_frames: Vec<(u32, String, u64)>,
+    /// Realtime world: per vehicle played by a ROS 2 node, its odometries that fell in a tick
+    /// whose state an earlier one had made (`ros2::Played::surplus`).
+    pub surplus_odometries: Vec<(u32, u64)>,
 }
 
 /// Who played a vehicle the world did not simulate (`tcpf world --vehicles`).
@@ -691,21 +704,30 @@ impl Report {
             published: 0,
             played: Vec::new(),
             wrong_frames: Vec::new(),
+            surplus_odometries: Vec::new(),
         }
     }
 }
 
 impl Checked for Report {
-    /// 15 bytes a vehicle in each of its four lists (late γ, uncommanded, rejoins, overtaken), 6
-    /// in `played`: 66 kB for 1000 vehicles, and 17 frame names of 64 bytes at most.
+    /// 15 bytes a vehicle in each of its five lists (late γ, uncommanded, rejoins, overtaken,
+    /// surplus odometries), 6 in `played`: 81 kB for 1000 vehicles, and 17 frame names of 64
+    /// bytes at most.
     const MAX_BYTES: usize = 128 * 1024;
     fn version(&self) -> u16 {
         self.version
     }
     fn finite(&self) -> bool {
-        self.timing
-            .as_ref()
-            .is_none_or(|t| all_finite([t.lateness_p50_ms, t.lateness_p99_ms, t.lateness_max_ms]))
+        self.timing.as_ref().is_none_or(|t| {
+            all_finite([
+                t.lateness_p50_ms,
+                t.lateness_p99_ms,
+                t.lateness_max_ms,
+                t.state_age_p50_s,
+                t.state_age_p99_s,
+                t.state_age_max_s,
+            ])
+        })
     }
 }
 

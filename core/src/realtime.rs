@@ -141,7 +141,7 @@ pub struct RealtimeAgent {
     /// agent started again, or late).
     rejoin: bool,
     lateness: Lateness,
-    stale_states: u64,
+    ages: StateAges,
     /// Per neighbour, its γ that arrived and were replaced by a newer one before an instant used
     /// them: they reached this agent, so the network did not lose them, and were never used.
     overtaken: Vec<(u32, u64)>,
@@ -160,7 +160,7 @@ impl RealtimeAgent {
     /// `rejoin`: if the first state is past the run's first tick, the run was under way when
     /// this agent started, so γ_i starts from the vehicle's position; at tick 0 it starts at 0
     /// (MODEL D15), wherever `initial_offset` puts the vehicle.
-    pub fn new(agent: Agent, rejoin: bool) -> RealtimeAgent {
+    pub fn new(agent: Agent, mission: &Mission, rejoin: bool) -> RealtimeAgent {
         RealtimeAgent {
             agent,
             state: None,
@@ -168,7 +168,7 @@ impl RealtimeAgent {
             acted: None,
             rejoin,
             lateness: Lateness::default(),
-            stale_states: 0,
+            ages: StateAges::new(mission),
             overtaken: Vec::new(),
             judged: Vec::new(),
         }
@@ -233,19 +233,17 @@ impl RealtimeAgent {
     /// `skipped` periods that never ran. Without a state yet there is nothing to act on (the
     /// vehicle drifts with thrusters off), and past tick 0, when the first could not have come
     /// yet, that period counts as stale: no state is older than any; a tick already acted on is
-    /// not acted on again.
+    /// not acted on again. The state acted on has its age counted.
     pub fn act(&mut self, tick: u64, late_s: f64, period_s: f64, skipped: u64) -> Option<Action> {
         self.lateness.record(late_s, period_s, skipped);
         let Some(state) = self.state else {
-            self.stale_states += u64::from(tick > 0);
+            self.ages.none(tick);
             return None;
         };
         if self.acted.is_some_and(|a| a >= tick) {
             return None;
         }
-        if tick > state.tick + 1 {
-            self.stale_states += 1;
-        }
+        self.ages.record(tick.saturating_sub(state.tick));
         // What came between two instants is used at the next one.
         let instant = self.agent.is_comm_tick(tick);
         let gamma = self
@@ -267,9 +265,69 @@ impl RealtimeAgent {
 
     pub fn timing(&self) -> PeriodTiming {
         PeriodTiming {
-            stale_states: self.stale_states,
             overtaken: self.overtaken.clone(),
-            ..self.lateness.figures()
+            ..self.ages.figures(self.lateness.figures())
+        }
+    }
+}
+
+/// Ages beyond which a histogram of state ages counts in its last bucket, in ticks.
+const AGE_BUCKETS: usize = 1024;
+
+/// How old the states an agent acted on were, in ticks: a vehicle of the world's is a period
+/// old, one played by a slower driver older; stale beyond the mission's `max_state_age`.
+#[derive(Debug, Clone)]
+struct StateAges {
+    counts: Vec<u64>,
+    max: u64,
+    stale: u64,
+    /// The oldest a state may be, in whole ticks.
+    limit: u64,
+    period: f64,
+}
+
+impl StateAges {
+    fn new(mission: &Mission) -> StateAges {
+        let m = &mission.mission;
+        StateAges {
+            counts: vec![0; AGE_BUCKETS],
+            max: 0,
+            stale: 0,
+            // The tolerance keeps 0.1 s at 0.01 s a period ten ticks, not nine.
+            limit: (m.max_state_age / m.control_period + 1e-9).floor() as u64,
+            period: m.control_period,
+        }
+    }
+
+    fn record(&mut self, ticks: u64) {
+        self.counts[(ticks as usize).min(AGE_BUCKETS - 1)] += 1;
+        self.max = self.max.max(ticks);
+        self.stale += u64::from(ticks > self.limit);
+    }
+
+    /// A period at `tick` with no state yet: past tick 0, stale, since no state is older.
+    fn none(&mut self, tick: u64) {
+        self.stale += u64::from(tick > 0);
+    }
+
+    fn quantile_s(&self, q: f64) -> f64 {
+        let periods: u64 = self.counts.iter().sum();
+        let rank = (q * periods as f64).ceil().max(1.0) as u64;
+        let mut seen = 0;
+        let ticks = self.counts.iter().position(|&n| {
+            seen += n;
+            seen >= rank
+        });
+        ticks.map_or(0.0, |t| t as f64 * self.period)
+    }
+
+    fn figures(&self, timing: PeriodTiming) -> PeriodTiming {
+        PeriodTiming {
+            stale_states: self.stale,
+            state_age_p50_s: self.quantile_s(0.5),
+            state_age_p99_s: self.quantile_s(0.99),
+            state_age_max_s: self.max as f64 * self.period,
+            ..timing
         }
     }
 }
@@ -629,6 +687,10 @@ pub struct Sampler {
     /// The tick under way when this recorder came (the world's clock said): the rows start
     /// there.
     came_at: Option<u64>,
+    /// The first tick after those whose row waited only for the first state of vehicles
+    /// another program plays, and those vehicles: a driver slower than the control period
+    /// may publish its first for tick 2, and a row needs every vehicle.
+    players_from: Option<(u64, Vec<u32>)>,
 }
 
 impl Sampler {
@@ -670,6 +732,7 @@ impl Sampler {
             unkept: vec![false; n],
             recovered: 0,
             came_at: None,
+            players_from: None,
         }
     }
 
@@ -683,6 +746,12 @@ impl Sampler {
     /// The tick under way when this recorder came, if the world's clock said.
     pub fn came_at(&self) -> Option<u64> {
         self.came_at
+    }
+
+    /// The tick before which no row could be written because vehicles another program plays
+    /// had published no state yet, and those vehicles; `None` if none held the rows back.
+    pub fn players_from(&self) -> Option<&(u64, Vec<u32>)> {
+        self.players_from.as_ref()
     }
 
     fn index(&self, id: u32) -> Result<usize, Reject> {
@@ -926,6 +995,11 @@ impl Sampler {
             }
         }
         self.take_commands(tick);
+        let waiting: Vec<usize> = (0..self.ids.len()).filter(|&n| self.carried[n].is_none()).collect();
+        if moved && self.last.is_none() && !waiting.is_empty() && waiting.iter().all(|&n| self.unkept[n]) {
+            let players = waiting.iter().map(|&n| self.ids.ids()[n]).collect();
+            self.players_from = Some((tick + 1, players));
+        }
         if moved {
             self.record(tick, emit);
         }
@@ -1151,7 +1225,7 @@ mod tests {
         let mut world = RealtimeWorld::new(&m, &paths, &[1, 2]);
         let mut agents: Vec<RealtimeAgent> = paths
             .iter()
-            .map(|&(id, p)| RealtimeAgent::new(Agent::new(&m, id, p), false))
+            .map(|&(id, p)| RealtimeAgent::new(Agent::new(&m, id, p), &m, false))
             .collect();
         let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, m.mission.control_period);
         let mut tick = 0;
@@ -1550,11 +1624,36 @@ mod tests {
     }
 
     #[test]
+    fn a_state_is_stale_beyond_the_missions_age_and_every_age_is_counted() {
+        let (mut m, paths, _) = case_b();
+        m.mission.max_state_age = 0.03;
+        let dt = m.mission.control_period;
+        let mut agent = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), &m, false);
+        // A driver at a third of the control rate: each state is acted on 1, 2 and 3 periods old.
+        for tick in 1..=30 {
+            if (tick - 1) % 3 == 0 {
+                agent.on_state(still(2, tick - 1, dt, [0.0, 5.0]), HORIZON).unwrap();
+            }
+            agent.act(tick, 0.0, 0.001, 0).expect("a state to act on");
+        }
+        let timing = agent.timing();
+        assert_eq!(timing.stale_states, 0, "3 periods is 0.03 s: not older than allowed");
+        assert!((timing.state_age_p50_s - 2.0 * dt).abs() < 1e-12, "{timing:?}");
+        assert!((timing.state_age_max_s - 3.0 * dt).abs() < 1e-12, "{timing:?}");
+        // One state the driver missed: the next period acts on one four periods old.
+        agent.act(31, 0.0, 0.001, 0).unwrap();
+        let timing = agent.timing();
+        assert_eq!(timing.stale_states, 1);
+        assert!((timing.state_age_max_s - 4.0 * dt).abs() < 1e-12, "{timing:?}");
+        assert_eq!(timing.periods, 31);
+    }
+
+    #[test]
     fn the_freshest_message_wins_and_older_ones_are_refused() {
         let (m, paths, _) = case_b();
         let mut world = RealtimeWorld::new(&m, &paths, &[1]);
         assert_eq!(world.states().len(), 1, "vehicle 2 is played by another process");
-        let mut agent = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), false);
+        let mut agent = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), &m, false);
         assert!(
             agent.act(0, 0.0, 0.001, 0).is_none(),
             "nothing measured, nothing commanded"
@@ -1571,7 +1670,11 @@ mod tests {
         assert_eq!(agent.on_state(State { tick: 4, ..state }, HORIZON), Err(Reject::Past));
         assert_eq!(agent.on_state(state, HORIZON), Err(Reject::Duplicate));
         let command = agent.act(8, 0.0, 0.001, 0).expect("a state to act on").command;
-        assert_eq!(agent.timing().stale_states, 2, "and then a state three periods old");
+        assert_eq!(
+            agent.timing().stale_states,
+            1,
+            "a state three periods old is within the default max_state_age"
+        );
         assert!(agent.act(8, 0.0, 0.001, 0).is_none(), "tick 8 is done");
         world.on_command(command.clone(), HORIZON).unwrap();
         assert_eq!(
@@ -1592,7 +1695,7 @@ mod tests {
         world.set_gone(1, false);
         assert_eq!(world.timing().rejoins, vec![(1, 1)]);
         // A command is held one simulated second at most: then the vehicle drifts.
-        let mut one = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), false);
+        let mut one = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), &m, false);
         one.on_state(world.states()[0], HORIZON).unwrap();
         world
             .on_command(one.act(10, 0.0, 0.001, 0).unwrap().command, HORIZON)
@@ -1611,10 +1714,10 @@ mod tests {
         let (m, paths, _) = case_b();
         let ahead = paths[0].1.derivatives(5.0)[0];
         let state = |tick| still(1, tick, m.mission.control_period, [ahead.x, ahead.y]);
-        let mut on_time = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), true);
+        let mut on_time = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), &m, true);
         on_time.on_state(state(0), HORIZON).unwrap();
         assert_eq!(on_time.agent().gamma(), 0.0);
-        let mut late = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), true);
+        let mut late = RealtimeAgent::new(Agent::new(&m, 1, paths[0].1), &m, true);
         late.on_state(state(1), HORIZON).unwrap();
         assert!((late.agent().gamma() - 5.0).abs() < 1e-6, "{}", late.agent().gamma());
     }
@@ -1691,7 +1794,7 @@ mod tests {
     fn a_gamma_overtaken_before_an_instant_is_counted() {
         let (m, paths, _) = case_b();
         let mut one = Agent::new(&m, 1, paths[0].1);
-        let mut two = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), false);
+        let mut two = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), &m, false);
         let state = |id, tick| still(id, tick, m.mission.control_period, [0.0, 5.0 * id as f64]);
         let instants: Vec<u64> = (0..1000).filter(|&k| one.is_comm_tick(k)).take(4).collect();
         let mut gamma = |k: u64| one.broadcast(k, &state(1, k)).expect("an instant of vehicle 1");
@@ -1713,6 +1816,33 @@ mod tests {
         assert_eq!(two.on_gamma(gamma(instants[2]), HORIZON), Err(Reject::Duplicate));
         two.on_gamma(gamma(instants[3]), HORIZON).unwrap();
         assert_eq!(two.timing().overtaken, vec![(1, 1)], "waiting, not yet overtaken");
+    }
+
+    /// A player slower than the control period publishes its first state for tick 2: ticks 0
+    /// and 1 have no row (a row needs every vehicle), and the sampler says it was the player's
+    /// first state the rows waited for, not a state of the world's that it lost.
+    #[test]
+    fn the_rows_before_a_players_first_state_are_said_to_wait_for_it() {
+        let (m, _, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let at = |id: u32, tick| still(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        sampler.start_at(0);
+        let mut rows = Vec::new();
+        for tick in 0..6 {
+            sampler.on_state(at(1, tick), HORIZON).unwrap();
+        }
+        for tick in [2, 5] {
+            sampler.on_state(at(2, tick), HORIZON).unwrap();
+        }
+        sampler.drain(|s, _| rows.push((s[0].tick, s[1].tick)));
+        let asked = sampler.fetch().expect("vehicle 2's ticks 0 and 1 asked for");
+        assert_eq!((asked.from, &asked.ids[..]), (0, &[2][..]));
+        sampler.on_fetched(&[2]);
+        sampler.drain(|s, _| rows.push((s[0].tick, s[1].tick)));
+        assert_eq!(rows, [(2, 2), (3, 2), (4, 2)]);
+        assert_eq!(sampler.players_from(), Some(&(2, vec![2])));
+        assert_eq!(sampler.missing_ticks()[0].1[0], (0, 1), "vehicle 1's first two");
     }
 
     /// The world keeps every tick it ran, the periods it skipped among them, for `HISTORY_S`;

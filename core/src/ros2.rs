@@ -613,6 +613,8 @@ pub struct Played {
     control_period: f64,
     /// Per vehicle, its newest state.
     newest: BTreeMap<u32, State>,
+    /// Per vehicle, its odometries that fell in a tick already taken.
+    surplus: BTreeMap<u32, u64>,
     /// Odometries refused for their frame, by vehicle and frame name (`WRONG_FRAMES` names at
     /// most, each cut to `FRAME_NAME` bytes, the rest counted under `OTHER_FRAMES`).
     wrong_frames: BTreeMap<(u32, String), u64>,
@@ -638,8 +640,11 @@ pub enum Refused {
     Stale,
     /// Of a tick whose state an earlier odometry already made: a tick has one state, which the
     /// world has published (a driver faster than the control period, or its jitter, puts two
-    /// in one tick; taken, each would be a different state of that tick, a conflict).
-    Taken,
+    /// in one tick; taken, each would be a different state of that tick, a conflict). The
+    /// first is taken rather than the newest: published as it comes, the agent acts on it
+    /// within the period, where waiting for the tick to close would make every state a period
+    /// older. Counted (`Played::surplus`).
+    Surplus,
     /// Stamped more than `LEAD` ahead of the fleet's clock: a wrong clock, not a skew. Taken,
     /// it would be the vehicle's newest state until the fleet caught up with it, and every
     /// genuine one before then "older".
@@ -666,6 +671,7 @@ impl Played {
             time_scale: mission.mission.time_scale,
             control_period: mission.mission.control_period,
             newest: BTreeMap::new(),
+            surplus: BTreeMap::new(),
             wrong_frames: BTreeMap::new(),
         }
     }
@@ -690,7 +696,10 @@ impl Played {
         }
         match self.newest.get(&id) {
             Some(held) if held.tick > state.tick => return Err(Refused::Stale),
-            Some(held) if held.tick == state.tick => return Err(Refused::Taken),
+            Some(held) if held.tick == state.tick => {
+                *self.surplus.entry(id).or_default() += 1;
+                return Err(Refused::Surplus);
+            }
             _ => {}
         }
         self.newest.insert(id, state);
@@ -703,6 +712,11 @@ impl Played {
             name = OTHER_FRAMES.into();
         }
         *self.wrong_frames.entry((id, name)).or_default() += 1;
+    }
+
+    /// Per vehicle, its odometries that fell in a tick already taken, in id order.
+    pub fn surplus(&self) -> Vec<(u32, u64)> {
+        self.surplus.iter().map(|(&id, &n)| (id, n)).collect()
     }
 
     /// The frames vehicle `id`'s odometries were refused for, each with how many.
@@ -1067,7 +1081,7 @@ mod tests {
         };
         assert_eq!(
             played.on_odometry(2, &again.cdr(), 1000),
-            Err(Refused::Taken),
+            Err(Refused::Surplus),
             "the same tick again: its state is the first's"
         );
         assert_eq!(played.states().next().map(|s| s.position), Some([1.0, 2.0]));

@@ -384,6 +384,9 @@ pub enum Recorded {
         /// The tick under way when the recorder came: what it lacks of the ticks before is
         /// what it never saw, not what it lost.
         came_at: u64,
+        /// The tick before which no row could be written, as vehicles another program plays
+        /// (those named) had published no state yet (`Sampler::players_from`).
+        players_from: Option<(u64, Vec<u32>)>,
         /// States the world's history gave that never came on their own.
         recovered: u64,
     },
@@ -457,6 +460,11 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
                 v.played_by = Some(player);
             }
         }
+        for &(id, n) in &r.surplus_odometries {
+            if let Some(v) = results.vehicles.iter_mut().find(|v| v.id == id) {
+                v.surplus_odometries = Some(n);
+            }
+        }
         for (id, frame, n) in &r.wrong_frames {
             warnings.push(format!(
                 "vehicle {id}: {n} odometry message(s) refused, their pose in frame '{frame}': the fleet takes poses in '{}' only (docs/ROS2.md)",
@@ -484,6 +492,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         newest_state,
         missing_ticks: missing,
         came_at,
+        players_from,
         recovered,
         ..
     } = &recorded
@@ -509,6 +518,17 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
                     "the recorder came at tick {came_at}: telemetry.csv holds none of the ticks before it"
                 ));
             }
+            // A row needs every vehicle: the ticks before a player's first state have none.
+            let since = match players_from {
+                Some((from, players)) if *from > *came_at => {
+                    warnings.push(format!(
+                        "telemetry.csv starts at tick {from}: before it, {} had published no state",
+                        vehicles(players)
+                    ));
+                    split_at(&since, *from).1
+                }
+                _ => since,
+            };
             match lacking(&since, results.ticks) {
                 Some(lost) if !cut_short => {
                     failure.get_or_insert(lost);

@@ -867,10 +867,11 @@ fn page(
             number(v.arrival_time, 3),
             v.lost
         );
-        let player = match v.played_by {
-            None => "the world",
-            Some(Player::Process) => "another program",
-            Some(Player::Ros2) => "a ROS 2 node",
+        let player = match (v.played_by, v.surplus_odometries) {
+            (None, _) => "the world".to_string(),
+            (Some(Player::Process), _) => "another program".to_string(),
+            (Some(Player::Ros2), None) => "a ROS 2 node".to_string(),
+            (Some(Player::Ros2), Some(n)) => format!("a ROS 2 node ({n} odometries surplus, in a tick already taken)"),
         };
         let _ = write!(
             html,
@@ -931,7 +932,7 @@ fn timing_table(html: &mut String, summary: &Summary) {
     }
     let _ = write!(
         html,
-        "<p>Realtime at time scale {}: how late each role's control periods started (wall ms).</p>\n<table id=\"timing\"><tr><th>role</th><th>periods</th><th>p50</th><th>p99</th><th>max</th><th>overruns</th><th>skipped</th><th>late commands</th><th>stale states</th><th>periods without a command</th></tr>",
+        "<p>Realtime at time scale {}: how late each role's control periods started (wall ms).</p>\n<table id=\"timing\"><tr><th>role</th><th>periods</th><th>p50</th><th>p99</th><th>max</th><th>overruns</th><th>skipped</th><th>late commands</th><th>stale states</th><th>state age p50 / max (s)</th><th>periods without a command</th></tr>",
         summary.time_scale.map_or("–".to_string(), |x| x.to_string())
     );
     for RoleTiming { role, id, timing: t } in &summary.timing {
@@ -940,9 +941,15 @@ fn timing_table(html: &mut String, summary: &Summary) {
             .iter()
             .map(|(v, n)| format!("vehicle {v}: {n}"))
             .collect();
+        // The world acts on no state: its vehicles' ages are its agents'.
+        let age = if role == "agent" {
+            format!("{} / {}", number(t.state_age_p50_s, 3), number(t.state_age_max_s, 3))
+        } else {
+            "–".into()
+        };
         let _ = write!(
             html,
-            "<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td>{} {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{age}</td></tr>",
             escape(role),
             id,
             t.periods,

@@ -186,7 +186,11 @@ pub fn summary(summary: &Summary) -> String {
                 let _ = write!(s, ", agent {id} came back {n} time(s)");
             }
         } else {
-            let _ = write!(s, ", {} stale states", p.stale_states);
+            let _ = write!(
+                s,
+                ", {} stale states; state age p50 {:.3} s, max {:.3} s",
+                p.stale_states, p.state_age_p50_s, p.state_age_max_s
+            );
         }
         let _ = writeln!(s);
     }

@@ -9,12 +9,18 @@ the kinematic vehicle of docs/MODEL.md in the water current, and publishes
 stops when the fleet's world leaves the ROS 2 graph, and writes what it did as JSON.
 
     vehicle.py ENDPOINT CREDENTIAL DOMAIN NAMESPACE ID TIME_SCALE CONTROL_PERIOD CURRENT_X CURRENT_Y OUT.json
+               [every=N] [jitter=J] [frame=NAME]
+
+As drivers do: `every=3` publishes every third control period, `jitter=0.3` draws each wait
+between 70 % and 130 % of its length (seeded: the same waits every run), `frame=odom` stamps the
+pose in another frame than the fleet's `map`.
 """
 
 import hashlib
 import json
 import math
 import os
+import random
 import sys
 import threading
 import time
@@ -62,6 +68,9 @@ def main():
     (endpoint, credential, domain, namespace, vid, time_scale, period,
      cx, cy, out) = sys.argv[1:11]
     vid, time_scale, period, current = int(vid), float(time_scale), float(period), (float(cx), float(cy))
+    options = dict(option.split("=", 1) for option in sys.argv[11:])
+    every, jitter = int(options.get("every", 1)), float(options.get("jitter", 0))
+    frame, draws = options.get("frame", "map"), random.Random(1)
     user, _, password = open(credential).read().strip().partition(":")
     config = zenoh.Config()
     config.insert_json5("mode", '"client"')
@@ -129,7 +138,7 @@ def main():
             c, s = math.cos(state["yaw"]), math.sin(state["yaw"])
             over_ground = (v + c * current[0] + s * current[1], -s * current[0] + c * current[1])
             message = Odometry(
-                header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="map"),
+                header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame),
                 child_frame_id=f"vehicle_{vid}",
                 pose=g["geometry_msgs/msg/PoseWithCovariance"](
                     pose=g["geometry_msgs/msg/Pose"](
@@ -147,7 +156,8 @@ def main():
                           + bytes([16]) + gid)
             publisher.put(bytes(STORE.serialize_cdr(message, "nav_msgs/msg/Odometry")), attachment=attachment)
             published += 1
-            time.sleep(max(0.0, period / time_scale - (time.time() - now)))
+            wait = every * period / time_scale * (1 + jitter * draws.uniform(-1, 1))
+            time.sleep(max(0.0, wait - (time.time() - now)))
         graph.undeclare()
         subscriber.undeclare()
         json.dump({"start": [first.position.x, first.position.y], "poses": len(path.poses),

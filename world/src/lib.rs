@@ -689,7 +689,7 @@ impl Shell {
                         }
                         // Odometry flows before the run starts, may be overtaken, and may come
                         // faster than the ticks: none is wrong, and none is a new state of the run.
-                        (Err(Refused::Early | Refused::Stale | Refused::Taken), _) => {}
+                        (Err(Refused::Early | Refused::Stale | Refused::Surplus), _) => {}
                     }
                 }
                 Some(p) = self.presence.recv() => {
@@ -746,6 +746,7 @@ impl Shell {
                     })
                     .collect(),
                 wrong_frames: played.wrong_frames(),
+                surplus_odometries: played.surplus(),
             }),
         )
         .await?;

@@ -86,6 +86,12 @@ pub struct MissionSection {
     /// Simulated seconds per wall second, realtime only (1: real time).
     #[serde(default = "defaults::time_scale")]
     pub time_scale: f64,
+    /// Realtime only: simulated seconds a vehicle's freshest state may be old when its agent acts
+    /// before that period counts as stale. A vehicle's own navigation (or a ROS 2 node playing
+    /// it) may publish less often than the control period; that is no fault until the pose is
+    /// older than the mission can steer on.
+    #[serde(default = "defaults::max_state_age")]
+    pub max_state_age: f64,
 }
 
 /// Who keeps time (docs/PROTOCOL.md): the world waiting for every command, or the wall clock.
@@ -530,6 +536,10 @@ mod defaults {
     }
     pub fn time_scale() -> f64 {
         1.0
+    }
+    /// The default communication period: the fleet coordinates on γ no fresher than that.
+    pub fn max_state_age() -> f64 {
+        0.1
     }
     pub fn weight() -> f64 {
         1.0

@@ -136,6 +136,14 @@ impl Mission {
                 1e3 * MIN_WALL_PERIOD
             ),
         )?;
+        check(
+            m.max_state_age.is_finite() && m.max_state_age >= m.control_period,
+            key("mission", "max_state_age"),
+            format!(
+                "must be a finite number of seconds ≥ mission.control_period ({} s): a state is a period old when it is used",
+                num(m.control_period)
+            ),
+        )?;
         let ticks = m.max_duration / m.control_period;
         // Blame the value that is out of the ordinary: a long mission, or a short period.
         let (culprit, other) = if m.max_duration > MAX_TICKS * 0.01 {
