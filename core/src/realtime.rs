@@ -749,9 +749,10 @@ impl Sampler {
     }
 
     /// The tick before which no row could be written because vehicles another program plays
-    /// had published no state yet, and those vehicles; `None` if none held the rows back.
+    /// had published no state yet, and those vehicles; `None` if none held the rows back, or
+    /// if no row was ever written (a player whose states never came is named as such).
     pub fn players_from(&self) -> Option<&(u64, Vec<u32>)> {
-        self.players_from.as_ref()
+        self.players_from.as_ref().filter(|_| self.last.is_some())
     }
 
     fn index(&self, id: u32) -> Result<usize, Reject> {

@@ -24,7 +24,7 @@ import threading
 import time
 import tomllib
 
-VERSION = 11
+VERSION = 12
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
 # The longest a vehicle holds its agent's last command, in simulated seconds (the world's
@@ -511,7 +511,7 @@ def self_test():
            "arrived": [{"id": 1, "tick": 12000}]}
     clock = {"version": VERSION, "realtime": True, "time_scale": 2.0, "epoch": 1.7e9, "tick": 12,
              "mission": 0x72b3548f8bc2f98c}
-    gamma_bytes = ("0bac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
+    gamma_bytes = ("0cac020201" "0000000000000840" "000000000000f83f" "000000000000f03f"
                    "0000000000000040" "000000000000e0bf" "00")
     receptions_bytes = ("02"
                         "0100" "0000000000000840" "01" "0000000000709740" "01" "00000000000004c0" "03"
@@ -519,10 +519,10 @@ def self_test():
     version_id = record(("version", U16), ("id", U32))
     checks = {
         "Gamma example": encode(GAMMA, gamma) == bytes.fromhex(gamma_bytes),
-        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("0bac02020000"),
-        "Gamma busy": encode(GAMMA, dict(gamma, sample=None, busy=True)) == bytes.fromhex("0bac02020001"),
+        "Gamma without a sample": encode(GAMMA, dict(gamma, sample=None)) == bytes.fromhex("0cac02020000"),
+        "Gamma busy": encode(GAMMA, dict(gamma, sample=None, busy=True)) == bytes.fromhex("0cac02020001"),
         "Clock example": encode(CLOCK, dict(clock, time_scale=10.0, epoch=1.5, tick=300, mission=5))
-        == bytes.fromhex("0b01" "0000000000002440" "000000000000f83f" "ac02" "05"),
+        == bytes.fromhex("0c01" "0000000000002440" "000000000000f83f" "ac02" "05"),
         "Reception example": encode(("vec", RECEPTION), receptions) == bytes.fromhex(receptions_bytes),
         "the Command ends with its receptions": encode(COMMAND, dict(command, receptions=receptions))
         .endswith(bytes.fromhex(receptions_bytes)),

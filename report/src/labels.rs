@@ -29,6 +29,7 @@ pub const KEYS: &[Label] = &[
     label("mission.post_arrival", "after arrival", "after arrival", ""),
     label("mission.clock", "clock", "clock", ""),
     label("mission.time_scale", "time scale", "time scale", ""),
+    label("mission.max_state_age", "oldest state not stale", "max. state age", "s"),
     label("planner.tf_min", "earliest arrival searched", "t_f min", "s"),
     label("planner.tf_max", "latest arrival searched", "t_f max", "s"),
     label("planner.clearance", "required clearance E", "E", "m"),
