@@ -294,7 +294,7 @@ impl StateAges {
             max: 0,
             stale: 0,
             // The tolerance keeps 0.1 s at 0.01 s a period ten ticks, not nine.
-            limit: (m.max_state_age / m.control_period + 1e-9).floor() as u64,
+            limit: (m.max_state_age() / m.control_period + 1e-9).floor() as u64,
             period: m.control_period,
         }
     }
@@ -1627,7 +1627,7 @@ mod tests {
     #[test]
     fn a_state_is_stale_beyond_the_missions_age_and_every_age_is_counted() {
         let (mut m, paths, _) = case_b();
-        m.mission.max_state_age = 0.03;
+        m.mission.max_state_age = Some(0.03);
         let dt = m.mission.control_period;
         let mut agent = RealtimeAgent::new(Agent::new(&m, 2, paths[1].1), &m, false);
         // A driver at a third of the control rate: each state is acted on 1, 2 and 3 periods old.

@@ -89,9 +89,18 @@ pub struct MissionSection {
     /// Realtime only: simulated seconds a vehicle's freshest state may be old when its agent acts
     /// before that period counts as stale. A vehicle's own navigation (or a ROS 2 node playing
     /// it) may publish less often than the control period; that is no fault until the pose is
-    /// older than the mission can steer on.
-    #[serde(default = "defaults::max_state_age")]
-    pub max_state_age: f64,
+    /// older than the mission can steer on. Unset: `MissionSection::max_state_age`'s default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_state_age: Option<f64>,
+}
+
+impl MissionSection {
+    /// `max_state_age`, or unset 0.1 s (the default communication period), or a period if the
+    /// control period is longer: a state is a period old when it is used.
+    pub fn max_state_age(&self) -> f64 {
+        self.max_state_age
+            .unwrap_or(defaults::max_state_age().max(self.control_period))
+    }
 }
 
 /// Who keeps time (docs/PROTOCOL.md): the world waiting for every command, or the wall clock.
@@ -538,7 +547,7 @@ mod defaults {
         1.0
     }
     /// The default communication period: the fleet coordinates on γ no fresher than that.
-    pub fn max_state_age() -> f64 {
+    pub(super) fn max_state_age() -> f64 {
         0.1
     }
     pub fn weight() -> f64 {

@@ -137,7 +137,7 @@ impl Mission {
             ),
         )?;
         check(
-            m.max_state_age.is_finite() && m.max_state_age >= m.control_period,
+            m.max_state_age.is_none_or(|age| age.is_finite() && age >= m.control_period),
             key("mission", "max_state_age"),
             format!(
                 "must be a finite number of seconds ≥ mission.control_period ({} s): a state is a period old when it is used",
