@@ -466,13 +466,6 @@ fn a_ros2_node_plays_a_vehicle_beside_the_one_the_world_simulates() {
     assert!(telemetry.lines().filter(|l| l.split(',').nth(2) == Some("2")).count() > 1000);
 }
 
-/// How `role` `id` kept its period, from a summary.
-fn timing_of<'a>(s: &'a Value, role: &str, id: u64) -> &'a Value {
-    let timing = s["timing"].as_array().unwrap();
-    let t = timing.iter().find(|t| t["role"] == role && t["id"] == id);
-    t.unwrap_or_else(|| panic!("no timing of {role} {id}: {timing:?}"))
-}
-
 /// A node publishing vehicle 2's odometry at a third of the control rate, as a navigation filter
 /// slower than the controller does: its agent acts on states up to three periods older than the
 /// world's vehicle's agent does, which the mission's default `max_state_age` (0.1 s) allows, so
@@ -489,7 +482,7 @@ fn a_ros2_node_at_a_third_of_the_control_rate_keeps_the_timing_and_its_ages_are_
     assert_eq!(s["rejected_messages"], 0, "{}", s["rejections"]);
     let said = common::text(&recorded);
     assert!(!said.contains("TIMING VIOLATED"), "{said}");
-    let (slow, simulated) = (timing_of(&s, "agent", 2), timing_of(&s, "agent", 1));
+    let (slow, simulated) = (common::timing(&s, "agent", 2), common::timing(&s, "agent", 1));
     let p50 = slow["state_age_p50_s"].as_f64().unwrap();
     let max = slow["state_age_max_s"].as_f64().unwrap();
     // The agent acts half a period after the world's beat: a state of the world's is of that

@@ -348,15 +348,20 @@ mod tests {
             .collect()
     }
 
+    /// Mission `m` of vehicles 1 and 2, both simulated, speaking ROS 2 as `ros2` says.
+    fn two_vehicles(ros2: &Ros2Config) -> Fleet<'_> {
+        Fleet {
+            keys: Keys::new("m"),
+            vehicles: &[1, 2],
+            ros2: Some(ros2),
+            played: &[],
+        }
+    }
+
     #[test]
     fn each_identity_may_publish_only_what_its_role_publishes() {
         let ros2 = Ros2Config::on(7);
-        let fleet = Fleet {
-            keys: Keys::new("m"),
-            vehicles: &[1, 2],
-            ros2: Some(&ros2),
-            played: &[],
-        };
+        let fleet = two_vehicles(&ros2);
         let acl = access_control(&fleet, Naming::Username);
         let puts = |identity| allowed(&acl, identity, "ingress", "put");
         assert_eq!(
@@ -447,12 +452,7 @@ mod tests {
     #[test]
     fn an_open_link_may_do_what_an_observer_does() {
         let ros2 = Ros2Config::on(7);
-        let fleet = Fleet {
-            keys: Keys::new("m"),
-            vehicles: &[1, 2],
-            ros2: Some(&ros2),
-            played: &[],
-        };
+        let fleet = two_vehicles(&ros2);
         let mut acl = access_control(&fleet, Naming::CommonName);
         open_to_listeners(&mut acl, "tcp");
         assert_eq!(rules_of(&acl, "open").unwrap(), rules_of(&acl, "observer").unwrap());

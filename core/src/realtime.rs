@@ -69,15 +69,7 @@ impl Lateness {
 
     /// The upper edge of the bucket holding quantile `q`, in ms.
     fn quantile_ms(&self, q: f64) -> f64 {
-        let rank = (q * self.periods as f64).ceil().max(1.0) as u64;
-        let mut seen = 0;
-        for (n, &count) in self.buckets.iter().enumerate() {
-            seen += count;
-            if seen >= rank {
-                return 2f64.powf((n + 1) as f64 / PER_OCTAVE) / 1e3;
-            }
-        }
-        0.0
+        quantile_bucket(&self.buckets, self.periods, q).map_or(0.0, |n| 2f64.powf((n + 1) as f64 / PER_OCTAVE) / 1e3)
     }
 
     pub fn figures(&self) -> PeriodTiming {
@@ -91,6 +83,16 @@ impl Lateness {
             ..PeriodTiming::default()
         }
     }
+}
+
+/// The bucket of a histogram of `total` counts that holds quantile `q`; `None` if it is empty.
+fn quantile_bucket(buckets: &[u64], total: u64, q: f64) -> Option<usize> {
+    let rank = (q * total as f64).ceil().max(1.0) as u64;
+    let mut seen = 0;
+    buckets.iter().position(|&count| {
+        seen += count;
+        seen >= rank
+    })
 }
 
 /// How far ahead of a receiver's clock a message's tick may be, in wall seconds. The hosts'
@@ -311,14 +313,8 @@ impl StateAges {
     }
 
     fn quantile_s(&self, q: f64) -> f64 {
-        let periods: u64 = self.counts.iter().sum();
-        let rank = (q * periods as f64).ceil().max(1.0) as u64;
-        let mut seen = 0;
-        let ticks = self.counts.iter().position(|&n| {
-            seen += n;
-            seen >= rank
-        });
-        ticks.map_or(0.0, |t| t as f64 * self.period)
+        let periods = self.counts.iter().sum();
+        quantile_bucket(&self.counts, periods, q).map_or(0.0, |ticks| ticks as f64 * self.period)
     }
 
     fn figures(&self, timing: PeriodTiming) -> PeriodTiming {
@@ -996,10 +992,12 @@ impl Sampler {
             }
         }
         self.take_commands(tick);
-        let waiting: Vec<usize> = (0..self.ids.len()).filter(|&n| self.carried[n].is_none()).collect();
-        if moved && self.last.is_none() && !waiting.is_empty() && waiting.iter().all(|&n| self.unkept[n]) {
-            let players = waiting.iter().map(|&n| self.ids.ids()[n]).collect();
-            self.players_from = Some((tick + 1, players));
+        if moved && self.last.is_none() {
+            let waiting = || (0..self.ids.len()).filter(|&n| self.carried[n].is_none());
+            if waiting().next().is_some() && waiting().all(|n| self.unkept[n]) {
+                let players = waiting().map(|n| self.ids.ids()[n]).collect();
+                self.players_from = Some((tick + 1, players));
+            }
         }
         if moved {
             self.record(tick, emit);
