@@ -4,8 +4,10 @@
 //! is asked again, up to `ATTEMPTS` times; what still went unacknowledged is logged by the
 //! sender, and the recorder's summary names what never came (an unreported role, a missed end).
 //!
-//! A query overtakes nothing sent before it on the same link, so a recorder that acknowledges the
-//! end has every tick before it too.
+//! A query overtakes nothing sent before it on the same link, so a recorder that takes the end
+//! has had every tick before it, or knows which it lost; it acknowledges the end once it has
+//! fetched those from the world's history (`take_over_held`), which the world answers until
+//! then.
 
 use std::collections::BTreeSet;
 use std::time::Duration;
@@ -15,7 +17,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tcpf_core::msg::Checked;
 use tokio::sync::mpsc;
-use zenoh::query::{ConsolidationMode, QueryTarget, Queryable};
+use zenoh::query::{ConsolidationMode, Query, QueryTarget, Queryable};
 use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode};
@@ -91,6 +93,19 @@ pub async fn hand_over<T: Serialize>(
     })
 }
 
+/// A recorder's acknowledgement of one hand-over, for it to send once it has what the message
+/// says it has (the end: every tick before it). Dropped unsent, the sender asks again.
+pub struct Ack(Query);
+
+impl Ack {
+    pub fn send(self) {
+        let key = self.0.key_expr().clone();
+        if let Err(e) = self.0.reply(key.clone(), Vec::<u8>::new()).wait() {
+            tracing::warn!("cannot acknowledge what came on {key}: {e}");
+        }
+    }
+}
+
 /// The recorder's side: takes what is handed over on `key` (each message wrapped by `wrap`, into
 /// the channel its subscriptions share) and acknowledges it once it is queued. What cannot be
 /// used is refused and counted, and not acknowledged; a full queue is counted and not
@@ -106,22 +121,119 @@ where
     T: DeserializeOwned + Checked + Send + 'static,
     M: Send + 'static,
 {
+    declare(session, key, rejected, tx, move |message, ack| {
+        (wrap(message), Some(ack))
+    })
+    .await
+}
+
+/// `take_over`, but the acknowledgement goes with the message, for the recorder to send once
+/// it holds.
+pub async fn take_over_held<T, M>(
+    session: &Session,
+    key: &str,
+    rejected: &Rejected,
+    tx: mpsc::Sender<Received<M>>,
+    wrap: fn(T, Ack) -> M,
+) -> Result<Queryable<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+    M: Send + 'static,
+{
+    declare(session, key, rejected, tx, move |message, ack| {
+        (wrap(message, ack), None)
+    })
+    .await
+}
+
+/// The queryable of a hand-over: `deliver` makes the message to queue, and the acknowledgement
+/// to send once it is queued, if it does not keep it.
+async fn declare<T, M>(
+    session: &Session,
+    key: &str,
+    rejected: &Rejected,
+    tx: mpsc::Sender<Received<M>>,
+    deliver: impl Fn(T, Ack) -> (M, Option<Ack>) + Send + Sync + 'static,
+) -> Result<Queryable<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+    M: Send + 'static,
+{
     let rejected = rejected.clone();
     session
         .declare_queryable(key)
         .callback(move |query| {
-            let key = query.key_expr().as_str();
+            let key = query.key_expr().as_str().to_string();
             let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
             let message = match decode::<T>(&bytes) {
                 Ok(message) => message,
-                Err(e) => return rejected.invalid(e, key),
+                Err(e) => return rejected.invalid(e, &key),
             };
-            if enqueue(&tx, key, wrap(message), &rejected) {
-                if let Err(e) = query.reply(query.key_expr().clone(), Vec::<u8>::new()).wait() {
-                    tracing::warn!("cannot acknowledge what came on {key}: {e}");
-                }
+            let (message, ack) = deliver(message, Ack(query));
+            if enqueue(&tx, &key, message, &rejected) {
+                ack.into_iter().for_each(Ack::send);
             }
         })
         .await
         .map_err(|e| anyhow!("cannot take over {key}: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tcpf_core::msg::{End, PROTOCOL_VERSION};
+
+    async fn lone_session() -> Session {
+        let mut config = zenoh::Config::default();
+        config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+        config
+            .insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#)
+            .unwrap();
+        zenoh::open(config).await.unwrap()
+    }
+
+    /// The world waits for a recorder's acknowledgement of the end, asking again meanwhile, for
+    /// as long as the recorder holds it (while it fetches the ticks it lost).
+    #[tokio::test(flavor = "multi_thread")]
+    async fn a_held_acknowledgement_keeps_the_sender_asking_until_it_is_sent() {
+        let session = lone_session().await;
+        let keys = Keys::new("held");
+        let _token = session
+            .liveliness()
+            .declare_token(keys.alive(Role::Record, 0))
+            .await
+            .unwrap();
+        let (tx, mut rx) = mpsc::channel(4);
+        let rejected = Rejected::default();
+        let _taken = take_over_held(&session, &keys.end(), &rejected, tx, |end: End, ack| (end, ack))
+            .await
+            .unwrap();
+        let end = End {
+            version: PROTOCOL_VERSION,
+            ticks: 42,
+            lost: vec![],
+            arrived: vec![],
+        };
+        let sender = {
+            let (session, keys, end) = (session.clone(), keys.clone(), end.clone());
+            tokio::spawn(async move { hand_over(&session, &keys, keys.end(), &end, "the end").await })
+        };
+        let (first, held) = rx.recv().await.unwrap().message;
+        assert_eq!(first, end);
+        let (again, ack) = rx.recv().await.unwrap().message;
+        assert_eq!(again, end, "asked again once an attempt went unanswered");
+        assert!(!sender.is_finished());
+        held.send();
+        ack.send();
+        let handed = sender.await.unwrap().unwrap();
+        assert_eq!(
+            handed,
+            Handed {
+                acknowledged: 1,
+                recorders: 1,
+                attempts: 2
+            }
+        );
+        assert_eq!(rejected.totals(), Default::default());
+    }
 }

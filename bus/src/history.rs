@@ -57,7 +57,7 @@ pub async fn serve(
 
 /// Answers `asked` with the states the world's history holds of it, then, as an error reply,
 /// the vehicles of which it keeps none.
-pub fn answer<'a>(asked: Asked, states: impl Iterator<Item = &'a State>, unkept: Vec<u32>) -> Result<()> {
+pub fn answer<'a>(asked: &Asked, states: impl Iterator<Item = &'a State>, unkept: Vec<u32>) -> Result<()> {
     let key = asked.query.key_expr().clone();
     for state in states {
         asked
@@ -69,7 +69,7 @@ pub fn answer<'a>(asked: Asked, states: impl Iterator<Item = &'a State>, unkept:
     if !unkept.is_empty() {
         let unkept = Fetch {
             ids: unkept,
-            ..asked.fetch
+            ..asked.fetch.clone()
         };
         asked
             .query

@@ -9,10 +9,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
-use tcpf_bus::handover::take_over;
+use tcpf_bus::handover::{take_over, take_over_held, Ack};
 use tcpf_bus::history;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
+use tcpf_core::lockstep::Reject;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::msg::{Clock, Command, End, Loss, Report, State, TickRecord};
@@ -44,7 +45,9 @@ enum Message {
     Tick(TickRecord<'static>),
     State(State),
     Command(Command),
-    End(End),
+    /// The end, with the acknowledgement the world waits for: sent once every tick before it
+    /// is in, from the world's history if need be.
+    End(End, Ack),
     Loss(Loss),
     Report(Box<Report>),
     /// Realtime: a state the world's history gave, and the end of its answer (the vehicles it
@@ -58,7 +61,7 @@ impl Message {
     fn is_the_worlds(&self) -> bool {
         matches!(
             self,
-            Message::Tick(_) | Message::State(_) | Message::End(_) | Message::History(_)
+            Message::Tick(_) | Message::State(_) | Message::End(..) | Message::History(_)
         )
     }
 }
@@ -109,6 +112,8 @@ pub struct Recording {
     first: Option<Instant>,
     _subscribers: Vec<Subscriber<()>>,
     _queryables: Vec<Queryable<()>>,
+    /// The end's acknowledgements, until the recording has every tick before it.
+    held: Vec<Ack>,
     /// Withdrawn once the recording is complete and every report it waits for is in: the world
     /// and the agents wait for the recorders to leave before they close their sessions.
     token: Option<LivelinessToken>,
@@ -185,7 +190,7 @@ impl Recording {
         }
         // The roles' last words come as hand-overs, which this recorder acknowledges.
         let queryables = vec![
-            take_over(session, &keys.end(), &rejected, tx.clone(), Message::End).await?,
+            take_over_held(session, &keys.end(), &rejected, tx.clone(), Message::End).await?,
             take_over(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?,
             take_over(session, &keys.reports(), &rejected, tx.clone(), |r| {
                 Message::Report(Box::new(r))
@@ -217,6 +222,7 @@ impl Recording {
             first: None,
             _subscribers: subscribers,
             _queryables: queryables,
+            held: Vec::new(),
             token: None,
             ids,
             from_world: 0,
@@ -310,10 +316,7 @@ impl Recording {
                         }
                         // A lockstep recorder takes states and commands from the tick record.
                         Message::State(_) | Message::Command(_) | Message::History(_) | Message::Fetched(_) => {}
-                        Message::End(e) => match recorder.on_end(e.clone()) {
-                            Ok(()) => self.end = Some(e),
-                            Err(why) => self.rejected.reject(why, &m.key),
-                        },
+                        Message::End(e, ack) => take_end(&mut self.end, &mut self.held, &self.rejected, &m.key, (e, ack), |e| recorder.on_end(e)),
                         Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, *r),
                         Message::Loss(l) => self.rejected.check(&m.key, l.id, || recorder.on_lost(l.into())),
                     }
@@ -362,10 +365,7 @@ impl Recording {
                             }
                         }
                         Message::Fetched(unkept) => sampler.on_fetched(&unkept),
-                        Message::End(e) => match sampler.on_end(e.clone()) {
-                            Ok(()) => self.end = Some(e),
-                            Err(why) => self.rejected.reject(why, &m.key),
-                        },
+                        Message::End(e, ack) => take_end(&mut self.end, &mut self.held, &self.rejected, &m.key, (e, ack), |e| sampler.on_end(e)),
                         Message::Report(r) => take_report(&mut self.exit_reports, &self.keys, &self.rejected, &m.key, *r),
                     }
                     let mut failure = Ok(());
@@ -401,6 +401,9 @@ impl Recording {
                 }
             });
         }
+        if self.settled() {
+            self.held.drain(..).for_each(Ack::send);
+        }
         if self.ticks() > before {
             self.progress = Instant::now();
             self.first.get_or_insert(self.progress);
@@ -419,6 +422,16 @@ impl Recording {
             Machine::Lockstep(recorder) => recorder.complete(),
             // Not while the rows wait for the world's history.
             Machine::Realtime { sampler, .. } => sampler.ended() && !sampler.fetching(),
+        }
+    }
+
+    /// Every tick before the end is in, or known lost: a lockstep recorder's came before the
+    /// end; a realtime one's may wait for the world's history, which the world answers until it
+    /// has the end's acknowledgement.
+    fn settled(&self) -> bool {
+        match &self.machine {
+            Machine::Lockstep(_) => true,
+            Machine::Realtime { sampler, .. } => !sampler.fetching(),
         }
     }
 
@@ -690,6 +703,28 @@ pub async fn record(
 
 /// Keeps a process's exit report if its key names the role and id its body does, else counts it
 /// as from the wrong sender.
+/// The world's end, kept once, its acknowledgement held for `settled`; the same end again (the
+/// world asks again while the recorder fetches) is held too, not refused.
+fn take_end(
+    end: &mut Option<End>,
+    held: &mut Vec<Ack>,
+    rejected: &Rejected,
+    key: &str,
+    (e, ack): (End, Ack),
+    take: impl FnOnce(End) -> Result<(), Reject>,
+) {
+    if end.as_ref() == Some(&e) {
+        return held.push(ack);
+    }
+    match take(e.clone()) {
+        Ok(()) => {
+            *end = Some(e);
+            held.push(ack);
+        }
+        Err(why) => rejected.reject(why, key),
+    }
+}
+
 fn take_report(reports: &mut Vec<Report>, keys: &Keys, rejected: &Rejected, key: &str, report: Report) {
     if !keep_report(reports, keys, key, report) {
         rejected.wrong_sender(key);

@@ -926,17 +926,22 @@ impl Sampler {
         }
     }
 
-    /// The next tick to write, if any state has come for it or after it.
+    /// The next tick to write: if any state has come for it or after it, or, once the end is
+    /// known, if the world ran it.
     fn next_tick(&self) -> Option<u64> {
-        let first = *self.pending.keys().next()?;
-        Some(self.next.unwrap_or(first))
+        let ran = |tick: &u64| self.end.as_ref().is_some_and(|e| *tick < e.ticks);
+        match self.pending.keys().next() {
+            Some(&first) => Some(self.next.unwrap_or(first)),
+            None => self.next.filter(ran),
+        }
     }
 
-    /// Every vehicle has a state of a later tick, or one is `STALL_S` ahead; a tick the end
-    /// says was never run is never over.
+    /// Every vehicle has a state of a later tick, or one is `STALL_S` ahead; once the end is
+    /// known, every tick it says was run is, and no other: what was sent before the end came
+    /// before it, so a state of a tick before it that has not come was lost.
     fn over(&self, tick: u64) -> bool {
-        if self.end.as_ref().is_some_and(|e| tick >= e.ticks) {
-            return false;
+        if let Some(end) = &self.end {
+            return tick < end.ticks;
         }
         let later = |s: &Option<State>| s.is_some_and(|s| s.tick > tick);
         self.newest.iter().all(later) || self.newest_state().is_some_and(|k| k >= tick + self.stall_ticks)
@@ -963,10 +968,15 @@ impl Sampler {
             return false;
         }
         // Each vehicle up to its own newest state: a later tick of it has not been missed yet
-        // (another's states, a player's, may run ahead of the world's).
+        // (another's states, a player's, may run ahead of the world's). After the end, up to
+        // the last tick the world ran: any of them not come by then was lost.
         for &id in &ids {
             let n = self.ids.position(id).expect("a vehicle of the roster");
-            self.asked_through[n] = Some(self.newest[n].map_or(tick, |s| s.tick.max(tick + 1) - 1));
+            let through = match &self.end {
+                Some(end) => end.ticks - 1,
+                None => self.newest[n].map_or(tick, |s| s.tick.max(tick + 1) - 1),
+            };
+            self.asked_through[n] = Some(through);
         }
         let to = self.asked_through.iter().flatten().copied().max().unwrap_or(tick);
         let fetch = Fetch {
@@ -1572,6 +1582,62 @@ mod tests {
         sampler.drain(|_, _| {});
         let asked = sampler.fetch().expect("ticks 3 and 4 of vehicle 1");
         assert_eq!((asked.from, asked.to, &asked.ids[..]), (3, 4, &[1][..]));
+    }
+
+    /// The last ticks before the end have no later state to say they are over: the end does,
+    /// and their lost states are fetched up to the last tick the world ran.
+    #[test]
+    fn the_states_lost_just_before_the_end_are_fetched() {
+        let (m, _, t_f) = case_b();
+        let dt = m.mission.control_period;
+        let at = |id: u32, tick| still(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let end = End {
+            version: PROTOCOL_VERSION,
+            ticks: 9,
+            lost: vec![],
+            arrived: vec![],
+        };
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        let mut rows = Vec::new();
+        for tick in 0..6 {
+            for id in [1, 2] {
+                sampler.on_state(at(id, tick), HORIZON).unwrap();
+            }
+        }
+        // Of ticks 6 to 8, only vehicle 1's of 7 came.
+        sampler.on_state(at(1, 7), HORIZON).unwrap();
+        sampler.drain(|s, _| rows.push((s[0].tick, s[1].tick)));
+        assert_eq!(rows.len(), 5, "tick 5 waits for a later state");
+        assert_eq!(sampler.fetch(), None, "nothing is known lost yet");
+        sampler.on_end(end.clone()).unwrap();
+        sampler.drain(|s, _| rows.push((s[0].tick, s[1].tick)));
+        let asked = sampler.fetch().expect("the ticks before the end");
+        assert_eq!((asked.from, asked.to, &asked.ids[..]), (6, 8, &[1, 2][..]));
+        assert!(sampler.fetching(), "the end is not settled while it is asked");
+        for state in [at(1, 6), at(2, 6), at(2, 7), at(1, 8), at(2, 8)] {
+            sampler.on_history(state).unwrap();
+        }
+        sampler.on_fetched(&[]);
+        sampler.drain(|s, _| rows.push((s[0].tick, s[1].tick)));
+        assert!(!sampler.fetching());
+        assert_eq!(rows.len(), 9, "every tick the world ran, before finish");
+        sampler.finish(|_, _| {});
+        assert_eq!(sampler.missing_ticks(), []);
+        assert_eq!(sampler.recovered(), 5);
+        // A history that no longer has them: named, and the end is settled all the same.
+        let mut sampler = Sampler::new(&[1, 2], &m.graph(), t_f, dt);
+        for id in [1, 2] {
+            sampler.on_state(at(id, 0), HORIZON).unwrap();
+        }
+        sampler.on_end(end).unwrap();
+        sampler.drain(|_, _| {});
+        let asked = sampler.fetch().expect("ticks 1 to 8");
+        assert_eq!((asked.from, asked.to), (1, 8));
+        sampler.on_fetched(&[]);
+        sampler.drain(|_, _| {});
+        assert!(!sampler.fetching() && sampler.fetch().is_none(), "asked once");
+        sampler.finish(|_, _| {});
+        assert_eq!(sampler.missing_ticks(), [(1, vec![(1, 8)]), (2, vec![(1, 8)])]);
     }
 
     /// A vehicle whose states stop (its player gone quiet) holds the rows back `STALL_S`, no

@@ -106,6 +106,15 @@ async fn played_odometry(ros2: &mut Option<Ros2Side>) -> Option<Received<(u32, V
     }
 }
 
+/// Answers a recorder's fetch from the world's history. A recorder gone while it was answered
+/// costs it the ticks, not the run.
+fn answer_fetch(node: &RealtimeWorld, asked: tcpf_bus::history::Asked) {
+    let (states, unkept) = node.answer(&asked.fetch);
+    if let Err(e) = tcpf_bus::history::answer(&asked, states, unkept) {
+        tracing::warn!("world: {e}");
+    }
+}
+
 /// What the realtime world hears: every vehicle's commands, and the states of those other
 /// processes play.
 enum Heard {
@@ -653,14 +662,7 @@ impl Shell {
                         ros2.node.put(fleet.map(|s| (s, node.command_of(s.id))), stamp_of(t))?;
                     }
                 }
-                Some(asked) = fetches.recv() => {
-                    let fetch = asked.fetch.clone();
-                    let (states, unkept) = node.answer(&fetch);
-                    // A recorder gone while it was answered costs it the ticks, not the run.
-                    if let Err(e) = tcpf_bus::history::answer(asked, states, unkept) {
-                        tracing::warn!("world: {e}");
-                    }
-                }
+                Some(asked) = fetches.recv() => answer_fetch(&node, asked),
                 Some(h) = heard.recv() => match h.message {
                     Heard::Command(c) => self.rejected.check(&h.key, c.id, || node.on_command(c, fleet.horizon())),
                     Heard::State(s) => self.rejected.check(&h.key, s.id, || node.on_played(s, fleet.horizon())),
@@ -710,7 +712,16 @@ impl Shell {
                 }
             }
         };
-        self.hand_over_end(&end).await?;
+        // A recorder acknowledges the end once it has every tick before it: the states it lost
+        // of the last ones, it fetches meanwhile.
+        let handing = self.hand_over_end(&end);
+        tokio::pin!(handing);
+        loop {
+            tokio::select! {
+                handed = &mut handing => break handed?,
+                Some(asked) = fetches.recv() => answer_fetch(&node, asked),
+            }
+        }
         let timing = node.timing();
         tracing::info!(
             "world: period lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped, {} late commands",
