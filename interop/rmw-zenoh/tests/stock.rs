@@ -11,8 +11,10 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
+use zenoh::liveliness::LivelinessToken;
 use zenoh::sample::Sample;
 use zenoh::Session;
+use zenoh_ext::{AdvancedSubscriber, AdvancedSubscriberBuilderExt, HistoryConfig, RecoveryConfig};
 
 #[path = "../../common/fleet.rs"]
 // Shared by the interop crates: not every one uses every helper.
@@ -138,12 +140,21 @@ impl Recorder {
 
     /// Lets the run start and waits for it to end; returns the probes heard.
     async fn release(self, run: &mut Reaper, dir: &Path) -> Vec<String> {
-        let token = self
-            .session
+        let token = self.start().await;
+        self.finish(token, run, dir).await
+    }
+
+    /// Lets the run start: the recorder the world waits for is here.
+    async fn start(&self) -> LivelinessToken {
+        self.session
             .liveliness()
             .declare_token(format!("tcpf/{MISSION}/alive/record/78"))
             .await
-            .unwrap();
+            .unwrap()
+    }
+
+    /// Waits for the run to end; returns the probes heard.
+    async fn finish(self, token: LivelinessToken, run: &mut Reaper, dir: &Path) -> Vec<String> {
         let status = wait_exit(run, Duration::from_secs(120));
         assert!(
             status.success(),
@@ -339,4 +350,118 @@ async fn an_open_run_lets_a_ros2_node_with_no_configuration_listen_and_only_list
     )
     .unwrap();
     listens_only(&defaults, &mut run, &dir).await;
+}
+
+/// The keys of the fleet's transient-local topics, as their `@adv` tokens name them
+/// (`<key>/@adv/pub/<zid>/uhlc/_`): a planned path per vehicle.
+async fn latched_keys(session: &Session) -> Vec<String> {
+    let replies = session
+        .liveliness()
+        .get(format!("{DOMAIN}/**/@adv/pub/**"))
+        .timeout(Duration::from_secs(5))
+        .await
+        .unwrap();
+    let mut keys = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result() {
+            let token = sample.key_expr().as_str();
+            keys.push(token.split("/@adv/").next().unwrap().to_string());
+        }
+    }
+    keys.sort();
+    keys
+}
+
+/// How many samples came on each key.
+type Deliveries = Arc<Mutex<BTreeMap<String, usize>>>;
+
+/// A transient-local subscription as rmw_zenoh declares one (`SubscriptionData::init`, for the
+/// fleet's paths' QoS: reliable, transient local, keep last 10): zenoh-ext's
+/// `AdvancedSubscriber`, detected through liveliness, asking for the history of late publishers
+/// with no timeout, recovering by heartbeat.
+async fn subscribe_as_rmw_zenoh(session: &Session, key: &str, into: &Deliveries) -> AdvancedSubscriber<()> {
+    let into = into.clone();
+    session
+        .declare_subscriber(key.to_string())
+        .history(HistoryConfig::default().detect_late_publishers().max_samples(10))
+        .query_timeout(Duration::from_millis(u64::MAX))
+        .subscriber_detection()
+        .recovery(RecoveryConfig::default().heartbeat())
+        .callback(move |sample: Sample| {
+            *into.lock().unwrap().entry(sample.key_expr().to_string()).or_default() += 1;
+        })
+        .await
+        .unwrap()
+}
+
+/// Waits up to `within` for a sample on each of `keys`, then a second more for any copy.
+async fn settle(deliveries: &Deliveries, keys: &[String], within: Duration) -> BTreeMap<String, usize> {
+    let deadline = Instant::now() + within;
+    while deliveries.lock().unwrap().len() < keys.len() && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    let got = deliveries.lock().unwrap().clone();
+    got
+}
+
+/// A ROS 2 subscriber of a planned path, declared as rmw_zenoh declares it, receives the path
+/// exactly once: joining before the run starts (the world's live sample and its answer to the
+/// history query are one sample to it), and joining while it runs (the answer alone).
+#[tokio::test(flavor = "multi_thread")]
+async fn a_late_subscriber_as_rmw_zenoh_makes_one_receives_each_path_once() {
+    let dir = scratch("late");
+    let mut run = held_run(&dir, &["--clock", "realtime", "--time-scale", "5"]);
+    let config = dir.join("run/ros2.json5");
+    let early = open(&config).await.unwrap();
+    assert_eq!(nodes(&early).await.len(), 3, "the fleet's ROS 2 graph");
+    let keys = latched_keys(&early).await;
+    assert_eq!(keys.len(), 2, "a path per vehicle: {keys:?}");
+    assert!(
+        keys.iter().all(|k| k.contains("/path/nav_msgs::msg::dds_::Path_/")),
+        "{keys:?}"
+    );
+    let before: Deliveries = Arc::default();
+    let mut subscribers = Vec::new();
+    for key in &keys {
+        subscribers.push(subscribe_as_rmw_zenoh(&early, key, &before).await);
+    }
+    let recorder = Recorder::join(&dir).await;
+    let token = recorder.start().await;
+    let once: BTreeMap<String, usize> = keys.iter().map(|k| (k.clone(), 1)).collect();
+    assert_eq!(
+        settle(&before, &keys, Duration::from_secs(20)).await,
+        once,
+        "joined before the start"
+    );
+    // The run is under way: the world publishes its vehicles' odometry.
+    let (heard, _odometry) = listen(&early).await;
+    let odometry = "tcpf/vehicle_1/odom";
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !heard.lock().unwrap().contains_key(odometry) && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert!(
+        heard.lock().unwrap().contains_key(odometry),
+        "no odometry: {:?}",
+        heard.lock().unwrap().keys().collect::<Vec<_>>()
+    );
+    let late = open(&config).await.unwrap();
+    let after: Deliveries = Arc::default();
+    for key in &keys {
+        subscribers.push(subscribe_as_rmw_zenoh(&late, key, &after).await);
+    }
+    assert_eq!(
+        settle(&after, &keys, Duration::from_secs(10)).await,
+        once,
+        "joined while it runs"
+    );
+    assert!(
+        run.0.try_wait().unwrap().is_none(),
+        "the run ended before the late subscriber had its paths"
+    );
+    drop(subscribers);
+    recorder.finish(token, &mut run, &dir).await;
+    late.close().await.unwrap();
+    early.close().await.unwrap();
 }
