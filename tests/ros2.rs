@@ -326,9 +326,36 @@ fn a_lockstep_run_speaks_rmw_zenoh_that_rosbags_decodes_as_the_telemetry() {
         assert_eq!(ns, k as i64 * 10_000_000, "tick {k}");
     }
 
+    // The run's rosbag2 holds what the topics carried, message for message, to the bit: rosbags
+    // reads it as a bag, with its own hashes and message definitions.
+    let bag = read_bag(&out.join("rosbag2"), &dir.join("bag.json"));
+    for kind in ["odometry", "twists", "vectors", "strings", "clock", "paths"] {
+        assert!(
+            bag[kind] == seen[kind],
+            "the bag's {kind} are not what the topics carried"
+        );
+    }
+    assert_odometry_is_the_telemetry(&bag, &rows);
+    let topics = bag["topics"].as_object().unwrap();
+    assert_eq!(topics.len(), 14, "{topics:?}");
+    assert_eq!(topics["/clock"]["count"].as_u64(), Some(ticks as u64));
+    assert_eq!(topics["/tcpf/vehicle_1/path"]["durability"], "transient_local");
+    assert_eq!(topics["/tcpf/vehicle_1/odom"]["type"], "nav_msgs/msg/Odometry");
+
     // Speaking ROS 2 changes nothing of the run.
     run_in_process(&paper("b-current"), &dir.join("i"), &[]);
     assert_same_run(&out, &dir.join("i"));
+}
+
+/// Runs tests/ros2/bag.py on the rosbag2 directory `bag`: what it decoded, which it found
+/// nothing wrong with.
+fn read_bag(bag: &std::path::Path, out: &std::path::Path) -> Value {
+    let script = format!("{}/tests/ros2/bag.py", env!("CARGO_MANIFEST_DIR"));
+    let o = Command::new("python3").arg(&script).arg(bag).arg(out).output().unwrap();
+    assert!(o.status.success(), "{}", common::text(&o));
+    let read: Value = serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    assert_eq!(read["problems"], serde_json::json!([]), "{}", read["problems"]);
+    read
 }
 
 /// Case (b) in realtime at time scale 5 with the mission's `[ros2]`, beside a world that

@@ -10,7 +10,7 @@ use anyhow::{anyhow, Result};
 use tcpf_core::mission::Ros2Config;
 use tcpf_core::msg::{Command, State};
 use tcpf_core::path::GeneralizedPath;
-use tcpf_core::ros2::{self, Entity, LinkCounts, Node, Odometry, Stamp, Type};
+use tcpf_core::ros2::{self, Entity, FleetTopic, LinkCounts, Node, Stamp, Type};
 use tokio::sync::mpsc;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -332,37 +332,32 @@ impl World {
         Ok(())
     }
 
-    /// Publishes the fleet at `stamp`: `/clock`, then each vehicle's odometry (of those it
-    /// simulates) from its state and the command it holds and, if it holds one, its coordination
-    /// state and the links that command reports on, then the fleet's coordination.
+    /// Publishes the fleet at `stamp`: what `ros2::carried` says a tick carries, on the topics
+    /// this node publishes (the odometry of the vehicles it simulates; the agents publish the
+    /// commands).
     pub fn put<'a>(
         &mut self,
         fleet: impl Iterator<Item = (&'a State, Option<&'a Command>)>,
         stamp: Stamp,
     ) -> Result<()> {
-        if let Some(clock) = &mut self.clock {
-            clock.put(ros2::clock(stamp), stamp)?;
-        }
         let fleet: Vec<(&State, Option<&Command>)> = fleet.collect();
-        for &(state, command) in &fleet {
-            if let Some(topic) = self.odometry.get_mut(&state.id) {
-                topic.put(Odometry::of(state, command, stamp).cdr(), stamp)?;
+        let mut published = Ok(());
+        let lockstep = self.clock.is_some();
+        ros2::carried(&mut self.counts, &fleet, stamp, lockstep, |topic, cdr| {
+            let publisher = match topic {
+                FleetTopic::Clock => self.clock.as_mut(),
+                FleetTopic::Odometry(id) => self.odometry.get_mut(&id),
+                FleetTopic::Gamma(id) => self.gamma.get_mut(&id),
+                FleetTopic::Link(from, to) => self.links.get_mut(&(from, to)).map(|(counts, _)| counts),
+                FleetTopic::Cause(from, to) => self.links.get_mut(&(from, to)).map(|(_, causes)| causes),
+                FleetTopic::Coordination => Some(&mut self.coordination),
+                FleetTopic::Command(_) | FleetTopic::Path(_) => None,
+            };
+            if let (Some(publisher), Ok(())) = (publisher, &published) {
+                published = publisher.put(cdr, stamp).map(|_| ());
             }
-            let Some(command) = command else { continue };
-            if let Some(topic) = self.gamma.get_mut(&state.id) {
-                topic.put(ros2::gamma(state, command, stamp), stamp)?;
-            }
-            for (link, counts, cause) in self.counts.count(command) {
-                if let Some((topic, causes)) = self.links.get_mut(&link) {
-                    if cause.was_sent() {
-                        topic.put(ros2::link(counts, stamp), stamp)?;
-                    }
-                    causes.put(ros2::cause(cause), stamp)?;
-                }
-            }
-        }
-        self.coordination.put(ros2::coordination(&fleet, stamp), stamp)?;
-        Ok(())
+        });
+        published
     }
 }
 

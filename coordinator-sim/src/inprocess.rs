@@ -20,7 +20,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
     let interrupted = tcpf_bus::signals::stop_flag()?;
     dir.write_mission(mission, Mode::InProcess)?;
     dir.write_plan(plan)?;
-    let mut telemetry = dir.telemetry(mission, plan, Mode::InProcess, live)?;
+    let mut telemetry = dir.telemetry(mission, plan, Mode::InProcess, live, None)?;
     let mut failure = None;
     let progress = Ticks::new(mission);
     let mut ticks = 0;

@@ -435,7 +435,7 @@ async fn unstarted(
     // The (empty) telemetry, whose start writes a provisional summary; then, whatever became of
     // it, the summary that replaces that one; then the report made of both.
     let telemetry = dir
-        .telemetry(mission, plan, Mode::Processes, None)
+        .telemetry(mission, plan, Mode::Processes, None, None)
         .and_then(|t| t.finish());
     let written = dir
         .write_summary(&summary)
@@ -626,7 +626,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             &session,
             mission,
             plan.t_f,
-            dir.telemetry(mission, plan, Mode::Processes, live)?,
+            dir.telemetry(mission, plan, Mode::Processes, live, graph.as_ref())?,
         )
         .await
     };

@@ -147,13 +147,8 @@ struct Speaking {
 impl Speaking {
     fn put_paths(&mut self) -> Result<()> {
         let clock = self.clock;
-        self.node.put_paths(&self.paths, |t| stamp_at(clock.as_ref(), t))
+        self.node.put_paths(&self.paths, |t| Stamp::of(clock.as_ref(), t))
     }
-}
-
-/// Fleet time `t` as the fleet's stamps say it, before a realtime fleet's clock is known too.
-fn stamp_at(clock: Option<&Clock>, t: f64) -> Stamp {
-    clock.map_or_else(|| Stamp::from_seconds(t), |c| Stamp::of_fleet(c, t))
 }
 
 /// Writes a tick of the telemetry and, with `--ros2`, publishes it.
@@ -166,7 +161,7 @@ fn write_tick(
     telemetry.tick(states, commands)?;
     match ros2 {
         Some(r) => {
-            let stamp = stamp_at(r.clock.as_ref(), states[0].t);
+            let stamp = Stamp::of(r.clock.as_ref(), states[0].t);
             r.node
                 .put(states.iter().zip(commands).map(|(s, c)| (s, c.as_ref())), stamp)
         }
@@ -336,7 +331,7 @@ impl Recording {
                     self.clock = None;
                     let clock = answer?;
                     check_clock("recorder", &self.expected, &clock)?;
-                    self.telemetry.set_epoch(clock.epoch);
+                    self.telemetry.set_clock(clock);
                     if let Some(ros2) = &mut self.ros2 {
                         ros2.clock = Some(clock);
                         ros2.put_paths()?;
@@ -566,7 +561,14 @@ pub async fn record(
         &session,
         mission,
         plan.t_f,
-        dir.telemetry(mission, plan, Mode::Processes, live)?,
+        // The bag of a fleet that speaks ROS 2, by the mission's `[ros2]`, or by this recorder.
+        dir.telemetry(
+            mission,
+            plan,
+            Mode::Processes,
+            live,
+            ros2.as_ref().or(mission.ros2.as_ref()),
+        )?,
     )
     .await
     .map_err(unrecorded)?;

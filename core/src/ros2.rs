@@ -54,6 +54,165 @@ pub const PATH: Type = Type {
     hash: "RIHS01_1957a5bb3cee5da65c4e52e52b65a93df227efce4c20f8458b36e73066ca334b",
 };
 
+/// The ROS 2 message definitions (`.msg`, as a bag's `ros2msg` schema holds them) of the types
+/// the fleet publishes and of the types inside them, by name without `/msg/`.
+const DEFINITIONS: &[(&str, &str)] = &[
+    (
+        "nav_msgs/Odometry",
+        "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist",
+    ),
+    ("nav_msgs/Path", "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses"),
+    ("rosgraph_msgs/Clock", "builtin_interfaces/Time clock"),
+    ("std_msgs/Header", "builtin_interfaces/Time stamp\nstring frame_id"),
+    ("std_msgs/String", "string data"),
+    ("builtin_interfaces/Time", "int32 sec\nuint32 nanosec"),
+    ("geometry_msgs/PoseWithCovariance", "geometry_msgs/Pose pose\nfloat64[36] covariance"),
+    ("geometry_msgs/TwistWithCovariance", "geometry_msgs/Twist twist\nfloat64[36] covariance"),
+    ("geometry_msgs/PoseStamped", "std_msgs/Header header\ngeometry_msgs/Pose pose"),
+    ("geometry_msgs/Pose", "geometry_msgs/Point position\ngeometry_msgs/Quaternion orientation"),
+    ("geometry_msgs/Point", "float64 x\nfloat64 y\nfloat64 z"),
+    ("geometry_msgs/Quaternion", "float64 x\nfloat64 y\nfloat64 z\nfloat64 w"),
+    ("geometry_msgs/Twist", "geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular"),
+    ("geometry_msgs/Vector3Stamped", "std_msgs/Header header\ngeometry_msgs/Vector3 vector"),
+    ("geometry_msgs/Vector3", "float64 x\nfloat64 y\nfloat64 z"),
+];
+
+impl Type {
+    /// The type's full message definition as rosbag2 stores it (`ros2msg`): its own fields, then
+    /// each type used in it, depth first, once, after a line of 80 `=` and `MSG: <name>`.
+    pub fn definition(&self) -> String {
+        fn of(name: &str) -> &'static str {
+            DEFINITIONS
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, d)| *d)
+                .expect("every type inside a published one is defined")
+        }
+        fn inner(name: &str, seen: &mut Vec<&'static str>) {
+            for line in of(name).lines() {
+                let ty = line.split_whitespace().next().unwrap_or_default();
+                let ty = ty.split('[').next().unwrap_or_default();
+                if let Some(&(n, _)) = DEFINITIONS.iter().find(|(n, _)| *n == ty) {
+                    if !seen.contains(&n) {
+                        seen.push(n);
+                        inner(n, seen);
+                    }
+                }
+            }
+        }
+        let name = self.name.replace("/msg/", "/");
+        let mut seen = Vec::new();
+        inner(&name, &mut seen);
+        let mut text = format!("{}\n", of(&name));
+        for n in seen {
+            text += &format!("{}\nMSG: {n}\n{}\n", "=".repeat(80), of(n));
+        }
+        text
+    }
+}
+
+/// A topic the fleet's ROS 2 nodes publish (docs/ROS2.md's table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum FleetTopic {
+    Clock,
+    Odometry(u32),
+    Command(u32),
+    Path(u32),
+    Gamma(u32),
+    Link(u32, u32),
+    Cause(u32, u32),
+    Coordination,
+}
+
+impl FleetTopic {
+    pub fn ty(self) -> Type {
+        match self {
+            FleetTopic::Clock => CLOCK,
+            FleetTopic::Odometry(_) => ODOMETRY,
+            FleetTopic::Command(_) => TWIST,
+            FleetTopic::Path(_) => PATH,
+            FleetTopic::Gamma(_) | FleetTopic::Link(..) | FleetTopic::Coordination => VECTOR3_STAMPED,
+            FleetTopic::Cause(..) => STRING,
+        }
+    }
+
+    /// Its QoS: a path is transient local, for late subscribers.
+    pub fn qos(self) -> &'static str {
+        match self {
+            FleetTopic::Path(_) => QOS_TRANSIENT_LOCAL,
+            _ => QOS,
+        }
+    }
+
+    /// Its name under `ros2`'s namespace.
+    pub fn name(self, ros2: &Ros2Config) -> String {
+        match self {
+            FleetTopic::Clock => "/clock".into(),
+            FleetTopic::Odometry(id) => ros2.odometry_topic(id),
+            FleetTopic::Command(id) => ros2.command_topic(id),
+            FleetTopic::Path(id) => ros2.path_topic(id),
+            FleetTopic::Gamma(id) => ros2.gamma_topic(id),
+            FleetTopic::Link(from, to) => ros2.link_topic(from, to),
+            FleetTopic::Cause(from, to) => ros2.link_cause_topic(from, to),
+            FleetTopic::Coordination => ros2.coordination_topic(),
+        }
+    }
+
+    /// Every topic of a fleet of `ids` over `links`, as a bag of it holds them.
+    pub fn of_fleet(ids: &[u32], links: &[(u32, u32)], lockstep: bool) -> Vec<FleetTopic> {
+        let clock = lockstep.then_some(FleetTopic::Clock);
+        let vehicles = ids.iter().flat_map(|&id| {
+            [
+                FleetTopic::Odometry(id),
+                FleetTopic::Command(id),
+                FleetTopic::Path(id),
+                FleetTopic::Gamma(id),
+            ]
+        });
+        let links = links
+            .iter()
+            .flat_map(|&(from, to)| [FleetTopic::Link(from, to), FleetTopic::Cause(from, to)]);
+        clock
+            .into_iter()
+            .chain(vehicles)
+            .chain(links)
+            .chain([FleetTopic::Coordination])
+            .collect()
+    }
+}
+
+/// What one tick of the fleet carries on its ROS 2 topics at `stamp`, in the order the world
+/// publishes it: `/clock` (lockstep), then per vehicle its odometry and, if it holds a command,
+/// that command (its agent's `cmd`), its coordination state and the links the command reports on
+/// (a count when a message was sent, and its fate); then the fleet's coordination.
+pub fn carried(
+    counts: &mut LinkCounts,
+    fleet: &[(&State, Option<&Command>)],
+    stamp: Stamp,
+    lockstep: bool,
+    mut emit: impl FnMut(FleetTopic, Vec<u8>),
+) {
+    if lockstep {
+        emit(FleetTopic::Clock, clock(stamp));
+    }
+    for &(state, command) in fleet {
+        emit(
+            FleetTopic::Odometry(state.id),
+            Odometry::of(state, command, stamp).cdr(),
+        );
+        let Some(command) = command else { continue };
+        emit(FleetTopic::Command(state.id), twist(command));
+        emit(FleetTopic::Gamma(state.id), gamma(state, command, stamp));
+        for ((from, to), link_counts, cause) in counts.count(command) {
+            if cause.was_sent() {
+                emit(FleetTopic::Link(from, to), link(link_counts, stamp));
+            }
+            emit(FleetTopic::Cause(from, to), self::cause(cause));
+        }
+    }
+    emit(FleetTopic::Coordination, coordination(fleet, stamp));
+}
+
 /// The inertial frame of every pose (REP 105's `map`: x east, y north, z up; yaw
 /// counter-clockwise from x, as the mission's headings are).
 pub const MAP_FRAME: &str = "map";
@@ -236,6 +395,11 @@ impl Stamp {
             true => Stamp::from_seconds(clock.epoch + t / clock.time_scale),
             false => Stamp::from_seconds(t),
         }
+    }
+
+    /// Fleet time `t` on `clock` (`of_fleet`), or, with none (lockstep), simulated time.
+    pub fn of(clock: Option<&Clock>, t: f64) -> Stamp {
+        clock.map_or_else(|| Stamp::from_seconds(t), |c| Stamp::of_fleet(c, t))
     }
 
     /// `t` seconds, to the nearest nanosecond.
@@ -847,6 +1011,38 @@ mod tests {
         assert_eq!(i64::from_le_bytes(a[8..16].try_into().unwrap()), 1_500_000_000);
         assert_eq!(a[16], 16);
         assert_eq!(a[17..], gid);
+    }
+
+    #[test]
+    fn a_definition_holds_each_type_inside_once_depth_first() {
+        let rule = "=".repeat(80);
+        assert_eq!(
+            TWIST.definition(),
+            format!("geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular\n{rule}\nMSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n")
+        );
+        let inside = |ty: Type| -> Vec<String> {
+            ty.definition()
+                .lines()
+                .filter_map(|l| l.strip_prefix("MSG: ").map(str::to_string))
+                .collect()
+        };
+        assert_eq!(
+            inside(PATH),
+            [
+                "std_msgs/Header",
+                "builtin_interfaces/Time",
+                "geometry_msgs/PoseStamped",
+                "geometry_msgs/Pose",
+                "geometry_msgs/Point",
+                "geometry_msgs/Quaternion"
+            ]
+        );
+        assert_eq!(inside(ODOMETRY).len(), 9);
+        assert_eq!(STRING.definition(), "string data\n");
+        let topics = FleetTopic::of_fleet(&[1, 2], &[(1, 2), (2, 1)], true);
+        assert_eq!(topics.len(), 1 + 2 * 4 + 2 * 2 + 1);
+        assert!(topics.iter().all(|t| !t.ty().definition().is_empty()));
+        assert_eq!(FleetTopic::Path(1).qos(), QOS_TRANSIENT_LOCAL);
     }
 
     #[test]

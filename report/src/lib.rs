@@ -2,6 +2,7 @@
 //! and its files, `report.html` and its plots, the tables printed at the end, and a
 //! sweep's summaries, and `run.mcap` with its live twin for Foxglove. Changing a report rebuilds this crate, not Zenoh.
 
+pub mod bag;
 pub mod labels;
 pub mod live;
 pub mod pdf;

@@ -10,11 +10,12 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
-use tcpf_core::mission::Mission;
-use tcpf_core::msg::{Command, State};
+use tcpf_core::mission::{Mission, Ros2Config};
+use tcpf_core::msg::{Clock, Command, State};
 use tcpf_core::planner::Plan;
 use tcpf_core::telemetry;
 
+use crate::bag::Bag;
 use crate::viewer::Viewer;
 use tcpf_core::summary::{Mode, Provenance, Summary};
 
@@ -213,11 +214,19 @@ impl RunDir {
     }
 
     /// The files written tick by tick: `telemetry.csv`, `messages.csv` and `run.mcap`; with
-    /// `live`, the same channels are served to Foxglove there while the run goes on.
+    /// `live`, the same channels are served to Foxglove there while the run goes on; with `ros2`
+    /// (a run that speaks ROS 2), the rosbag2 of its topics (`bag`).
     ///
     /// Before them it writes a provisional summary.json, which the run's own replaces at its end:
     /// a run stopped on the way (a full disk, a killed launcher) leaves one that says so.
-    pub fn telemetry(&self, mission: &Mission, plan: &Plan, mode: Mode, live: Option<SocketAddr>) -> Result<Telemetry> {
+    pub fn telemetry(
+        &self,
+        mission: &Mission,
+        plan: &Plan,
+        mode: Mode,
+        live: Option<SocketAddr>,
+        ros2: Option<&Ros2Config>,
+    ) -> Result<Telemetry> {
         let mut provisional =
             Summary::before_the_first_tick(mission, plan.t_f, false, Some(UNFINISHED.into()), 0.0, Vec::new());
         provisional.mode = mode;
@@ -231,19 +240,27 @@ impl RunDir {
             Ok(out)
         };
         let viewer = Viewer::create(&self.path.join("run.mcap"), mission, &paths, live)?;
-        // run.mcap is written on a thread of its own: encoding and compressing it costs more than
-        // the two CSV files, and a fleet's run would otherwise wait for all three in turn.
-        let (batches, to_viewer) = mpsc::sync_channel::<(f64, Vec<Tick>)>(VIEWER_QUEUE / VIEWER_BATCH);
+        let bag = ros2
+            .map(|ros2| Bag::create(&self.path, mission, &paths, ros2))
+            .transpose()?;
+        // run.mcap and the bag are written on a thread of their own: encoding and compressing
+        // them costs more than the two CSV files, and a fleet's run would otherwise wait for all
+        // in turn.
+        let (batches, to_viewer) = mpsc::sync_channel::<Batch>(VIEWER_QUEUE / VIEWER_BATCH);
         let thread = std::thread::Builder::new()
             .name("run.mcap".into())
             .spawn(move || {
-                let mut viewer = viewer;
-                for (epoch, batch) in to_viewer {
+                let (mut viewer, mut bag) = (viewer, bag);
+                for (epoch, clock, batch) in to_viewer {
                     for (states, commands) in batch {
                         viewer.tick(epoch, &states, &commands);
+                        if let Some(bag) = &mut bag {
+                            bag.tick(epoch, clock.as_ref(), &states, &commands)?;
+                        }
                     }
                 }
-                viewer.finish()
+                viewer.finish()?;
+                bag.map_or(Ok(()), Bag::finish)
             })
             .context("cannot start the thread that writes run.mcap")?;
         Ok(Telemetry {
@@ -252,6 +269,7 @@ impl RunDir {
             messages: create("messages.csv", telemetry::MESSAGES_HEADER)?,
             viewer: Some((batches, thread)),
             epoch: unix_now(),
+            clock: None,
             batch: Vec::with_capacity(VIEWER_BATCH),
             since: Instant::now(),
             line: String::new(),
@@ -266,8 +284,9 @@ pub const UNFINISHED: &str =
 
 /// A tick's states and commands, on their way to the thread writing run.mcap.
 type Tick = (Vec<State>, Vec<Option<Command>>);
-/// Where batches of ticks go to that thread, each with the fleet's epoch.
-type Batches = SyncSender<(f64, Vec<Tick>)>;
+/// Ticks for that thread, with the fleet's epoch and a realtime fleet's clock.
+type Batch = (f64, Option<Clock>, Vec<Tick>);
+type Batches = SyncSender<Batch>;
 
 /// The wall clock as Unix time, s.
 fn unix_now() -> f64 {
@@ -292,8 +311,10 @@ pub struct Telemetry {
     /// `drop` on a run that failed.
     viewer: Option<(Batches, JoinHandle<Result<()>>)>,
     /// Unix time, s, of the run's t = 0, which run.mcap's times count from: the wall clock as
-    /// the run started, or the realtime fleet's own epoch (`set_epoch`).
+    /// the run started, or the realtime fleet's own epoch (`set_clock`).
     epoch: f64,
+    /// A realtime fleet's clock, whose stamps the bag's messages carry.
+    clock: Option<Clock>,
     /// Ticks not yet handed to it, and since when the first of them waits.
     batch: Vec<Tick>,
     since: Instant,
@@ -332,9 +353,11 @@ impl Telemetry {
         Ok(())
     }
 
-    /// A realtime fleet's epoch (its clock's), for run.mcap's times; before the first tick.
-    pub fn set_epoch(&mut self, epoch: f64) {
-        self.epoch = epoch;
+    /// A realtime fleet's clock: its epoch for run.mcap's times, and the stamps of the bag's
+    /// messages; before the first tick.
+    pub fn set_clock(&mut self, clock: Clock) {
+        self.epoch = clock.epoch;
+        self.clock = Some(clock);
     }
 
     /// Hands the ticks batched so far to the thread writing run.mcap.
@@ -343,7 +366,7 @@ impl Telemetry {
         match &self.viewer {
             // The thread stops on a write that failed, and says why as it is joined.
             Some((batches, _)) => batches
-                .send((self.epoch, batch))
+                .send((self.epoch, self.clock, batch))
                 .map_err(|_| anyhow!("{}: the thread writing it stopped", cannot_write(&self.dir, "run.mcap"))),
             None => Err(anyhow!("run.mcap is closed")),
         }

@@ -3,19 +3,20 @@
 the bus and rosbags (an independent implementation of ROS 2's type hashes and CDR) for the
 messages. Joins as a recorder so that the run waits for it, reads every ROS 2 sample of the
 domain until the run ends, checks what rmw_zenoh would, and writes what it decoded as JSON for
-tests/ros2.rs to compare with the run's telemetry.
+tests/ros2.rs to compare with the run's telemetry and its rosbag2 (tests/ros2/decoded.py).
 
     watch.py ZENOH_JSON5 MISSION_NAME DOMAIN OUT.json
 """
 
 import json
-import math
 import sys
 import threading
 import time
 
 import zenoh
 from rosbags.typesys import Stores, get_typestore
+
+from decoded import Decoded
 
 TYPES = {"nav_msgs::msg::dds_::Odometry_": "nav_msgs/msg/Odometry",
          "nav_msgs::msg::dds_::Path_": "nav_msgs/msg/Path",
@@ -76,17 +77,15 @@ def main():
         subscriber.undeclare()
         end.undeclare()
 
-    problems, odometry, clock, sequences, vectors, twists, paths, strings = [], {}, [], {}, {}, {}, {}, {}
+    problems, sequences, decoded = [], {}, Decoded()
     for key, replies in latched.items():
         if len(replies) != 1:
             problems.append(f"{key}: {len(replies)} replies to a late subscriber, not its one path")
         payload, attachment = replies[0]
         if attachment is None or len(attachment) != 33:
             problems.append(f"{key}: the cached path has no rmw_zenoh attachment")
-        message = store.deserialize_cdr(payload, TYPES[key.split("/")[-2]])
-        paths[key.split("/")[2]] = {"frame": message.header.frame_id, "poses": [
-            [p.header.stamp.sec, p.header.stamp.nanosec, p.pose.position.x, p.pose.position.y,
-             2.0 * math.atan2(p.pose.orientation.z, p.pose.orientation.w)] for p in message.poses]}
+        name = TYPES[key.split("/")[-2]]
+        decoded.add(key.split("/")[2:-2], name, store.deserialize_cdr(payload, name))
     for key, payload, attachment in samples:
         parts = key.split("/")
         dds, hash_ = parts[-2], parts[-1]
@@ -101,40 +100,12 @@ def main():
             continue
         sequence = int.from_bytes(attachment[0:8], "little", signed=True)
         sequences.setdefault(key, []).append(sequence)
-        message = store.deserialize_cdr(payload, name)
-        if name.endswith("String"):
-            # Its topic without the namespace: links/from_1_to_2/cause.
-            strings.setdefault("/".join(parts[2:-2]), []).append(message.data)
-            continue
-        if name.endswith("Twist"):
-            twists.setdefault(parts[2], []).append([repr(message.linear.x), repr(message.angular.z)])
-            continue
-        stamp = [message.clock.sec, message.clock.nanosec] if name.endswith("Clock") else [
-            message.header.stamp.sec, message.header.stamp.nanosec]
-        if name.endswith("Clock"):
-            clock.append(stamp)
-            continue
-        if name.endswith("Vector3Stamped"):
-            # Its topic without the namespace: vehicle_1/gamma, links/from_1_to_2, coordination.
-            v = message.vector
-            vectors.setdefault("/".join(parts[2:-2]), []).append({
-                "stamp": stamp, "frame": message.header.frame_id,
-                "x": repr(v.x), "y": repr(v.y), "z": repr(v.z)})
-            continue
-        pose, twist = message.pose.pose, message.twist.twist
-        q = pose.orientation
-        odometry.setdefault(parts[2], []).append({
-            "stamp": stamp, "frame": message.header.frame_id, "child": message.child_frame_id,
-            # Numbers as their shortest round-trip text: compared to the telemetry's to the bit.
-            "x": repr(pose.position.x), "y": repr(pose.position.y),
-            "yaw": repr(2.0 * math.atan2(q.z, q.w)), "yaw_rate": repr(twist.angular.z),
-            "tilt": [q.x, q.y, pose.position.z], "velocity": [twist.linear.x, twist.linear.y]})
+        decoded.add(parts[2:-2], name, store.deserialize_cdr(payload, name))
     for key, seq in sequences.items():
         if seq != list(range(1, len(seq) + 1)):
             problems.append(f"{key}: sequence numbers {seq[:5]}... are not 1, 2, 3 without a gap")
-    json.dump({"problems": problems, "hashes": hashes, "tokens": tokens, "clock": clock,
-               "odometry": odometry, "vectors": vectors, "twists": twists, "paths": paths,
-               "adv": adv, "strings": strings, "keys": sorted(sequences)}, open(out, "w"))
+    json.dump({"problems": problems, "hashes": hashes, "tokens": tokens, "adv": adv, "keys": sorted(sequences),
+               **decoded.json()}, open(out, "w"))
 
 
 if __name__ == "__main__":
