@@ -23,6 +23,8 @@ use tcpf_core::ros2::{self, FleetTopic, LinkCounts, Stamp};
 /// The bag's directory in the run directory, and its one file, named as rosbag2 names them.
 pub const DIR: &str = "rosbag2";
 const FILE: &str = "rosbag2_0.mcap";
+/// Every file the bag's directory holds.
+pub const FILES: [&str; 2] = [FILE, "metadata.yaml"];
 
 /// One topic of the bag: its MCAP channel, and the messages written on it.
 struct Channel {

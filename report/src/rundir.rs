@@ -163,6 +163,11 @@ impl RunDir {
         ] {
             let _ = fs::remove_file(self.path.join(name));
         }
+        let bag = self.path.join(crate::bag::DIR);
+        for name in crate::bag::FILES {
+            let _ = fs::remove_file(bag.join(name));
+        }
+        let _ = fs::remove_dir(bag);
         // Only empty directories go: anything else put there meanwhile stays.
         for dir in self.made.iter().rev() {
             let _ = fs::remove_dir(dir);
