@@ -343,7 +343,7 @@ impl World {
         let fleet: Vec<(&State, Option<&Command>)> = fleet.collect();
         let mut published = Ok(());
         let lockstep = self.clock.is_some();
-        ros2::carried(&mut self.counts, &fleet, stamp, lockstep, |topic, cdr| {
+        ros2::carried(&mut self.counts, &fleet, stamp, lockstep, |topic, encode| {
             let publisher = match topic {
                 FleetTopic::Clock => self.clock.as_mut(),
                 FleetTopic::Odometry(id) => self.odometry.get_mut(&id),
@@ -354,7 +354,7 @@ impl World {
                 FleetTopic::Command(_) | FleetTopic::Path(_) => None,
             };
             if let (Some(publisher), Ok(())) = (publisher, &published) {
-                published = publisher.put(cdr, stamp).map(|_| ());
+                published = publisher.put(encode(), stamp).map(|_| ());
             }
         });
         published

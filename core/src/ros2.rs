@@ -184,33 +184,34 @@ impl FleetTopic {
 /// What one tick of the fleet carries on its ROS 2 topics at `stamp`, in the order the world
 /// publishes it: `/clock` (lockstep), then per vehicle its odometry and, if it holds a command,
 /// that command (its agent's `cmd`), its coordination state and the links the command reports on
-/// (a count when a message was sent, and its fate); then the fleet's coordination.
+/// (a count when a message was sent, and its fate); then the fleet's coordination. Each message
+/// is handed to `emit` as its encoder, so that a node which publishes only some of the topics
+/// encodes only those.
 pub fn carried(
     counts: &mut LinkCounts,
     fleet: &[(&State, Option<&Command>)],
     stamp: Stamp,
     lockstep: bool,
-    mut emit: impl FnMut(FleetTopic, Vec<u8>),
+    mut emit: impl FnMut(FleetTopic, &dyn Fn() -> Vec<u8>),
 ) {
     if lockstep {
-        emit(FleetTopic::Clock, clock(stamp));
+        emit(FleetTopic::Clock, &|| clock(stamp));
     }
     for &(state, command) in fleet {
-        emit(
-            FleetTopic::Odometry(state.id),
-            Odometry::of(state, command, stamp).cdr(),
-        );
+        emit(FleetTopic::Odometry(state.id), &|| {
+            Odometry::of(state, command, stamp).cdr()
+        });
         let Some(command) = command else { continue };
-        emit(FleetTopic::Command(state.id), twist(command));
-        emit(FleetTopic::Gamma(state.id), gamma(state, command, stamp));
+        emit(FleetTopic::Command(state.id), &|| twist(command));
+        emit(FleetTopic::Gamma(state.id), &|| gamma(state, command, stamp));
         for ((from, to), link_counts, cause) in counts.count(command) {
             if cause.was_sent() {
-                emit(FleetTopic::Link(from, to), link(link_counts, stamp));
+                emit(FleetTopic::Link(from, to), &|| link(link_counts, stamp));
             }
-            emit(FleetTopic::Cause(from, to), self::cause(cause));
+            emit(FleetTopic::Cause(from, to), &|| self::cause(cause));
         }
     }
-    emit(FleetTopic::Coordination, coordination(fleet, stamp));
+    emit(FleetTopic::Coordination, &|| coordination(fleet, stamp));
 }
 
 /// The inertial frame of every pose (REP 105's `map`: x east, y north, z up; yaw

@@ -136,8 +136,8 @@ impl Bag {
             &fleet,
             stamp_of(first.t),
             self.lockstep,
-            |topic, cdr| {
-                carried.push((topic, cdr));
+            |topic, encode| {
+                carried.push((topic, encode()));
             },
         );
         for (topic, cdr) in carried {
