@@ -62,19 +62,11 @@ async fn listen(session: &Session) -> (Heard, zenoh::pubsub::Subscriber<()>) {
 async fn nodes(session: &Session) -> Vec<String> {
     let deadline = Instant::now() + Duration::from_secs(10);
     loop {
-        let replies = session
-            .liveliness()
-            .get(format!("@ros2_lv/{DOMAIN}/**"))
-            .timeout(Duration::from_secs(5))
-            .await
-            .unwrap();
         let mut names = Vec::new();
-        while let Ok(reply) = replies.recv_async().await {
-            if let Ok(sample) = reply.result() {
-                let chunks: Vec<&str> = sample.key_expr().as_str().split('/').collect();
-                if chunks.get(5) == Some(&"NN") {
-                    names.push(format!("{}/{}", chunks[7].replace('%', "/"), chunks[8]));
-                }
+        for token in tokens(session, &format!("@ros2_lv/{DOMAIN}/**")).await {
+            let chunks: Vec<&str> = token.split('/').collect();
+            if chunks.get(5) == Some(&"NN") {
+                names.push(format!("{}/{}", chunks[7].replace('%', "/"), chunks[8]));
             }
         }
         names.sort();
@@ -355,21 +347,30 @@ async fn an_open_run_lets_a_ros2_node_with_no_configuration_listen_and_only_list
 /// The keys of the fleet's transient-local topics, as their `@adv` tokens name them
 /// (`<key>/@adv/pub/<zid>/uhlc/_`): a planned path per vehicle.
 async fn latched_keys(session: &Session) -> Vec<String> {
+    let mut keys: Vec<String> = tokens(session, &format!("{DOMAIN}/**/@adv/pub/**"))
+        .await
+        .iter()
+        .map(|token| token.split("/@adv/").next().unwrap().to_string())
+        .collect();
+    keys.sort();
+    keys
+}
+
+/// The liveliness tokens under `key` that the session sees now.
+async fn tokens(session: &Session, key: &str) -> Vec<String> {
     let replies = session
         .liveliness()
-        .get(format!("{DOMAIN}/**/@adv/pub/**"))
+        .get(key)
         .timeout(Duration::from_secs(5))
         .await
         .unwrap();
-    let mut keys = Vec::new();
+    let mut tokens = Vec::new();
     while let Ok(reply) = replies.recv_async().await {
         if let Ok(sample) = reply.result() {
-            let token = sample.key_expr().as_str();
-            keys.push(token.split("/@adv/").next().unwrap().to_string());
+            tokens.push(sample.key_expr().to_string());
         }
     }
-    keys.sort();
-    keys
+    tokens
 }
 
 /// How many samples came on each key.
