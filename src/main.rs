@@ -271,7 +271,7 @@ fn main() -> ExitCode {
                 rejoin_timeout,
                 vehicles,
                 ros2,
-                rivals: rivals(no_rivals),
+                rivals: rivals(no_rivals, &role.zenoh),
             },
         ),
         Command::Agent {
@@ -289,7 +289,7 @@ fn main() -> ExitCode {
                 startup_timeout,
                 stale_timeout,
                 ros2,
-                rivals: rivals(no_rivals),
+                rivals: rivals(no_rivals, &role.zenoh),
             },
         ),
     };
@@ -324,11 +324,12 @@ fn role<F: std::future::Future>(work: F) -> Result<F::Output, Failure> {
     Ok(out)
 }
 
-fn rivals(none: bool) -> tcpf_bus::claim::Rivals {
-    if none {
-        tcpf_bus::claim::Rivals::None
-    } else {
-        tcpf_bus::claim::Rivals::Possible
+fn rivals(none: bool, zenoh: &tcpf_bus::session::ZenohArgs) -> tcpf_bus::claim::Rivals {
+    use tcpf_bus::claim::Rivals;
+    match (none, zenoh.is_client()) {
+        (true, _) => Rivals::None,
+        (false, true) => Rivals::OneRouter,
+        (false, false) => Rivals::Possible,
     }
 }
 

@@ -416,6 +416,13 @@ impl ZenohArgs {
         Ok(config)
     }
 
+    /// Whether this process will be a client, whose every message passes through one router; a
+    /// config that cannot be made is no client (opening the session says why).
+    pub fn is_client(&self) -> bool {
+        self.config()
+            .is_ok_and(|c| string_at(&c, "mode").as_deref() == Some("client"))
+    }
+
     /// The mode a credential implies without -c or --mode. Peers that find each other open links
     /// both ways, and with a user and password Zenoh 1.10 refuses the second
     /// (eclipse-zenoh/zenoh#2577), so a fleet with a credential meets at a router: the process

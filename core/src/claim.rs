@@ -1,17 +1,22 @@
 //! Who holds a role that only one process of a fleet may hold (the world, the agent of a
-//! vehicle) when several claim it at once. A claimant announces its claim, waits for every claim
-//! made before its own to reach it, then looks at all of them: the earliest holds the role, and
-//! everyone else steps back. Looking before announcing, as a role once did, let two processes
-//! that started together each find nobody and both drive the fleet.
+//! vehicle) when several claim it at once. A claimant announces its claim, then looks at every
+//! claim of the role: the one that holds it says so with a second mark, and everyone else steps
+//! back. Looking before announcing, as a role once did, let two processes that started together
+//! each find nobody and both drive the fleet.
 //!
-//! Why the earliest and not the first one seen: two claimants may see different sets (one looks
-//! before the other's claim arrives), but a claim it could not see was made after it looked, so
-//! a full settling time after its own, and that later claimant sees the earlier claim and steps
-//! back. Both then agree. Times are the claimants' wall clocks, so hosts' clocks must agree to
-//! within the settling time (docs/TESTBED.md asks for NTP or PTP anyway); equal times fall to the
-//! lesser session id, which every claimant reads the same.
+//! Claimants that meet at one router decide as soon as the facts are in (`Claimant`); peers,
+//! which may not have met yet, wait for a contemporary's claim to reach them, then the earliest
+//! holds. Why the earliest and not the first one seen: two claimants may see different sets (one
+//! looks before the other's claim arrives), but a claim it could not see was made after it
+//! looked, so a full settling time after its own, and that later claimant sees the earlier claim
+//! and steps back. Both then agree. Times are the claimants' wall clocks, so hosts' clocks must
+//! agree to within the settling time (docs/TESTBED.md asks for NTP or PTP anyway); equal times
+//! fall to the lesser session id, which every claimant reads the same.
 
 use std::fmt;
+
+/// What a holder's mark adds to its claim's chunk.
+const HELD: &str = "-held";
 
 /// One process's claim: when it made it (nanoseconds since the Unix epoch, on its own clock) and
 /// the id of its session, which names it to whoever is refused.
@@ -25,6 +30,19 @@ impl Claim {
     /// The claim as the last chunk of a key: fixed-width time first, so keys sort as claims do.
     pub fn chunk(&self) -> String {
         format!("{:020}-{}", self.since_ns, self.session)
+    }
+
+    /// The mark of a claimant that holds the role, beside its claim: the claim's chunk, marked.
+    pub fn held_chunk(&self) -> String {
+        format!("{}{HELD}", self.chunk())
+    }
+
+    /// A claim or a holder's mark (`true`) from its key's last chunk.
+    pub fn parse_marked(chunk: &str) -> Option<(Claim, bool)> {
+        match chunk.strip_suffix(HELD) {
+            Some(claim) => Some((Claim::parse(claim)?, true)),
+            None => Some((Claim::parse(chunk)?, false)),
+        }
     }
 
     pub fn parse(chunk: &str) -> Option<Claim> {
@@ -45,13 +63,13 @@ impl fmt::Display for Claim {
     }
 }
 
-/// What a claimant learns from the claims it sees once its own has settled.
+/// What a claimant learns from the claims it sees.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Outcome {
     Holds,
-    /// Another claimed the role at about the same time, and earlier: it is alive, and it holds
-    /// the role. Waiting would be wrong: a run that is over in a second lets its claim go, and
-    /// the loser would then start a second one.
+    /// Another claimed the role at about the same time and is alive: it claimed earlier, or it
+    /// already holds the role. Waiting would be wrong: a run that is over in a second lets its
+    /// claim go, and the loser would then start a second one.
     Lost(Claim),
     /// Another held the role before this claimant came. It may be a process that has just
     /// stopped, whose claim lingers until the router hears its connection close (an agent
@@ -60,18 +78,93 @@ pub enum Outcome {
     /// Its own claim is not among those seen: the answer is from before it reached the others,
     /// and says nothing yet.
     Unseen,
+    /// This claim is the earliest, but later ones are there that have not stepped back, and one
+    /// of them may have looked before this one arrived and found itself alone (`Claimant`):
+    /// wait until each has gone or one holds.
+    Contested,
 }
 
-/// The outcome for `mine` among the claims `seen` (its own included), claims made within
-/// `settle_ns` of each other being contemporaries.
-pub fn outcome(mine: &Claim, seen: &[Claim], settle_ns: u64) -> Outcome {
-    if !seen.contains(mine) {
-        return Outcome::Unseen;
+/// A claimant's view of the claims of its role, as the router shows them: its first look, then
+/// each claim that comes or goes, and each claimant that comes to hold the role.
+///
+/// How soon it may decide depends on who can be claiming. Started beside others that meet at
+/// one router (`patient`), it decides as soon as the facts are in: the router answers one
+/// client's declarations and questions in the order it sent them, so a claimant that sees no
+/// other at its look holds at once, and a later claim it did not see looked after this one's
+/// claim was at the router, saw it, and steps back; only the earliest of several that saw each
+/// other waits, and only for the later ones to step back, or for one that found itself alone to
+/// say it holds. Otherwise (peers, which may not have met yet) it looks only once a
+/// contemporary's claim has had `contemporaries_ns` to reach it, and the earliest holds.
+#[derive(Debug, Clone)]
+pub struct Claimant {
+    mine: Claim,
+    /// Every claim seen alive, and whether its claimant says it holds the role.
+    seen: std::collections::BTreeMap<Claim, bool>,
+    contemporaries_ns: u64,
+    patient: bool,
+}
+
+impl Claimant {
+    pub fn new(mine: Claim, contemporaries_ns: u64, patient: bool) -> Claimant {
+        Claimant {
+            mine,
+            seen: Default::default(),
+            contemporaries_ns,
+            patient,
+        }
     }
-    match seen.iter().min() {
-        Some(first) if first.since_ns.saturating_add(settle_ns) < mine.since_ns => Outcome::HeldBy(first.clone()),
-        Some(first) if first != mine => Outcome::Lost(first.clone()),
-        _ => Outcome::Holds,
+
+    /// A claim came (`alive`) or went; `held`: its holder's mark, not a claim of its own.
+    pub fn on_claim(&mut self, claim: Claim, held: bool, alive: bool) {
+        match (alive, held) {
+            (true, true) => {
+                self.seen.insert(claim, true);
+            }
+            (true, false) => {
+                self.seen.entry(claim).or_insert(false);
+            }
+            (false, true) => {
+                if let Some(h) = self.seen.get_mut(&claim) {
+                    *h = false;
+                }
+            }
+            (false, false) => {
+                self.seen.remove(&claim);
+            }
+        }
+    }
+
+    /// What the claims seen say now, claims made within `contemporaries_ns` of each other being
+    /// contemporaries.
+    pub fn outcome(&self) -> Outcome {
+        if !self.seen.contains_key(&self.mine) {
+            return Outcome::Unseen;
+        }
+        let old = |c: &Claim| c.since_ns.saturating_add(self.contemporaries_ns) < self.mine.since_ns;
+        let others = || self.seen.iter().filter(|(c, _)| **c != self.mine);
+        if let Some((holder, _)) = others().find(|(_, held)| **held) {
+            let holder = holder.clone();
+            return if old(&holder) {
+                Outcome::HeldBy(holder)
+            } else {
+                Outcome::Lost(holder)
+            };
+        }
+        match self.seen.keys().next() {
+            Some(first) if old(first) => Outcome::HeldBy(first.clone()),
+            Some(first) if *first != self.mine => Outcome::Lost(first.clone()),
+            _ if self.patient && others().next().is_some() => Outcome::Contested,
+            _ => Outcome::Holds,
+        }
+    }
+
+    /// What is left to decide once every claim made before this one, and every later claimant's
+    /// word, has had time to come: a contest is then the earliest's, as for peers.
+    pub fn settled(&self) -> Outcome {
+        match self.outcome() {
+            Outcome::Contested => Outcome::Holds,
+            decided => decided,
+        }
     }
 }
 
@@ -88,50 +181,122 @@ mod tests {
         }
     }
 
+    /// What `mine` decides from `seen` (each claim and whether it is marked held).
+    fn decide(mine: &Claim, seen: &[(&Claim, bool)], patient: bool) -> Outcome {
+        let mut c = Claimant::new(mine.clone(), SETTLE, patient);
+        for (claim, held) in seen {
+            c.on_claim((*claim).clone(), false, true);
+            if *held {
+                c.on_claim((*claim).clone(), true, true);
+            }
+        }
+        c.outcome()
+    }
+
     #[test]
     fn the_earliest_claim_holds_and_every_claimant_agrees_whatever_it_saw() {
         let (a, b, c) = (claim(100, "a1"), claim(250, "0f"), claim(300, "ff"));
         // Each sees a different subset, always with its own; all name `a`.
         assert_eq!(
-            outcome(&a, std::slice::from_ref(&a), SETTLE),
+            decide(&a, &[(&a, false)], false),
             Outcome::Holds,
             "a looked before the others came"
         );
-        assert_eq!(outcome(&b, &[b.clone(), a.clone()], SETTLE), Outcome::Lost(a.clone()));
+        assert_eq!(decide(&b, &[(&b, false), (&a, false)], false), Outcome::Lost(a.clone()));
         assert_eq!(
-            outcome(&c, &[c.clone(), b.clone(), a.clone()], SETTLE),
+            decide(&c, &[(&c, false), (&b, false), (&a, false)], false),
             Outcome::Lost(a.clone())
         );
         // Claims made in the same nanosecond: the lesser session id, for both.
         let (x, y) = (claim(7, "1a"), claim(7, "1b"));
-        assert_eq!(outcome(&x, &[y.clone(), x.clone()], SETTLE), Outcome::Holds);
-        assert_eq!(outcome(&y, &[x.clone(), y.clone()], SETTLE), Outcome::Lost(x.clone()));
+        assert_eq!(decide(&x, &[(&y, false), (&x, false)], false), Outcome::Holds);
+        assert_eq!(decide(&y, &[(&x, false), (&y, false)], false), Outcome::Lost(x.clone()));
+    }
+
+    #[test]
+    fn at_one_router_a_claimant_alone_at_its_look_holds_and_an_earlier_one_that_saw_it_waits_for_its_word() {
+        // `b` claimed first by its clock, but `a`'s claim reached the router first and `a`
+        // looked before `b`'s came: `a` holds at once, and says so.
+        let (b, a) = (claim(100, "0f"), claim(150, "a1"));
+        assert_eq!(decide(&a, &[(&a, false)], true), Outcome::Holds);
+        let mut earliest = Claimant::new(b.clone(), SETTLE, true);
+        earliest.on_claim(a.clone(), false, true);
+        earliest.on_claim(b.clone(), false, true);
+        assert_eq!(
+            earliest.outcome(),
+            Outcome::Contested,
+            "a may have looked before b came"
+        );
+        earliest.on_claim(a.clone(), true, true);
+        assert_eq!(earliest.outcome(), Outcome::Lost(a.clone()), "it had: a holds");
+        // Had `a` seen `b`, it would have stepped back: its claim goes, and `b` holds.
+        let mut other = Claimant::new(b.clone(), SETTLE, true);
+        other.on_claim(b.clone(), false, true);
+        other.on_claim(a.clone(), false, true);
+        assert_eq!(decide(&a, &[(&a, false), (&b, false)], true), Outcome::Lost(b.clone()));
+        other.on_claim(a.clone(), false, false);
+        assert_eq!(other.outcome(), Outcome::Holds);
+        // A later claimant that never says a word: once it has had the time a peer is given,
+        // the contest is the earliest's.
+        let mut silent = Claimant::new(b.clone(), SETTLE, true);
+        silent.on_claim(b.clone(), false, true);
+        silent.on_claim(a.clone(), false, true);
+        assert_eq!(silent.settled(), Outcome::Holds);
+        // Peers never wait for a word: they looked late enough for every claim to be in.
+        assert_eq!(decide(&b, &[(&a, false), (&b, false)], false), Outcome::Holds);
+    }
+
+    #[test]
+    fn a_holders_mark_beats_an_earlier_claim_and_goes_with_it() {
+        let (early, holder) = (claim(100, "0f"), claim(200, "a1"));
+        // A peer that looked after a claimant at one router held: the mark decides, not the time.
+        assert_eq!(
+            decide(&early, &[(&early, false), (&holder, true)], false),
+            Outcome::Lost(holder.clone())
+        );
+        let mut c = Claimant::new(early.clone(), SETTLE, true);
+        c.on_claim(early.clone(), false, true);
+        c.on_claim(holder.clone(), true, true);
+        c.on_claim(holder.clone(), false, true);
+        assert_eq!(c.outcome(), Outcome::Lost(holder.clone()), "its claim is still there");
+        c.on_claim(holder.clone(), true, false);
+        assert_eq!(c.outcome(), Outcome::Contested, "its mark went before its claim");
+        c.on_claim(holder, false, false);
+        assert_eq!(c.outcome(), Outcome::Holds);
+        // A mark of one's own is no rival.
+        assert_eq!(decide(&early, &[(&early, true)], true), Outcome::Holds);
     }
 
     #[test]
     fn a_claim_older_than_the_settling_time_is_a_holder_that_may_have_just_stopped() {
         let (old, new) = (claim(100, "a1"), claim(100 + SETTLE + 1, "0f"));
-        assert_eq!(
-            outcome(&new, &[old.clone(), new.clone()], SETTLE),
-            Outcome::HeldBy(old.clone())
-        );
+        for patient in [false, true] {
+            assert_eq!(
+                decide(&new, &[(&old, false), (&new, false)], patient),
+                Outcome::HeldBy(old.clone())
+            );
+            assert_eq!(
+                decide(&new, &[(&old, true), (&new, false)], patient),
+                Outcome::HeldBy(old.clone())
+            );
+            assert_eq!(
+                decide(&new, &[(&new, false)], patient),
+                Outcome::Holds,
+                "its claim went: the role is free"
+            );
+        }
         let contemporary = claim(100 + SETTLE, "0f");
         assert_eq!(
-            outcome(&contemporary, &[old.clone(), contemporary.clone()], SETTLE),
+            decide(&contemporary, &[(&old, false), (&contemporary, false)], false),
             Outcome::Lost(old)
-        );
-        assert_eq!(
-            outcome(&new, std::slice::from_ref(&new), SETTLE),
-            Outcome::Holds,
-            "its claim went: the role is free"
         );
     }
 
     #[test]
     fn an_answer_without_ones_own_claim_decides_nothing() {
         let (a, b) = (claim(100, "a1"), claim(250, "0f"));
-        assert_eq!(outcome(&b, &[], SETTLE), Outcome::Unseen);
-        assert_eq!(outcome(&b, &[a], SETTLE), Outcome::Unseen);
+        assert_eq!(decide(&b, &[], true), Outcome::Unseen);
+        assert_eq!(decide(&b, &[(&a, true)], false), Outcome::Unseen);
     }
 
     #[test]
@@ -139,6 +304,9 @@ mod tests {
         let c = claim(1_795_000_000_123_456_789, "8e2a61f0c3");
         assert_eq!(c.chunk(), "01795000000123456789-8e2a61f0c3");
         assert_eq!(Claim::parse(&c.chunk()), Some(c.clone()));
+        assert_eq!(Claim::parse_marked(&c.chunk()), Some((c.clone(), false)));
+        assert_eq!(Claim::parse_marked(&c.held_chunk()), Some((c.clone(), true)));
+        assert_eq!(Claim::parse(&c.held_chunk()), None, "a mark is no claim");
         let earlier = claim(999, "ff");
         assert!(earlier.chunk() < c.chunk() && earlier < c);
         for bad in [
