@@ -12,7 +12,7 @@ use tcpf_core::mission;
 use crate::cli::MissionArgs;
 use crate::{code, load, out, runtime, solve, Failure};
 
-pub fn run(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
+pub fn run(args: &MissionArgs, count: u64, fleets: &[u32]) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     // Its figures are of lockstep ticks; a realtime fleet ticks with the wall clock.
     if mission.mission.clock != mission::ClockKind::Lockstep {
@@ -34,7 +34,7 @@ pub fn run(args: &MissionArgs, count: u64) -> Result<ExitCode, Failure> {
     };
     let measured = runtime()?.block_on(async {
         let mut shutdown = Shutdown::new()?;
-        bench::measure(&mission, &plan, planned, &exe, count, &mut shutdown, say).await
+        bench::measure(&mission, &plan, planned, &exe, count, fleets, &mut shutdown, say).await
     });
     if let Some(failure) = unwritten {
         return Err(failure);

@@ -321,6 +321,10 @@ pub enum Command {
         /// Round trips to time.
         #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..))]
         count: u64,
+        /// Also fleets of `tcpf gen lanes --vehicles N` of these sizes as processes, each the best
+        /// of three runs, beside the round trip (e.g. `--fleets 10,200`; 200 lanes take minutes).
+        #[arg(long, value_name = "N,...", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(2..=i64::from(mission::generate::MAX_VEHICLES)))]
+        fleets: Vec<u32>,
     },
     /// The echo side of `tcpf bench`.
     #[command(hide = true)]

@@ -175,7 +175,7 @@ fn main() -> ExitCode {
                 ..launcher::Options::default()
             },
         ),
-        Command::Bench { mission, count } => bench::run(&mission, count),
+        Command::Bench { mission, count, fleets } => bench::run(&mission, count, &fleets),
         Command::Report { dir, figure_width } => run::report(&dir, figure_width),
         Command::Gen {
             mission: Generated::Lanes { vehicles, loss },

@@ -1017,7 +1017,7 @@ fn a_recorder_that_never_meets_its_world_says_so_after_its_startup_timeout() {
 #[test]
 fn bench_prints_every_figure_beside_its_baseline() {
     let _fleet = fleet();
-    let o = tcpf(&["bench", &paper("b-current"), "--count", "50"]);
+    let o = tcpf(&["bench", &paper("b-current"), "--count", "50", "--fleets", "3,4"]);
     assert!(o.status.success(), "{}", text(&o));
     let out = String::from_utf8_lossy(&o.stdout).to_string();
     let line = |start: &str| {
@@ -1101,6 +1101,25 @@ fn bench_prints_every_figure_beside_its_baseline() {
     };
     assert!(first > 0.0 && settled > 1.5, "{start:?}");
     assert!((ratio - first / settled).abs() < 0.01 + 0.01 * ratio, "{start:?}");
+    // The fleets of `tcpf gen lanes`, each beside the direct round trip; lanes tick every 0.01 s.
+    let mut lanes = Vec::new();
+    for n in [3.0, 4.0] {
+        let l = numbers(&line(&format!("{n} lanes as processes")));
+        let [_, ticks, _, tick, per_agent, by_tick, whole, first, ratio] = l[..] else {
+            panic!("{l:?}")
+        };
+        assert!(ticks > 1000.0 && tick > 10.0 && tick < 1e5, "{l:?}");
+        assert!((per_agent - tick / n).abs() < 0.06, "{l:?}");
+        assert!((by_tick - 0.01 / (tick * 1e-6)).abs() < 0.01 * by_tick, "{l:?}");
+        assert!(whole > 0.0 && whole < by_tick && first > 0.0, "{l:?}");
+        assert!((ratio - tick / rtt[0]).abs() < 0.01 * ratio + 0.005, "{l:?} {rtt:?}");
+        lanes.push(tick);
+    }
+    let scale = numbers(&line("from 3 to 4 lanes: the tick"));
+    assert!(
+        (scale[2] - lanes[1] / lanes[0]).abs() < 0.01 * scale[2] + 0.005,
+        "{scale:?} {lanes:?}"
+    );
     let memory = numbers(&line("per agent:"));
     assert!(memory.iter().all(|&m| m > 0.5 && m < 200.0), "{memory:?}");
     // Sockets grow with the fleet, not its square: a handful per process.

@@ -447,6 +447,7 @@ pub async fn measure(
     planned: Duration,
     exe: &Path,
     count: u64,
+    fleets: &[u32],
     shutdown: &mut Shutdown,
     mut say: impl FnMut(String),
 ) -> Result<bool> {
@@ -574,7 +575,58 @@ pub async fn measure(
         "agents' sockets: {} for {} agents; idle clients' (baseline): {}",
         running.sockets, running.processes, idle.sockets
     ));
+    let mut ticks = Vec::with_capacity(fleets.len());
+    for &vehicles in fleets {
+        let Some((run, period)) = lanes(vehicles, exe, &scratch, shutdown).await? else {
+            let _ = std::fs::remove_dir_all(&scratch);
+            return Ok(false);
+        };
+        let _ = std::fs::remove_dir_all(&scratch);
+        let tick = run.tick_wall_time_us;
+        say(format!(
+            "{vehicles} lanes as processes ({} ticks, best of {ROUNDS} runs): a tick {tick:.1} µs, {:.1} µs an agent; \
+             simulated / wall time {:.2} by the tick, {:.2} from the start to the end; the first tick {:.3} s after the launch; \
+             tick / round trip (baseline, above): {:.2}",
+            run.results.ticks,
+            tick / f64::from(vehicles),
+            period / (tick * 1e-6),
+            run.speedup(),
+            first(&run),
+            tick / median(&direct)
+        ));
+        ticks.push((vehicles, tick));
+    }
+    if let [(few, small), .., (many, large)] = ticks[..] {
+        say(format!(
+            "from {few} to {many} lanes: the tick {:.2}x for {:.1}x the agents",
+            large / small,
+            f64::from(many) / f64::from(few)
+        ));
+    }
     Ok(true)
+}
+
+/// `tcpf gen lanes --vehicles N`'s fleet as processes, the best of `ROUNDS` runs by the tick;
+/// with its control period; `None` if a signal stopped it.
+async fn lanes(vehicles: u32, exe: &Path, scratch: &Path, shutdown: &mut Shutdown) -> Result<Option<(Summary, f64)>> {
+    let name = format!("lanes{vehicles}.toml");
+    let mission = tcpf_core::mission::parse(&name, &tcpf_core::mission::generate::lanes(vehicles, 0.2), &[])
+        .map_err(|e| anyhow!("{e}"))?;
+    let plan = tcpf_core::planner::plan(&mission).map_err(|e| anyhow!("{name}: {e}"))?;
+    let mut best: Option<Summary> = None;
+    for round in 0..ROUNDS {
+        let out = scratch.join(format!("lanes-{vehicles}-{round}"));
+        let Some(run) = variant(&mission, &plan, exe, &out, launcher::Options::default(), shutdown).await? else {
+            return Ok(None);
+        };
+        if best
+            .as_ref()
+            .is_none_or(|b| run.tick_wall_time_us < b.tick_wall_time_us)
+        {
+            best = Some(run);
+        }
+    }
+    Ok(best.map(|b| (b, mission.mission.control_period)))
 }
 
 /// Runs of each variant of the fleet whose ticks are compared, taken in turn, the best of them
