@@ -617,12 +617,20 @@ pub fn bars(
                 false,
             )?;
             let width = 0.8 / groups.len().max(1) as f64;
+            // A rectangle of no width or no height is no shape to a PDF's reader, which warns of
+            // it: a bar of nothing is not drawn, and any other is a pixel wide and high at least
+            // (the links of 200 vehicles are 800 bars).
+            let (w_px, h_px) = chart.plotting_area().dim_in_pixel();
+            // A pixel and a half: the corners are rounded to pixels each on its own.
+            let pixel = (
+                1.5 * (x.1 - x.0) / f64::from(w_px.max(1)),
+                1.5 * (y.1 - y.0) / f64::from(h_px.max(1)),
+            );
             for (g, (_, colour, values)) in groups.iter().enumerate() {
-                // A bar of nothing is not drawn: a rectangle of no height is no shape to a
-                // PDF's reader, which warns of it.
                 chart.draw_series(values.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(c, v)| {
                     let left = c as f64 - 0.4 + g as f64 * width;
-                    Rectangle::new([(left, 0.0), (left + width, *v)], colour.filled())
+                    let top = v.signum() * v.abs().max(pixel.1);
+                    Rectangle::new([(left, 0.0), (left + width.max(pixel.0), top)], colour.filled())
                 }))?;
             }
             if !entries.is_empty() {
@@ -751,6 +759,27 @@ mod tests {
                 .unwrap()
         };
         assert!(at(y_labels[0].0) > at(y_labels[1].0));
+    }
+
+    #[test]
+    fn every_bar_is_a_pixel_wide_and_high_at_least() {
+        let n = 400;
+        let names: Vec<String> = (1..=n).map(|i| format!("{i}→{}", i % n + 1)).collect();
+        let values: Vec<f64> = (0..n).map(|i| if i == 7 { 1e-3 } else { 500.0 }).collect();
+        let svg = bars(
+            "directed link",
+            "messages",
+            &names,
+            &[
+                ("delivered", style::DELIVERED, values.clone()),
+                ("dropped", style::LOST, values),
+            ],
+            Size::column(0.62),
+        );
+        assert!(svg.matches("<rect").count() >= 2 * n, "every value is drawn");
+        for empty in ["width=\"0\"", "height=\"0\""] {
+            assert!(!svg.contains(empty), "a rectangle with {empty}");
+        }
     }
 
     #[test]
