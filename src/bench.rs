@@ -34,7 +34,8 @@ pub fn run(args: &MissionArgs, count: u64, fleets: &[u32]) -> Result<ExitCode, F
     };
     let measured = runtime()?.block_on(async {
         let mut shutdown = Shutdown::new()?;
-        bench::measure(&mission, &plan, planned, &exe, count, fleets, &mut shutdown, say).await
+        let asked = bench::Asked { count, fleets };
+        bench::measure(&mission, &plan, planned, &exe, asked, &mut shutdown, say).await
     });
     if let Some(failure) = unwritten {
         return Err(failure);

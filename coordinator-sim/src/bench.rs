@@ -438,6 +438,14 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
     Ok(footprint)
 }
 
+/// What a bench is asked beyond its mission: how many round trips to time, and which fleets of
+/// `tcpf gen lanes` to run as processes besides.
+#[derive(Debug, Clone, Copy)]
+pub struct Asked<'a> {
+    pub count: u64,
+    pub fleets: &'a [u32],
+}
+
 /// Measures `mission`'s lockstep fleet, saying each figure beside its baseline as soon as it has
 /// both (`planned`: how long the plan took on every core); `false` if a signal stopped it, which
 /// leaves no child and no scratch directory.
@@ -446,11 +454,11 @@ pub async fn measure(
     plan: &Plan,
     planned: Duration,
     exe: &Path,
-    count: u64,
-    fleets: &[u32],
+    what: Asked<'_>,
     shutdown: &mut Shutdown,
     mut say: impl FnMut(String),
 ) -> Result<bool> {
+    let Asked { count, fleets } = what;
     let seconds = |d: Duration| d.as_secs_f64();
     let started = Instant::now();
     let _ = tcpf_core::planner::plan(mission);
