@@ -7,9 +7,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::{anyhow, Result};
 use tcpf_core::claim::{Claim, Claimant, Outcome};
-use tokio::sync::mpsc;
 use zenoh::liveliness::LivelinessToken;
-use zenoh::sample::SampleKind;
 use zenoh::Session;
 
 use crate::keys::{Keys, Role};
@@ -24,6 +22,11 @@ const SETTLE: Duration = Duration::from_millis(1500);
 /// is a later contemporary's word waited for (`Outcome::Contested`): more than `SETTLE`, so
 /// that by then every claim made before this one is in and every later claimant has seen it.
 const LINGER: Duration = Duration::from_secs(2);
+
+/// How soon a claimant that cannot decide yet looks again: a holder that has just stopped goes
+/// when the router hears its connection close, a later contemporary steps back or marks its
+/// claim held within a round trip or two.
+const LOOK_AGAIN: Duration = Duration::from_millis(20);
 
 /// How long a look at the claims waits for the router's answer. The query ends when the router
 /// has answered, at once on a calm machine; the timeout only bounds a router that does not.
@@ -110,25 +113,6 @@ pub async fn claim(
         since_ns,
         session: session.zid().to_string(),
     };
-    // Every claim that comes or goes from before this one is announced on: the look below then
-    // misses nothing between the router's answer and what follows it.
-    let (came, mut changes) = mpsc::unbounded_channel();
-    let _changes = session
-        .liveliness()
-        .declare_subscriber(keys.claims(role, id))
-        .callback(move |sample| {
-            let claim = sample
-                .key_expr()
-                .as_str()
-                .rsplit('/')
-                .next()
-                .and_then(Claim::parse_marked);
-            if let Some((claim, held)) = claim {
-                let _ = came.send((claim, held, sample.kind() == SampleKind::Put));
-            }
-        })
-        .await
-        .map_err(|e| anyhow!("cannot follow the claims of the {role}: {e}"))?;
     let declare = |chunk: String| async move {
         session
             .liveliness()
@@ -143,14 +127,6 @@ pub async fn claim(
         Rivals::None => (Duration::ZERO, Duration::ZERO),
     };
     tokio::time::sleep(settle).await;
-    let mut claimant = Claimant::new(
-        mine.clone(),
-        contemporaries.as_nanos() as u64,
-        rivals == Rivals::OneRouter,
-    );
-    for (claim, held) in claims(session, keys, role, id).await? {
-        claimant.on_claim(claim, held, true);
-    }
     let deadline = tokio::time::Instant::now() + LINGER;
     let refused = |holder| AlreadyRunning {
         role,
@@ -159,21 +135,24 @@ pub async fn claim(
         holder,
     };
     loop {
-        while let Ok((claim, held, alive)) = changes.try_recv() {
-            claimant.on_claim(claim, held, alive);
+        // Each look afresh: what a claimant sees is what the router holds now. Not followed by a
+        // liveliness subscriber, which would make the look unreliable: a liveliness query from a
+        // session with a liveliness subscriber of its own at times answers nothing (Zenoh 1.10).
+        let mut claimant = Claimant::new(
+            mine.clone(),
+            contemporaries.as_nanos() as u64,
+            rivals == Rivals::OneRouter,
+        );
+        for (claim, held) in claims(session, keys, role, id).await? {
+            claimant.saw(claim, held);
         }
+        let last_look = tokio::time::Instant::now() >= deadline;
         let decided = match claimant.outcome() {
-            Outcome::HeldBy(_) | Outcome::Unseen | Outcome::Contested => {
-                match tokio::time::timeout_at(deadline, changes.recv()).await {
-                    Ok(Some((claim, held, alive))) => {
-                        claimant.on_claim(claim, held, alive);
-                        continue;
-                    }
-                    Ok(None) => return Err(anyhow!("the claims of the {role} are no longer followed")),
-                    Err(_) => claimant.settled(),
-                }
+            Outcome::HeldBy(_) | Outcome::Unseen | Outcome::Contested if !last_look => {
+                tokio::time::sleep(LOOK_AGAIN).await;
+                continue;
             }
-            decided => decided,
+            _ => claimant.settled(),
         };
         return match decided {
             Outcome::Holds => Ok(Claimed {

@@ -84,8 +84,8 @@ pub enum Outcome {
     Contested,
 }
 
-/// A claimant's view of the claims of its role, as the router shows them: its first look, then
-/// each claim that comes or goes, and each claimant that comes to hold the role.
+/// A claimant's look at the claims of its role, as the router shows them, and the marks of those
+/// that hold it.
 ///
 /// How soon it may decide depends on who can be claiming. Started beside others that meet at
 /// one router (`patient`), it decides as soon as the facts are in: the router answers one
@@ -98,7 +98,7 @@ pub enum Outcome {
 #[derive(Debug, Clone)]
 pub struct Claimant {
     mine: Claim,
-    /// Every claim seen alive, and whether its claimant says it holds the role.
+    /// Every claim seen, and whether its claimant says it holds the role.
     seen: std::collections::BTreeMap<Claim, bool>,
     contemporaries_ns: u64,
     patient: bool,
@@ -114,24 +114,9 @@ impl Claimant {
         }
     }
 
-    /// A claim came (`alive`) or went; `held`: its holder's mark, not a claim of its own.
-    pub fn on_claim(&mut self, claim: Claim, held: bool, alive: bool) {
-        match (alive, held) {
-            (true, true) => {
-                self.seen.insert(claim, true);
-            }
-            (true, false) => {
-                self.seen.entry(claim).or_insert(false);
-            }
-            (false, true) => {
-                if let Some(h) = self.seen.get_mut(&claim) {
-                    *h = false;
-                }
-            }
-            (false, false) => {
-                self.seen.remove(&claim);
-            }
-        }
+    /// A claim the router shows; `held`: its holder's mark, not a claim of its own.
+    pub fn saw(&mut self, claim: Claim, held: bool) {
+        *self.seen.entry(claim).or_insert(false) |= held;
     }
 
     /// What the claims seen say now, claims made within `contemporaries_ns` of each other being
@@ -183,14 +168,15 @@ mod tests {
 
     /// What `mine` decides from `seen` (each claim and whether it is marked held).
     fn decide(mine: &Claim, seen: &[(&Claim, bool)], patient: bool) -> Outcome {
+        look(mine, seen, patient).outcome()
+    }
+
+    fn look(mine: &Claim, seen: &[(&Claim, bool)], patient: bool) -> Claimant {
         let mut c = Claimant::new(mine.clone(), SETTLE, patient);
         for (claim, held) in seen {
-            c.on_claim((*claim).clone(), false, true);
-            if *held {
-                c.on_claim((*claim).clone(), true, true);
-            }
+            c.saw((*claim).clone(), *held);
         }
-        c.outcome()
+        c
     }
 
     #[test]
@@ -219,50 +205,39 @@ mod tests {
         // looked before `b`'s came: `a` holds at once, and says so.
         let (b, a) = (claim(100, "0f"), claim(150, "a1"));
         assert_eq!(decide(&a, &[(&a, false)], true), Outcome::Holds);
-        let mut earliest = Claimant::new(b.clone(), SETTLE, true);
-        earliest.on_claim(a.clone(), false, true);
-        earliest.on_claim(b.clone(), false, true);
         assert_eq!(
-            earliest.outcome(),
+            decide(&b, &[(&a, false), (&b, false)], true),
             Outcome::Contested,
             "a may have looked before b came"
         );
-        earliest.on_claim(a.clone(), true, true);
-        assert_eq!(earliest.outcome(), Outcome::Lost(a.clone()), "it had: a holds");
+        assert_eq!(
+            decide(&b, &[(&a, true), (&b, false)], true),
+            Outcome::Lost(a.clone()),
+            "it had: a holds"
+        );
         // Had `a` seen `b`, it would have stepped back: its claim goes, and `b` holds.
-        let mut other = Claimant::new(b.clone(), SETTLE, true);
-        other.on_claim(b.clone(), false, true);
-        other.on_claim(a.clone(), false, true);
         assert_eq!(decide(&a, &[(&a, false), (&b, false)], true), Outcome::Lost(b.clone()));
-        other.on_claim(a.clone(), false, false);
-        assert_eq!(other.outcome(), Outcome::Holds);
+        assert_eq!(decide(&b, &[(&b, false)], true), Outcome::Holds);
         // A later claimant that never says a word: once it has had the time a peer is given,
         // the contest is the earliest's.
-        let mut silent = Claimant::new(b.clone(), SETTLE, true);
-        silent.on_claim(b.clone(), false, true);
-        silent.on_claim(a.clone(), false, true);
-        assert_eq!(silent.settled(), Outcome::Holds);
+        assert_eq!(look(&b, &[(&b, false), (&a, false)], true).settled(), Outcome::Holds);
         // Peers never wait for a word: they looked late enough for every claim to be in.
         assert_eq!(decide(&b, &[(&a, false), (&b, false)], false), Outcome::Holds);
     }
 
     #[test]
-    fn a_holders_mark_beats_an_earlier_claim_and_goes_with_it() {
+    fn a_holders_mark_beats_an_earlier_claim() {
         let (early, holder) = (claim(100, "0f"), claim(200, "a1"));
         // A peer that looked after a claimant at one router held: the mark decides, not the time.
         assert_eq!(
             decide(&early, &[(&early, false), (&holder, true)], false),
             Outcome::Lost(holder.clone())
         );
-        let mut c = Claimant::new(early.clone(), SETTLE, true);
-        c.on_claim(early.clone(), false, true);
-        c.on_claim(holder.clone(), true, true);
-        c.on_claim(holder.clone(), false, true);
-        assert_eq!(c.outcome(), Outcome::Lost(holder.clone()), "its claim is still there");
-        c.on_claim(holder.clone(), true, false);
-        assert_eq!(c.outcome(), Outcome::Contested, "its mark went before its claim");
-        c.on_claim(holder, false, false);
-        assert_eq!(c.outcome(), Outcome::Holds);
+        assert_eq!(
+            decide(&early, &[(&early, false), (&holder, false)], true),
+            Outcome::Contested,
+            "its mark not yet seen"
+        );
         // A mark of one's own is no rival.
         assert_eq!(decide(&early, &[(&early, true)], true), Outcome::Holds);
     }
