@@ -12,8 +12,8 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::typed::{
-    answered, ask_clock, await_clock, fetch_paths, presence, queue, report, subscribe, subscribe_into, subscribe_with,
-    Outlet, Presence, RealtimeReport, Received, Rejected,
+    answered, ask_clock, await_clock, fetch_paths, presence_of, queue, report, subscribe, subscribe_into,
+    subscribe_with, Outlet, Presence, RealtimeReport, Received, Rejected,
 };
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
@@ -249,7 +249,6 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     // subscriber of its own at times answers nothing (Zenoh 1.10), and a second agent of a
     // running vehicle then found nobody holding its id.
     let claimed = claim(&session, &keys, Role::Agent, id, &mission.mission.name, options.rivals).await?;
-    let (presence_subscriber, mut presence) = presence(&session, &keys).await?;
     let ids = [id];
     let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
     let Some(paths) = fetched.await else {
@@ -259,6 +258,14 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let agent = Agent::new(mission, id, path);
     let neighbours: Vec<u32> = agent.neighbours().collect();
     let audible: Vec<u32> = agent.audible().collect();
+    // Whose coming and going it acts on: the world, the planner and the vehicles it hears.
+    let mut watched = vec![keys.alive(Role::World, "*"), keys.alive(Role::Planner, "*")];
+    if audible.len() + 1 == mission.vehicles.len() {
+        watched.push(keys.alive(Role::Agent, "*"));
+    } else {
+        watched.extend(audible.iter().map(|&j| keys.alive(Role::Agent, j)));
+    }
+    let (presence_subscribers, mut presence) = presence_of(&session, &keys, &watched).await?;
 
     let ros2 = match mission.ros2(options.ros2) {
         Some(config) => Some(tcpf_bus::ros2::Agent::declare(&session, &config, id, !realtime).await?),
@@ -319,7 +326,8 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     };
     let (s2, ends) = subscribe::<End>(&session, &keys.end(), &rejected).await?;
     let (s3, losses) = subscribe::<Loss>(&session, &keys.lost("*"), &rejected).await?;
-    subscribers.extend([s2, s3, presence_subscriber]);
+    subscribers.extend([s2, s3]);
+    subscribers.extend(presence_subscribers);
     tracing::info!(
         "agent {id}: path with t_f = {:.3} s, neighbours {neighbours:?}",
         path.t_f()

@@ -398,24 +398,41 @@ pub async fn linger_within(session: &Session, keys: &Keys, roles: &[Role], withi
 
 /// Follows every liveliness token of the mission, those already there included.
 pub async fn presence(session: &Session, keys: &Keys) -> Result<(Subscriber<()>, mpsc::UnboundedReceiver<Presence>)> {
+    let (mut subscribers, rx) = presence_of(session, keys, &[keys.alive_all()]).await?;
+    Ok((subscribers.remove(0), rx))
+}
+
+/// Follows the liveliness tokens of the mission under `watched`, those already there included,
+/// on one channel: a process that needs a few roles' presence is not told every other's (an
+/// agent of 200 that followed every token took 200 declarations at its start, and the router
+/// 40 000).
+pub async fn presence_of(
+    session: &Session,
+    keys: &Keys,
+    watched: &[String],
+) -> Result<(Vec<Subscriber<()>>, mpsc::UnboundedReceiver<Presence>)> {
     let (tx, rx) = mpsc::unbounded_channel();
-    let parser = keys.clone();
-    let subscriber = session
-        .liveliness()
-        .declare_subscriber(keys.alive_all())
-        .history(true)
-        .callback(move |sample| {
-            if let Some((role, id)) = parser.parse_alive(sample.key_expr().as_str()) {
-                let _ = tx.send(Presence {
-                    role,
-                    id,
-                    alive: sample.kind() == SampleKind::Put,
-                });
-            }
-        })
-        .await
-        .map_err(|e| anyhow!("cannot follow liveliness: {e}"))?;
-    Ok((subscriber, rx))
+    let mut subscribers = Vec::with_capacity(watched.len());
+    for key in watched {
+        let (tx, parser) = (tx.clone(), keys.clone());
+        let subscriber = session
+            .liveliness()
+            .declare_subscriber(key)
+            .history(true)
+            .callback(move |sample| {
+                if let Some((role, id)) = parser.parse_alive(sample.key_expr().as_str()) {
+                    let _ = tx.send(Presence {
+                        role,
+                        id,
+                        alive: sample.kind() == SampleKind::Put,
+                    });
+                }
+            })
+            .await
+            .map_err(|e| anyhow!("cannot follow liveliness: {e}"))?;
+        subscribers.push(subscriber);
+    }
+    Ok((subscribers, rx))
 }
 
 /// Asks the planner for the paths of `ids`, retrying until `timeout`.
