@@ -761,11 +761,11 @@ mod tests {
         assert!(at(y_labels[0].0) > at(y_labels[1].0));
     }
 
-    #[test]
-    fn every_bar_is_a_pixel_wide_and_high_at_least() {
-        let n = 400;
+    /// The links of a ring of `values.len()` vehicles as bars, each delivering and dropping
+    /// its value: their names and the figure.
+    fn ring_links(values: Vec<f64>) -> (Vec<String>, String) {
+        let n = values.len();
         let names: Vec<String> = (1..=n).map(|i| format!("{i}→{}", i % n + 1)).collect();
-        let values: Vec<f64> = (0..n).map(|i| if i == 7 { 1e-3 } else { 500.0 }).collect();
         let svg = bars(
             "directed link",
             "messages",
@@ -776,6 +776,14 @@ mod tests {
             ],
             Size::column(0.62),
         );
+        (names, svg)
+    }
+
+    #[test]
+    fn every_bar_is_a_pixel_wide_and_high_at_least() {
+        let n = 400;
+        let values: Vec<f64> = (0..n).map(|i| if i == 7 { 1e-3 } else { 500.0 }).collect();
+        let (_, svg) = ring_links(values);
         assert!(svg.matches("<rect").count() >= 2 * n, "every value is drawn");
         for empty in ["width=\"0\"", "height=\"0\""] {
             assert!(!svg.contains(empty), "a rectangle with {empty}");
@@ -785,18 +793,7 @@ mod tests {
     #[test]
     fn bars_have_one_rectangle_per_value() {
         for n in [2, 10] {
-            let names: Vec<String> = (1..=n).map(|i| format!("{i}→{}", i % n + 1)).collect();
-            let values = vec![5.0; n];
-            let svg = bars(
-                "directed link",
-                "messages",
-                &names,
-                &[
-                    ("delivered", style::DELIVERED, values.clone()),
-                    ("dropped", style::LOST, values),
-                ],
-                Size::column(0.62),
-            );
+            let (names, svg) = ring_links(vec![5.0; n]);
             assert!(svg.matches("<rect").count() >= 2 * n, "{svg}");
             assert!(svg.contains("\ndelivered\n") && svg.contains("directed link"));
             assert!(style::printed_text_sizes(&svg).iter().all(|pt| *pt >= 8.0));
