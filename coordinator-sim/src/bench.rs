@@ -585,11 +585,11 @@ pub async fn measure(
     ));
     let mut ticks = Vec::with_capacity(fleets.len());
     for &vehicles in fleets {
-        let Some((run, period)) = lanes(vehicles, exe, &scratch, shutdown).await? else {
-            let _ = std::fs::remove_dir_all(&scratch);
+        let ran = lanes(vehicles, exe, &scratch, shutdown).await;
+        let _ = std::fs::remove_dir_all(&scratch);
+        let Some((run, period)) = ran? else {
             return Ok(false);
         };
-        let _ = std::fs::remove_dir_all(&scratch);
         let tick = run.tick_wall_time_us;
         say(format!(
             "{vehicles} lanes as processes ({} ticks, best of {ROUNDS} runs): a tick {tick:.1} µs, {:.1} µs an agent; \
@@ -614,6 +614,16 @@ pub async fn measure(
     Ok(true)
 }
 
+/// Keeps `run` as `best` if its tick is the shorter.
+fn keep_faster(best: &mut Option<Summary>, run: Summary) {
+    if best
+        .as_ref()
+        .is_none_or(|b| run.tick_wall_time_us < b.tick_wall_time_us)
+    {
+        *best = Some(run);
+    }
+}
+
 /// `tcpf gen lanes --vehicles N`'s fleet as processes, the best of `ROUNDS` runs by the tick;
 /// with its control period; `None` if a signal stopped it.
 async fn lanes(vehicles: u32, exe: &Path, scratch: &Path, shutdown: &mut Shutdown) -> Result<Option<(Summary, f64)>> {
@@ -627,12 +637,7 @@ async fn lanes(vehicles: u32, exe: &Path, scratch: &Path, shutdown: &mut Shutdow
         let Some(run) = variant(&mission, &plan, exe, &out, launcher::Options::default(), shutdown).await? else {
             return Ok(None);
         };
-        if best
-            .as_ref()
-            .is_none_or(|b| run.tick_wall_time_us < b.tick_wall_time_us)
-        {
-            best = Some(run);
-        }
+        keep_faster(&mut best, run);
     }
     Ok(best.map(|b| (b, mission.mission.control_period)))
 }
@@ -744,12 +749,7 @@ async fn processes(
             let Some(run) = variant(mission, plan, exe, &out, options.clone(), shutdown).await? else {
                 return Ok(None);
             };
-            if best[k]
-                .as_ref()
-                .is_none_or(|b| run.tick_wall_time_us < b.tick_wall_time_us)
-            {
-                best[k] = Some(run);
-            }
+            keep_faster(&mut best[k], run);
         }
     }
     let [Some(fleet), Some(ros2), Some(passwords), Some(plain)] = best else {
