@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use tcpf_bus::acl::Identity;
 use tcpf_bus::claim::Rivals;
+use tcpf_bus::clock::Monotonic;
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::{Interrupted, Shutdown};
@@ -18,13 +19,14 @@ use tcpf_bus::waits;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::msg::Report;
 use tcpf_core::planner::Plan;
-use tokio::process::{Child, Command};
+use tokio::process::Command;
 
 pub use crate::access::Links;
 use crate::access::ROS2_CONFIG;
 use crate::progress::Ticks;
 use crate::recording::Recording;
-use tcpf_core::summary::{ChildSummary, Closing, Mode, Restarts, Summary};
+use tcpf_core::summary::{ChildSummary, Closing, Mode, Summary};
+use tcpf_core::supervisor::{Child, Exit, Failure, Outcome, Output, Recorded, Supervision, Supervisor, Timeouts, When};
 use tcpf_report::rundir::RunDir;
 
 /// Zenoh's threads in a lockstep agent or planner (unless the user set ZENOH_RUNTIME): one,
@@ -79,30 +81,11 @@ pub fn child_runtime(role: Role) -> Option<(&'static str, &'static str)> {
     };
     (!chosen).then_some(("ZENOH_RUNTIME", runtime))
 }
-/// How long children get to exit by themselves after the end before they are killed.
-const GRACE: Duration = Duration::from_secs(3);
-/// After an interrupt, how long children get to stop (and report) once told to, before they are
-/// killed: Ctrl-C stops a run within 2 s.
-const INTERRUPT_GRACE: Duration = Duration::from_secs(1);
-/// How long a report may lag behind its sender's exit.
-const REPORT_SETTLE: Duration = Duration::from_millis(200);
-/// A run in which no tick completes for this long has stalled, unless the world waits longer
-/// on purpose (`stall_limit`).
-const STALL: Duration = Duration::from_secs(60);
-
-/// How long the recorder may go without a tick once the world has exited after ending the run:
-/// what the world sent last may still be on its way.
-const END_ON_ITS_WAY: Duration = Duration::from_secs(5);
-/// The launcher waits this much longer for the first tick, so that the world says it first.
-const START_MARGIN: Duration = Duration::from_secs(10);
-/// With `--restart on-failure`, how long a lockstep tick waits for an agent started again.
-const REJOIN_TIMEOUT: Duration = Duration::from_secs(20);
-
 struct Process {
     role: Role,
     id: u32,
     pid: u32,
-    child: Child,
+    child: tokio::process::Child,
     exit_code: Option<Option<i32>>,
     /// The signal that ended it, if one did.
     signal: Option<i32>,
@@ -119,12 +102,18 @@ impl Process {
         self.exit_code
     }
 
-    /// "code 1", "killed by signal 9": how a process that exited ended (on Unix, with a code
-    /// or by a signal).
-    fn how_it_ended(&self) -> String {
-        match (self.exit_code.flatten(), self.signal) {
-            (Some(code), _) => format!("code {code}"),
-            (None, signal) => format!("killed by signal {}", signal.map_or("?".into(), |s| s.to_string())),
+    /// How it ended, once it has.
+    fn exit(&self) -> Exit {
+        Exit {
+            code: self.exit_code.flatten(),
+            signal: self.signal,
+        }
+    }
+
+    fn child(&self) -> Child {
+        Child {
+            role: self.role,
+            id: self.id,
         }
     }
 
@@ -133,11 +122,6 @@ impl Process {
         self.exit_code = Some(status.code());
         self.signal = status.signal();
     }
-}
-
-/// The child's exit report has come in, or it was killed by a signal and sends none.
-fn reported(c: &mut Process, recording: &Recording) -> bool {
-    c.poll() == Some(None) || report_of(recording, c).is_some()
 }
 
 /// The exit report of this very process (a role started again reports once per life).
@@ -161,19 +145,17 @@ fn last_error(log: &Path) -> Option<String> {
     Some(line["error: ".len()..].to_string())
 }
 
-/// Why the run fails: `process` (the world, the planner, or an agent before the first tick)
+/// Why the run fails: `child` (the world, the planner, or an agent before the first tick)
 /// exited `when`, with its code or the signal that killed it, in its own last words where its
 /// log has them.
-fn died(dir: &RunDir, process: &Process, when: &str) -> String {
-    let (who, log) = match process.role {
-        Role::Agent => (format!("agent {}", process.id), format!("agent-{}.log", process.id)),
-        role => (format!("the {role}"), format!("{role}.log")),
-    };
-    let code = process.how_it_ended();
-    match last_error(&dir.path.join("logs").join(&log)) {
-        Some(why) => format!("{who} exited ({code}) {when}: {why} (logs/{log})"),
-        None => format!("{who} exited ({code}) {when}; see logs/{log}"),
+fn died(dir: &RunDir, child: Child, exit: Exit, when: When) -> String {
+    Failure::Died {
+        child,
+        exit,
+        when,
+        last_words: last_error(&dir.path.join("logs").join(child.log())),
     }
+    .to_string()
 }
 
 /// A child must never outlive the process that started it, even one killed with SIGKILL: the
@@ -305,7 +287,7 @@ async fn connect(
                 },
                 _ = shutdown.recv() => return Err(Interrupted("while the world was starting").into()),
                 _ = check.tick() => if world.poll().is_some() {
-                    return Err(anyhow!(died(dir, world, "as it started")));
+                    return Err(anyhow!(died(dir, world.child(), world.exit(), When::AsItStarted)));
                 },
             }
         }
@@ -316,12 +298,6 @@ async fn connect(
             ));
         }
     }
-}
-
-enum Outcome {
-    Completed,
-    Interrupted,
-    Failed(String),
 }
 
 /// A run that failed (its world or recorder stopped short), its run directory written: what
@@ -387,15 +363,16 @@ impl Default for Options {
     }
 }
 
-/// How long a run may go without completing a tick before it has stalled: longer than what
-/// the world waits for on purpose (a silent agent's command, an agent started again) and than
-/// two of its wall periods, so that `--command-timeout` and a slow time scale mean what they say.
-fn stall_limit(mission: &Mission, command_timeout: Duration, restart: bool) -> Duration {
-    let period = mission.mission.control_period / mission.mission.time_scale;
-    let period = Duration::try_from_secs_f64(period).unwrap_or(Duration::MAX);
-    let rejoin = if restart { REJOIN_TIMEOUT } else { Duration::ZERO };
-    let waits = command_timeout.max(rejoin).max(period.saturating_mul(2));
-    STALL.max(waits.saturating_add(START_MARGIN))
+/// The supervisor's view of this run: the world's waits, and the wall period of its clock.
+fn supervision(mission: &Mission, command_timeout: Duration, restart: bool, startup_timeout: Duration) -> Supervision {
+    Supervision {
+        restart,
+        lockstep: mission.mission.clock == ClockKind::Lockstep,
+        startup_timeout_s: startup_timeout.as_secs_f64(),
+        command_timeout_s: command_timeout.as_secs_f64(),
+        wall_period_s: mission.mission.control_period / mission.mission.time_scale,
+        timeouts: Timeouts::default(),
+    }
 }
 
 /// Kills the children that have not exited, and waits for them.
@@ -532,7 +509,6 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let mut shutdown = Shutdown::new()?;
     let mut suspend = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::from_raw(libc::SIGTSTP))
         .context("cannot handle SIGTSTP (Ctrl-Z)")?;
-    let stall = stall_limit(mission, command_timeout, restart);
     dir.write_mission(mission, tcpf_core::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
     let mission_file = dir.path.join("mission.toml").display().to_string();
@@ -570,7 +546,8 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         startup_timeout.as_secs_f64().to_string(),
     ]);
     if restart {
-        world_args.extend(["--rejoin-timeout".to_string(), REJOIN_TIMEOUT.as_secs_f64().to_string()]);
+        let rejoin = Timeouts::default().rejoin_s;
+        world_args.extend(["--rejoin-timeout".to_string(), rejoin.to_string()]);
     }
     let mut agent_args = Vec::new();
     // The only world, and the only agent of each vehicle, this launcher runs at a time.
@@ -654,161 +631,110 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let progress = Ticks::new(mission);
     // A run whose agents could not all start lasted from the launch, as one stopped earlier does.
     let started = if spawned.is_ok() { Instant::now() } else { begun };
-    let mut check = tokio::time::interval(Duration::from_millis(100));
-    let mut restarts: Vec<Restarts> = Vec::new();
+    let clock = Monotonic::start();
+    let mut supervisor = Supervisor::new(
+        supervision(mission, command_timeout, restart, startup_timeout),
+        children.iter().map(Process::child),
+        clock.now(),
+    );
     // Agents that died and were started again: their exits are part of the run's record.
     let mut retired: Vec<Process> = Vec::new();
     // What went wrong without failing the run.
     let mut warnings: Vec<String> = Vec::new();
-
-    let outcome = if let Err(e) = spawned {
-        Outcome::Failed(format!("{e:#}"))
-    } else {
-        'run: loop {
-            if recording.complete() {
-                break Outcome::Completed;
-            }
-            tokio::select! {
-                r = recording.step() => {
-                    if let Err(e) = r {
-                        break Outcome::Failed(format!("the recorder failed: {e:#}"));
-                    }
-                    progress.set(recording.ticks());
-                }
-                _ = shutdown.recv() => break Outcome::Interrupted,
-                _ = suspend.recv() => {
-                    suspend_with(&children);
-                    // The fleet was stopped too: no tick came because none could.
-                    recording.progress = Instant::now();
-                }
-                _ = check.tick() => {
-                    // An agent gone before the first tick, and not to be started again, would
-                    // keep the world waiting for it to its startup timeout. The planner serves
-                    // agents as they start: once the fleet runs it may go (a testbed's shore
-                    // planner is no vehicle), and the run says so.
-                    let ticks = recording.ticks();
-                    let dead = children.iter_mut().find_map(|c| {
-                        c.poll()?;
-                        match c.role {
-                            // A world that ended the run (exit 0) sent its end: still on its way
-                            // while the recorder reads what came before it.
-                            Role::World if c.exit_code == Some(Some(0)) => {
-                                (recording.progress.elapsed() > END_ON_ITS_WAY).then(|| format!(
-                                    "the recorder missed the end: the world ended the run (exit 0), but the recording stops at tick {ticks}, and no more came within {} s; its link to the world lost them (was this process stopped, by SIGSTOP, or starved?)",
-                                    END_ON_ITS_WAY.as_secs()
-                                ))
-                            }
-                            Role::World => Some(died(dir, c, "before the end")),
-                            Role::Planner if ticks == 0 => Some(died(dir, c, "before the first tick")),
-                            Role::Planner => {
-                                if warnings.is_empty() {
-                                    let gone = format!(
-                                        "{} (at tick {ticks}); the run went on without it, but an agent started again could not have fetched its path",
-                                        died(dir, c, "after serving the paths")
-                                    );
-                                    tracing::warn!("{gone}");
-                                    warnings.push(gone);
-                                }
-                                None
-                            }
-                            Role::Agent if ticks == 0 && !restart => Some(died(dir, c, "before the first tick")),
-                            _ => None,
-                        }
-                    });
-                    if let Some(why) = dead {
-                        if recording.end.is_none() {
-                            break Outcome::Failed(why);
-                        }
-                    }
-                    if restart && recording.end.is_none() {
-                        let lost = recording.lost();
-                        for c in children.iter_mut() {
-                            if c.role != Role::Agent || c.poll().is_none_or(|code| code == Some(0)) {
-                                continue;
-                            }
-                            // A new agent of a lost vehicle is told so by the world, and stops.
-                            if lost.contains(&c.id) {
-                                continue;
-                            }
-                            let how = c.how_it_ended();
-                            tracing::warn!("agent {} died ({how}); starting it again", c.id);
-                            let again = match spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep) {
-                                Ok(again) => again,
-                                Err(e) => break 'run Outcome::Failed(format!("agent {} died ({how}) and {e:#}", c.id)),
-                            };
-                            match restarts.iter_mut().find(|r| r.id == again.id) {
-                                Some(r) => r.restarts += 1,
-                                None => restarts.push(Restarts { id: again.id, restarts: 1 }),
-                            }
+    let (mut outcome, mut ended_at) = (None, None);
+    if let Err(e) = spawned {
+        supervisor.failed(format!("{e:#}"), clock.now());
+    }
+    loop {
+        while let Some(output) = supervisor.poll_output() {
+            match output {
+                Output::Restart { child, exit } => {
+                    let c = &mut children[child];
+                    tracing::warn!("agent {} died ({exit}); starting it again", c.id);
+                    match spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep) {
+                        Ok(again) => {
                             retired.push(std::mem::replace(c, again));
+                            supervisor.restarted(child);
                         }
-                    }
-                    let waited = recording.progress.elapsed();
-                    let refused_ahead = recording.rejected.totals().future;
-                    match recording.ticks() {
-                        0 if waited > startup_timeout + START_MARGIN => {
-                            break Outcome::Failed(format!("the run did not start within {} s; see logs/world.log", waited.as_secs()));
-                        }
-                        0 => {}
-                        // Messages of ticks far ahead, and none of the next: the recorder's link
-                        // lost some (a lockstep fleet publishes a tick only once the one before is
-                        // whole), and waiting longer brings nothing.
-                        ticks if lockstep && waited > END_ON_ITS_WAY && refused_ahead > 0 => {
-                            break Outcome::Failed(format!(
-                                "the recorder lost messages of tick {}: {refused_ahead} of later ticks came and were refused as too far ahead, none of it for {} s; its link to the world dropped them (was this process stopped, by SIGSTOP, or starved?). The fleet's own logs say how it ended",
-                                ticks + 1,
-                                END_ON_ITS_WAY.as_secs()
-                            ));
-                        }
-                        ticks if waited > stall => {
-                            break Outcome::Failed(format!("no tick completed for {} s (stuck after tick {ticks})", stall.as_secs()));
-                        }
-                        _ => {}
+                        Err(e) => supervisor.failed(format!("agent {} died ({exit}) and {e:#}", c.id), clock.now()),
                     }
                 }
+                Output::PlannerGone { child, exit, ticks } => {
+                    let gone = format!(
+                        "{} (at tick {ticks}); the run went on without it, but an agent started again could not have fetched its path",
+                        died(dir, children[child].child(), exit, When::AfterServingThePaths)
+                    );
+                    tracing::warn!("{gone}");
+                    warnings.push(gone);
+                }
+                Output::Over(over) => {
+                    ended_at = Some(started.elapsed());
+                    progress.finish();
+                    outcome = Some(match over {
+                        Outcome::Failed(Failure::Died { child, exit, when, .. }) => {
+                            Outcome::Failed(Failure::Other(died(dir, child, exit, when)))
+                        }
+                        over => over,
+                    });
+                }
+                Output::Terminate => {
+                    for c in children.iter_mut() {
+                        if c.poll().is_none() {
+                            // SAFETY: kill(2) on the pid of a child not yet reaped, hence not reused.
+                            unsafe { libc::kill(c.pid as libc::pid_t, libc::SIGTERM) };
+                        }
+                    }
+                }
+                Output::Kill => {}
             }
         }
-    };
-    let wall_time_s = started.elapsed().as_secs_f64();
-    progress.finish();
-
-    // Let the children report and exit by themselves: at the end they do; after an interrupt
-    // they are told to (the terminal's Ctrl-C does not reach their process groups).
-    let grace = match outcome {
-        Outcome::Completed => Some(GRACE),
-        Outcome::Interrupted => {
-            for c in children.iter_mut() {
-                if c.poll().is_none() {
-                    // SAFETY: kill(2) on the pid of a child not yet reaped, hence not reused.
-                    unsafe { libc::kill(c.pid as libc::pid_t, libc::SIGTERM) };
-                }
-            }
-            Some(INTERRUPT_GRACE)
-        }
-        Outcome::Failed(_) => None,
-    };
-    if let Some(grace) = grace {
-        let deadline = Instant::now() + grace;
-        // Once every child has exited, a report still missing has REPORT_SETTLE to come: one
-        // sent just before the exit may be on its way, but a role stopped while it started, or
-        // by an error, sends none.
-        let mut exited: Option<Instant> = None;
-        while Instant::now() < deadline {
-            if children.iter_mut().all(|c| c.poll().is_some()) {
-                let since = *exited.get_or_insert_with(Instant::now);
-                if since.elapsed() >= REPORT_SETTLE || children.iter_mut().all(|c| reported(c, &recording)) {
-                    break;
-                }
-            }
-            tokio::select! {
-                r = recording.step() => if let Err(e) = r {
+        let Some(woken_for) = supervisor.poll_timeout() else {
+            break;
+        };
+        let running = outcome.is_none();
+        tokio::select! {
+            r = recording.step() => match r {
+                Err(e) if running => supervisor.failed(format!("the recorder failed: {e:#}"), clock.now()),
+                Err(e) => {
                     tracing::error!("recorder: {e:#}; writing what was recorded");
-                    break;
-                },
-                _ = check.tick() => {}
+                    supervisor.failed(format!("{e:#}"), clock.now());
+                }
+                Ok(()) => {
+                    if running {
+                        progress.set(recording.ticks());
+                    }
+                    supervisor.recorded(
+                        Recorded {
+                            ticks: recording.ticks(),
+                            ended: recording.end.is_some(),
+                            complete: recording.complete(),
+                            lost: recording.lost(),
+                            refused_ahead: recording.rejected.totals().future,
+                        },
+                        clock.now(),
+                    );
+                }
+            },
+            _ = shutdown.recv(), if running => supervisor.interrupted(clock.now()),
+            _ = suspend.recv(), if running => {
+                suspend_with(&children);
+                supervisor.continued(clock.now());
+            }
+            _ = tokio::time::sleep_until(clock.at(woken_for)) => {
+                for (index, c) in children.iter_mut().enumerate() {
+                    if c.exit_code.is_none() && c.poll().is_some() {
+                        supervisor.exited(index, c.exit());
+                    }
+                    if c.exit_code.is_some() && report_of(&recording, c).is_some() {
+                        supervisor.reported(index);
+                    }
+                }
+                supervisor.handle_timeout(clock.now());
             }
         }
     }
+    let outcome = outcome.expect("a supervisor is done only once the run is over");
+    let wall_time_s = ended_at.unwrap_or_else(|| started.elapsed()).as_secs_f64();
     stop(&mut children).await;
     let _ = session.close().await;
 
@@ -826,19 +752,19 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             ended,
             interrupted: matches!(outcome, Outcome::Interrupted),
             failure: match &outcome {
-                Outcome::Failed(why) => Some(why.clone()),
+                Outcome::Failed(why) => Some(why.to_string()),
                 _ => None,
             },
             wall_time_s,
             first_tick_s,
             children,
-            restarts,
+            restarts: supervisor.restarts().to_vec(),
             warnings,
         },
     )?;
     match outcome {
         Outcome::Failed(why) => Err(RunFailed {
-            why,
+            why: why.to_string(),
             dir: dir.path.clone(),
         }
         .into()),
@@ -858,10 +784,10 @@ mod tests {
 
     #[test]
     fn a_run_stalls_only_after_what_the_world_waits_for_on_purpose() {
-        let secs = |d: Duration| d.as_secs_f64();
+        let stall = |mission: &Mission, command| supervision(mission, command, false, waits::STARTUP).stall_limit_s();
         let b = mission(&[]);
-        assert_eq!(secs(stall_limit(&b, waits::COMMAND, false)), 60.0);
-        assert_eq!(secs(stall_limit(&b, Duration::from_secs(120), false)), 130.0);
+        assert_eq!(stall(&b, waits::COMMAND), 60.0);
+        assert_eq!(stall(&b, Duration::from_secs(120)), 130.0);
         // A wall period of 50 s (a control period of 0.05 s at the slowest time scale): a tick
         // every 50 s is no stall.
         let slow = mission(&[
@@ -869,7 +795,7 @@ mod tests {
             "mission.time_scale=0.001",
             "mission.control_period=0.05",
         ]);
-        assert_eq!(secs(stall_limit(&slow, waits::COMMAND, false)), 110.0);
+        assert_eq!(stall(&slow, waits::COMMAND), 110.0);
     }
 
     #[test]

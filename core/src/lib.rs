@@ -24,6 +24,7 @@ pub mod ros2;
 pub mod roster;
 pub mod sim;
 pub mod summary;
+pub mod supervisor;
 pub mod telemetry;
 pub mod watch;
 pub mod world;
