@@ -15,6 +15,7 @@ use tcpf_bus::typed::{
     answered, ask_clock, await_clock, fetch_paths, presence_of, queue, report, subscribe, subscribe_into,
     subscribe_with, Outlet, Presence, RealtimeReport, Received, Rejected,
 };
+use tcpf_bus::waits;
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};
 use tcpf_core::membership::{AgentStartup, Peer, StaleCheck, StaleTimer, StartupCheck, WorldAway, WorldReach};
@@ -27,8 +28,6 @@ use tokio::sync::Notify;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
-/// How long to wait for the end message after the world or the planner went away.
-const END_GRACE: Duration = Duration::from_millis(500);
 /// How often an agent asks for the clock while the world has not started: a realtime agent
 /// waits for it; a lockstep one, running meanwhile, asks less and less often, up to the max.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
@@ -500,7 +499,7 @@ impl Shell {
     /// The world's token gone: an `End` on its way means the run is over, else the world is.
     async fn world_gone(&mut self, accept: impl Fn(&End) -> bool) -> Exit {
         // The world's end message may come after its token has gone.
-        if let Ok(Some(e)) = tokio::time::timeout(END_GRACE, self.ends.recv()).await {
+        if let Ok(Some(e)) = tokio::time::timeout(waits::END_AFTER_THE_WORLD, self.ends.recv()).await {
             if accept(&e.message) {
                 return Exit::Ended;
             }

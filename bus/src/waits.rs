@@ -19,6 +19,10 @@ pub const COMMAND: Duration = Duration::from_secs(10);
 pub const STALE_S: &str = "3";
 pub const STALE: Duration = Duration::from_secs(3);
 
+/// How long a role whose world's token has gone waits for the world's `End`, which may come
+/// after it (the agents, the planner): an end says the run is over, its absence that the world is.
+pub const END_AFTER_THE_WORLD: Duration = Duration::from_millis(500);
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,8 +1,6 @@
 //! `tcpf planner`: solves MODEL §1 and serves each vehicle's generalized path, as a queryable (an
 //! agent that starts late or restarts gets its path) and once as a publication.
 
-use std::time::Duration;
-
 use anyhow::{anyhow, Result};
 use tcpf_bus::codec::encode;
 use tcpf_bus::keys::{Keys, Role};
@@ -98,7 +96,7 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
                     world_seen = true;
                 } else if world_seen {
                     if !ended {
-                        let end = tokio::time::timeout(Duration::from_millis(500), ends.recv()).await;
+                        let end = tokio::time::timeout(waits::END_AFTER_THE_WORLD, ends.recv()).await;
                         ended = end.is_ok_and(|e| e.is_some());
                     }
                     break if ended { Exit::Ended } else { Exit::WorldGone };
