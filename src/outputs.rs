@@ -8,7 +8,7 @@ use tcpf_coordinator::launcher::Links;
 use tcpf_core::mission::Mission;
 use tcpf_report::rundir::RunDir;
 
-use crate::Failure;
+use crate::failure::Failure;
 
 /// The live view's address can be listened on: said before a run directory is made, which a
 /// run that cannot serve would leave half-written.

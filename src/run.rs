@@ -1,18 +1,130 @@
 //! `tcpf run`, `plan` and `report`: a mission's plan, its run, and a run's report.
 
-use std::path::Path;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 use anyhow::anyhow;
+use clap::{Args, ValueEnum};
+use tcpf_bus::waits;
 use tcpf_coordinator::{inprocess, launcher};
 use tcpf_core::mission;
 use tcpf_report::table;
 
-use crate::cli::MissionArgs;
+use crate::cli::{command_timeout, figure_width, more_recorders, ros2_domain, seconds, ClockArgs, MissionArgs};
+use crate::failure::{code, role_failure, Failure};
+use crate::missions::{clocked, load, solve};
 use crate::outputs::{fresh_out, live_free, ros2_open_free, run_dir};
-use crate::{code, load, role_failure, runtime, solve, Failure};
+use crate::runtime::runtime;
 
-pub fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
+#[derive(Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    mission: MissionArgs,
+    #[command(flatten)]
+    clock: ClockArgs,
+    /// Start a dead agent again (it rejoins the run), or never (its vehicle is lost).
+    #[arg(long, value_enum, default_value = "never", conflicts_with = "in_process")]
+    restart: Restart,
+    /// Run directory (default runs/<mission>-<timestamp>/).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Drive every machine in one loop instead of one process per role (the reference).
+    #[arg(long)]
+    in_process: bool,
+    /// Mission seed (overrides mission.seed); a TOML integer, so at most 2^63 − 1.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(..=i64::MAX as u64))]
+    seed: Option<u64>,
+    /// Serve the run to Foxglove live over its WebSocket protocol (default 127.0.0.1:8765).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    live: Option<SocketAddr>,
+    /// Seconds a tick waits for a live agent's command; then its vehicle is lost (silent).
+    /// More than the agents' stale timeout.
+    #[arg(long, default_value = waits::COMMAND_S, value_parser = command_timeout, allow_hyphen_values = true, conflicts_with = "in_process")]
+    command_timeout: Duration,
+    /// Speak ROS 2 (rmw_zenoh) on this domain beside tcpf's own protocol, over the mission's
+    /// [ros2] domain: the world and every agent as ROS 2 nodes (docs/ROS2.md).
+    #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0", value_parser = ros2_domain(), conflicts_with = "in_process")]
+    ros2: Option<u32>,
+    /// With ROS 2, the world also listens here with no credential (by default where
+    /// rmw_zenohd would, tcp/127.0.0.1:7447): a stock ROS 2 node on this machine joins with
+    /// no configuration at all, and may only listen. For a network only you use.
+    #[arg(long, value_name = "ENDPOINT", num_args = 0..=1, default_missing_value = "tcp/127.0.0.1:7447", conflicts_with = "in_process")]
+    ros2_open: Option<String>,
+    /// Start the run only once N more recorders have joined: `tcpf record` or tools of your
+    /// own, with the run directory's `zenoh.json5` (-c).
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = more_recorders(), conflicts_with = "in_process")]
+    recorders: usize,
+    /// Seconds the world waits for every agent and recorder before it gives up and says who
+    /// is missing.
+    #[arg(long, default_value = waits::STARTUP_S, value_parser = seconds, allow_hyphen_values = true, conflicts_with = "in_process")]
+    startup_timeout: Duration,
+    /// How each role proves to the world which it is: its own certificate (mutual TLS), or
+    /// its own user and password over TCP, for tools whose Zenoh has no TLS.
+    #[arg(long, value_enum, default_value = "certificates", conflicts_with = "in_process")]
+    links: launcher::Links,
+}
+
+/// What `tcpf run` does when an agent dies.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Restart {
+    /// Its vehicle is lost and drifts.
+    Never,
+    /// The agent is started again and rejoins.
+    OnFailure,
+}
+
+#[derive(Args)]
+pub struct PlanArgs {
+    #[command(flatten)]
+    mission: MissionArgs,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+pub struct ReportArgs {
+    /// The run directory.
+    dir: PathBuf,
+    /// The figures' printed width (figures/*.pdf, *.svg): column (3.5 in), double (7.16 in)
+    /// or inches; every text is at least 8 pt at it.
+    #[arg(long, value_name = "WIDTH", default_value = "column", value_parser = figure_width)]
+    figure_width: f64,
+}
+
+impl PlanArgs {
+    pub fn run(self) -> Result<ExitCode, Failure> {
+        plan(&self.mission, self.json)
+    }
+}
+
+impl RunArgs {
+    pub fn run(self) -> Result<ExitCode, Failure> {
+        let options = launcher::Options {
+            live: self.live,
+            command_timeout: self.command_timeout,
+            startup_timeout: self.startup_timeout,
+            restart: self.restart == Restart::OnFailure,
+            recorders: self.recorders,
+            ros2: self.ros2,
+            ros2_open: self.ros2_open,
+            links: self.links,
+            ..launcher::Options::default()
+        };
+        let mission = clocked(&self.mission, &self.clock);
+        run(&mission, self.out.as_deref(), self.in_process, self.seed, options)
+    }
+}
+
+impl ReportArgs {
+    pub fn run(self) -> Result<ExitCode, Failure> {
+        report(&self.dir, self.figure_width)
+    }
+}
+
+fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
     if json {
@@ -29,7 +141,7 @@ pub fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
-pub fn run(
+fn run(
     args: &MissionArgs,
     out: Option<&Path>,
     in_process: bool,
@@ -85,7 +197,7 @@ pub fn run(
     ))
 }
 
-pub fn report(dir: &Path, figure_width: f64) -> Result<ExitCode, Failure> {
+fn report(dir: &Path, figure_width: f64) -> Result<ExitCode, Failure> {
     // A sweep's directory holds its runs' directories when it ran them as processes.
     if dir.join("runs.csv").is_file() && !dir.join("summary.json").exists() {
         return Err(Failure::Input(anyhow!(

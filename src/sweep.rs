@@ -5,17 +5,121 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::anyhow;
+use clap::{Args, Subcommand};
 use tcpf_coordinator::sweep;
 use tcpf_core::mission;
 use tcpf_core::summary::Provenance;
 use tcpf_report::sweep::figures::Look;
 use tcpf_report::sweep::{Design, Sweep};
 
-use crate::cli::{MissionArgs, SweepArgs};
+use crate::cli::{figure_width, look, Band, MissionArgs};
+use crate::failure::{code, Failure};
+use crate::missions::load;
 use crate::outputs::{fresh_out, out_failure};
-use crate::{code, load, runtime, Failure};
+use crate::runtime::runtime;
 
-pub fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
+/// `tcpf sweep FILE ...` or `tcpf sweep merge DIR...`.
+#[derive(Args)]
+pub struct SweepCommandArgs {
+    #[command(subcommand)]
+    merge: Option<SweepCommand>,
+    #[command(flatten)]
+    sweep: Option<SweepArgs>,
+}
+
+#[derive(Args)]
+#[command(group(clap::ArgGroup::new("values").required(true).multiple(true).args(["loss", "param"])))]
+pub struct SweepArgs {
+    /// Mission file (TOML).
+    file: PathBuf,
+    /// Override a mission key: `section.key=value`, `section.table.key=value`, or
+    /// `vehicle.<id>.key=value`.
+    #[arg(long = "set", value_name = "K=V")]
+    set: Vec<String>,
+    /// Loss probabilities to sweep (comms.loss), e.g. 0,0.3,0.6,0.9: --param comms.loss=...
+    #[arg(long, value_delimiter = ',')]
+    loss: Vec<String>,
+    /// Any mission key and its values: KEY=V1,V2,... Repeat it for a grid (every combination);
+    /// a list or a table in brackets or braces is one value.
+    #[arg(long, value_name = "KEY=V1,V2,...")]
+    param: Vec<String>,
+    /// Seeds per grid point: S to S + N − 1 (each a run's --seed).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=i64::MAX as u64))]
+    seeds: u64,
+    /// The first seed.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    seed_start: u64,
+    /// In-process runs at once (default: the cores).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=4096), conflicts_with = "processes")]
+    jobs: Option<u64>,
+    /// Run only shard I of K: the runs k with k mod K = I − 1, into a directory of its own
+    /// (`tcpf sweep merge` joins the shards).
+    #[arg(long, value_name = "I/K", value_parser = tcpf_report::sweep::Shard::parse)]
+    shard: Option<tcpf_report::sweep::Shard>,
+    /// Run only the runs missing from --out (and those that failed), and write its tables again.
+    #[arg(long, requires = "out")]
+    resume: bool,
+    /// Run each as a real fleet of processes (one after the other) instead of in-process.
+    #[arg(long)]
+    processes: bool,
+    /// Keep per grid point the mean and 95 % interval over the seeds of the coordination error
+    /// and the clearance against time (series.csv, and their figures). Not with --shard: a
+    /// shard's series are not merged.
+    #[arg(long, conflicts_with = "shard")]
+    series: bool,
+    /// The band around each mean in the figures.
+    #[arg(long, value_enum, default_value = "ci95")]
+    band: Band,
+    /// The figures' printed width: column (3.5 in), double (two columns, 7.16 in) or inches;
+    /// every text is at least 8 pt at it.
+    #[arg(long, value_name = "WIDTH", default_value = "column", value_parser = figure_width)]
+    figure_width: f64,
+    /// Output directory (default runs/<mission>-sweep-<timestamp>/).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Subcommand)]
+enum SweepCommand {
+    /// Join the shards of one sweep (`--shard I/K`) into what the sweep unsharded writes.
+    Merge {
+        /// The shards' directories.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// The merged sweep's directory (new).
+        #[arg(long)]
+        out: PathBuf,
+        /// The band around each mean in the figures.
+        #[arg(long, value_enum, default_value = "ci95")]
+        band: Band,
+        /// The figures' printed width: column (3.5 in), double (two columns, 7.16 in) or inches;
+        /// every text is at least 8 pt at it.
+        #[arg(long, value_name = "WIDTH", default_value = "column", value_parser = figure_width)]
+        figure_width: f64,
+    },
+}
+
+impl SweepCommandArgs {
+    pub fn run(self) -> Result<ExitCode, Failure> {
+        match (self.merge, self.sweep) {
+            (
+                Some(SweepCommand::Merge {
+                    dirs,
+                    out,
+                    band,
+                    figure_width,
+                }),
+                _,
+            ) => merge(&dirs, &out, look(band, figure_width)),
+            (None, Some(args)) => run(&args),
+            (None, None) => Err(Failure::Input(anyhow!(
+                "tcpf sweep: give a mission file and what to sweep (tcpf sweep FILE --loss ... --seeds N), or `tcpf sweep merge DIR... --out DIR`"
+            ))),
+        }
+    }
+}
+
+fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
     let grid = sweep::parse_grid(&args.param, &args.loss, &args.set, args.seeds, args.seed_start)
         .map_err(|e| Failure::Input(anyhow!(e)))?;
     if let Some(out) = args
@@ -87,7 +191,7 @@ pub fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
         })
     };
     let mut rows = made?;
-    rows.draw(args.series, crate::cli::look(&args.band, args.figure_width))
+    rows.draw(args.series, look(args.band, args.figure_width))
         .map_err(Failure::Failed)?;
     let interrupted = if args.processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
@@ -111,7 +215,7 @@ fn finish(rows: Sweep, interrupted: bool) -> Result<ExitCode, Failure> {
     Ok(code(summary.failed_runs.is_empty(), interrupted))
 }
 
-pub fn merge(dirs: &[PathBuf], out: &Path, look: Look) -> Result<ExitCode, Failure> {
+fn merge(dirs: &[PathBuf], out: &Path, look: Look) -> Result<ExitCode, Failure> {
     fresh_out(Some(out))?;
     let mut rows = Sweep::merge(dirs, out).map_err(Failure::Input)?;
     rows.draw(false, look).map_err(Failure::Failed)?;
