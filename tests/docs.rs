@@ -1,5 +1,5 @@
 //! The README and docs/ stand on their own: they link only to files of the repository, and every
-//! link resolves; the mission file the README shows is one.
+//! link resolves; the mission file docs/MISSIONS.md shows is one.
 
 use std::path::{Path, PathBuf};
 
@@ -56,14 +56,14 @@ fn the_license_file_matches_the_manifest() {
 }
 
 #[test]
-fn the_readmes_mission_file_is_a_mission() {
+fn the_documented_mission_file_is_a_mission() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let block = readme
+    let doc = std::fs::read_to_string(root.join("docs/MISSIONS.md")).unwrap();
+    let block = doc
         .split("```toml\n")
         .nth(1)
         .and_then(|rest| rest.split("```").next())
-        .expect("the README shows a mission file");
+        .expect("docs/MISSIONS.md shows a mission file");
     let dir = std::env::temp_dir().join(format!("tcpf-readme-mission-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("mission.toml");

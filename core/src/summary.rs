@@ -1,4 +1,4 @@
-//! `summary.json` (the README, "Reading the results"), and how a recorder's gathering becomes
+//! `summary.json` (docs/RESULTS.md), and how a recorder's gathering becomes
 //! one: from what was recorded and how the run ended to `Summary`, with no I/O.
 
 use crate::links::LinkStats;
