@@ -8,13 +8,16 @@ use std::time::Duration;
 use anyhow::{anyhow, Result};
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{self, metronome, FleetClock, Monotonic};
+use tcpf_bus::clock_query::{answered, ask_clock, await_clock};
+use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::keys::{Keys, Role};
+use tcpf_bus::outlet::Outlet;
+use tcpf_bus::paths::fetch_paths;
+use tcpf_bus::presence::{presence_of, Presence};
+use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::typed::{
-    answered, ask_clock, await_clock, fetch_paths, presence_of, queue, report, subscribe, subscribe_into,
-    subscribe_with, Outlet, Presence, RealtimeReport, Received, Rejected,
-};
+use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
 use tcpf_bus::waits;
 use tcpf_core::agent::Agent;
 use tcpf_core::lockstep::{AgentNode, Timing};

@@ -22,7 +22,9 @@ use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode};
 use crate::keys::{Keys, Role};
-use crate::typed::{enqueue, present, Received, Rejected};
+use crate::presence::present;
+use crate::rejected::Rejected;
+use crate::subscribe::{enqueue, Received};
 
 /// How many times a sender asks a recorder that does not answer.
 pub const ATTEMPTS: u32 = 3;

@@ -11,7 +11,8 @@ use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode};
 use crate::keys::Keys;
-use crate::typed::{enqueue, Received, Rejected};
+use crate::rejected::Rejected;
+use crate::subscribe::{enqueue, Received};
 
 /// How long a recorder waits for the world's history: its rows wait as long.
 const FETCH_TIMEOUT: Duration = Duration::from_secs(2);

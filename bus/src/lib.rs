@@ -1,19 +1,26 @@
 //! tcpf-bus: everything the processes share about Zenoh: the session from the usual options, the
-//! key expressions, the message codec and typed publishers and subscribers.
+//! key expressions, the message codec, typed publishers and subscribers, presence, the clock's
+//! queries, paths, exit reports and hand-overs.
 
 pub mod acl;
 pub mod certificate;
 pub mod claim;
 pub mod clock;
+pub mod clock_query;
 pub mod codec;
 pub mod credential;
+pub mod exit_report;
 pub mod footprint;
 pub mod handover;
 pub mod history;
 pub mod keys;
+pub mod outlet;
+pub mod paths;
+pub mod presence;
 pub mod priority;
+pub mod rejected;
 pub mod ros2;
 pub mod session;
 pub mod signals;
-pub mod typed;
+pub mod subscribe;
 pub mod waits;

@@ -19,7 +19,8 @@ use zenoh::query::Queryable;
 use zenoh::time::Timestamp;
 use zenoh::{Session, Wait};
 
-use crate::typed::{enqueue, queue, Received, Rejected};
+use crate::rejected::Rejected;
+use crate::subscribe::{enqueue, queue, Received};
 
 /// One ROS 2 publisher: its Zenoh publisher, the sequence number of its next sample, its GID.
 struct Topic {

@@ -3,10 +3,13 @@
 
 use anyhow::{anyhow, Result};
 use tcpf_bus::codec::encode;
+use tcpf_bus::exit_report::report;
 use tcpf_bus::keys::{Keys, Role};
+use tcpf_bus::presence::presence;
+use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::typed::{presence, report, subscribe, Rejected};
+use tcpf_bus::subscribe::subscribe;
 use tcpf_bus::waits;
 use tcpf_core::lockstep::Timing;
 use tcpf_core::mission::Mission;

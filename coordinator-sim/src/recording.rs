@@ -9,10 +9,13 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
+use tcpf_bus::clock_query::{answered, await_clock, ClockAnswer};
 use tcpf_bus::handover::{take_over, take_over_held, Ack};
 use tcpf_bus::history;
 use tcpf_bus::keys::{Keys, Role};
-use tcpf_bus::typed::{answered, await_clock, presence, present, subscribe_as, ClockAnswer, Received, Rejected};
+use tcpf_bus::presence::{presence, present};
+use tcpf_bus::rejected::Rejected;
+use tcpf_bus::subscribe::{subscribe_as, Received};
 use tcpf_core::lockstep::Reject;
 use tcpf_core::metrics::Results;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};

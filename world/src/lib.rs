@@ -11,16 +11,19 @@ use std::time::Duration;
 use anyhow::{anyhow, Result};
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
+use tcpf_bus::clock_query::ClockServer;
 use tcpf_bus::codec::Invalid;
+use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::handover::{self, hand_over};
 use tcpf_bus::keys::{Keys, Role};
+use tcpf_bus::outlet::{say_now, Outlet};
+use tcpf_bus::paths::fetch_paths;
+use tcpf_bus::presence::{linger, linger_within, presence, Presence};
+use tcpf_bus::rejected::Rejected;
 use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::typed::{
-    fetch_paths, linger, linger_within, presence, queue, report, say_now, subscribe_as, subscribe_origin_as,
-    subscribe_with, ClockServer, Outlet, Presence, RealtimeReport, Received, Rejected,
-};
+use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
 use tcpf_core::lockstep::{Reject, Timing, WorldNode};
 use tcpf_core::membership::{Arrival, Deadlines, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};

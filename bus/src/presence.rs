@@ -1,0 +1,104 @@
+//! Who of a mission is present, by liveliness tokens: asked once, followed, or waited out.
+
+use std::time::Duration;
+
+use anyhow::{anyhow, Result};
+use tokio::sync::mpsc;
+use zenoh::pubsub::Subscriber;
+use zenoh::sample::SampleKind;
+use zenoh::Session;
+
+use crate::keys::{Keys, Role};
+
+/// A liveliness change of the mission: someone came or went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Presence {
+    pub role: Role,
+    pub id: u32,
+    pub alive: bool,
+}
+
+/// Who of the mission is present now, by their liveliness tokens.
+pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>> {
+    let replies = session
+        .liveliness()
+        .get(keys.alive_all())
+        .timeout(Duration::from_millis(500))
+        .await
+        .map_err(|e| anyhow!("cannot ask who is present: {e}"))?;
+    let mut present = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result() {
+            present.extend(keys.parse_alive(sample.key_expr().as_str()));
+        }
+    }
+    Ok(present)
+}
+
+/// How long a role stays after its last words for those who should hear them to leave, and how
+/// often it looks.
+const LINGER: Duration = Duration::from_secs(2);
+const LINGER_POLL: Duration = Duration::from_millis(20);
+
+/// Stays until no process of `roles` is present, or `LINGER` has passed: a session closed at once
+/// may take its last messages with it (over QUIC, closing a connection drops what it has not yet
+/// delivered), and those who wait for them (agents for the end) leave once they have them. A
+/// role's words to the recorders need no lingering: they are acknowledged (`handover`).
+pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
+    linger_within(session, keys, roles, LINGER).await;
+}
+
+/// `linger`, for at most `within`: asks who is present every `LINGER_POLL`.
+pub async fn linger_within(session: &Session, keys: &Keys, roles: &[Role], within: Duration) {
+    let until = tokio::time::Instant::now() + within;
+    while tokio::time::Instant::now() < until {
+        match present(session, keys).await {
+            Ok(p) if p.iter().all(|(role, _)| !roles.contains(role)) => return,
+            Ok(_) => {}
+            Err(e) => {
+                tracing::warn!("{e}");
+                return;
+            }
+        }
+        tokio::time::sleep(LINGER_POLL).await;
+    }
+}
+
+/// Follows every liveliness token of the mission, those already there included.
+pub async fn presence(session: &Session, keys: &Keys) -> Result<(Subscriber<()>, mpsc::UnboundedReceiver<Presence>)> {
+    let (mut subscribers, rx) = presence_of(session, keys, &[keys.alive_all()]).await?;
+    Ok((subscribers.remove(0), rx))
+}
+
+/// Follows the liveliness tokens of the mission under `watched`, those already there included,
+/// on one channel: a process that needs a few roles' presence is not told every other's (an
+/// agent of 200 that followed every token took 200 declarations at its start, and the router
+/// 40 000).
+pub async fn presence_of(
+    session: &Session,
+    keys: &Keys,
+    watched: &[String],
+) -> Result<(Vec<Subscriber<()>>, mpsc::UnboundedReceiver<Presence>)> {
+    let (tx, rx) = mpsc::unbounded_channel();
+    let mut subscribers = Vec::with_capacity(watched.len());
+    for key in watched {
+        let (tx, parser) = (tx.clone(), keys.clone());
+        let subscriber = session
+            .liveliness()
+            .declare_subscriber(key)
+            .history(true)
+            .callback(move |sample| {
+                if let Some((role, id)) = parser.parse_alive(sample.key_expr().as_str()) {
+                    let _ = tx.send(Presence {
+                        role,
+                        id,
+                        alive: sample.kind() == SampleKind::Put,
+                    });
+                }
+            })
+            .await
+            .map_err(|e| anyhow!("cannot follow liveliness: {e}"))?;
+        subscribers.push(subscriber);
+    }
+    Ok((subscribers, rx))
+}
