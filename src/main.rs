@@ -41,7 +41,7 @@ mod runtime;
 mod sweep;
 
 fn main() -> ExitCode {
-    tcpf_report::rundir::Invocation {
+    tcpf_report::provenance::Invocation {
         command: std::env::args().collect(),
         version: env!("CARGO_PKG_VERSION").into(),
         commit: option_env!("TCPF_COMMIT").filter(|c| !c.is_empty()).map(String::from),

@@ -5,7 +5,6 @@ use std::io::{BufWriter, Write};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, SyncSender};
-use std::sync::OnceLock;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -17,43 +16,7 @@ use tcpf_core::telemetry;
 
 use crate::bag::Bag;
 use crate::viewer::Viewer;
-use tcpf_core::summary::{Mode, Provenance, Summary};
-
-/// How this process was invoked, for the provenance of what it writes: its command line, and
-/// the version and commit of the tcpf that runs it. Set once, by the binary, at its start.
-#[derive(Debug, Clone, Default)]
-pub struct Invocation {
-    pub command: Vec<String>,
-    pub version: String,
-    pub commit: Option<String>,
-}
-
-static INVOCATION: OnceLock<Invocation> = OnceLock::new();
-
-impl Invocation {
-    /// This process's invocation: later calls change nothing.
-    pub fn set(self) {
-        let _ = INVOCATION.set(self);
-    }
-
-    /// Fills in what a summary's provenance does not say yet.
-    pub fn fill(&self, provenance: &mut Provenance) {
-        if provenance.command.is_empty() {
-            provenance.command = self.command.clone();
-        }
-        if provenance.version.is_empty() {
-            provenance.version = self.version.clone();
-        }
-        if provenance.commit.is_none() {
-            provenance.commit = self.commit.clone();
-        }
-    }
-}
-
-/// This process's invocation (empty where the binary did not set it: a library caller).
-pub fn invocation() -> Invocation {
-    INVOCATION.get().cloned().unwrap_or_default()
-}
+use tcpf_core::summary::{Mode, Summary};
 
 pub struct RunDir {
     pub path: PathBuf,
@@ -208,7 +171,7 @@ impl RunDir {
     /// summary cut short or empty.
     pub fn write_summary(&self, summary: &Summary) -> Result<()> {
         let mut summary = summary.clone();
-        invocation().fill(&mut summary.provenance);
+        crate::provenance::invocation().fill(&mut summary.provenance);
         let text = serde_json::to_string_pretty(&summary)? + "\n";
         let (next, name) = (self.path.join("summary.json.next"), "summary.json");
         let written = fs::write(&next, text).and_then(|()| fs::rename(&next, self.path.join(name)));

@@ -249,7 +249,7 @@ impl Viewer {
             self.log_encoded(&drawn, &message, epoch);
         }
         let Some(mcap) = &self.mcap else { return };
-        let invocation = crate::rundir::invocation();
+        let invocation = crate::provenance::invocation();
         let metadata = [
             ("frames", FRAMES.to_string()),
             (

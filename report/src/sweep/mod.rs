@@ -493,7 +493,7 @@ impl Sweep {
     /// The statistics per grid point of the rows so far (points with no row are left out).
     fn summary(&self) -> SweepSummary {
         let mut provenance = self.provenance.clone();
-        crate::rundir::invocation().fill(&mut provenance);
+        crate::provenance::invocation().fill(&mut provenance);
         let planned = self.design.planned();
         let gave_up = self.in_a_row >= GIVE_UP;
         SweepSummary {
