@@ -35,8 +35,6 @@ use zenoh::Session;
 /// waits for it; a lockstep one, running meanwhile, asks less and less often, up to the max.
 const CLOCK_POLL: Duration = Duration::from_millis(50);
 const CLOCK_POLL_MAX: Duration = Duration::from_secs(1);
-/// How long after its token an agent is running, not starting.
-const STARTED: Duration = Duration::from_secs(1);
 /// How long a realtime agent waits for a world out of reach before it stops: a radio link that
 /// drops for a while must not end the vehicle's mission.
 const WORLD_AWAY: Duration = Duration::from_secs(60);
@@ -113,6 +111,17 @@ enum Inbound {
         feed: Arc<Feed>,
         faults: UnboundedReceiver<anyhow::Error>,
     },
+}
+
+/// The agent runs: the code of its start (its session, its TLS, its configuration) need not stay
+/// mapped (`footprint`), as dozens of agents share a host. Let go of as the loop starts, not a
+/// while later: a lockstep run of the paper is over in a second.
+fn let_go_of_the_start(id: u32) {
+    tokio::task::spawn_blocking(move || {
+        if let Some(kib) = tcpf_bus::footprint::drop_startup_code() {
+            tracing::debug!("agent {id}: let go of {kib} KiB of mapped code");
+        }
+    });
 }
 
 /// The lockstep node, fed on Zenoh's thread: a state or γ goes in and the γ and command it
@@ -211,6 +220,7 @@ impl Feed {
 
     /// The loop starts: what came before goes into the node.
     fn start(&self) {
+        let_go_of_the_start(self.id);
         let mut fed = self.lock();
         for (key, input) in fed.held.take().unwrap_or_default() {
             self.apply(&mut fed, &key, input);
@@ -372,14 +382,6 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         .declare_token(keys.alive(Role::Agent, id))
         .await
         .map_err(|e| anyhow!("liveliness token: {e}"))?;
-    // Once it runs, its start's code need not stay mapped (`footprint`): dozens of agents share
-    // a host.
-    tokio::spawn(async move {
-        tokio::time::sleep(STARTED).await;
-        if let Some(kib) = tcpf_bus::footprint::drop_startup_code() {
-            tracing::debug!("agent {id}: let go of {kib} KiB of mapped code");
-        }
-    });
     let mut shell = Shell {
         id,
         audible: audible.clone(),
@@ -640,6 +642,7 @@ impl Shell {
         // for one that finds the run under way (started again, or late).
         let mut node = RealtimeAgent::new(queued.agent, mission, true);
         let mut beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
+        let_go_of_the_start(id);
         let exit = loop {
             tokio::select! {
                 Some(beat) = beats.recv() => {
