@@ -645,6 +645,10 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     if let Err(e) = spawned {
         supervisor.failed(format!("{e:#}"), clock.now());
     }
+    // One timer, moved when the supervisor's next wake-up does: not one made for every step of
+    // the recording, which comes with every message.
+    let timer = tokio::time::sleep_until(clock.at(0.0));
+    tokio::pin!(timer);
     loop {
         while let Some(output) = supervisor.poll_output() {
             match output {
@@ -691,6 +695,9 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         let Some(woken_for) = supervisor.poll_timeout() else {
             break;
         };
+        if timer.deadline() != clock.at(woken_for) {
+            timer.as_mut().reset(clock.at(woken_for));
+        }
         let running = outcome.is_none();
         tokio::select! {
             r = recording.step() => match r {
@@ -720,7 +727,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 suspend_with(&children);
                 supervisor.continued(clock.now());
             }
-            _ = tokio::time::sleep_until(clock.at(woken_for)) => {
+            _ = &mut timer => {
                 for (index, c) in children.iter_mut().enumerate() {
                     if c.exit_code.is_none() && c.poll().is_some() {
                         supervisor.exited(index, c.exit());
