@@ -689,7 +689,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                         }
                     }
                 }
-                Output::Kill => {}
+                Output::Kill => stop(&mut children).await,
             }
         }
         let Some(woken_for) = supervisor.poll_timeout() else {
@@ -742,7 +742,6 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     }
     let outcome = outcome.expect("a supervisor is done only once the run is over");
     let wall_time_s = ended_at.unwrap_or_else(|| started.elapsed()).as_secs_f64();
-    stop(&mut children).await;
     let _ = session.close().await;
 
     let children: Vec<ChildSummary> = retired
