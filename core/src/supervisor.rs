@@ -619,6 +619,12 @@ mod tests {
         out
     }
 
+    /// Quiet up to `until`, then failed within the next check: why.
+    fn fails_after(s: &mut Supervisor, until: f64) -> Failure {
+        assert_eq!(run_until(s, until), [], "quiet up to {until} s");
+        failure(&run_until(s, until + 0.1)).cloned().expect("failed just after")
+    }
+
     fn failure(out: &[Output]) -> Option<&Failure> {
         out.iter().find_map(|o| match o {
             Output::Over(Outcome::Failed(f)) => Some(f),
@@ -746,14 +752,12 @@ mod tests {
         let mut s = fleet(false);
         s.recorded(ticks(50), 10.0);
         s.exited(1, CLEAN);
-        assert_eq!(run_until(&mut s, 15.0), []);
-        let out = run_until(&mut s, 15.1);
         assert_eq!(
-            failure(&out),
-            Some(&Failure::MissedTheEnd {
+            fails_after(&mut s, 15.0),
+            Failure::MissedTheEnd {
                 ticks: 50,
                 waited_s: 5.0
-            })
+            }
         );
     }
 
@@ -829,11 +833,9 @@ mod tests {
     #[test]
     fn a_run_with_no_tick_fails_after_the_worlds_startup_timeout_and_the_margin() {
         let mut s = fleet(false);
-        assert_eq!(run_until(&mut s, 40.0), []);
-        let out = run_until(&mut s, 40.1);
         assert_eq!(
-            failure(&out).map(ToString::to_string).as_deref(),
-            Some("the run did not start within 40 s; see logs/world.log")
+            fails_after(&mut s, 40.0).to_string(),
+            "the run did not start within 40 s; see logs/world.log"
         );
     }
 
@@ -841,14 +843,12 @@ mod tests {
     fn a_run_stuck_after_a_tick_fails_after_the_stall_limit() {
         let mut s = fleet(false);
         s.recorded(ticks(12), 1.0);
-        assert_eq!(run_until(&mut s, 61.0), []);
-        let out = run_until(&mut s, 61.1);
         assert_eq!(
-            failure(&out),
-            Some(&Failure::Stalled {
+            fails_after(&mut s, 61.0),
+            Failure::Stalled {
                 limit_s: 60.0,
                 ticks: 12
-            })
+            }
         );
     }
 
@@ -872,14 +872,13 @@ mod tests {
             ..Recorded::default()
         };
         s.recorded(ahead.clone(), 2.0);
-        assert_eq!(run_until(&mut s, 7.0), []);
         assert_eq!(
-            failure(&run_until(&mut s, 7.1)),
-            Some(&Failure::LostMessages {
+            fails_after(&mut s, 7.0),
+            Failure::LostMessages {
                 tick: 21,
                 refused_ahead: 3,
                 waited_s: 5.0
-            })
+            }
         );
         // In realtime the world does not wait for a tick to be whole: only the stall limit.
         let mut s = Supervisor::new(
