@@ -623,6 +623,9 @@ pub async fn record(
             _ = shutdown.recv() => break true,
             Some(p) = presence.recv() => {
                 if p.role == Role::World {
+                    if p.alive && !waits.seen() {
+                        tracing::info!("recorder: the world is here");
+                    }
                     waits.on_presence(p.alive, clock.now());
                 }
             }

@@ -145,6 +145,11 @@ impl RecorderWaits {
         self.world.left()
     }
 
+    /// Whether the world's token has been seen, so that its leaving means something.
+    pub fn seen(&self) -> bool {
+        self.world.seen()
+    }
+
     fn stall_at(&self) -> Option<f64> {
         match self.world.left() {
             Some(left) if self.realtime => Some(left + END_STALL_S),
