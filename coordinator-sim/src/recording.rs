@@ -285,7 +285,10 @@ impl Recording {
         let before = self.ticks();
         match &mut self.machine {
             Machine::Lockstep(recorder) => tokio::select! {
-                m = self.inbox.recv() => {
+                // Once the ticks have begun, the rest wait here until the clock answers: the
+                // machine writes nothing before it, and its window of ticks (a few ms of a fast
+                // fleet) would fill and refuse every later genuine tick as too far ahead.
+                m = self.inbox.recv(), if !self.ticking || self.clock.is_none() => {
                     let Some(m) = m else {
                         return Err(anyhow!("the recorder's subscriptions closed"));
                     };
