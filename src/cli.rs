@@ -9,6 +9,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::waits;
 use tcpf_core::mission;
+use tcpf_report::provenance::Invocation;
 
 use crate::failure::Failure;
 use crate::{bench, missions, roles, run, sweep};
@@ -68,11 +69,13 @@ impl Command {
         )
     }
 
-    pub fn run(self) -> Result<ExitCode, Failure> {
+    /// Carries the command out; `invocation` is how this process was started, which whatever it
+    /// writes names as its provenance.
+    pub fn run(self, invocation: Invocation) -> Result<ExitCode, Failure> {
         match self {
-            Command::Run(args) => args.run(),
+            Command::Run(args) => args.run(invocation),
             Command::Plan(args) => args.run(),
-            Command::Sweep(args) => args.run(),
+            Command::Sweep(args) => args.run(invocation),
             Command::Gen(args) => args.run(),
             Command::Report(args) => args.run(),
             Command::Bench(args) => args.run(),
@@ -81,7 +84,7 @@ impl Command {
             Command::Router(args) => args.run(),
             Command::Planner(args) => args.run(),
             Command::World(args) => args.run(),
-            Command::Record(args) => args.run(),
+            Command::Record(args) => args.run(invocation),
             Command::Agent(args) => args.run(),
         }
     }

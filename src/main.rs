@@ -41,12 +41,11 @@ mod runtime;
 mod sweep;
 
 fn main() -> ExitCode {
-    tcpf_report::provenance::Invocation {
+    let invocation = tcpf_report::provenance::Invocation {
         command: std::env::args().collect(),
         version: env!("CARGO_PKG_VERSION").into(),
         commit: option_env!("TCPF_COMMIT").filter(|c| !c.is_empty()).map(String::from),
-    }
-    .set();
+    };
     let cli = cli::Cli::parse();
     // A role started by hand says what it does; a command says only what went wrong.
     let quiet = if cli.command.is_role() {
@@ -59,5 +58,5 @@ fn main() -> ExitCode {
         .with_ansi(std::io::stderr().is_terminal())
         .with_writer(std::io::stderr)
         .init();
-    failure::exit(cli.command.run())
+    failure::exit(cli.command.run(invocation))
 }

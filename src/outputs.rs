@@ -6,6 +6,7 @@ use std::path::Path;
 use anyhow::anyhow;
 use tcpf_coordinator::launcher::Links;
 use tcpf_core::mission::Mission;
+use tcpf_report::provenance::Invocation;
 use tcpf_report::rundir::RunDir;
 
 use crate::failure::Failure;
@@ -71,9 +72,9 @@ pub fn fresh_out(out: Option<&Path>) -> Result<(), Failure> {
     }
 }
 
-/// Makes the run directory.
-pub fn run_dir(out: Option<&Path>, mission: &Mission) -> Result<RunDir, Failure> {
-    RunDir::create(out, mission).map_err(|e| out_failure(e, out.is_some()))
+/// Makes the run directory of a run that `invocation` started.
+pub fn run_dir(out: Option<&Path>, mission: &Mission, invocation: Invocation) -> Result<RunDir, Failure> {
+    RunDir::create(out, mission, invocation).map_err(|e| out_failure(e, out.is_some()))
 }
 
 /// An output directory that cannot be made. One the user named (`given`) on a path that cannot

@@ -16,6 +16,7 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::waits;
 use tcpf_coordinator::planner_node;
 use tcpf_core::mission;
+use tcpf_report::provenance::Invocation;
 use tcpf_report::table;
 
 use crate::cli::{recorders, ros2_domain, seconds, MissionArgs, RoleArgs};
@@ -195,7 +196,7 @@ impl WorldArgs {
 }
 
 impl RecordArgs {
-    pub fn run(self) -> Result<ExitCode, Failure> {
+    pub fn run(self, invocation: Invocation) -> Result<ExitCode, Failure> {
         let mission = self.role.mission();
         record(
             &mission,
@@ -204,6 +205,7 @@ impl RecordArgs {
             self.live,
             self.startup_timeout,
             self.ros2,
+            invocation,
         )
     }
 }
@@ -373,6 +375,7 @@ fn record(
     live: Option<SocketAddr>,
     startup_timeout: Duration,
     ros2: Option<u32>,
+    invocation: Invocation,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     let plan = solve(&mission, &args.file)?;
@@ -381,7 +384,7 @@ fn record(
     // Bad Zenoh options are bad input before the run directory is made, which they would
     // leave behind half written.
     zenoh.speaks_as(Identity::Recorder).map_err(role_failure)?;
-    let dir = run_dir(out, &mission)?;
+    let dir = run_dir(out, &mission, invocation)?;
     // Only when asked: the world and agents speak ROS 2 for a mission with [ros2] already.
     let options = tcpf_coordinator::recording::RecordOptions {
         live,

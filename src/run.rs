@@ -10,6 +10,7 @@ use clap::{Args, ValueEnum};
 use tcpf_bus::waits;
 use tcpf_coordinator::{inprocess, launcher};
 use tcpf_core::mission;
+use tcpf_report::provenance::Invocation;
 use tcpf_report::table;
 
 use crate::cli::{command_timeout, figure_width, more_recorders, ros2_domain, seconds, ClockArgs, MissionArgs};
@@ -101,7 +102,7 @@ impl PlanArgs {
 }
 
 impl RunArgs {
-    pub fn run(self) -> Result<ExitCode, Failure> {
+    pub fn run(self, invocation: Invocation) -> Result<ExitCode, Failure> {
         let options = launcher::Options {
             live: self.live,
             command_timeout: self.command_timeout,
@@ -114,7 +115,14 @@ impl RunArgs {
             ..launcher::Options::default()
         };
         let mission = clocked(&self.mission, &self.clock);
-        run(&mission, self.out.as_deref(), self.in_process, self.seed, options)
+        run(
+            &mission,
+            self.out.as_deref(),
+            self.in_process,
+            self.seed,
+            options,
+            invocation,
+        )
     }
 }
 
@@ -147,6 +155,7 @@ fn run(
     in_process: bool,
     seed: Option<u64>,
     options: launcher::Options,
+    invocation: Invocation,
 ) -> Result<ExitCode, Failure> {
     let mission = load(args, seed)?;
     let realtime = mission.mission.clock == mission::ClockKind::Realtime;
@@ -179,7 +188,7 @@ fn run(
             options.links,
         )?;
     }
-    let dir = run_dir(out, &mission)?;
+    let dir = run_dir(out, &mission, invocation)?;
     let summary = if in_process {
         inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::Failed)?
     } else {

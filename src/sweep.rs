@@ -9,6 +9,7 @@ use clap::{Args, Subcommand};
 use tcpf_coordinator::sweep;
 use tcpf_core::mission;
 use tcpf_core::summary::Provenance;
+use tcpf_report::provenance::Invocation;
 use tcpf_report::sweep::figures::Look;
 use tcpf_report::sweep::{Design, Sweep};
 
@@ -100,7 +101,7 @@ enum SweepCommand {
 }
 
 impl SweepCommandArgs {
-    pub fn run(self) -> Result<ExitCode, Failure> {
+    pub fn run(self, invocation: Invocation) -> Result<ExitCode, Failure> {
         match (self.merge, self.sweep) {
             (
                 Some(SweepCommand::Merge {
@@ -110,8 +111,8 @@ impl SweepCommandArgs {
                     figure_width,
                 }),
                 _,
-            ) => merge(&dirs, &out, look(band, figure_width)),
-            (None, Some(args)) => run(&args),
+            ) => merge(&dirs, &out, look(band, figure_width), &invocation),
+            (None, Some(args)) => run(&args, &invocation),
             (None, None) => Err(Failure::Input(anyhow!(
                 "tcpf sweep: give a mission file and what to sweep (tcpf sweep FILE --loss ... --seeds N), or `tcpf sweep merge DIR... --out DIR`"
             ))),
@@ -119,7 +120,7 @@ impl SweepCommandArgs {
     }
 }
 
-fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
+fn run(args: &SweepArgs, invocation: &Invocation) -> Result<ExitCode, Failure> {
     let grid = sweep::parse_grid(&args.param, &args.loss, &args.set, args.seeds, args.seed_start)
         .map_err(|e| Failure::Input(anyhow!(e)))?;
     if let Some(out) = args
@@ -179,10 +180,12 @@ fn run(args: &SweepArgs) -> Result<ExitCode, Failure> {
     );
     let out = args.out.as_deref();
     // A directory deleted, or never made: every run is missing from it.
+    let mut provenance = Provenance::of(base);
+    invocation.fill(&mut provenance);
     let made = if let Some(dir) = out.filter(|dir| args.resume && dir.exists()) {
-        Sweep::resume(dir, Provenance::of(base), design).map_err(Failure::Input)
+        Sweep::resume(dir, provenance, design).map_err(Failure::Input)
     } else {
-        Sweep::create(out, &as_run, Provenance::of(base), design).map_err(|e| {
+        Sweep::create(out, &as_run, provenance, design).map_err(|e| {
             let e = match out {
                 Some(out) => e.context(format!("{}: cannot write the sweep there", out.display())),
                 None => e,
@@ -215,9 +218,9 @@ fn finish(rows: Sweep, interrupted: bool) -> Result<ExitCode, Failure> {
     Ok(code(summary.failed_runs.is_empty(), interrupted))
 }
 
-fn merge(dirs: &[PathBuf], out: &Path, look: Look) -> Result<ExitCode, Failure> {
+fn merge(dirs: &[PathBuf], out: &Path, look: Look, invocation: &Invocation) -> Result<ExitCode, Failure> {
     fresh_out(Some(out))?;
-    let mut rows = Sweep::merge(dirs, out).map_err(Failure::Input)?;
+    let mut rows = Sweep::merge(dirs, out, invocation).map_err(Failure::Input)?;
     rows.draw(false, look).map_err(Failure::Failed)?;
     finish(rows, false)
 }

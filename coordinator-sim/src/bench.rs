@@ -22,6 +22,7 @@ use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::planner::Plan;
 use tcpf_core::sim::{world_alone, world_and_laws, Fleet};
 use tcpf_core::summary::Summary;
+use tcpf_report::provenance::Invocation;
 use tcpf_report::rundir::RunDir;
 
 use crate::launcher;
@@ -29,6 +30,12 @@ use tokio::process::{Child, Command};
 
 const PING: &str = "tcpf/bench/ping";
 const PONG: &str = "tcpf/bench/pong";
+/// The provenance of the bench's own runs: none, as they are removed unread once measured.
+const SCRATCH: Invocation = Invocation {
+    command: Vec::new(),
+    version: String::new(),
+    commit: None,
+};
 
 fn probe(tick: u64) -> Gamma {
     Gamma {
@@ -677,7 +684,7 @@ async fn variant(
     options: launcher::Options,
     shutdown: &mut Shutdown,
 ) -> Result<Option<Summary>> {
-    let dir = RunDir::create(Some(out), mission)?;
+    let dir = RunDir::create(Some(out), mission, SCRATCH)?;
     let Some(summary) = shutdown.unless(launcher::run(mission, plan, &dir, exe, options)).await else {
         return Ok(None);
     };
@@ -700,7 +707,7 @@ async fn processes(
     let Some(routed) = shutdown.unless(ping(exe, count, true)).await else {
         return Ok(None);
     };
-    let dir = RunDir::create(Some(scratch), mission)?;
+    let dir = RunDir::create(Some(scratch), mission, SCRATCH)?;
     // The fleet's footprint as it runs: the last sample of the whole fleet, once its agents have
     // let go of the code of their start (`tcpf_bus::footprint`), before the first leaves.
     let sampling = tokio::spawn(async {

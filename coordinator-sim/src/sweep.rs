@@ -241,8 +241,8 @@ pub fn run_in_process(runs: &Runs, plans: &[Plan], jobs: usize, sweep: &mut Swee
 }
 
 /// Every run of the sweep's share as a real fleet of processes, one after the other, each with
-/// its run directory; a run that fails is a failed row. Returns whether a signal cut the sweep
-/// short.
+/// its run directory, whose provenance is the sweep's; a run that fails is a failed row. Returns
+/// whether a signal cut the sweep short.
 pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut Sweep) -> Result<bool> {
     let kept = sweep.kept();
     let bar = progress(sweep.design().planned() - kept.len() as u64);
@@ -268,7 +268,7 @@ pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut 
         );
         let path = sweep.dir().join("runs").join(&name);
         set_aside(&path)?;
-        let dir = RunDir::create(Some(&path), &mission)?;
+        let dir = RunDir::create(Some(&path), &mission, sweep.invocation())?;
         let started = Instant::now();
         let ran = crate::launcher::run(
             &mission,

@@ -15,6 +15,7 @@ use tcpf_core::planner::Plan;
 use tcpf_core::telemetry;
 
 use crate::bag::Bag;
+use crate::provenance::Invocation;
 use crate::viewer::Viewer;
 use tcpf_core::summary::{Mode, Summary};
 
@@ -22,6 +23,8 @@ pub struct RunDir {
     pub path: PathBuf,
     /// The directories `create` made, outermost first: what `discard` takes away.
     made: Vec<PathBuf>,
+    /// Whose run it is: what its summary and `run.mcap` name as their provenance.
+    invocation: Invocation,
 }
 
 /// Now, as the default directories name it.
@@ -105,11 +108,12 @@ fn is_taken(e: &anyhow::Error) -> bool {
 }
 
 impl RunDir {
-    /// `out`, or a fresh `runs/<mission>-<timestamp>/`, claimed by its `mission.toml`.
-    pub fn create(out: Option<&Path>, mission: &Mission) -> Result<RunDir> {
+    /// `out`, or a fresh `runs/<mission>-<timestamp>/`, claimed by its `mission.toml`, for a
+    /// run that `invocation` started.
+    pub fn create(out: Option<&Path>, mission: &Mission, invocation: Invocation) -> Result<RunDir> {
         let name = format!("{}-{}", mission.mission.name, stamp());
         let Claimed { path, made, .. } = claim_out(out, &name, "mission.toml")?;
-        Ok(RunDir { path, made })
+        Ok(RunDir { path, made, invocation })
     }
 
     /// Removes the files a recording writes, and the directories `create` made for them: what
@@ -171,7 +175,7 @@ impl RunDir {
     /// summary cut short or empty.
     pub fn write_summary(&self, summary: &Summary) -> Result<()> {
         let mut summary = summary.clone();
-        crate::provenance::invocation().fill(&mut summary.provenance);
+        self.invocation.fill(&mut summary.provenance);
         let text = serde_json::to_string_pretty(&summary)? + "\n";
         let (next, name) = (self.path.join("summary.json.next"), "summary.json");
         let written = fs::write(&next, text).and_then(|()| fs::rename(&next, self.path.join(name)));
@@ -207,7 +211,7 @@ impl RunDir {
             out.write_all(header.as_bytes()).with_context(cannot)?;
             Ok(out)
         };
-        let viewer = Viewer::create(&self.path.join("run.mcap"), mission, &paths, live)?;
+        let viewer = Viewer::create(&self.path.join("run.mcap"), mission, &paths, live, &self.invocation)?;
         let bag = ros2
             .map(|ros2| Bag::create(&self.path, mission, &paths, ros2))
             .transpose()?;

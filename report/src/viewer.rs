@@ -32,6 +32,7 @@ use tcpf_core::msg::{Command, State};
 use tcpf_core::path::GeneralizedPath;
 
 use crate::live::{ChannelInfo, Live};
+use crate::provenance::Invocation;
 
 /// REP 105's `map`, the frame of the fleet's ROS 2 topics too (docs/ROS2.md): a Foxglove layout
 /// shows a recorded run and a live ROS 2 connection alike.
@@ -69,6 +70,8 @@ pub struct Viewer {
     /// file's metadata with the mission.
     paths: Vec<(Topic, Vec<Pose>)>,
     mission: String,
+    /// Whose run it is, for the file's metadata.
+    invocation: Invocation,
     links: Topic,
     mcap: Option<McapWriterHandle<BufWriter<File>>>,
     live: Option<Live>,
@@ -155,12 +158,14 @@ fn pose(x: f64, y: f64, heading: f64) -> Pose {
 
 impl Viewer {
     /// Opens `file` for writing and, with `live`, serves the channels there. `paths` are the
-    /// vehicles' planned paths, in the order of the states the ticks will give.
+    /// vehicles' planned paths, in the order of the states the ticks will give; `invocation`
+    /// what the file's metadata names as the run's command.
     pub fn create(
         file: &Path,
         mission: &Mission,
         paths: &[(u32, GeneralizedPath)],
         live: Option<SocketAddr>,
+        invocation: &Invocation,
     ) -> Result<Viewer> {
         let context = Context::new();
         // lz4 is a few kilobytes of C; zstd would compress better at the cost of a slow build.
@@ -175,6 +180,7 @@ impl Viewer {
             epoch: None,
             paths: Vec::with_capacity(paths.len()),
             mission: mission.to_toml(),
+            invocation: invocation.clone(),
             links: topic(&context, &live, "/links", json_schema("tcpf.Link", LINK_SCHEMA))?,
             context,
             mcap: Some(mcap),
@@ -249,7 +255,7 @@ impl Viewer {
             self.log_encoded(&drawn, &message, epoch);
         }
         let Some(mcap) = &self.mcap else { return };
-        let invocation = crate::provenance::invocation();
+        let invocation = &self.invocation;
         let metadata = [
             ("frames", FRAMES.to_string()),
             (
@@ -259,8 +265,8 @@ impl Viewer {
             ("epoch_unix_s", format!("{epoch}")),
             ("mission_digest", format!("{:016x}", digest_of(&self.mission))),
             ("command", invocation.command.join(" ")),
-            ("tcpf_version", invocation.version),
-            ("commit", invocation.commit.unwrap_or_default()),
+            ("tcpf_version", invocation.version.clone()),
+            ("commit", invocation.commit.clone().unwrap_or_default()),
         ];
         let attachment = McapAttachment {
             log_time: nanos(epoch),

@@ -23,6 +23,8 @@ use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use tcpf_core::summary::Provenance;
 
+use crate::provenance::Invocation;
+
 pub use grid::{Grid, Param, Shard};
 pub use row::{Row, Status, METRICS, N_METRICS};
 pub use stats::{Running, Stats};
@@ -217,7 +219,8 @@ const RESUMING: &str = "runs.csv.resuming";
 impl Sweep {
     /// Creates `out`, or a fresh `runs/<mission>-sweep-<timestamp>/`, claimed by runs.csv with
     /// its header, and beside it `mission.toml` (`mission`: the mission of the first grid
-    /// point) and `rerun.sh`.
+    /// point) and `rerun.sh`. `provenance` is what made it: the mission's digest, and the
+    /// command, version and commit of the invocation that runs it.
     pub fn create(out: Option<&Path>, mission: &str, provenance: Provenance, design: Design) -> Result<Sweep> {
         let name = format!("{}-sweep-{}", design.mission, crate::rundir::stamp());
         let claimed = crate::rundir::claim_out(out, &name, "runs.csv")?;
@@ -291,9 +294,9 @@ impl Sweep {
         Ok(sweep)
     }
 
-    /// The shards in `dirs` joined into `out`: what the sweep unsharded writes. Refused if they
-    /// are not shards of one sweep, or if a run of it is in none of them.
-    pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Sweep> {
+    /// The shards in `dirs` joined into `out` by `invocation`: what the sweep unsharded writes.
+    /// Refused if they are not shards of one sweep, or if a run of it is in none of them.
+    pub fn merge(dirs: &[PathBuf], out: &Path, invocation: &Invocation) -> Result<Sweep> {
         let first = dirs.first().ok_or_else(|| anyhow!("no shard to merge"))?;
         let base = read_written(first)?;
         let mut rows: BTreeMap<u64, (Row, PathBuf)> = BTreeMap::new();
@@ -353,10 +356,11 @@ impl Sweep {
         }
         let mission = std::fs::read_to_string(first.join("mission.toml"))
             .with_context(|| format!("{}: no mission.toml", first.display()))?;
-        let provenance = Provenance {
+        let mut provenance = Provenance {
             mission_digest: base.provenance.mission_digest,
             ..Provenance::default()
         };
+        invocation.fill(&mut provenance);
         let mut sweep = Sweep::create(Some(out), &mission, provenance, design)?;
         sweep.keep(rows.into_values())?;
         // The shards' wall times, as they measured them (a shard run before has none).
@@ -490,10 +494,18 @@ impl Sweep {
         Ok(self.in_a_row >= GIVE_UP)
     }
 
+    /// Who runs the sweep, as its provenance says: what each run directory it makes names.
+    pub fn invocation(&self) -> Invocation {
+        Invocation {
+            command: self.provenance.command.clone(),
+            version: self.provenance.version.clone(),
+            commit: self.provenance.commit.clone(),
+        }
+    }
+
     /// The statistics per grid point of the rows so far (points with no row are left out).
     fn summary(&self) -> SweepSummary {
-        let mut provenance = self.provenance.clone();
-        crate::provenance::invocation().fill(&mut provenance);
+        let provenance = self.provenance.clone();
         let planned = self.design.planned();
         let gave_up = self.in_a_row >= GIVE_UP;
         SweepSummary {
