@@ -223,12 +223,16 @@ impl AgentArgs {
 }
 
 /// Who may be claiming the same role: nobody, for a role `tcpf run` started; else every claim
-/// is at one router, for a client, or contemporaries may not have met yet, for a peer.
+/// is at one router, for a client, or contemporaries may not have met yet, for a peer. Only a
+/// role started by hand reads its Zenoh config here (once more than its session will): one of
+/// `tcpf run`'s, which a fleet of 200 starts at once, has no rival to ask about.
 fn rivals(none: bool, zenoh: &ZenohArgs) -> Rivals {
-    match (none, zenoh.is_client()) {
-        (true, _) => Rivals::None,
-        (false, true) => Rivals::OneRouter,
-        (false, false) => Rivals::Possible,
+    if none {
+        Rivals::None
+    } else if zenoh.is_client() {
+        Rivals::OneRouter
+    } else {
+        Rivals::Possible
     }
 }
 
