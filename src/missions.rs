@@ -8,7 +8,7 @@ use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use tcpf_coordinator::planning;
 use tcpf_core::mission::{self, Mission};
-use tcpf_core::planner::Plan;
+use tcpf_core::model::planner::Plan;
 
 use crate::cli::{probability, ClockArgs, MissionArgs};
 use crate::failure::Failure;

@@ -142,7 +142,7 @@ fn plan(args: &MissionArgs, json: bool) -> Result<ExitCode, Failure> {
         );
     } else {
         say!("{}", table::plan(&plan));
-        for line in tcpf_core::modem::link_budget(&mission).into_iter().flatten() {
+        for line in tcpf_core::links::modem::link_budget(&mission).into_iter().flatten() {
             sayln!("{line}");
         }
     }

@@ -8,7 +8,7 @@ use anyhow::anyhow;
 use clap::{Args, Subcommand};
 use tcpf_coordinator::sweep;
 use tcpf_core::mission;
-use tcpf_core::summary::Provenance;
+use tcpf_core::outputs::summary::Provenance;
 use tcpf_report::provenance::Invocation;
 use tcpf_report::sweep::figures::Look;
 use tcpf_report::sweep::{Design, Sweep};

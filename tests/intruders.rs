@@ -869,7 +869,7 @@ async fn a_vehicle_commanded_ahead_of_the_clock_by_another_process_fails_the_run
 
 /// The world's own password answers for the fleet's clock while the fleet waits for its world to start (the
 /// agents and the launcher's recorder ask every so often until it answers), with another
-/// mission's clock. Only the world that holds its role is listened to (`tcpf_core::claim`): the
+/// mission's clock. Only the world that holds its role is listened to (`tcpf_core::fleet::claim`): the
 /// run goes on as in-process, and each forged answer is counted as from the wrong sender.
 /// Before, the first answer was taken, and every agent that heard it refused to run (exit 2).
 #[tokio::test(flavor = "multi_thread")]

@@ -1331,7 +1331,7 @@ fn roles_started_by_hand_demand_their_credential_and_make_the_same_run() {
 /// Two worlds and two agents of each vehicle started at once, every role a client of one router,
 /// twenty times: each time exactly one world and one agent per vehicle drive the fleet, to the
 /// same run as in-process, and the others exit 2 naming who holds their role. Before claims
-/// (`tcpf_core::claim`), a role looked for a holder before it announced itself, and two that
+/// (`tcpf_core::fleet::claim`), a role looked for a holder before it announced itself, and two that
 /// started together could both find nobody.
 #[test]
 fn of_two_worlds_and_two_agents_per_vehicle_started_at_once_one_of_each_drives_the_fleet() {

@@ -1,12 +1,12 @@
 //! One world per fleet and one agent per vehicle: a role only one process may hold is claimed
-//! with a liveliness token under `claim/<role>/<id>/`, `tcpf_core::claim` decides from the
+//! with a liveliness token under `claim/<role>/<id>/`, `tcpf_core::fleet::claim` decides from the
 //! claims seen who holds it, and the holder marks its claim held. The others exit 2 with the
 //! holder's name.
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::{anyhow, Result};
-use tcpf_core::claim::{Claim, Claimant, Outcome};
+use tcpf_core::fleet::claim::{Claim, Claimant, Outcome};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
 
@@ -75,7 +75,7 @@ pub enum Rivals {
     /// Started by hand as a client of a router, where every claimant of the fleet meets (the
     /// docs' fleets, and every fleet with a credential): the router sees each claim in the order
     /// its claimant sent it, so the claims are looked at at once and decided as soon as the
-    /// facts are in (`tcpf_core::claim::Claimant`). Peers waited 1.5 s.
+    /// facts are in (`tcpf_core::fleet::claim::Claimant`). Peers waited 1.5 s.
     OneRouter,
     /// Started by `tcpf run`, the only process of this role it starts (or starts again, its
     /// predecessor dead): what stands in the way is already at the router, a process that holds

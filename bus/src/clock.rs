@@ -12,7 +12,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::Clock;
-use tcpf_core::realtime::AHEAD_LIMIT_WALL_S;
+use tcpf_core::roles::realtime::AHEAD_LIMIT_WALL_S;
 use tokio::sync::mpsc;
 
 /// A role's monotonic clock as `tcpf_core`'s machines take it: seconds since it was made. The

@@ -2,8 +2,8 @@
 //! handed over to the recorders.
 
 use anyhow::Result;
-use tcpf_core::lockstep::Timing;
 use tcpf_core::msg::{PeriodTiming, Player, Report};
+use tcpf_core::roles::lockstep::Timing;
 use zenoh::Session;
 
 use crate::keys::{Keys, Role};

@@ -35,7 +35,7 @@ impl Keys {
     pub fn alive(&self, role: Role, id: impl fmt::Display) -> String {
         format!("{}/alive/{role}/{id}", self.root)
     }
-    /// A process's claim of a role only one may hold (`tcpf_core::claim`), as a liveliness token.
+    /// A process's claim of a role only one may hold (`tcpf_core::fleet::claim`), as a liveliness token.
     pub fn claim(&self, role: Role, id: impl fmt::Display, chunk: &str) -> String {
         format!("{}/claim/{role}/{id}/{chunk}", self.root)
     }

@@ -4,8 +4,8 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
+use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::PathMsg;
-use tcpf_core::path::GeneralizedPath;
 use tokio::sync::mpsc;
 use zenoh::sample::SampleKind;
 use zenoh::Session;

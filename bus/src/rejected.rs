@@ -4,8 +4,8 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use tcpf_core::lockstep::Reject;
 use tcpf_core::msg::Rejections;
+use tcpf_core::roles::lockstep::Reject;
 
 use crate::codec::Invalid;
 use crate::keys::Keys;

@@ -1,16 +1,16 @@
 //! The fleet's ROS 2 side (`--ros2`, `[ros2]`): rmw_zenoh's publishers, subscriptions and graph
 //! tokens on each role's own session, so that ROS 2 nodes on the same Zenoh network (rmw_zenoh,
 //! or any implementation of its wire format) see the fleet, and play its vehicles, with no
-//! bridge. What the bytes are is `tcpf_core::ros2`'s; this moves them.
+//! bridge. What the bytes are is `tcpf_core::outputs::ros2`'s; this moves them.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, Result};
 use tcpf_core::mission::Ros2Config;
+use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Command, State};
-use tcpf_core::path::GeneralizedPath;
-use tcpf_core::ros2::{self, Entity, FleetTopic, LinkCounts, Node, Stamp, Type};
+use tcpf_core::outputs::ros2::{self, Entity, FleetTopic, LinkCounts, Node, Stamp, Type};
 use tokio::sync::mpsc;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};

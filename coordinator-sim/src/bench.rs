@@ -18,10 +18,10 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{subscribe, subscribe_with};
 use tcpf_core::mission::{Mission, VehicleKind};
+use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
-use tcpf_core::planner::Plan;
-use tcpf_core::sim::{world_alone, world_and_laws, Fleet};
-use tcpf_core::summary::Summary;
+use tcpf_core::outputs::summary::Summary;
+use tcpf_core::roles::sim::{world_alone, world_and_laws, Fleet};
 use tcpf_report::provenance::Invocation;
 use tcpf_report::rundir::RunDir;
 
@@ -297,7 +297,7 @@ pub fn modem_cost(repeat: usize) -> Result<ModemCost> {
     };
     let plain = mission(&["comms.trigger=\"event\""])?;
     let modem = mission(&["comms.trigger=\"event\"", "comms.modem={}"])?;
-    let plan = tcpf_core::planner::plan(&plain).map_err(|e| anyhow!("{e}"))?;
+    let plan = tcpf_core::model::planner::plan(&plain).map_err(|e| anyhow!("{e}"))?;
     let mut frames = 0;
     let mut ticks = 0;
     let mut best = |m: &Mission, count: bool| {
@@ -471,7 +471,7 @@ pub async fn measure(
     let Asked { count, fleets } = what;
     let seconds = |d: Duration| d.as_secs_f64();
     let started = Instant::now();
-    let _ = tcpf_core::planner::plan(mission);
+    let _ = tcpf_core::model::planner::plan(mission);
     let on_one = started.elapsed();
     say(format!(
         "plan ({} vehicles): {:.3} s on {} cores, {:.3} s on one (baseline): {:.2}x",
@@ -640,7 +640,7 @@ async fn lanes(vehicles: u32, exe: &Path, scratch: &Path, shutdown: &mut Shutdow
     let name = format!("lanes{vehicles}.toml");
     let mission = tcpf_core::mission::parse(&name, &tcpf_core::mission::generate::lanes(vehicles, 0.2), &[])
         .map_err(|e| anyhow!("{e}"))?;
-    let plan = tcpf_core::planner::plan(&mission).map_err(|e| anyhow!("{name}: {e}"))?;
+    let plan = tcpf_core::model::planner::plan(&mission).map_err(|e| anyhow!("{name}: {e}"))?;
     let mut best: Option<Summary> = None;
     for round in 0..ROUNDS {
         let out = scratch.join(format!("lanes-{vehicles}-{round}"));

@@ -6,11 +6,11 @@ use std::time::Instant;
 
 use anyhow::Result;
 use tcpf_core::mission::Mission;
-use tcpf_core::planner::Plan;
-use tcpf_core::sim::Fleet;
+use tcpf_core::model::planner::Plan;
+use tcpf_core::roles::sim::Fleet;
 
 use crate::progress::Ticks;
-use tcpf_core::summary::{Clock, Mode, Provenance, Summary};
+use tcpf_core::outputs::summary::{Clock, Mode, Provenance, Summary};
 use tcpf_report::rundir::RunDir;
 
 /// Runs the mission in one loop and writes the run directory. SIGINT, SIGTERM or SIGHUP (the
@@ -67,7 +67,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
         timing: Vec::new(),
         restarts: Vec::new(),
         unreported: Vec::new(),
-        coordination_gain: Some(tcpf_core::agent::CoordinationGain::of(mission)),
+        coordination_gain: Some(tcpf_core::roles::agent::CoordinationGain::of(mission)),
         warnings: Vec::new(),
         missing_ticks: Vec::new(),
         recovered_states: 0,

@@ -17,16 +17,18 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::{Interrupted, Shutdown};
 use tcpf_bus::waits;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
+use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::Report;
-use tcpf_core::planner::Plan;
 use tokio::process::Command;
 
 pub use crate::access::Links;
 use crate::access::ROS2_CONFIG;
 use crate::progress::Ticks;
 use crate::recording::Recording;
-use tcpf_core::summary::{ChildSummary, Closing, Mode, Summary};
-use tcpf_core::supervisor::{Child, Exit, Failure, Outcome, Output, Recorded, Supervision, Supervisor, Timeouts, When};
+use tcpf_core::outputs::summary::{ChildSummary, Closing, Mode, Summary};
+use tcpf_core::roles::supervisor::{
+    Child, Exit, Failure, Outcome, Output, Recorded, Supervision, Supervisor, Timeouts, When,
+};
 use tcpf_report::rundir::RunDir;
 
 /// Zenoh's threads in a lockstep agent or planner (unless the user set ZENOH_RUNTIME): one,
@@ -509,7 +511,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let mut shutdown = Shutdown::new()?;
     let mut suspend = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::from_raw(libc::SIGTSTP))
         .context("cannot handle SIGTSTP (Ctrl-Z)")?;
-    dir.write_mission(mission, tcpf_core::summary::Mode::Processes)?;
+    dir.write_mission(mission, tcpf_core::outputs::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
     let mission_file = dir.path.join("mission.toml").display().to_string();
     let endpoint = format!("{}/127.0.0.1:{}", links.protocol(), free_port()?);

@@ -11,10 +11,10 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::subscribe;
 use tcpf_bus::waits;
-use tcpf_core::lockstep::Timing;
 use tcpf_core::mission::Mission;
+use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
-use tcpf_core::planner::Plan;
+use tcpf_core::roles::lockstep::Timing;
 use zenoh::key_expr::KeyExpr;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,7 +5,7 @@
 use std::sync::mpsc;
 
 use tcpf_core::mission::Mission;
-use tcpf_core::planner::{Infeasible, Plan, Search};
+use tcpf_core::model::planner::{Infeasible, Plan, Search};
 
 /// `f` of every item, the items split in one contiguous part per thread.
 fn spread<T: Sync, R: Send>(items: &[T], threads: usize, f: impl Fn(&T) -> R + Sync) -> Vec<R> {
@@ -86,11 +86,19 @@ mod tests {
         for name in ["ring5", "paper/b-current", "paper/a-nominal"] {
             let file = format!("{}/../configs/{name}.toml", env!("CARGO_MANIFEST_DIR"));
             let m = tcpf_core::mission::parse(&file, &std::fs::read_to_string(&file).unwrap(), &[]).unwrap();
-            assert_eq!(plan(&m).unwrap(), tcpf_core::planner::plan(&m).unwrap(), "{name}");
+            assert_eq!(
+                plan(&m).unwrap(),
+                tcpf_core::model::planner::plan(&m).unwrap(),
+                "{name}"
+            );
         }
         // Ten lanes: hundreds of the cheapest candidates break a constraint, hundreds of rounds.
         let text = tcpf_core::mission::generate::lanes(10, 0.2);
         let m = tcpf_core::mission::parse("lanes10.toml", &text, &[]).unwrap();
-        assert_eq!(plan(&m).unwrap(), tcpf_core::planner::plan(&m).unwrap(), "lanes10");
+        assert_eq!(
+            plan(&m).unwrap(),
+            tcpf_core::model::planner::plan(&m).unwrap(),
+            "lanes10"
+        );
     }
 }

@@ -16,13 +16,13 @@ use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::presence::{presence, present};
 use tcpf_bus::rejected::Rejected;
 use tcpf_bus::subscribe::{subscribe_as, Received};
-use tcpf_core::lockstep::Reject;
-use tcpf_core::metrics::Results;
+use tcpf_core::fleet::watch::{Due, RecorderWaits};
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::msg::{Clock, Command, End, Loss, Report, State, TickRecord};
-use tcpf_core::realtime::{Sampler, STATES_DUE_S};
-use tcpf_core::record::Recorder;
-use tcpf_core::watch::{Due, RecorderWaits};
+use tcpf_core::outputs::metrics::Results;
+use tcpf_core::roles::lockstep::Reject;
+use tcpf_core::roles::realtime::{Sampler, STATES_DUE_S};
+use tcpf_core::roles::record::Recorder;
 use tokio::sync::mpsc::{self, Receiver, Sender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
@@ -31,12 +31,12 @@ use zenoh::Session;
 
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_core::path::GeneralizedPath;
-use tcpf_core::planner::Plan;
-use tcpf_core::ros2::Stamp;
+use tcpf_core::model::path::GeneralizedPath;
+use tcpf_core::model::planner::Plan;
+use tcpf_core::outputs::ros2::Stamp;
 
 use crate::progress::Ticks;
-use tcpf_core::summary::{self, Closing, Mode, Recorded, Summary};
+use tcpf_core::outputs::summary::{self, Closing, Mode, Recorded, Summary};
 use tcpf_report::rundir::{RunDir, Telemetry};
 
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
@@ -384,7 +384,7 @@ impl Recording {
                     if let Some(ids) = sampler.overdue_states() {
                         tracing::warn!(
                             "recorder: no state of {} has come in {STATES_DUE_S} s of the run (simulated), so nothing is recorded (a row needs every vehicle's state): is the program that plays it running, with this mission and these Zenoh endpoints?",
-                            tcpf_core::summary::vehicles(&ids)
+                            tcpf_core::outputs::summary::vehicles(&ids)
                         );
                     }
                 }
@@ -556,7 +556,7 @@ pub async fn record(
         ros2,
     } = options;
     let mut shutdown = Shutdown::new()?;
-    dir.write_mission(mission, tcpf_core::summary::Mode::Processes)?;
+    dir.write_mission(mission, tcpf_core::outputs::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
     let unrecorded = |e: anyhow::Error| e.context(NothingRecorded);
     let session = zenoh

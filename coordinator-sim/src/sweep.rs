@@ -10,10 +10,10 @@ use std::time::Instant;
 
 use anyhow::{anyhow, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use tcpf_core::metrics::error_and_clearance;
 use tcpf_core::mission::Mission;
-use tcpf_core::planner::Plan;
-use tcpf_core::sim::Fleet;
+use tcpf_core::model::planner::Plan;
+use tcpf_core::outputs::metrics::error_and_clearance;
+use tcpf_core::roles::sim::Fleet;
 use tcpf_report::rundir::RunDir;
 use tcpf_report::sweep::grid::split_values;
 use tcpf_report::sweep::series::{self, Samples};

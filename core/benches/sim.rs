@@ -7,8 +7,8 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use tcpf_core::mission;
-use tcpf_core::planner;
-use tcpf_core::sim::{world_alone, world_and_laws, Fleet};
+use tcpf_core::model::planner;
+use tcpf_core::roles::sim::{world_alone, world_and_laws, Fleet};
 
 fn case_b() -> mission::Mission {
     let file = format!("{}/../configs/paper/b-current.toml", env!("CARGO_MANIFEST_DIR"));

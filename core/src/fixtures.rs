@@ -1,9 +1,9 @@
 //! What the unit tests share: the paper's case (b), parsed and planned.
 
 use crate::mission::{self, Mission};
+use crate::model::path::GeneralizedPath;
+use crate::model::planner;
 use crate::msg::{Command, PROTOCOL_VERSION};
-use crate::path::GeneralizedPath;
-use crate::planner;
 
 /// Case (b): the mission, each vehicle's planned path, and the common arrival time.
 pub fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {

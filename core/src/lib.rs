@@ -1,30 +1,19 @@
 //! tcpf-core: time-coordinated path following (docs/MODEL.md) as deterministic state machines.
 //! No I/O, no async, no clocks: the process crates only move these machines' messages.
+//!
+//! Read it in layers, each a folder: the paper's `model` (paths, the planner, path following,
+//! time coordination, the vehicle's dynamics); the `links` that carry γ between vehicles; the
+//! `fleet`'s presence (who holds a role, who is waited for); each of the `roles`' machines, which
+//! the processes drive; and the `outputs` a run leaves. The `mission` and the wire's messages
+//! (`msg`) are what all of them share.
 
-pub mod agent;
-pub mod claim;
-pub mod coord;
-pub mod dynamics;
+pub mod fleet;
+pub mod links;
+pub mod mission;
+pub mod model;
+pub mod msg;
+pub mod outputs;
+pub mod roles;
+
 #[cfg(test)]
 mod fixtures;
-pub mod follow;
-pub mod links;
-pub mod lockstep;
-pub mod membership;
-pub mod metrics;
-pub mod mission;
-pub mod modem;
-pub mod msg;
-pub mod path;
-pub mod pause;
-pub mod planner;
-pub mod realtime;
-pub mod record;
-pub mod ros2;
-pub mod roster;
-pub mod sim;
-pub mod summary;
-pub mod supervisor;
-pub mod telemetry;
-pub mod watch;
-pub mod world;

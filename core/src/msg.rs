@@ -6,8 +6,8 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-pub use crate::modem::Cause;
-use crate::path::GeneralizedPath;
+pub use crate::links::modem::Cause;
+use crate::model::path::GeneralizedPath;
 
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
 /// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`. 5: the γ a realtime

@@ -1,10 +1,10 @@
 //! The link fault models in experiments: what outages and bursts do to the paper's case (b),
 //! in-process. Delay and the acoustic models are in `links.rs`.
 
-use tcpf_core::metrics::Results;
 use tcpf_core::mission::{self, Mission};
-use tcpf_core::planner;
-use tcpf_core::sim::Fleet;
+use tcpf_core::model::planner;
+use tcpf_core::outputs::metrics::Results;
+use tcpf_core::roles::sim::Fleet;
 
 fn case_b(overrides: &[String]) -> Mission {
     let file = format!("{}/../configs/paper/b-current.toml", env!("CARGO_MANIFEST_DIR"));

@@ -2,11 +2,11 @@
 //! capped gain (D19), event-triggered broadcasting (D20) and acoustic link models (D21). Each test
 //! prints the figures it asserts.
 
-use tcpf_core::metrics::Results;
 use tcpf_core::mission::{self, Mission};
+use tcpf_core::model::planner;
 use tcpf_core::msg::{Command, State};
-use tcpf_core::planner;
-use tcpf_core::sim::Fleet;
+use tcpf_core::outputs::metrics::Results;
+use tcpf_core::roles::sim::Fleet;
 
 fn config(name: &str) -> String {
     format!("{}/../configs/{name}.toml", env!("CARGO_MANIFEST_DIR"))
@@ -149,7 +149,7 @@ fn telemetry(m: &Mission) -> String {
     let mut out = String::new();
     Fleet::new(m, &planner::plan(m).unwrap()).run(|states, commands| {
         for (s, c) in states.iter().zip(commands) {
-            tcpf_core::telemetry::row(&mut out, s, c.as_ref(), false);
+            tcpf_core::outputs::telemetry::row(&mut out, s, c.as_ref(), false);
         }
     });
     out
@@ -167,7 +167,7 @@ fn without_delay_the_prediction_is_the_papers_law_to_the_bit() {
 
 #[test]
 fn the_capped_gain_is_one_over_lambda_max_times_the_largest_delay() {
-    use tcpf_core::agent::CoordinationGain;
+    use tcpf_core::roles::agent::CoordinationGain;
     for (name, delay, effective) in [
         ("paper/b-current", "0", 0.5),
         ("paper/b-current", "2", 0.25),

@@ -2,10 +2,10 @@
 //! against the figures an independent implementation gets (within 0.005 s and 0.005 m), each
 //! beside the same mission on the kinematic vehicle.
 
-use tcpf_core::metrics::Results;
 use tcpf_core::mission::{self, Mission};
-use tcpf_core::planner;
-use tcpf_core::sim::Fleet;
+use tcpf_core::model::planner;
+use tcpf_core::outputs::metrics::Results;
+use tcpf_core::roles::sim::Fleet;
 
 fn load(file: &str, overrides: &[&str]) -> Mission {
     let file = format!("{}/../configs/{file}.toml", env!("CARGO_MANIFEST_DIR"));
@@ -225,7 +225,11 @@ fn case_b_on_medusa_stays_inside_its_thrusters() {
             beta = beta.max(s.sideslip.abs());
             r = r.max(d.yaw_rate.abs());
             command = command.max(d.command[0].abs()).max(d.command[1].abs());
-            dead[n] += u32::from(d.command.iter().any(|c| c.abs() < tcpf_core::dynamics::DEAD_ZONE));
+            dead[n] += u32::from(
+                d.command
+                    .iter()
+                    .any(|c| c.abs() < tcpf_core::model::dynamics::DEAD_ZONE),
+            );
         }
     });
     eprintln!("speed {speed:?}, |β| {beta}, |r| {r}, commands {command} %, dead zone {dead:?} of {ticks} ticks");

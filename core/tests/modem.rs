@@ -5,11 +5,11 @@
 use std::collections::BTreeMap;
 
 use tcpf_core::links::Cause;
-use tcpf_core::metrics::Results;
 use tcpf_core::mission::{self, Mission};
+use tcpf_core::model::planner;
 use tcpf_core::msg::{Command, Reception};
-use tcpf_core::planner;
-use tcpf_core::sim::Fleet;
+use tcpf_core::outputs::metrics::Results;
+use tcpf_core::roles::sim::Fleet;
 
 fn config(name: &str) -> String {
     format!("{}/../configs/{name}.toml", env!("CARGO_MANIFEST_DIR"))

@@ -2,10 +2,10 @@
 //! independent implementation gets (with the tolerances issue 2 states), and against the figures
 //! MODEL.md prints for tcpf (to the places it prints them).
 
-use tcpf_core::metrics::Results;
 use tcpf_core::mission::{self, Mission};
-use tcpf_core::planner;
-use tcpf_core::sim::Fleet;
+use tcpf_core::model::planner;
+use tcpf_core::outputs::metrics::Results;
+use tcpf_core::roles::sim::Fleet;
 
 fn load(case: &str, overrides: &[&str]) -> Mission {
     let file = format!("{}/../configs/paper/{case}.toml", env!("CARGO_MANIFEST_DIR"));
@@ -208,7 +208,7 @@ fn same_seed_same_bits() {
         let mut out = String::new();
         Fleet::new(&m, &plan).run(|states, commands| {
             for (s, c) in states.iter().zip(commands) {
-                tcpf_core::telemetry::row(&mut out, s, c.as_ref(), false);
+                tcpf_core::outputs::telemetry::row(&mut out, s, c.as_ref(), false);
             }
         });
         out

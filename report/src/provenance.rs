@@ -2,7 +2,7 @@
 //! `run.mcap`, a sweep's `sweep.json`): made by the binary at its start and handed to what
 //! writes them.
 
-use tcpf_core::summary::Provenance;
+use tcpf_core::outputs::summary::Provenance;
 
 /// How this process was invoked, for the provenance of what it writes: its command line, and
 /// the version and commit of the tcpf that runs it. A library caller that writes runs gives its

@@ -6,16 +6,16 @@ use std::fmt::Write;
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
-use tcpf_core::dynamics::{DEAD_ZONE, FULL};
 use tcpf_core::links::{Cause, LinkStats};
-use tcpf_core::metrics::Thrusters;
 use tcpf_core::mission::{self, Mission, ModemConfig};
+use tcpf_core::model::dynamics::{DEAD_ZONE, FULL};
 use tcpf_core::msg::Player;
+use tcpf_core::outputs::metrics::Thrusters;
 
 use crate::plots::{bars, Chart, Series};
 use crate::style::{self, Size};
 use plotters::style::RGBColor;
-use tcpf_core::summary::{Clock, RoleTiming, Summary};
+use tcpf_core::outputs::summary::{Clock, RoleTiming, Summary};
 
 /// At most this many points per line: enough for the eye, small enough for the page.
 const POINTS: usize = 1500;
@@ -289,14 +289,14 @@ fn fault_table(html: &mut String, summary: &Summary) {
     let _ = write!(
         html,
         "<table id=\"fault-windows\"><tr><th>fault</th><th>from (s)</th><th>to (s)</th><th>back within {} s of γ after (s)</th></tr>",
-        tcpf_core::metrics::RESYNC_WITHIN
+        tcpf_core::outputs::metrics::RESYNC_WITHIN
     );
     for f in &r.faults {
         let kind = match f.kind {
-            tcpf_core::metrics::FaultKind::Outage => "outage",
-            tcpf_core::metrics::FaultKind::Lost => "vehicle lost",
-            tcpf_core::metrics::FaultKind::OutOfRange => "link out of range",
-            tcpf_core::metrics::FaultKind::Rejoined => "agent away, then back",
+            tcpf_core::outputs::metrics::FaultKind::Outage => "outage",
+            tcpf_core::outputs::metrics::FaultKind::Lost => "vehicle lost",
+            tcpf_core::outputs::metrics::FaultKind::OutOfRange => "link out of range",
+            tcpf_core::outputs::metrics::FaultKind::Rejoined => "agent away, then back",
         };
         let back = f
             .resync_time

@@ -10,14 +10,14 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use tcpf_core::mission::{Mission, Ros2Config};
+use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{Clock, Command, State};
-use tcpf_core::planner::Plan;
-use tcpf_core::telemetry;
+use tcpf_core::outputs::telemetry;
 
 use crate::bag::Bag;
 use crate::provenance::Invocation;
 use crate::viewer::Viewer;
-use tcpf_core::summary::{Mode, Summary};
+use tcpf_core::outputs::summary::{Mode, Summary};
 
 pub struct RunDir {
     pub path: PathBuf,

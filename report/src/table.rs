@@ -3,9 +3,9 @@
 use std::fmt::Write;
 
 use tcpf_core::links::Cause;
-use tcpf_core::planner::Plan;
+use tcpf_core::model::planner::Plan;
 
-use tcpf_core::summary::Summary;
+use tcpf_core::outputs::summary::Summary;
 
 pub fn plan(plan: &Plan) -> String {
     let mut s = String::new();
@@ -56,7 +56,7 @@ fn why_not_completed(summary: &Summary) -> String {
     // because of it.
     why.extend(summary.reasons());
     if why.is_empty() {
-        why.push(tcpf_core::summary::NEVER_ENDED.into());
+        why.push(tcpf_core::outputs::summary::NEVER_ENDED.into());
     }
     why.join("; ")
 }

@@ -28,15 +28,15 @@ use foxglove::{
 };
 use serde::Serialize;
 use tcpf_core::mission::{digest_of, Mission};
+use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Command, State};
-use tcpf_core::path::GeneralizedPath;
 
 use crate::live::{ChannelInfo, Live};
 use crate::provenance::Invocation;
 
 /// REP 105's `map`, the frame of the fleet's ROS 2 topics too (docs/ROS2.md): a Foxglove layout
 /// shows a recorded run and a live ROS 2 connection alike.
-const FRAME: &str = tcpf_core::ros2::MAP_FRAME;
+const FRAME: &str = tcpf_core::outputs::ros2::MAP_FRAME;
 /// Seconds of γ between two poses of a drawn path.
 const PATH_STEP: f64 = 0.5;
 

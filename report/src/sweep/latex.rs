@@ -479,7 +479,7 @@ fn text(c: char) -> Option<&'static str> {
 mod tests {
     use super::*;
     use crate::sweep::{Design, Grid, Param, PointSummary};
-    use tcpf_core::summary::Provenance;
+    use tcpf_core::outputs::summary::Provenance;
 
     fn stats(mean: f64, ci95: Option<f64>) -> Stats {
         let ci = ci95.unwrap_or(0.0);

@@ -21,7 +21,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
-use tcpf_core::summary::Provenance;
+use tcpf_core::outputs::summary::Provenance;
 
 use crate::provenance::Invocation;
 

@@ -5,7 +5,7 @@
 use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use tcpf_core::links::Cause;
-use tcpf_core::metrics::Results;
+use tcpf_core::outputs::metrics::Results;
 
 use super::grid::Grid;
 

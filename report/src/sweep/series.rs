@@ -124,7 +124,7 @@ pub fn from_telemetry(file: &Path, stride: u64) -> Result<Samples> {
         if k.is_multiple_of(stride) {
             let i = (k / stride) as usize;
             samples.resize(i, (f64::NAN, f64::NAN));
-            samples.push(tcpf_core::metrics::error_and_clearance(gammas, positions));
+            samples.push(tcpf_core::outputs::metrics::error_and_clearance(gammas, positions));
         }
         gammas.clear();
         positions.clear();

@@ -1,7 +1,7 @@
 //! Path following (MODEL §2, Lemma 2): errors in the Serret–Frenet frame, the control law of
 //! eqs. 22–23 and the error kinematics of eq. 21 it was designed against.
 
-use crate::path::{PathPoint, Vec2};
+use crate::model::path::{PathPoint, Vec2};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gains {

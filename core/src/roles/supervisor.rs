@@ -11,7 +11,7 @@ use std::collections::VecDeque;
 use std::fmt;
 
 use crate::msg::Role;
-use crate::summary::Restarts;
+use crate::outputs::summary::Restarts;
 
 /// Every wait of the supervisor, each with its default.
 #[derive(Debug, Clone, PartialEq)]

@@ -7,7 +7,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 
 use crate::mission::{CostKind, Mission, PlannerConfig, VehicleConfig};
-use crate::path::{Boundary, GeneralizedPath, Vec2};
+use crate::model::path::{Boundary, GeneralizedPath, Vec2};
 
 /// Grid step of D6, s.
 const GRID: f64 = 0.01;
@@ -699,14 +699,14 @@ mod tests {
     #[test]
     fn the_quick_feasibility_and_cost_agree_with_the_full_evaluation() {
         let files = [
-            ("a-nominal.toml", include_str!("../../configs/paper/a-nominal.toml")),
-            ("b-current.toml", include_str!("../../configs/paper/b-current.toml")),
+            ("a-nominal.toml", include_str!("../../../configs/paper/a-nominal.toml")),
+            ("b-current.toml", include_str!("../../../configs/paper/b-current.toml")),
             (
                 "c-uncoordinated.toml",
-                include_str!("../../configs/paper/c-uncoordinated.toml"),
+                include_str!("../../../configs/paper/c-uncoordinated.toml"),
             ),
-            ("ring5.toml", include_str!("../../configs/ring5.toml")),
-            ("acoustic.toml", include_str!("../../configs/acoustic.toml")),
+            ("ring5.toml", include_str!("../../../configs/ring5.toml")),
+            ("acoustic.toml", include_str!("../../../configs/acoustic.toml")),
         ];
         let mut missions: Vec<Mission> = files
             .iter()

@@ -5,7 +5,7 @@
 use std::collections::VecDeque;
 
 use crate::mission::VehicleModelConfig;
-use crate::path::Vec2;
+use crate::model::path::Vec2;
 
 /// m₁₁ = m − X_u̇, kg (D22a).
 pub const M11: f64 = 50.0;

@@ -11,8 +11,8 @@ use crate::links::LinkStats;
 /// frame at different ticks (D23), never 64 frames apart (6.4 s of periodic sending, 9.6 km of
 /// sound).
 const COUNTED_BROADCASTS: usize = 64;
+use crate::fleet::roster::Roster;
 use crate::msg::{Arrival, Command, LossReason, Player, State};
-use crate::roster::Roster;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VehicleSummary {
@@ -51,10 +51,10 @@ impl Thrusters {
     /// One row of `span` seconds whose state reports `command` (%).
     fn add(&mut self, command: [f64; 2], span: f64) {
         for (k, c) in command.iter().enumerate() {
-            if c.abs() < crate::dynamics::DEAD_ZONE {
+            if c.abs() < crate::model::dynamics::DEAD_ZONE {
                 self.dead_zone_s[k] += span;
             }
-            if c.abs() >= crate::dynamics::FULL {
+            if c.abs() >= crate::model::dynamics::FULL {
                 self.saturated_s[k] += span;
             }
             self.max_command = self.max_command.max(c.abs());

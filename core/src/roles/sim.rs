@@ -3,14 +3,14 @@
 //! lockstep shells pass their messages over Zenoh. Nothing here decides anything the machines do
 //! not: that is what makes in-process and process runs bit-identical.
 
-use crate::agent::{Agent, CoordinationGain};
-use crate::lockstep::{AgentNode, WorldNode};
-use crate::metrics::Results;
 use crate::mission::Mission;
+use crate::model::planner::Plan;
 use crate::msg::{Command, Gamma, LossReason, Rejections, State, PROTOCOL_VERSION};
-use crate::planner::Plan;
-use crate::record::Recorder;
-use crate::world::World;
+use crate::outputs::metrics::Results;
+use crate::roles::agent::{Agent, CoordinationGain};
+use crate::roles::lockstep::{AgentNode, WorldNode};
+use crate::roles::record::Recorder;
+use crate::roles::world::World;
 
 pub struct Fleet {
     world: WorldNode,
@@ -193,23 +193,27 @@ pub fn world_and_laws(mission: &Mission, plan: &Plan, ticks: u64) -> World {
 mod tests {
     use super::*;
     use crate::mission;
+    use crate::model::planner;
     use crate::msg::Checked;
-    use crate::planner;
 
     #[test]
     fn the_machines_add_checks_but_no_arithmetic_to_a_run() {
         // Lossy links; acoustic links that delay by distance, under TDMA and event triggering;
         // side-slip.
         let missions = [
-            ("d-lossy.toml", include_str!("../../configs/paper/d-lossy.toml"), vec![]),
+            (
+                "d-lossy.toml",
+                include_str!("../../../configs/paper/d-lossy.toml"),
+                vec![],
+            ),
             (
                 "acoustic.toml",
-                include_str!("../../configs/acoustic.toml"),
+                include_str!("../../../configs/acoustic.toml"),
                 vec!["comms.trigger=event".to_string(), "comms.tdma_slot=0.2".to_string()],
             ),
             (
                 "b-current.toml",
-                include_str!("../../configs/paper/b-current.toml"),
+                include_str!("../../../configs/paper/b-current.toml"),
                 vec!["sideslip.amplitude=0.2".to_string(), "sideslip.period=7.0".to_string()],
             ),
         ];
@@ -226,7 +230,7 @@ mod tests {
 
     #[test]
     fn an_agent_whose_command_is_not_finite_is_lost_as_silent_and_the_others_go_on() {
-        let text = include_str!("../../configs/paper/b-current.toml");
+        let text = include_str!("../../../configs/paper/b-current.toml");
         let m = mission::parse("b-current.toml", text, &[]).unwrap();
         let plan = planner::plan(&m).unwrap();
         let mut fleet = Fleet::new(&m, &plan);

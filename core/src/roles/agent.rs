@@ -4,13 +4,13 @@
 
 use std::collections::VecDeque;
 
-use crate::coord;
-use crate::follow::{self, Gains};
+use crate::links::modem::{Arrival, Receiver};
 use crate::links::{Cause, Link, LinkSpec};
 use crate::mission::{BetaDot, Mission, ModemConfig, PostArrival, Trigger, VehicleModelConfig};
-use crate::modem::{Arrival, Receiver};
+use crate::model::coord;
+use crate::model::follow::{self, Gains};
+use crate::model::path::{GeneralizedPath, Vec2};
 use crate::msg::{Command, Gamma, Reception, Sample, State, PROTOCOL_VERSION};
-use crate::path::{GeneralizedPath, Vec2};
 
 /// An inbound link j→i and what it delivered.
 #[derive(Debug, Clone)]

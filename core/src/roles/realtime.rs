@@ -7,16 +7,16 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use crate::agent::Agent;
-use crate::lockstep::Reject;
-use crate::metrics::{Metrics, Results};
+use crate::fleet::roster::Roster;
 use crate::mission::{neighbour_lists, Graph, Mission};
+use crate::model::path::GeneralizedPath;
 use crate::msg::{
     tally, Arrival, Checked, Command, End, Fetch, Gamma, LossReason, Lost, PeriodTiming, State, PROTOCOL_VERSION,
 };
-use crate::path::GeneralizedPath;
-use crate::roster::Roster;
-use crate::world::World;
+use crate::outputs::metrics::{Metrics, Results};
+use crate::roles::agent::Agent;
+use crate::roles::lockstep::Reject;
+use crate::roles::world::World;
 
 /// The longest a realtime world holds a vehicle's last command, in simulated seconds: a vehicle
 /// whose agent has been silent longer (its network is down, it hangs) stops its thrusters and

@@ -3,14 +3,16 @@
 //! its own and the distance between the vehicles when it was sent. The stream is keyed by
 //! (mission seed, from, to) alone, so no other link and no ordering of events can change it.
 
+pub mod modem;
+
 use std::collections::BTreeMap;
 
 use rand_chacha::rand_core::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+pub use crate::links::modem::Cause;
 use crate::mission::{Mission, ModemConfig};
-pub use crate::modem::Cause;
 
 /// How a link loses messages.
 #[derive(Debug, Clone, PartialEq)]

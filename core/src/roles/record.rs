@@ -4,10 +4,10 @@
 use std::borrow::Cow;
 use std::collections::VecDeque;
 
-use crate::lockstep::Reject;
-use crate::metrics::{Metrics, Results};
+use crate::fleet::roster::Roster;
 use crate::msg::{Checked, Command, End, Lost, State, TickRecord};
-use crate::roster::Roster;
+use crate::outputs::metrics::{Metrics, Results};
+use crate::roles::lockstep::Reject;
 
 /// One tick as it fills: a slot per vehicle for its state and its command.
 type Tick = (Vec<Option<State>>, Vec<Option<Command>>);
@@ -255,10 +255,10 @@ fn lost_at(losses: &[Lost], id: u32, tick: u64) -> bool {
 mod tests {
     use super::*;
     use crate::mission;
+    use crate::model::planner;
     use crate::msg::PROTOCOL_VERSION;
-    use crate::planner;
-    use crate::sim::Fleet;
-    use crate::telemetry;
+    use crate::outputs::telemetry;
+    use crate::roles::sim::Fleet;
 
     /// The world's verdict behind `results`: each arrival at the tick it falls in.
     fn verdict(results: &Results, dt: f64) -> Vec<crate::msg::Arrival> {
@@ -276,7 +276,7 @@ mod tests {
     }
 
     fn recorded_run() -> (Vec<(State, Command)>, String, Results, f64, f64) {
-        let text = include_str!("../../configs/paper/d-lossy.toml");
+        let text = include_str!("../../../configs/paper/d-lossy.toml");
         let m = mission::parse("d-lossy.toml", text, &[]).unwrap();
         let plan = planner::plan(&m).unwrap();
         let mut messages = Vec::new();

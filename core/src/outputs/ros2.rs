@@ -5,8 +5,8 @@
 //! the world's shell puts them on the bus.
 
 use crate::mission::{Mission, Ros2Config};
+use crate::model::path::GeneralizedPath;
 use crate::msg::{Clock, Command, State};
-use crate::path::GeneralizedPath;
 use std::collections::BTreeMap;
 
 /// A ROS 2 message type: its name, the name the RMW puts in keys, and its RIHS01 type hash
@@ -506,7 +506,8 @@ pub fn coordination(fleet: &[(&State, Option<&Command>)], stamp: Stamp) -> Vec<u
     // The metrics' own spread (D16), so that x is the error a run's summary reports.
     let gammas: Vec<f64> = fleet.iter().map(|(_, c)| c.map_or(0.0, |c| c.gamma)).collect();
     let positions: Vec<[f64; 2]> = fleet.iter().map(|(s, _)| s.position).collect();
-    let (error, closest) = crate::metrics::spread(&gammas, &positions, &mut Vec::new(), |n| fleet[n].1.is_some());
+    let (error, closest) =
+        crate::outputs::metrics::spread(&gammas, &positions, &mut Vec::new(), |n| fleet[n].1.is_some());
     let commanded = fleet.iter().filter(|(_, c)| c.is_some()).count();
     let lag = fleet.iter().filter_map(|(s, c)| c.map(|c| c.gamma - s.t)).sum::<f64>() / commanded.max(1) as f64;
     vector3(stamp, MAP_FRAME, [error, closest, lag])

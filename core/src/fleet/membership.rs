@@ -15,8 +15,8 @@ use std::collections::BTreeSet;
 use std::fmt;
 use std::time::Duration;
 
+use crate::fleet::pause;
 use crate::msg::{LossReason, Lost};
-use crate::pause;
 
 /// A liveliness change the world gathers: an agent (by vehicle id) or a recorder (by its id).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -2,10 +2,10 @@
 //! one: from what was recorded and how the run ended to `Summary`, with no I/O.
 
 use crate::links::LinkStats;
-use crate::metrics::{Metrics, Results, VehicleSummary};
 use crate::mission::{ClockKind, Mission};
 use crate::msg::{End, LossReason, PeriodTiming, Rejections, Report, Role};
-use crate::realtime::HISTORY_S;
+use crate::outputs::metrics::{Metrics, Results, VehicleSummary};
+use crate::roles::realtime::HISTORY_S;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -152,7 +152,7 @@ pub struct Summary {
     pub unreported: Vec<String>,
     /// The coordination gain the agents used: k_c, capped by the largest delay (D19).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub coordination_gain: Option<crate::agent::CoordinationGain>,
+    pub coordination_gain: Option<crate::roles::agent::CoordinationGain>,
     /// What went wrong without failing the run: the planner gone once the fleet ran, ticks
     /// missing from the telemetry.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -237,7 +237,7 @@ impl Summary {
                 .map(|c| format!("{} {}", c.role, c.id))
                 .collect(),
             children,
-            coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
+            coordination_gain: Some(crate::roles::agent::CoordinationGain::of(mission)),
             warnings: Vec::new(),
             missing_ticks: Vec::new(),
             recovered_states: 0,
@@ -468,7 +468,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         for (id, frame, n) in &r.wrong_frames {
             warnings.push(format!(
                 "vehicle {id}: {n} odometry message(s) refused, their pose in frame '{frame}': the fleet takes poses in '{}' only (docs/ROS2.md)",
-                crate::ros2::MAP_FRAME
+                crate::outputs::ros2::MAP_FRAME
             ));
         }
     }
@@ -645,7 +645,7 @@ pub fn of_recording(recording: Recording<'_>, how: Closing) -> Summary {
         timing: Summary::timing_of(reports),
         restarts,
         unreported: unreported.iter().map(|(role, id)| format!("{role} {id}")).collect(),
-        coordination_gain: Some(crate::agent::CoordinationGain::of(mission)),
+        coordination_gain: Some(crate::roles::agent::CoordinationGain::of(mission)),
         warnings,
         missing_ticks,
         recovered_states,
@@ -885,7 +885,7 @@ mod tests {
 
     #[test]
     fn a_run_stopped_before_its_first_tick_says_what_it_knows() {
-        let text = include_str!("../../configs/paper/b-current.toml");
+        let text = include_str!("../../../configs/paper/b-current.toml");
         let child = |role: &str| ChildSummary {
             role: role.into(),
             id: 0,

@@ -6,15 +6,15 @@
 
 use std::collections::BTreeSet;
 
-use crate::roster::Roster;
+use crate::fleet::roster::Roster;
 
-use crate::agent::Agent;
 use crate::mission::{neighbour_lists, Mission};
+use crate::model::path::GeneralizedPath;
 use crate::msg::{
     tally, Arrival, Checked, Command, End, Gamma, LossReason, Lost, Rejections, State, TickRecord, PROTOCOL_VERSION,
 };
-use crate::path::GeneralizedPath;
-use crate::world::World;
+use crate::roles::agent::Agent;
+use crate::roles::world::World;
 
 /// Why a well-formed message was not used. In lockstep a genuine message is always for the tick
 /// under way, and each sender sends one per tick: anything else is a fault or an intruder, and
@@ -456,8 +456,8 @@ impl AgentNode {
 mod tests {
     use super::*;
     use crate::fixtures::case_b;
+    use crate::model::path::ARRIVAL_RADIUS;
     use crate::msg::{Reception, Sample};
-    use crate::path::ARRIVAL_RADIUS;
 
     #[test]
     fn an_agent_waits_for_its_live_neighbours_at_communication_instants_only() {

@@ -3,8 +3,8 @@
 
 use nalgebra::DMatrix;
 
-use crate::follow::sat;
 use crate::mission::Graph;
+use crate::model::follow::sat;
 
 /// D13: |cos ψ_e| is floored so that the speed command stays bounded.
 const COS_FLOOR: f64 = 1e-3;

@@ -2,11 +2,11 @@
 //! control period with the commands held: the kinematic vehicle of MODEL §2, or a dynamic one with
 //! its thrusters and inner loops (MODEL D22).
 
-use crate::dynamics::{Medusa, Reference};
-use crate::follow;
 use crate::mission::{Mission, VehicleKind};
+use crate::model::dynamics::{Medusa, Reference};
+use crate::model::follow;
+use crate::model::path::{GeneralizedPath, Vec2};
 use crate::msg::{Command, Dynamics, State, PROTOCOL_VERSION};
-use crate::path::{GeneralizedPath, Vec2};
 
 #[derive(Debug, Clone)]
 struct Body {
@@ -148,7 +148,7 @@ impl World {
                         yaw_rate: s.r,
                         command: m.last.c,
                         motor: s.motor,
-                        thrust: s.motor.map(crate::dynamics::thrust),
+                        thrust: s.motor.map(crate::model::dynamics::thrust),
                     }),
                 }
             }
