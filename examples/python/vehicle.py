@@ -28,7 +28,7 @@ VERSION = 12
 # How far ahead of this vehicle's clock a command's tick may be, in wall seconds (as every role).
 AHEAD_LIMIT_WALL_S = 1.0
 # The longest a vehicle holds its agent's last command, in simulated seconds (the world's
-# HOLD_LIMIT_S, core/src/realtime.rs): then its watchdog stops the thrusters.
+# HOLD_LIMIT_S, core/src/roles/realtime.rs): then its watchdog stops the thrusters.
 HOLD_LIMIT_S = 1.0
 F64 = struct.Struct("<d")
 
@@ -183,7 +183,7 @@ def wrap(angle):
 
 
 class Vehicle:
-    """The kinematics of core/src/world.rs without side-slip, and what the Zenoh callbacks share
+    """The kinematics of core/src/roles/world.rs without side-slip, and what the Zenoh callbacks share
     with the main thread (they run on Zenoh's threads, hence the lock)."""
 
     def __init__(self, vid, position, heading, current, max_ticks):
