@@ -1039,6 +1039,9 @@ fn bench_prints_every_figure_beside_its_baseline() {
         fleet[0] > 0.1 && fleet[1] > fleet[0] && fleet[3] > fleet[0],
         "the world alone, and the world with the laws alone, are faster: {fleet:?}"
     );
+    // A ratio is printed to two decimals (±0.005) of figures printed to one (µs) or two: the
+    // quotient of the printed figures is within that rounding, whatever the ratio's size.
+    let quotient = |ratio: f64, a: f64, b: f64| (ratio - a / b).abs() <= 0.005 + 0.01 * ratio;
     // Both rates are printed to two decimals: their quotient is known to within that rounding.
     let rounding = 0.005 + fleet[4] * (0.005 / fleet[0] + 0.005 / fleet[3]);
     assert!((fleet[4] - fleet[0] / fleet[3]).abs() <= rounding, "{fleet:?}");
@@ -1060,15 +1063,15 @@ fn bench_prints_every_figure_beside_its_baseline() {
     );
     let tick = numbers(&line("lockstep tick (2 vehicles, 5548 ticks, best of 3 runs)"));
     assert!(tick[3] > 10.0 && tick[3] < 1e5, "tick in µs: {tick:?}");
-    assert!((tick[4] - tick[3] / rtt[0]).abs() < 0.01 * tick[4], "{tick:?} {rtt:?}");
-    assert!((tick[5] - tick[3] / rtt[1]).abs() < 0.01 * tick[5], "{tick:?} {rtt:?}");
+    assert!(quotient(tick[4], tick[3], rtt[0]), "{tick:?} {rtt:?}");
+    assert!(quotient(tick[5], tick[3], rtt[1]), "{tick:?} {rtt:?}");
     // The tick with --ros2 and its ratio to the tick without, the line's last two numbers.
     let ros2 = numbers(&line("lockstep tick with --ros2"));
     let [with, ratio] = ros2[ros2.len() - 2..] else {
         panic!("{ros2:?}")
     };
     assert!(with > 10.0 && with < 1e5, "tick in µs: {ros2:?}");
-    assert!((ratio - with / tick[3]).abs() < 0.01 * ratio, "{ros2:?} {tick:?}");
+    assert!(quotient(ratio, with, tick[3]), "{ros2:?} {tick:?}");
     // The tick with a certificate per role, with a password per role, and with neither.
     let rules = numbers(&line("lockstep tick with a certificate per role"));
     let [with, passwords, plain, ratio, ratio_passwords] = rules[rules.len() - 5..] else {
@@ -1079,11 +1082,8 @@ fn bench_prints_every_figure_beside_its_baseline() {
         plain > 10.0 && plain < 1e5 && passwords > 10.0 && passwords < 1e5,
         "ticks in µs: {rules:?}"
     );
-    assert!((ratio - with / plain).abs() < 0.01 * ratio, "{rules:?}");
-    assert!(
-        (ratio_passwords - passwords / plain).abs() < 0.01 * ratio_passwords,
-        "{rules:?}"
-    );
+    assert!(quotient(ratio, with, plain), "{rules:?}");
+    assert!(quotient(ratio_passwords, passwords, plain), "{rules:?}");
     // b-current's control period is 0.01 s: a tick's wall time says how fast it runs.
     let speed = numbers(&line("simulated / wall time:"));
     assert!(
@@ -1100,7 +1100,7 @@ fn bench_prints_every_figure_beside_its_baseline() {
         panic!("{start:?}")
     };
     assert!(first > 0.0 && settled > 1.5, "{start:?}");
-    assert!((ratio - first / settled).abs() < 0.01 + 0.01 * ratio, "{start:?}");
+    assert!(quotient(ratio, first, settled), "{start:?}");
     // The fleets of `tcpf gen lanes`, each beside the direct round trip; lanes tick every 0.01 s.
     let mut lanes = Vec::new();
     for n in [3.0, 4.0] {
@@ -1112,14 +1112,11 @@ fn bench_prints_every_figure_beside_its_baseline() {
         assert!((per_agent - tick / n).abs() < 0.06, "{l:?}");
         assert!((by_tick - 0.01 / (tick * 1e-6)).abs() < 0.01 * by_tick, "{l:?}");
         assert!(whole > 0.0 && whole < by_tick && first > 0.0, "{l:?}");
-        assert!((ratio - tick / rtt[0]).abs() < 0.01 * ratio + 0.005, "{l:?} {rtt:?}");
+        assert!(quotient(ratio, tick, rtt[0]), "{l:?} {rtt:?}");
         lanes.push(tick);
     }
     let scale = numbers(&line("from 3 to 4 lanes: the tick"));
-    assert!(
-        (scale[2] - lanes[1] / lanes[0]).abs() < 0.01 * scale[2] + 0.005,
-        "{scale:?} {lanes:?}"
-    );
+    assert!(quotient(scale[2], lanes[1], lanes[0]), "{scale:?} {lanes:?}");
     let memory = numbers(&line("per agent:"));
     assert!(memory.iter().all(|&m| m > 0.5 && m < 200.0), "{memory:?}");
     // Sockets grow with the fleet, not its square: a handful per process.

@@ -89,30 +89,12 @@ fn allowed(realtime: &Value, out: &Path) -> Allowed {
                 .sum::<u64>()
         })
         .sum();
-    let overtaken: u64 = realtime["links"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|l| l["overtaken"].as_u64().unwrap())
-        .sum();
     let mission: toml::Table = std::fs::read_to_string(out.join("mission.toml"))
         .unwrap()
         .parse()
         .unwrap();
     let comms_period = mission["comms"]["period"].as_float().unwrap();
-    let ages: Vec<i64> = common::csv_rows(&out.join("messages.csv"))
-        .iter()
-        .map(|r| {
-            let age = r["t"].parse::<f64>().unwrap() - r["sent_t"].parse::<f64>().unwrap();
-            (age / period).round() as i64
-        })
-        .collect();
-    let usual = ages
-        .iter()
-        .max_by_key(|a| ages.iter().filter(|b| b == a).count())
-        .copied()
-        .unwrap_or(0);
-    let uneven = ages.iter().filter(|&&a| a != usual).count() as u64 + overtaken;
+    let uneven = common::uneven_gamma(realtime, out, period);
     let kc = realtime["coordination_gain"]["effective"].as_f64().unwrap();
     let coordination = uneven as f64 * kc * comms_period * comms_period;
     let slack = disturbed as f64 / 10.0;

@@ -440,12 +440,27 @@ impl PlayedRun {
 /// arrival, s, with both vehicles simulated.
 const CASE_B_ERROR: f64 = 0.362;
 
-/// How far from `CASE_B_ERROR` a run with a played vehicle may end, s. A γ its receiver judges
-/// an instant early or late (the receiver late past its instant, or the γ late to it) makes one
-/// vehicle know the other a comms period better than the other does; the node's ±30 % jitter makes
-/// some a run even on a quiet machine (105 of 1 090 in one, error 0.363 s), and beside a
-/// two-process CPU hog more (147, error 0.402 s: the run the former 0.02 s failed).
-const PLAYED_ERROR_TOLERANCE: f64 = 0.05;
+/// How far from `CASE_B_ERROR` a run with a played vehicle may end on a quiet machine, s.
+const PLAYED_ERROR_TOLERANCE: f64 = 0.02;
+
+/// How far from `CASE_B_ERROR` the played run in `out` (summary `s`) may end, s: the quiet
+/// tolerance and the uneven γ's share. A γ its receiver judges at another age than the usual
+/// comms period (common::uneven_gamma) makes one vehicle know the other up to T_c better or worse
+/// than the other does, for T_c: k_c T_c² of γ apart each, at most. Each is as likely to help as
+/// to hurt, so they add as a random walk, √n of them: measured with the node's ±30 % jitter, 105
+/// on a quiet machine (error 0.363 s, 0.071 allowed), and beside a two-process CPU hog 72 to 269
+/// (0.387 to 0.415 s; 0.062 to 0.102 allowed).
+fn played_error_tolerance(s: &Value, out: &std::path::Path) -> (f64, u64) {
+    let uneven = common::uneven_gamma(s, out, 0.01);
+    let kc = s["coordination_gain"]["effective"].as_f64().unwrap();
+    let mission: toml::Table = std::fs::read_to_string(out.join("mission.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let comms_period = mission["comms"]["period"].as_float().unwrap();
+    let walk = kc * comms_period * comms_period * (uneven as f64).sqrt();
+    (PLAYED_ERROR_TOLERANCE + walk, uneven)
+}
 
 /// Vehicle 2 played by a ROS 2 node at the control rate with ±30 % jitter in each wait, as a
 /// driver's loop on a shared computer keeps it: both vehicles arrive together, coordinated as
@@ -474,9 +489,10 @@ fn a_ros2_node_plays_a_vehicle_beside_the_one_the_world_simulates() {
     assert_eq!(s["vehicles"][1]["played_by"], "ros2", "{}", s["vehicles"]);
     assert!(s["vehicles"][0].get("played_by").is_none(), "{}", s["vehicles"]);
     let error = s["max_coordination_error"].as_f64().unwrap();
+    let (tolerance, uneven) = played_error_tolerance(&s, &out);
     assert!(
-        (error - CASE_B_ERROR).abs() < PLAYED_ERROR_TOLERANCE,
-        "coordination error {error:.3} s, {CASE_B_ERROR} s with both vehicles simulated ({PLAYED_ERROR_TOLERANCE} s allowed)"
+        (error - CASE_B_ERROR).abs() < tolerance,
+        "coordination error {error:.3} s, {CASE_B_ERROR} s with both vehicles simulated ({tolerance:.3} s allowed for {uneven} uneven γ)"
     );
     // Jitter puts two odometries in some ticks and none in others: the first of a tick is its
     // state, the others are surplus, and nothing is a conflict.

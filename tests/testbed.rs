@@ -533,6 +533,9 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
     let _fleet = common::fleet();
     let dir = scratch("real-loss");
     let mut bed = Testbed::new("loss", &["shore", "v1", "v2"]);
+    // Zenoh's links as they open and close: a UDP link that a loaded machine once lost for good
+    // (the session went on over TCP alone, 1 run in ~40) says when and why in the logs.
+    bed.log_filter = Some("info,zenoh_transport::unicast=debug,zenoh::net::runtime::orchestrator=debug".into());
     // At time scale 2 (a 5 ms wall period) a loaded 2-core host still keeps the fleet's timing,
     // so that the run measures the network's loss, not the host (docs/TESTBED.md).
     let clock = ["--clock", "realtime", "--time-scale", "2"];
@@ -552,9 +555,16 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
     );
     let deadline = std::time::Instant::now() + Duration::from_secs(30);
     while !bed.run("v2", &["sh", "-c", &udp]) {
+        let links = |log: &str| {
+            let text = std::fs::read_to_string(dir.join(log)).unwrap_or_default();
+            let udp: Vec<&str> = text.lines().filter(|l| l.contains("udp")).collect();
+            udp.join("\n")
+        };
         assert!(
             std::time::Instant::now() < deadline,
-            "vehicle 2's UDP link to the shore never opened: its session runs on TCP alone"
+            "vehicle 2's UDP link to the shore is not open: its session runs on TCP alone\nagent 2: {}\nrouter: {}",
+            links("agent-2.log"),
+            links("router.log")
         );
         std::thread::sleep(Duration::from_millis(50));
     }

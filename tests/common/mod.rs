@@ -391,6 +391,32 @@ pub fn without_command(s: &Value, id: u64) -> u64 {
         .unwrap_or(0)
 }
 
+/// The γ of a realtime run that a receiver knew at another age than the run's usual one (its
+/// receiver late past the instant, or the γ late to it), or never judged because a newer one
+/// overtook it: each makes one vehicle know its neighbour a comms period better or worse than
+/// the other does. `out` is the run directory of summary `s`, control period `period` s.
+pub fn uneven_gamma(s: &Value, out: &Path, period: f64) -> u64 {
+    let overtaken: u64 = s["links"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["overtaken"].as_u64().unwrap())
+        .sum();
+    let ages: Vec<i64> = csv_rows(&out.join("messages.csv"))
+        .iter()
+        .map(|r| {
+            let age = r["t"].parse::<f64>().unwrap() - r["sent_t"].parse::<f64>().unwrap();
+            (age / period).round() as i64
+        })
+        .collect();
+    let usual = ages
+        .iter()
+        .max_by_key(|a| ages.iter().filter(|b| b == a).count())
+        .copied()
+        .unwrap_or(0);
+    ages.iter().filter(|&&a| a != usual).count() as u64 + overtaken
+}
+
 /// A loopback endpoint on a port free a moment ago.
 pub fn free_endpoint() -> String {
     let port = std::net::TcpListener::bind("127.0.0.1:0")

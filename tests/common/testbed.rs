@@ -44,6 +44,8 @@ pub struct Testbed {
     switch: String,
     hosts: Vec<(String, String)>,
     children: Vec<Child>,
+    /// What the processes it starts log (their RUST_LOG), if not their default.
+    pub log_filter: Option<String>,
 }
 
 impl Testbed {
@@ -58,6 +60,7 @@ impl Testbed {
             switch: switch.clone(),
             hosts: Vec::new(),
             children: Vec::new(),
+            log_filter: None,
         };
         ip(&["-n", &switch, "link", "add", "br0", "type", "bridge"]);
         ip(&["-n", &switch, "link", "set", "br0", "up"]);
@@ -102,7 +105,11 @@ impl Testbed {
     pub fn spawn(&mut self, host: &str, dir: &Path, log: &Path, program: &str, args: &[&str]) -> u32 {
         let ns = self.hosts[self.index(host)].1.clone();
         let out = std::fs::File::create(log).unwrap();
-        let child = Command::new("ip")
+        let mut command = Command::new("ip");
+        if let Some(filter) = &self.log_filter {
+            command.env("RUST_LOG", filter);
+        }
+        let child = command
             .args(["netns", "exec", &ns, program])
             .args(args)
             .current_dir(dir)
