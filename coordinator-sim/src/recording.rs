@@ -182,6 +182,12 @@ impl Recording {
         let mut subscribers = Vec::new();
         if mission.mission.clock == ClockKind::Lockstep {
             subscribers.push(subscribe_as(session, &keys.tick(), &rejected, tx.clone(), Message::Tick).await?);
+            // A loss as the world announces it, in order with its ticks: its hand-over, on a task
+            // of the world's own, can come after the records of hundreds of ticks that no longer
+            // wait for the lost vehicle (a loaded machine: 256 of them, the recorder's window, and
+            // every later tick was refused as too far ahead). The hand-over, which this recorder
+            // acknowledges, repeats it.
+            subscribers.push(subscribe_as(session, &keys.lost("*"), &rejected, tx.clone(), Message::Loss).await?);
         } else {
             subscribers.push(subscribe_as(session, &keys.state("*"), &rejected, tx.clone(), Message::State).await?);
             subscribers.push(subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Message::Command).await?);
