@@ -1,4 +1,4 @@
-//! tcpf-agent: the vehicle process. A Zenoh shell around core's `AgentNode` (lockstep) or
+//! tcpf-agent: the vehicle process. A Zenoh shell around core's `LockstepAgent` (lockstep) or
 //! `RealtimeAgent` (realtime): it fetches its path, takes its vehicle's state, exchanges γ with
 //! its neighbours and publishes commands. Started while the run is under way, it rejoins.
 
@@ -19,12 +19,13 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{AgentStartup, Peer, StaleCheck, StaleTimer, StartupCheck, WorldAway, WorldReach};
+use tcpf_core::fleet::membership::{AgentStartup, Peer, StartupCheck, WorldAway, WorldReach};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
 use tcpf_core::outputs::ros2::Stamp;
 use tcpf_core::roles::agent::Agent;
 use tcpf_core::roles::lockstep::{AgentNode, Timing};
+use tcpf_core::roles::lockstep_agent::{Input, LockstepAgent, Output, Source};
 use tcpf_core::roles::realtime::RealtimeAgent;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
@@ -124,42 +125,31 @@ fn let_go_of_the_start(id: u32) {
     });
 }
 
-/// The lockstep node, fed on Zenoh's thread: a state or γ goes in and the γ and command it
-/// yields leave at once, without waking the agent's task. That handoff, a thread woken per
-/// message, cost a fifth of a tick of 10 agents as processes. The task keeps what is slow:
+/// The lockstep agent's machine, fed on Zenoh's thread: a state or γ goes in and the γ and
+/// command it yields leave at once, without waking the agent's task. That handoff, a thread woken
+/// per message, cost a fifth of a tick of 10 agents as processes. The task keeps what is slow:
 /// liveliness, the end, the stale timeout.
 ///
 /// Publishing from the callback cannot block on a full queue that only this thread would
 /// drain: lockstep sends a message or two per tick, and no tick comes until they are delivered.
 struct Feed {
     id: u32,
+    keys: Keys,
     fed: Mutex<Fed>,
     commands: Outlet,
     gamma_out: Outlet,
     rejected: Rejected,
     faults: UnboundedSender<anyhow::Error>,
-    /// A state came while the node was held: the world has started, and its clock answers.
+    /// A state came before the start: the world has started, and its clock answers.
     first_state: Notify,
-    /// The agent's monotonic clock, which `stale` counts in.
+    /// The agent's monotonic clock, which the machine's stale timeout counts in.
     monotonic: Monotonic,
 }
 
 struct Fed {
-    node: AgentNode,
+    machine: LockstepAgent,
     /// The agent as a ROS 2 node, and the control period its commands' stamps count in.
     ros2: Option<(tcpf_bus::ros2::Agent, f64)>,
-    /// Until the loop starts (the node's neighbours and rejoining known), what came, in order.
-    held: Option<Vec<(String, Input)>>,
-    /// How long the node has been waiting for a neighbour's γ.
-    stale: StaleTimer,
-    /// The loop has ended: what still comes is not answered, so that an agent that was told to
-    /// stop steers its vehicle no more while it reports and leaves.
-    stopped: bool,
-}
-
-enum Input {
-    State(State),
-    Gamma(Gamma),
 }
 
 impl Feed {
@@ -167,48 +157,67 @@ impl Feed {
         self.fed.lock().unwrap_or_else(|e| e.into_inner())
     }
 
+    /// A state or γ that came on `key`: into the machine if it came on its sender's key.
     fn take(&self, key: &str, input: Input) {
+        if let Input::Gamma(g) = &input {
+            if Keys::id_of(key) != Some(g.from) {
+                return self.rejected.wrong_sender(key);
+            }
+        }
         let mut fed = self.lock();
-        if fed.stopped {
-            return;
-        }
-        match &mut fed.held {
-            Some(held) => {
-                if matches!(input, Input::State(_)) {
-                    self.first_state.notify_one();
+        fed.machine.handle(input, self.monotonic.now());
+        self.perform(&mut fed);
+    }
+
+    /// The world's clock answered: what came before goes into the machine.
+    fn start(&self) {
+        let_go_of_the_start(self.id);
+        let mut fed = self.lock();
+        fed.machine.start(self.monotonic.now());
+        self.perform(&mut fed);
+    }
+
+    /// Does `change` to the machine, then what it has ready.
+    fn with<R>(&self, change: impl FnOnce(&mut LockstepAgent, f64) -> R) -> R {
+        let mut fed = self.lock();
+        let result = change(&mut fed.machine, self.monotonic.now());
+        self.perform(&mut fed);
+        result
+    }
+
+    /// Publishes what the machine has ready, counts what it refused and says what it gave up.
+    fn perform(&self, fed: &mut Fed) {
+        while let Some(output) = fed.machine.poll_output() {
+            match output {
+                Output::Gamma(gamma) => self.sent(self.gamma_out.put_now(&gamma)),
+                Output::Command(command) => {
+                    warn_if_not_finite(self.id, &command);
+                    self.sent(self.commands.put_now(&command));
+                    if let Some((ros2, period)) = &mut fed.ros2 {
+                        // Lockstep: simulated time, as the world's stamps and /clock.
+                        self.sent(ros2.put(&command, Stamp::from_seconds(command.tick as f64 * *period)));
+                    }
                 }
-                held.push((key.to_string(), input))
-            }
-            None => {
-                self.apply(&mut fed, key, input);
-                self.settle(&mut fed);
-            }
-        }
-    }
-
-    fn apply(&self, fed: &mut Fed, key: &str, input: Input) {
-        match input {
-            Input::State(state) => match fed.node.on_state(state) {
-                Ok(Some(gamma)) => self.sent(self.gamma_out.put_now(&gamma)),
-                Ok(None) => {}
-                Err(e) => self.rejected.reject(e, key),
-            },
-            Input::Gamma(gamma) => self.rejected.check(key, gamma.from, || fed.node.on_gamma(gamma)),
-        }
-    }
-
-    /// Publishes the commands the node has ready, and notes whether it now waits.
-    fn settle(&self, fed: &mut Fed) {
-        while let Some(command) = fed.node.command() {
-            warn_if_not_finite(self.id, &command);
-            self.sent(self.commands.put_now(&command));
-            if let Some((ros2, period)) = &mut fed.ros2 {
-                // Lockstep: simulated time, as the world's stamps and /clock.
-                self.sent(ros2.put(&command, Stamp::from_seconds(command.tick as f64 * *period)));
+                Output::Rejected(why, source) => {
+                    let key = match source {
+                        Source::State => self.keys.state(self.id),
+                        Source::Gamma(j) => self.keys.gamma(j),
+                    };
+                    self.rejected.reject(why, &key)
+                }
+                Output::WorldStarted => self.first_state.notify_one(),
+                Output::Stale(j) => tracing::warn!(
+                    "agent {}: neighbour {j} silent for {:?}; going on without it until it speaks again (the run is no longer reproducible)",
+                    self.id,
+                    fed.machine.stale_timeout()
+                ),
+                Output::Resumed(more) => tracing::info!(
+                    "agent {}: resumed after {:.1} s stopped or starved; the neighbours get that long more",
+                    self.id,
+                    more.as_secs_f64()
+                ),
             }
         }
-        let waiting = fed.node.waiting();
-        fed.stale.note(waiting, self.monotonic.now());
     }
 
     /// A publication that failed ends the loop, which owns the error.
@@ -216,26 +225,6 @@ impl Feed {
         if let Err(e) = publication {
             let _ = self.faults.send(e);
         }
-    }
-
-    /// The loop starts: what came before goes into the node.
-    fn start(&self) {
-        let_go_of_the_start(self.id);
-        let mut fed = self.lock();
-        for (key, input) in fed.held.take().unwrap_or_default() {
-            self.apply(&mut fed, &key, input);
-        }
-        self.settle(&mut fed);
-    }
-
-    /// Does `change` to the node, then publishes what it has ready.
-    fn with<R>(&self, change: impl FnOnce(&mut AgentNode) -> R) -> R {
-        let mut fed = self.lock();
-        let result = change(&mut fed.node);
-        if fed.held.is_none() {
-            self.settle(&mut fed);
-        }
-        result
     }
 }
 
@@ -304,12 +293,10 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         let (faults_tx, faults) = mpsc::unbounded_channel();
         let feed = Arc::new(Feed {
             id,
+            keys: keys.clone(),
             fed: Mutex::new(Fed {
-                node: AgentNode::new(agent),
+                machine: LockstepAgent::new(AgentNode::new(agent), options.stale_timeout),
                 ros2: ros2.map(|r| (r, mission.mission.control_period)),
-                held: Some(Vec::new()),
-                stale: StaleTimer::new(options.stale_timeout),
-                stopped: false,
             }),
             commands: Outlet::for_clock(&session, keys.cmd(id), false).await?,
             gamma_out: Outlet::gamma(&session, keys.gamma(id), false).await?,
@@ -412,7 +399,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         }
         Inbound::Fed { feed, mut faults } => {
             if under_way.is_some() {
-                feed.with(AgentNode::rejoin);
+                feed.with(|machine, now| machine.with(now, AgentNode::rejoin));
             } else {
                 while startup.deserted().is_none() && !startup.absent().is_empty() {
                     let wake = monotonic.at(startup.poll_timeout());
@@ -443,13 +430,13 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 }
                 let absent = startup.absent();
                 for &j in &audible {
-                    feed.with(|node| node.set_gone(j, absent.contains(&j)));
+                    feed.with(|machine, now| machine.with(now, |node| node.set_gone(j, absent.contains(&j))));
                 }
             }
             let exit = shell
                 .lockstep(mission, under_way.is_none(), &feed, &mut faults, options)
                 .await;
-            feed.lock().stopped = true;
+            feed.lock().machine.stop();
             exit?
         }
     };
@@ -538,7 +525,7 @@ impl Shell {
             let woken_for = {
                 let fed = feed.lock();
                 let now = feed.monotonic.now();
-                fed.stale
+                fed.machine
                     .poll_timeout()
                     .unwrap_or(now + options.stale_timeout.as_secs_f64())
             };
@@ -558,16 +545,18 @@ impl Shell {
                 }
                 Some(p) = self.presence.recv() => match p.role {
                     Role::World if !p.alive => {
-                        break self.world_gone(|e| feed.with(|node| node.on_end(e).is_ok())).await;
+                        break self.world_gone(|e| feed.lock().machine.on_end(e).is_ok()).await;
                     }
                     // This agent has its path: the planner serves only agents that start.
                     Role::Planner if !p.alive => {
                         tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
                     }
-                    Role::Agent if self.audible.contains(&p.id) => feed.with(|node| node.set_gone(p.id, !p.alive)),
+                    Role::Agent if self.audible.contains(&p.id) => {
+                    feed.with(|machine, now| machine.with(now, |node| node.set_gone(p.id, !p.alive)))
+                }
                     _ => {}
                 },
-                Some(e) = self.ends.recv() => match feed.with(|node| node.on_end(&e.message)) {
+                Some(e) = self.ends.recv() => match feed.lock().machine.on_end(&e.message) {
                     Ok(()) => break Exit::Ended,
                     Err(why) => self.rejected.reject(why, &e.key),
                 },
@@ -576,7 +565,7 @@ impl Shell {
                     if Keys::id_of(&l.key) != Some(lost.id) {
                         self.rejected.wrong_sender(&l.key);
                     } else {
-                        match feed.with(|node| node.on_lost(&lost)) {
+                        match feed.with(|machine, now| machine.on_lost(&lost, now)) {
                             Ok(true) => {
                                 tracing::warn!(
                                     "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
@@ -592,30 +581,13 @@ impl Shell {
                 }
                 _ = self.shutdown.recv() => break Exit::Interrupted,
                 _ = tokio::time::sleep_until(feed.monotonic.at(woken_for)) => {
-                    let mut fed = feed.lock();
-                    match fed.stale.handle_timeout(feed.monotonic.now(), woken_for) {
-                        StaleCheck::Nothing => {}
-                        StaleCheck::Resumed(more) => tracing::info!(
-                            "agent {id}: resumed after {:.1} s stopped or starved; the neighbours get that long more",
-                            more.as_secs_f64()
-                        ),
-                        StaleCheck::Stale => {
-                            for j in fed.node.waiting_for() {
-                                tracing::warn!(
-                                    "agent {id}: neighbour {j} silent for {:?}; going on without it until it speaks again (the run is no longer reproducible)",
-                                    options.stale_timeout
-                                );
-                                fed.node.on_stale(j);
-                            }
-                            feed.settle(&mut fed);
-                        }
-                    }
+                    feed.with(|machine, now| machine.handle_timeout(now, woken_for));
                 }
             }
         };
         let (gamma, timing) = {
             let fed = feed.lock();
-            (fed.node.agent().gamma(), fed.node.timing().clone())
+            (fed.machine.node().agent().gamma(), fed.machine.timing().clone())
         };
         tracing::info!("agent {id}: {exit} at γ = {gamma:.3}");
         report(
