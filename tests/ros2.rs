@@ -540,9 +540,14 @@ fn a_ros2_node_at_a_third_of_the_control_rate_keeps_the_timing_and_its_ages_are_
     let (slow, simulated) = (common::timing(&s, "agent", 2), common::timing(&s, "agent", 1));
     let p50 = slow["state_age_p50_s"].as_f64().unwrap();
     let max = slow["state_age_max_s"].as_f64().unwrap();
+    let stale = slow["stale_states"].as_u64().unwrap();
     // The agent acts half a period after the world's beat: a state of the world's is of that
-    // very tick, one of the node's up to three ticks older.
-    assert!((0.01..0.05).contains(&p50) && (0.02..0.1).contains(&max), "{slow}");
+    // very tick, one of the node's up to three ticks older. A node starved beside a CPU hog
+    // publishes later still (one run: states up to 0.12 s old, 4 stale in 5 568 periods): beyond the
+    // mission's max_state_age (0.1 s) a state is counted stale, and the stale are a few.
+    assert!((0.01..0.05).contains(&p50) && max >= 0.02, "{slow}");
+    let periods = slow["periods"].as_u64().unwrap();
+    assert!(max <= 0.1 || (stale > 0 && stale * 100 < periods), "{slow}");
     assert!(
         simulated["state_age_p50_s"].as_f64().unwrap() < p50,
         "the world's own vehicle is fresher: {simulated}"
