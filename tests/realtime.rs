@@ -75,7 +75,8 @@ struct Allowed {
 /// at most k_c T_c (γ̇ ≈ 1) for T_c, k_c T_c² of arrival each. A quiet run has a handful (3
 /// MEDUSA runs at x10: 7 to 24); beside a CPU hog an agent starved past its instants makes
 /// hundreds, which the dead zones of MEDUSA's thrusters turn into a real delay (one run: 441, 155 of them
-/// overtaken, arrivals 0.43 s after lockstep's).
+/// overtaken, arrivals 0.43 s after lockstep's). The error also holds what an agent starved past
+/// whole periods left the world holding (common::held_gamma_s).
 fn allowed(realtime: &Value, out: &Path) -> Allowed {
     let period = 0.01;
     let disturbed: u64 = realtime["timing"]
@@ -102,7 +103,7 @@ fn allowed(realtime: &Value, out: &Path) -> Allowed {
         disturbed,
         uneven,
         arrival: period * (2.0 + slack) + coordination,
-        error: period * (1.0 + slack) + coordination,
+        error: period * (1.0 + slack) + coordination + common::held_gamma_s(realtime),
     }
 }
 
