@@ -2,6 +2,7 @@
 //! agent that starts late or restarts gets its path) and once as a publication.
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::clock::Monotonic;
 use tcpf_bus::codec::encode;
 use tcpf_bus::exit_report::report;
 use tcpf_bus::keys::{Keys, Role};
@@ -15,24 +16,10 @@ use tcpf_core::mission::Mission;
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
 use tcpf_core::roles::lockstep::Timing;
+use tcpf_core::roles::planner_node::{Input, PlannerNode};
 use zenoh::key_expr::KeyExpr;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Exit {
-    Ended,
-    WorldGone,
-    Interrupted,
-}
-
-impl std::fmt::Display for Exit {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Exit::Ended => "ended",
-            Exit::WorldGone => "stopped: the world left without announcing the end",
-            Exit::Interrupted => "interrupted",
-        })
-    }
-}
+pub use tcpf_core::roles::planner_node::Exit;
 
 /// Serves `plan` until the world goes away (having announced the end, or not), or a signal.
 pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Exit> {
@@ -81,11 +68,13 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
         keys.plan("*")
     );
 
-    let mut world_seen = false;
-    // An end message says the run is over, but only the world's going away lets the planner go:
-    // an end from anyone else must not take the paths away from a running fleet.
-    let mut ended = false;
+    let monotonic = Monotonic::start();
+    let mut machine = PlannerNode::new(waits::END_AFTER_THE_WORLD);
     let exit = loop {
+        if let Some(exit) = machine.exit() {
+            break exit;
+        }
+        let grace = machine.poll_timeout();
         tokio::select! {
             Ok(query) = queryable.recv_async() => {
                 for (key, bytes) in paths.iter().filter(|(k, _)| k.intersects(query.key_expr())) {
@@ -95,18 +84,13 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
                 }
             }
             Some(p) = presence.recv() => if p.role == Role::World {
-                if p.alive {
-                    world_seen = true;
-                } else if world_seen {
-                    if !ended {
-                        let end = tokio::time::timeout(waits::END_AFTER_THE_WORLD, ends.recv()).await;
-                        ended = end.is_ok_and(|e| e.is_some());
-                    }
-                    break if ended { Exit::Ended } else { Exit::WorldGone };
-                }
+                machine.handle(Input::World(p.alive), monotonic.now());
             },
-            Some(_) = ends.recv() => ended = true,
-            _ = shutdown.recv() => break Exit::Interrupted,
+            Some(_) = ends.recv() => machine.handle(Input::End, monotonic.now()),
+            _ = shutdown.recv() => machine.handle(Input::Interrupted, monotonic.now()),
+            _ = tokio::time::sleep_until(monotonic.at(grace.unwrap_or_default())), if grace.is_some() => {
+                machine.handle_timeout(monotonic.now());
+            }
         }
     };
     tracing::info!("planner: {exit}");
