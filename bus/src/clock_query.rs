@@ -12,6 +12,7 @@ use zenoh::{Session, Wait};
 use crate::codec::{decode, encode};
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
+use crate::waits;
 
 /// The world's side of the clock: a queryable that answers once the run has started, with the
 /// tick under way.
@@ -61,7 +62,7 @@ pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> R
         .get(key.clone())
         .target(QueryTarget::All)
         .consolidation(ConsolidationMode::None)
-        .timeout(Duration::from_secs(1))
+        .timeout(waits::CLOCK_QUERY)
         .await
         .map_err(|e| anyhow!("cannot query {key}: {e}"))?;
     let mut found = None;

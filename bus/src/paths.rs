@@ -13,6 +13,7 @@ use zenoh::Session;
 use crate::codec::decode;
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
+use crate::waits;
 
 /// Asks the planner for the paths of `ids`, retrying until `timeout`.
 pub async fn fetch_paths(
@@ -48,7 +49,7 @@ pub async fn fetch_paths(
     loop {
         let replies = session
             .get(selector.clone())
-            .timeout(Duration::from_secs(2))
+            .timeout(waits::PATH_QUERY)
             .await
             .map_err(|e| anyhow!("cannot query {selector}: {e}"))?;
         while let Ok(reply) = replies.recv_async().await {
@@ -72,7 +73,7 @@ pub async fn fetch_paths(
             let planner = session
                 .liveliness()
                 .get(keys.alive(Role::Planner, 0))
-                .timeout(Duration::from_secs(1))
+                .timeout(waits::PLANNER_QUERY)
                 .await
                 .map_err(|e| anyhow!("cannot query liveliness: {e}"))?;
             if planner.recv_async().await.is_err() {
@@ -85,6 +86,6 @@ pub async fn fetch_paths(
                 timeout.as_secs_f64()
             ));
         }
-        let _ = tokio::time::timeout(Duration::from_millis(100), appeared.recv()).await;
+        let _ = tokio::time::timeout(waits::PATH_RETRY, appeared.recv()).await;
     }
 }

@@ -9,6 +9,7 @@ use zenoh::sample::SampleKind;
 use zenoh::Session;
 
 use crate::keys::{Keys, Role};
+use crate::waits;
 
 /// A liveliness change of the mission: someone came or went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -23,7 +24,7 @@ pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>>
     let replies = session
         .liveliness()
         .get(keys.alive_all())
-        .timeout(Duration::from_millis(500))
+        .timeout(waits::PRESENCE_QUERY)
         .await
         .map_err(|e| anyhow!("cannot ask who is present: {e}"))?;
     let mut present = Vec::new();
