@@ -3,25 +3,22 @@
 
 use std::process::ExitCode;
 
+use tcpf_bus::error::Kind;
+
 pub enum Failure {
     Input(anyhow::Error),
     Failed(anyhow::Error),
     Interrupted(anyhow::Error),
 }
 
-/// A role's (or a launcher's) failure: a clock the fleet does not run, Zenoh options that
-/// cannot work, or a role another process holds, is bad input; a signal before the work began
-/// an interrupt; anything else a failed run.
+/// A role's (or a launcher's) failure: the bus's errors say whether they are bad input (a
+/// clock the fleet does not run, Zenoh options that cannot work, a role another process holds)
+/// or a signal before the work began; anything else is a failed run.
 pub fn role_failure(e: anyhow::Error) -> Failure {
-    if e.downcast_ref::<tcpf_bus::clock::WrongClock>().is_some()
-        || e.downcast_ref::<tcpf_bus::session::BadZenohConfig>().is_some()
-        || e.downcast_ref::<tcpf_bus::claim::AlreadyRunning>().is_some()
-    {
-        Failure::Input(e)
-    } else if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() {
-        Failure::Interrupted(e)
-    } else {
-        Failure::Failed(e)
+    match tcpf_bus::error::Error::kind_of(&e) {
+        Some(Kind::Input) => Failure::Input(e),
+        Some(Kind::Interrupted) => Failure::Interrupted(e),
+        None => Failure::Failed(e),
     }
 }
 

@@ -10,6 +10,7 @@ use tcpf_core::fleet::claim::{Claim, Claimant, Outcome};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
 
+use crate::error::{AlreadyRunning, Error};
 use crate::keys::{Keys, Role};
 
 /// How long a claim takes to reach every other claimant, with room for a loaded machine: a
@@ -31,39 +32,6 @@ const LOOK_AGAIN: Duration = Duration::from_millis(20);
 /// How long a look at the claims waits for the router's answer. The query ends when the router
 /// has answered, at once on a calm machine; the timeout only bounds a router that does not.
 const QUERY: Duration = Duration::from_secs(10);
-
-/// Another process holds this role: two agents of one vehicle would both steer it, two worlds
-/// would both drive the fleet.
-#[derive(Debug)]
-pub struct AlreadyRunning {
-    pub role: Role,
-    pub id: u32,
-    pub mission: String,
-    pub holder: Claim,
-}
-
-impl std::fmt::Display for AlreadyRunning {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let AlreadyRunning {
-            role,
-            id,
-            mission,
-            holder,
-        } = self;
-        match role {
-            Role::Agent => write!(
-                f,
-                "agent {id} of mission {mission} is already running, held by {holder}: two agents would steer vehicle {id}; stop the other, or give this one another --id"
-            ),
-            _ => write!(
-                f,
-                "a {role} of mission {mission} is already running, held by {holder}: a fleet has one"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for AlreadyRunning {}
 
 /// Who else may be claiming the role at this moment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -159,7 +127,7 @@ pub async fn claim(
                 held: declare(mine.held_chunk()).await?,
                 claim: token,
             }),
-            Outcome::Lost(holder) | Outcome::HeldBy(holder) => Err(refused(holder).into()),
+            Outcome::Lost(holder) | Outcome::HeldBy(holder) => Err(Error::from(refused(holder)).into()),
             Outcome::Unseen | Outcome::Contested => Err(anyhow!(
                 "the router did not show this {role}'s claim within {:?}: cannot tell whether another process holds it",
                 settle + LINGER

@@ -15,6 +15,8 @@ use tcpf_core::msg::Clock;
 use tcpf_core::roles::realtime::AHEAD_LIMIT_WALL_S;
 use tokio::sync::mpsc;
 
+use crate::error::Error;
+
 /// A role's monotonic clock as `tcpf_core`'s machines take it: seconds since it was made. The
 /// machines say when they want waking in those seconds, and this turns that into a deadline.
 #[derive(Debug, Clone, Copy)]
@@ -39,18 +41,6 @@ impl Monotonic {
         (self.0 + Duration::try_from_secs_f64(s).unwrap_or_default()).into()
     }
 }
-
-/// A role whose clock is not the world's: bad input (exit 2), not a failure of the run.
-#[derive(Debug)]
-pub struct WrongClock(pub String);
-
-impl std::fmt::Display for WrongClock {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for WrongClock {}
 
 /// What a role expects of the world's clock: its own mission, clock and time scale.
 #[derive(Debug, Clone, Copy)]
@@ -77,7 +67,8 @@ impl Expected {
 
 /// One mission, one kind of clock and one time scale for the whole fleet: `role` expects
 /// `expected`, and `clock` is the world's.
-pub fn check_clock(role: &str, expected: &Expected, clock: &Clock) -> Result<(), WrongClock> {
+/// A clock that is not: `Error::WrongClock`, bad input (exit 2), not a failure of the run.
+pub fn check_clock(role: &str, expected: &Expected, clock: &Clock) -> Result<(), Error> {
     let &Expected {
         digest,
         realtime,
@@ -86,20 +77,20 @@ pub fn check_clock(role: &str, expected: &Expected, clock: &Clock) -> Result<(),
     } = expected;
     let kind = |r: bool| if r { "realtime" } else { "lockstep" };
     if clock.realtime != realtime {
-        return Err(WrongClock(format!(
+        return Err(Error::WrongClock(format!(
             "this {role} runs the {} clock but the world runs {}: start every role with the same --clock",
             kind(realtime),
             kind(clock.realtime)
         )));
     }
     if realtime && clock.time_scale != time_scale {
-        return Err(WrongClock(format!(
+        return Err(Error::WrongClock(format!(
             "this {role} runs at time scale {time_scale} but the world at {}: start every role with the same --time-scale",
             clock.time_scale
         )));
     }
     if clock.mission != digest {
-        return Err(WrongClock(format!(
+        return Err(Error::WrongClock(format!(
             "this {role} runs another mission than the world (mission digest {digest:016x}, the world's {:016x}, which the world logs as it starts): start every role with the same mission file and --set (a seed as --set mission.seed=N)",
             clock.mission
         )));
@@ -108,7 +99,7 @@ pub fn check_clock(role: &str, expected: &Expected, clock: &Clock) -> Result<(),
     let since = unix_now() - clock.epoch;
     let representable = Duration::try_from_secs_f64(since.abs()).is_ok();
     if realtime && !(representable && since < run_wall_s + MAX_SKEW_S && since > -MAX_SKEW_S) {
-        return Err(WrongClock(format!(
+        return Err(Error::WrongClock(format!(
             "the world's clock started {since:.0} s from this host's: the hosts' clocks disagree (set them with NTP or PTP, docs/TESTBED.md)"
         )));
     }
@@ -287,7 +278,7 @@ mod tests {
         };
         assert!(check_clock("agent", &slow, &clock(unix_now() - 5e7)).is_ok());
         for epoch in [1e20, -1e20, 0.0] {
-            let e = check_clock("agent", &expected, &clock(epoch)).unwrap_err().0;
+            let e = check_clock("agent", &expected, &clock(epoch)).unwrap_err().to_string();
             assert!(e.contains("the hosts' clocks disagree"), "{e}");
         }
     }
@@ -309,7 +300,9 @@ mod tests {
             run_wall_s: 120.0,
         };
         assert!(check_clock("recorder", &expected(0xab), &clock).is_ok());
-        let e = check_clock("recorder", &expected(0xcd), &clock).unwrap_err().0;
+        let e = check_clock("recorder", &expected(0xcd), &clock)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("this recorder runs another mission than the world (mission digest 00000000000000cd, the world's 00000000000000ab"),
             "{e}"

@@ -9,6 +9,7 @@ pub mod clock;
 pub mod clock_query;
 pub mod codec;
 pub mod credential;
+pub mod error;
 pub mod exit_report;
 pub mod footprint;
 pub mod handover;

@@ -9,7 +9,8 @@ use zenoh::{Config, Session};
 use crate::acl::Identity;
 use crate::certificate;
 use crate::credential::{self, Credential, Demand, Proof};
-use crate::signals::{Interrupted, Shutdown};
+use crate::error::Error;
+use crate::signals::Shutdown;
 use tcpf_core::msg::{Checked, TickRecord};
 
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -45,19 +46,8 @@ fn json_list(items: &[String]) -> String {
 }
 
 /// Zenoh options that cannot work, whatever the network does: bad input (exit 2).
-#[derive(Debug)]
-pub struct BadZenohConfig(pub String);
-
-impl std::fmt::Display for BadZenohConfig {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for BadZenohConfig {}
-
 fn bad(message: String) -> anyhow::Error {
-    BadZenohConfig(message).into()
+    Error::BadZenohConfig(message).into()
 }
 
 /// A Zenoh error in a user's words: without the source file and line Zenoh appends to an error
@@ -577,7 +567,7 @@ impl ZenohArgs {
                 "cannot open the Zenoh session within {} s (--startup-timeout)",
                 within.as_secs_f64()
             )),
-            None => Err(Interrupted("while the Zenoh session was opening").into()),
+            None => Err(Error::Interrupted("while the Zenoh session was opening").into()),
         }
     }
 
@@ -683,7 +673,10 @@ mod tests {
         ] {
             std::fs::write(&file, text).unwrap();
             let e = from_file(&file).unwrap_err();
-            assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+            assert!(
+                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                "{e}"
+            );
             let said = e.to_string();
             let expected = format!("{}: bad Zenoh config: {at}", file.display());
             assert!(said.starts_with(&expected) && said.contains(words), "{said}");
@@ -719,7 +712,10 @@ mod tests {
         for key in ["connect_certificate", "listen_private_key"] {
             write(key);
             let e = args.config().unwrap_err();
-            assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+            assert!(
+                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                "{e}"
+            );
             let words = e.to_string();
             assert!(words.contains(&format!("transport/link/tls/{key}")), "{words}");
             assert!(words.contains("missing.pem: No such file"), "{words}");
@@ -753,7 +749,10 @@ mod tests {
             ..Default::default()
         };
         let e = flagged.config().unwrap_err();
-        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+        assert!(
+            matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+            "{e}"
+        );
         let words = e.to_string();
         assert!(
             words.starts_with(&format!("--connect {missing}: root_ca_certificate_file: ")),
@@ -790,14 +789,20 @@ mod tests {
             "ws/127.0.0.1:80",
         ] {
             let e = endpoint("-e", bad).unwrap_err();
-            assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{bad}");
+            assert!(
+                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                "{bad}"
+            );
         }
     }
 
     #[test]
     fn a_role_runs_open_only_when_told_and_a_credential_makes_a_router_or_its_client() {
         let e = ZenohArgs::default().config().unwrap_err();
-        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+        assert!(
+            matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+            "{e}"
+        );
         let words = e.to_string();
         for named in ["run open", "tcpf credential fleet.key", "--credential", "--open"] {
             assert!(words.contains(named), "{named}: {words}");
@@ -839,7 +844,10 @@ mod tests {
             ..Default::default()
         };
         let e = args.config().unwrap_err();
-        assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+        assert!(
+            matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+            "{e}"
+        );
         assert!(
             e.to_string()
                 .starts_with(&format!("--credential {}: others may read it", file.display())),
@@ -899,7 +907,10 @@ mod tests {
             assert_eq!(credential(&agent(1).config().unwrap()), Some(demands));
             agent(1).speaks_as(Identity::Agent(1)).unwrap();
             let e = agent(1).speaks_as(Identity::Agent(2)).unwrap_err();
-            assert!(e.downcast_ref::<BadZenohConfig>().is_some(), "{e}");
+            assert!(
+                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                "{e}"
+            );
             let words = e.to_string();
             assert!(words.contains("is agent-1's, and this process is agent-2"), "{words}");
             let own = dir.join(credential::key_file(Identity::Agent(2), proof));

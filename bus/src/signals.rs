@@ -10,19 +10,6 @@ use anyhow::{Context, Result};
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use tokio::signal::unix::{signal, Signal, SignalKind};
 
-/// A signal came before the role could start its work (its session still opening, say): it
-/// stops as interrupted, exit 130.
-#[derive(Debug)]
-pub struct Interrupted(pub &'static str);
-
-impl std::fmt::Display for Interrupted {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "interrupted {}", self.0)
-    }
-}
-
-impl std::error::Error for Interrupted {}
-
 pub struct Shutdown {
     interrupt: Signal,
     terminate: Signal,

@@ -12,9 +12,10 @@ use anyhow::{anyhow, Context, Result};
 use tcpf_bus::acl::Identity;
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::clock::Monotonic;
+use tcpf_bus::error::Error;
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
-use tcpf_bus::signals::{Interrupted, Shutdown};
+use tcpf_bus::signals::Shutdown;
 use tcpf_bus::waits;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::model::planner::Plan;
@@ -280,17 +281,16 @@ async fn connect(
     loop {
         let attempt = config.clone();
         let mut opening = tokio::spawn(async move { zenoh::open(attempt).await });
-        let mut check = tokio::time::interval(Duration::from_millis(50));
-        loop {
-            tokio::select! {
-                opened = &mut opening => match opened {
-                    Ok(Ok(session)) => return Ok(session),
-                    _ => break,
-                },
-                _ = shutdown.recv() => return Err(Interrupted("while the world was starting").into()),
-                _ = check.tick() => if world.poll().is_some() {
-                    return Err(anyhow!(died(dir, world.child(), world.exit(), When::AsItStarted)));
-                },
+        tokio::select! {
+            opened = &mut opening => if let Ok(Ok(session)) = opened {
+                return Ok(session);
+            },
+            _ = shutdown.recv() => return Err(Error::Interrupted("while the world was starting").into()),
+            ended = world.child.wait() => {
+                if let Ok(status) = ended {
+                    world.exited(status);
+                }
+                return Err(anyhow!(died(dir, world.child(), world.exit(), When::AsItStarted)));
             }
         }
         if started.elapsed() > startup {
@@ -304,19 +304,12 @@ async fn connect(
 
 /// A run that failed (its world or recorder stopped short), its run directory written: what
 /// `failure` in its summary.json says.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
+#[error("{why} (run directory {})", dir.display())]
 pub struct RunFailed {
     pub why: String,
     pub dir: std::path::PathBuf,
 }
-
-impl std::fmt::Display for RunFailed {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} (run directory {})", self.why, self.dir.display())
-    }
-}
-
-impl std::error::Error for RunFailed {}
 
 /// How `tcpf run` runs its children.
 #[derive(Debug, Clone)]
@@ -402,7 +395,7 @@ async fn unstarted(
     e: anyhow::Error,
 ) -> anyhow::Error {
     stop(children).await;
-    let interrupted = e.downcast_ref::<Interrupted>().is_some();
+    let interrupted = Error::interrupted(&e);
     let summary = Summary::before_the_first_tick(
         mission,
         plan.t_f,

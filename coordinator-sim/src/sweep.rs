@@ -281,7 +281,7 @@ pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut 
         crate::access::forget(&path)?;
         let summary = match ran {
             // Stopped as its world started: the sweep is cut short there, as by any interrupt.
-            Err(e) if e.downcast_ref::<tcpf_bus::signals::Interrupted>().is_some() => {
+            Err(e) if tcpf_bus::error::Error::interrupted(&e) => {
                 bar.finish_and_clear();
                 return Ok(true);
             }
