@@ -547,6 +547,10 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
     assert_eq!(s["rejections"]["future"], 5 * 10, "{}", s["rejections"]);
     run_in_process(&paper("b-current"), &dir.join("i"), &[]);
     let lockstep = summary(&dir.join("i"));
+    // 0.3 s on a quiet machine; beside a CPU hog, what the periods the run reports disturbed
+    // allow (one run: 282 commands held over by the world, both vehicles 0.46 s late together).
+    let allowed = common::allowed(&s, &dir.join("p"));
+    let within = allowed.arrival.max(0.3);
     for (l, r) in s["vehicles"]
         .as_array()
         .unwrap()
@@ -555,8 +559,10 @@ async fn messages_far_ahead_of_a_realtime_fleets_clock_are_refused_and_it_arrive
     {
         let (ours, theirs) = (l["arrival_time"].as_f64().unwrap(), r["arrival_time"].as_f64().unwrap());
         assert!(
-            (ours - theirs).abs() < 0.3,
-            "arrival {ours:.3} s against lockstep's {theirs:.3} s"
+            (ours - theirs).abs() < within,
+            "arrival {ours:.3} s against lockstep's {theirs:.3} s ({} disturbed periods, {} uneven γ: {within:.3} s allowed)",
+            allowed.disturbed,
+            allowed.uneven
         );
     }
     assert_none_left(&s);

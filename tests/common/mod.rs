@@ -434,6 +434,64 @@ pub fn held_gamma_s(s: &Value) -> f64 {
     skipped as f64 * period
 }
 
+/// How far a realtime run of a 10 ms period may be from lockstep, from the timing it reports.
+pub struct Allowed {
+    /// Periods disturbed: a command held over, a period skipped, an agent acting on an older state.
+    pub disturbed: u64,
+    /// γ a receiver knew at another age than the run's usual one, or never judged (overtaken).
+    pub uneven: u64,
+    /// s, of each arrival.
+    pub arrival: f64,
+    /// s, of the maximum coordination error.
+    pub error: f64,
+}
+
+/// An arrival is seen on a tick, and the realtime world may see it a tick later (two periods,
+/// with the start); then each disturbed period shifts a vehicle by a small part of a period's
+/// travel, counted here as a tenth of a period each. Measured at x10 on 2 cores, case (b): 14
+/// runs (6 beside a CPU hog), 27 to 161 disturbed periods, arrivals within 0.017 s of lockstep's,
+/// errors within 0.009 s; MEDUSA case (b): 9 runs (4 beside a hog), 29 to 138 disturbed, arrivals
+/// within 0.009 s, errors 0.007 s.
+///
+/// Coordination adds its own: in realtime an instant's γ is judged at the receiver's next one, a
+/// comms period T_c old, by both vehicles alike. A γ judged at another age (its receiver late
+/// past the instant, so the γ came first), or overtaken before an instant, means one vehicle knew
+/// its neighbour T_c better or worse than the other did, for T_c: eq. 25's correction is off by
+/// at most k_c T_c (γ̇ ≈ 1) for T_c, k_c T_c² of arrival each. A quiet run has a handful (3
+/// MEDUSA runs at x10: 7 to 24); beside a CPU hog an agent starved past its instants makes
+/// hundreds, which the dead zones of MEDUSA's thrusters turn into a real delay (one run: 441, 155 of them
+/// overtaken, arrivals 0.43 s after lockstep's). The error also holds what an agent starved past
+/// whole periods left the world holding (`held_gamma_s`).
+pub fn allowed(realtime: &Value, out: &Path) -> Allowed {
+    let period = 0.01;
+    let disturbed: u64 = realtime["timing"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            ["late_commands", "skipped", "stale_states"]
+                .iter()
+                .map(|k| t[k].as_u64().unwrap())
+                .sum::<u64>()
+        })
+        .sum();
+    let mission: toml::Table = std::fs::read_to_string(out.join("mission.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let comms_period = mission["comms"]["period"].as_float().unwrap();
+    let uneven = uneven_gamma(realtime, out, period);
+    let kc = realtime["coordination_gain"]["effective"].as_f64().unwrap();
+    let coordination = uneven as f64 * kc * comms_period * comms_period;
+    let slack = disturbed as f64 / 10.0;
+    Allowed {
+        disturbed,
+        uneven,
+        arrival: period * (2.0 + slack) + coordination,
+        error: period * (1.0 + slack) + coordination + held_gamma_s(realtime),
+    }
+}
+
 /// A loopback endpoint on a port free a moment ago.
 pub fn free_endpoint() -> String {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
