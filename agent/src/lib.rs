@@ -336,27 +336,23 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     // (the clock answers) is then known for sure.
     let monotonic = Monotonic::start();
     let mut startup = AgentStartup::new(&audible, options.startup_timeout, monotonic.now());
-    while !startup.fleet_here() {
-        let wake = monotonic.at(startup.poll_timeout());
-        let Some(arrived) = shutdown.unless(tokio::time::timeout_at(wake, presence.recv())).await else {
-            return Ok(Exit::Interrupted);
-        };
-        match arrived {
-            Ok(Some(p)) => {
-                if let Some(peer) = peer(p) {
-                    startup.on_presence(peer, p.alive);
-                }
-            }
-            Ok(None) => return Err(anyhow!("liveliness subscription closed")),
-            Err(_) => {
-                if let Some(StartupCheck::NoFleet) = startup.handle_timeout(monotonic.now()) {
-                    return Err(anyhow!(
-                        "agent {id}: no world and planner for mission {} within {:?}",
-                        mission.mission.name,
-                        options.startup_timeout
-                    ));
-                }
-            }
+    match await_startup(
+        &mut presence,
+        &mut shutdown,
+        &mut startup,
+        &monotonic,
+        AgentStartup::fleet_here,
+    )
+    .await?
+    {
+        Waited::Done => {}
+        Waited::Interrupted => return Ok(Exit::Interrupted),
+        Waited::TimedOut(_) => {
+            return Err(anyhow!(
+                "agent {id}: no world and planner for mission {} within {:?}",
+                mission.mission.name,
+                options.startup_timeout
+            ))
         }
     }
     let under_way = ask_clock(&session, &keys, &rejected).await?;
@@ -401,28 +397,14 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             if under_way.is_some() {
                 feed.with(|machine, now| machine.with(now, AgentNode::rejoin));
             } else {
-                while startup.deserted().is_none() && !startup.absent().is_empty() {
-                    let wake = monotonic.at(startup.poll_timeout());
-                    let waited = tokio::time::timeout_at(wake, shell.presence.recv());
-                    let Some(arrived) = shell.shutdown.unless(waited).await else {
-                        return Ok(Exit::Interrupted);
-                    };
-                    match arrived {
-                        Ok(Some(p)) => {
-                            if let Some(peer) = peer(p) {
-                                startup.on_presence(peer, p.alive);
-                            }
-                        }
-                        Ok(None) => return Err(anyhow!("liveliness subscription closed")),
-                        Err(_) => {
-                            if let Some(StartupCheck::WithoutNeighbours(absent)) =
-                                startup.handle_timeout(monotonic.now())
-                            {
-                                tracing::warn!("agent {id}: starting without neighbours {absent:?}");
-                                break;
-                            }
-                        }
+                let neighbours_here = |s: &AgentStartup| s.deserted().is_some() || s.absent().is_empty();
+                let (presence, shutdown) = (&mut shell.presence, &mut shell.shutdown);
+                match await_startup(presence, shutdown, &mut startup, &monotonic, neighbours_here).await? {
+                    Waited::Interrupted => return Ok(Exit::Interrupted),
+                    Waited::TimedOut(StartupCheck::WithoutNeighbours(absent)) => {
+                        tracing::warn!("agent {id}: starting without neighbours {absent:?}")
                     }
+                    Waited::Done | Waited::TimedOut(StartupCheck::NoFleet) => {}
                 }
                 if let Some(gone) = startup.deserted() {
                     tracing::warn!("agent {id}: the {gone} is gone before the run started; stopping");
@@ -445,6 +427,45 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let _ = claimed.undeclare().await;
     let _ = shell.session.close().await;
     Ok(exit)
+}
+
+/// How an agent's wait at its start ended.
+enum Waited {
+    /// What it waited for is there.
+    Done,
+    /// The startup timeout passed first, leaving this.
+    TimedOut(StartupCheck),
+    Interrupted,
+}
+
+/// Feeds liveliness changes into `startup` until `done` holds or its timeout leaves a check.
+async fn await_startup(
+    presence: &mut UnboundedReceiver<Presence>,
+    shutdown: &mut Shutdown,
+    startup: &mut AgentStartup,
+    monotonic: &Monotonic,
+    done: impl Fn(&AgentStartup) -> bool,
+) -> Result<Waited> {
+    while !done(startup) {
+        let wake = monotonic.at(startup.poll_timeout());
+        let Some(arrived) = shutdown.unless(tokio::time::timeout_at(wake, presence.recv())).await else {
+            return Ok(Waited::Interrupted);
+        };
+        match arrived {
+            Ok(Some(p)) => {
+                if let Some(peer) = peer(p) {
+                    startup.on_presence(peer, p.alive);
+                }
+            }
+            Ok(None) => return Err(anyhow!("liveliness subscription closed")),
+            Err(_) => {
+                if let Some(check) = startup.handle_timeout(monotonic.now()) {
+                    return Ok(Waited::TimedOut(check));
+                }
+            }
+        }
+    }
+    Ok(Waited::Done)
 }
 
 /// Whom a liveliness change is about, for an agent's startup.

@@ -9,7 +9,9 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
+mod held;
 pub mod testbed;
+pub use held::held_gamma_s;
 
 pub fn tcpf(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_tcpf"))
@@ -415,23 +417,6 @@ pub fn uneven_gamma(s: &Value, out: &Path, period: f64) -> u64 {
         .copied()
         .unwrap_or(0);
     ages.iter().filter(|&&a| a != usual).count() as u64 + overtaken
-}
-
-/// The simulated seconds of the most periods one agent of realtime run `s` skipped: the world
-/// holds a starved agent's last command, whose γ is of the tick it was made for, that long, and
-/// the coordination error it records is off by as much (one run beside a CPU hog: 533 periods
-/// skipped, a γ held 5 s behind its neighbour's, arrivals 1.4 ms apart).
-pub fn held_gamma_s(s: &Value) -> f64 {
-    let period = s["sim_time_s"].as_f64().unwrap() / s["ticks"].as_f64().unwrap();
-    let skipped = s["timing"]
-        .as_array()
-        .expect("a realtime summary has timing")
-        .iter()
-        .filter(|t| t["role"] == "agent")
-        .map(|t| t["skipped"].as_u64().unwrap())
-        .max()
-        .unwrap_or(0);
-    skipped as f64 * period
 }
 
 /// How far a realtime run of a 10 ms period may be from lockstep, from the timing it reports.

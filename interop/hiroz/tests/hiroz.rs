@@ -24,6 +24,8 @@ use serde_json::Value;
 // Shared by the interop crates: not every one uses every helper.
 #[allow(dead_code)]
 mod fleet;
+#[path = "../../../tests/common/held.rs"]
+mod held;
 use fleet::{repo, scratch, spawn, summary, tcpf_bin, telemetry, wait_exit, wait_for};
 
 fn free_endpoint() -> String {
@@ -305,20 +307,6 @@ fn play(
     (heard, published, copies)
 }
 
-/// The simulated seconds of the most periods one agent of the realtime run skipped.
-fn starved_s(s: &Value) -> f64 {
-    let period = s["sim_time_s"].as_f64().unwrap() / s["ticks"].as_f64().unwrap();
-    let skipped = s["timing"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|t| t["role"] == "agent")
-        .map(|t| t["skipped"].as_u64().unwrap())
-        .max()
-        .unwrap_or(0);
-    skipped as f64 * period
-}
-
 /// Case (b) in realtime at time scale 5, by hand: the world simulates vehicle 1 (`--vehicles 1`)
 /// and a hiroz node plays vehicle 2. Both arrive, with a coordination error under 1 s, and the
 /// summary names vehicle 2 as played by a ROS 2 node.
@@ -431,7 +419,7 @@ async fn a_hiroz_node_plays_vehicle_2_beside_a_world_that_simulates_vehicle_1() 
     // An agent starved beside a CPU hog skips periods, and the world holds its last command, whose
     // γ is of the tick it was made for, until the next one comes (one run: agent 2 skipped 533
     // periods, the world held a γ 5 s behind vehicle 1's for a tick, and both arrived 1.4 ms apart).
-    let held = starved_s(&s);
+    let held = held::held_gamma_s(&s);
     assert!(
         error < 1.0 + held,
         "coordination error {error:.3} s ({held:.2} s of periods skipped by an agent); arrivals {arrivals:?}\n{}",
