@@ -4,6 +4,7 @@
 
 mod common;
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -167,8 +168,8 @@ fn a_medusa_fleet_in_realtime_arrives_as_in_lockstep() {
 }
 
 /// Acoustic modems on the wall clock (docs/LINKS.md): the same physics, judged at each
-/// receiver's own instants. Case (b) in TDMA slots of 0.5 s delivers every frame and arrives as
-/// lockstep does.
+/// receiver's own instants. Case (b) in TDMA slots of 0.5 s delivers every frame its agent sends
+/// on time and arrives as lockstep does.
 #[test]
 fn a_fleet_on_acoustic_modems_in_realtime_arrives_as_in_lockstep() {
     let _fleet = fleet();
@@ -185,12 +186,27 @@ fn a_fleet_on_acoustic_modems_in_realtime_arrives_as_in_lockstep() {
         error(&lockstep)
     );
     assert!(rows.len() >= 100, "{printed}");
-    assert!(
-        rows.iter().all(|r| r["cause"] == "delivered"),
-        "every frame alone in its slot"
-    );
-    assert!(rows.iter().all(|r| r["sinr_db"].parse::<f64>().unwrap() > 20.0));
     let allowed = common::allowed(&realtime, &dir.join("realtime"));
+    // A frame leaves at its slot's first instant, a multiple of the slot, unless its agent was
+    // starved past it: sent later, it may still be in the water when the next slot's owner
+    // transmits, and both frames are lost to half duplex (beside a CPU hog: vehicle 2's frame of
+    // 35.97 s and vehicle 1's of 36 s). Only such frames are lost, and only as many as the
+    // disturbed periods could make late.
+    let slot = 0.5;
+    let late = |r: &&BTreeMap<String, String>| {
+        let sent: f64 = r["sent_t"].parse().unwrap();
+        ((sent / slot).round() * slot - sent).abs() > 1e-6
+    };
+    let (delivered, lost): (Vec<_>, Vec<_>) = rows.iter().partition(|r| r["cause"] == "delivered");
+    let late_frames = rows.iter().filter(late).count();
+    assert!(
+        lost.iter().all(|r| r["cause"] == "half_duplex")
+            && lost.len() <= 2 * late_frames
+            && late_frames as u64 <= allowed.disturbed,
+        "every frame alone in its slot but those sent late: lost {lost:?}, {late_frames} late, {} disturbed periods",
+        allowed.disturbed
+    );
+    assert!(delivered.iter().all(|r| r["sinr_db"].parse::<f64>().unwrap() > 20.0));
     // A γ judged an instant later than in lockstep holds the estimate a little longer: what
     // coordination does with it is slower than what the world's ticks do.
     for (l, r) in arrivals(&lockstep).iter().zip(arrivals(&realtime)) {
@@ -201,7 +217,14 @@ fn a_fleet_on_acoustic_modems_in_realtime_arrives_as_in_lockstep() {
             allowed.uneven
         );
     }
-    assert!((error(&lockstep) - error(&realtime)).abs() < 0.1);
+    // Beside a CPU hog, a starved agent's γ is held as long as it skipped (`allowed.error`).
+    let error_allowed = allowed.error.max(0.1);
+    assert!(
+        (error(&lockstep) - error(&realtime)).abs() < error_allowed,
+        "coordination error {:.3} s against lockstep's {:.3} ({error_allowed:.3} s allowed)",
+        error(&realtime),
+        error(&lockstep)
+    );
     assert_none_left(&realtime);
 }
 
