@@ -12,7 +12,7 @@
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
@@ -30,7 +30,7 @@ const SUBPROTOCOLS: [&str; 2] = ["foxglove.websocket.v1", "foxglove.sdk.v1"];
 /// Messages a slow client may fall behind by before it loses the oldest.
 const BACKLOG: usize = 16_384;
 /// How long the end of a run waits for its clients to be sent what is queued for them.
-const FAREWELL: std::time::Duration = std::time::Duration::from_secs(1);
+const FAREWELL: Duration = Duration::from_secs(1);
 /// The channel of the message that ends the stream: channel ids start at 1.
 const END: u32 = 0;
 
@@ -60,7 +60,24 @@ struct Shared {
     /// The last message of each latched channel.
     latched: Mutex<HashMap<u32, Data>>,
     /// Clients connected.
-    clients: std::sync::atomic::AtomicUsize,
+    clients: Mutex<usize>,
+    /// Told each time a client leaves: the end of a run waits on it for the last to go.
+    left: Condvar,
+}
+
+impl Shared {
+    fn clients(&self) -> MutexGuard<'_, usize> {
+        self.clients.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Counts a client in, unless `MAX_CLIENTS` are served already.
+    fn admit(&self) -> Option<Connected<'_>> {
+        let mut clients = self.clients();
+        (*clients < MAX_CLIENTS).then(|| {
+            *clients += 1;
+            Connected(self)
+        })
+    }
 }
 
 /// Counts a client for as long as it is served.
@@ -68,7 +85,8 @@ struct Connected<'a>(&'a Shared);
 
 impl Drop for Connected<'_> {
     fn drop(&mut self) {
-        self.0.clients.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+        *self.0.clients() -= 1;
+        self.0.left.notify_all();
     }
 }
 
@@ -87,7 +105,8 @@ impl Live {
             channels: Mutex::new(Vec::new()),
             data: broadcast::channel(BACKLOG).0,
             latched: Mutex::new(HashMap::new()),
-            clients: std::sync::atomic::AtomicUsize::new(0),
+            clients: Mutex::new(0),
+            left: Condvar::new(),
         });
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let (stop, stopped) = oneshot::channel();
@@ -156,11 +175,8 @@ impl Drop for Live {
         // Every client gets what is queued for it, then the end, then a Close frame; one that
         // does not read is not waited for long.
         self.publish(END, 0, &[]);
-        let deadline = std::time::Instant::now() + FAREWELL;
-        while self.shared.clients.load(std::sync::atomic::Ordering::SeqCst) > 0 && std::time::Instant::now() < deadline
-        {
-            std::thread::sleep(std::time::Duration::from_millis(5));
-        }
+        let clients = self.shared.clients();
+        drop(self.shared.left.wait_timeout_while(clients, FAREWELL, |n| *n > 0));
         if let Some(stop) = self.stop.take() {
             let _ = stop.send(());
         }
@@ -191,7 +207,7 @@ async fn accept(listener: TcpListener, shared: Arc<Shared>) {
     let handshakes = Arc::new(std::sync::atomic::AtomicUsize::new(0));
     while let Ok((stream, peer)) = listener.accept().await {
         let shared = shared.clone();
-        if shared.clients.load(std::sync::atomic::Ordering::SeqCst) >= MAX_CLIENTS {
+        if *shared.clients() >= MAX_CLIENTS {
             tracing::warn!("live view: {peer} refused: {MAX_CLIENTS} clients are served already");
             drop(stream);
             continue;
@@ -210,11 +226,9 @@ async fn accept(listener: TcpListener, shared: Arc<Shared>) {
                 Ok(socket) => socket,
                 Err(e) => return tracing::info!("live view: {peer}: {e}"),
             };
-            if shared.clients.fetch_add(1, std::sync::atomic::Ordering::SeqCst) >= MAX_CLIENTS {
-                shared.clients.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+            let Some(_counted) = shared.admit() else {
                 return tracing::warn!("live view: {peer} refused: {MAX_CLIENTS} clients are served already");
-            }
-            let _counted = Connected(&shared);
+            };
             if let Err(e) = client(socket, &shared).await {
                 tracing::info!("live view: client {peer}: {e}");
             }
