@@ -481,9 +481,15 @@ fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
     );
     let drifted = without_command(&s, 2);
     assert!(drifted > 100, "vehicle 2 drifted with thrusters off: {}", s["timing"]);
-    // Vehicle 1 waited for 2, so both arrive late and together: 0.52–0.57 s measured.
+    // Vehicle 1 waited for 2, so both arrive late and together: 0.52–0.57 s measured. Beside a
+    // CPU hog an agent's skipped periods add the γ the world held for it (one run: 741 periods
+    // skipped at ×10, an error of 1.96 s, arrivals 17 ms apart).
     let error = s["max_coordination_error"].as_f64().unwrap();
-    assert!(error < 1.5, "coordination error {error} s");
+    let held = common::held_gamma_s(&s);
+    assert!(
+        error < 1.5 + held,
+        "coordination error {error} s ({held:.2} s held for a starved agent)"
+    );
     assert_none_left(&s);
 }
 
@@ -505,7 +511,11 @@ fn a_realtime_agent_killed_for_good_leaves_the_coordination_error() {
     assert_eq!(vehicles[1]["lost"], true, "{vehicles:?}");
     assert!(vehicles[0]["arrival_time"].as_f64().is_some(), "{vehicles:?}");
     let error = s["max_coordination_error"].as_f64().unwrap();
-    assert!(error < 2.0, "coordination error {error} s");
+    let held = common::held_gamma_s(&s);
+    assert!(
+        error < 2.0 + held,
+        "coordination error {error} s ({held:.2} s held for a starved agent)"
+    );
     // Its last row has no command: its γ cell is empty, as a lost vehicle's in lockstep.
     let telemetry = std::fs::read_to_string(out.join("telemetry.csv")).unwrap();
     let last = telemetry
