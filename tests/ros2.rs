@@ -538,12 +538,13 @@ fn a_ros2_node_at_a_third_of_the_control_rate_keeps_the_timing_and_its_ages_are_
     assert_eq!(s["rejected_messages"], 0, "{}", s["rejections"]);
     let said = common::text(&recorded);
     // Beside a CPU hog every role of a run at ×5 may be starved (one run: agents 1 and 2 skipped
-    // 9.5 and 8.5 % of their periods, the world 5.7 %, states up to 0.53 s old for both). The
-    // timing is then the machine's, as the violation of the simulated vehicle's agent, which the
-    // node cannot slow, shows; the node is judged against that agent, not the mission's bounds.
+    // 9.5 and 8.5 % of their periods, the world 5.7 %, states up to 0.53 s old for both; another:
+    // the world alone over the bound, 5.6 %). The timing is then the machine's, as the violation
+    // of a role the node cannot slow (the world, the simulated vehicle's agent) shows; the node is
+    // judged against that agent, not the mission's bounds.
     let starved = said
         .lines()
-        .any(|l| l.starts_with("TIMING VIOLATED") && l.contains("agent 1:"));
+        .any(|l| l.starts_with("TIMING VIOLATED") && (l.contains("agent 1:") || l.contains("world 0:")));
     assert!(starved || !said.contains("TIMING VIOLATED"), "{said}");
     let (slow, simulated) = (common::timing(&s, "agent", 2), common::timing(&s, "agent", 1));
     let p50 = slow["state_age_p50_s"].as_f64().unwrap();
