@@ -32,7 +32,7 @@ def main():
     hashes = {name: store.hash_rihs01(name) for name in TYPES.values()}
     samples, ended, started, last = [], threading.Event(), threading.Event(), [time.monotonic()]
 
-    def on_sample(sample):
+    def take(sample):
         attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
         key = str(sample.key_expr)
         # A path is published once, maybe before this subscription: it is asked for below.
@@ -42,8 +42,24 @@ def main():
             started.set()
         last[0] = time.monotonic()
 
+    def drain_until(done, within):
+        """Takes what has come until `done()` or `within` seconds have passed; whether done."""
+        deadline = time.monotonic() + within
+        while not done():
+            if time.monotonic() > deadline:
+                return False
+            sample = subscriber.try_recv()
+            if sample is None:
+                time.sleep(0.01)
+            else:
+                take(sample)
+        return True
+
     with zenoh.open(zenoh.Config.from_file(config_file)) as session:
-        subscriber = session.declare_subscriber(f"{domain}/**", on_sample)
+        # Into a channel that zenoh fills without Python: a Python callback per sample, starved
+        # beside a CPU hog, kept the session from reading for 5 s, and the world, whose lockstep
+        # samples may not be dropped, closed the connection (the end never came here).
+        subscriber = session.declare_subscriber(f"{domain}/**", zenoh.handlers.FifoChannel(1 << 20))
         end = session.declare_subscriber(f"tcpf/{mission}/end", lambda _: ended.set())
         # The world declares its node's token after its publishers': once the node is in the
         # graph, so is every topic of it.
@@ -55,7 +71,7 @@ def main():
             time.sleep(0.1)
         # A recorder's token: the world starts once it is here, so nothing is missed.
         recorder = session.liveliness().declare_token(f"tcpf/{mission}/alive/record/77")
-        if not started.wait(60):
+        if not drain_until(started.is_set, 60):
             sys.exit("watch.py: the run did not start within 60 s")
         # Under way: every node of the fleet is in the graph, and a subscriber that comes now
         # gets each planned path as rmw_zenoh's transient-local subscriber asks for it.
@@ -67,12 +83,11 @@ def main():
                 if r.ok:
                     latched.setdefault(str(r.ok.key_expr), []).append(
                         (r.ok.payload.to_bytes(), r.ok.attachment.to_bytes() if r.ok.attachment else None))
-        if not ended.wait(120):
+        if not drain_until(ended.is_set, 120):
             sys.exit("watch.py: the run did not end within 120 s")
         # The world publishes a tick's ROS 2 samples before it announces the end; wait for the
         # last of them to arrive.
-        while time.monotonic() - last[0] < 1.0:
-            time.sleep(0.1)
+        drain_until(lambda: time.monotonic() - last[0] >= 1.0, 60)
         recorder.undeclare()
         subscriber.undeclare()
         end.undeclare()
