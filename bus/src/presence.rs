@@ -1,8 +1,9 @@
-//! Who of a mission is present, by liveliness tokens: asked once, followed, or waited out.
+//! Who of a mission is present, by liveliness tokens: asked once, or followed (and waited out).
 
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
+use tcpf_core::fleet::present::Present;
 use tokio::sync::mpsc;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::SampleKind;
@@ -36,32 +37,47 @@ pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>>
     Ok(present)
 }
 
-/// How long a role stays after its last words for those who should hear them to leave, and how
-/// often it looks.
-const LINGER: Duration = Duration::from_secs(2);
-const LINGER_POLL: Duration = Duration::from_millis(20);
+/// How long a role stays after its last words for those who should hear them to leave.
+pub const LINGER: Duration = Duration::from_secs(2);
 
-/// Stays until no process of `roles` is present, or `LINGER` has passed: a session closed at once
-/// may take its last messages with it (over QUIC, closing a connection drops what it has not yet
-/// delivered), and those who wait for them (agents for the end) leave once they have them. A
-/// role's words to the recorders need no lingering: they are acknowledged (`handover`).
-pub async fn linger(session: &Session, keys: &Keys, roles: &[Role]) {
-    linger_within(session, keys, roles, LINGER).await;
+/// Every liveliness change of the mission since `follow`, passed on, and who is present by them:
+/// a role that follows the fleet from its start knows at its end who is still there without
+/// asking the router again and again.
+pub struct Followed {
+    _subscriber: Subscriber<()>,
+    changes: mpsc::UnboundedReceiver<Presence>,
+    present: Present<(Role, u32)>,
 }
 
-/// `linger`, for at most `within`: asks who is present every `LINGER_POLL`.
-pub async fn linger_within(session: &Session, keys: &Keys, roles: &[Role], within: Duration) {
-    let until = tokio::time::Instant::now() + within;
-    while tokio::time::Instant::now() < until {
-        match present(session, keys).await {
-            Ok(p) if p.iter().all(|(role, _)| !roles.contains(role)) => return,
-            Ok(_) => {}
-            Err(e) => {
-                tracing::warn!("{e}");
+impl Followed {
+    pub async fn follow(session: &Session, keys: &Keys) -> Result<Followed> {
+        let (subscriber, changes) = presence(session, keys).await?;
+        Ok(Followed {
+            _subscriber: subscriber,
+            changes,
+            present: Present::default(),
+        })
+    }
+
+    /// The next change, once counted (cancel-safe, for a `select!` branch).
+    pub async fn recv(&mut self) -> Option<Presence> {
+        let p = self.changes.recv().await?;
+        self.present.on_change((p.role, p.id), p.alive);
+        Some(p)
+    }
+
+    /// Stays until no process of `roles` is present, or `within` has passed: a session closed at
+    /// once may take its last messages with it (over QUIC, closing a connection drops what it has
+    /// not yet delivered), and those who wait for them (agents for the end) leave once they have
+    /// them. A role's words to the recorders need no lingering: they are acknowledged
+    /// (`handover`).
+    pub async fn linger(&mut self, roles: &[Role], within: Duration) {
+        let until = tokio::time::Instant::now() + within;
+        while self.present.any(|(role, _)| roles.contains(role)) {
+            if !matches!(tokio::time::timeout_at(until, self.recv()).await, Ok(Some(_))) {
                 return;
             }
         }
-        tokio::time::sleep(LINGER_POLL).await;
     }
 }
 

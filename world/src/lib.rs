@@ -18,7 +18,7 @@ use tcpf_bus::handover::{self, hand_over};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::{say_now, Outlet};
 use tcpf_bus::paths::fetch_paths;
-use tcpf_bus::presence::{linger, linger_within, presence, Presence};
+use tcpf_bus::presence::{Followed, LINGER};
 use tcpf_bus::rejected::Rejected;
 use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
@@ -84,12 +84,12 @@ impl std::fmt::Display for Exit {
 }
 
 /// What both clocks' loops work with.
-struct Shell {
+struct Shell<'a> {
     keys: Keys,
     session: Session,
     shutdown: Shutdown,
     rejected: Rejected,
-    presence: UnboundedReceiver<Presence>,
+    presence: &'a mut Followed,
     /// One per simulated vehicle, in the mission's order.
     outlets: Arc<Vec<Outlet>>,
     end_out: Arc<Outlet>,
@@ -278,7 +278,6 @@ impl Stepper {
 
 pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
-    let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let mut shutdown = Shutdown::new()?;
     let session = zenoh.open_unless(&mut shutdown, options.startup_timeout).await?;
     let rejected = Rejected::default();
@@ -289,12 +288,15 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once its roles have had theirs acknowledged, and left.
     let routes = zenoh.routes()?;
-    let (exit, token) = serve(mission, options, &keys, &session, shutdown, rejected, &ids).await?;
+    // Followed from before the world's token, so that at its end the world knows who is still
+    // there without asking.
+    let mut presence = Followed::follow(&session, &keys).await?;
+    let (exit, token) = serve(mission, options, &keys, &session, &mut presence, shutdown, rejected).await?;
     tracing::info!("world: {exit}");
     // The recorders acknowledged the end; it reaches the agents before the world leaves.
     match (routes, exit) {
-        (true, _) => linger_within(&session, &keys, &[Role::Agent], handover::BOUND).await,
-        (false, Exit::Ended { .. }) => linger(&session, &keys, &[Role::Agent]).await,
+        (true, _) => presence.linger(&[Role::Agent], handover::BOUND).await,
+        (false, Exit::Ended { .. }) => presence.linger(&[Role::Agent], LINGER).await,
         (false, Exit::Interrupted) => {}
     }
     if let Some(token) = token {
@@ -303,7 +305,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let _ = claimed.undeclare().await;
     // The planner reports once the world's token has gone.
     if routes {
-        linger_within(&session, &keys, &[Role::Planner], handover::BOUND).await;
+        presence.linger(&[Role::Planner], handover::BOUND).await;
     }
     let _ = session.close().await;
     Ok(exit)
@@ -315,10 +317,11 @@ async fn serve(
     options: &Options,
     keys: &Keys,
     session: &Session,
+    presence: &mut Followed,
     mut shutdown: Shutdown,
     rejected: Rejected,
-    ids: &[u32],
 ) -> Result<(Exit, Option<LivelinessToken>)> {
+    let ids: &[u32] = &mission.vehicles.iter().map(|v| v.id).collect::<Vec<_>>();
     let simulated: Vec<u32> = match &options.vehicles {
         Some(v) => ids.iter().copied().filter(|i| v.contains(i)).collect(),
         None => ids.to_vec(),
@@ -328,7 +331,6 @@ async fn serve(
     let digest = mission.digest();
     // What a role on another host whose mission is not this one is told to compare with.
     tracing::info!("world: mission {} (digest {digest:016x})", mission.mission.name);
-    let (_presence, mut presence) = presence(session, keys).await?;
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
     let monotonic = Monotonic::start();
@@ -475,7 +477,7 @@ async fn serve(
     Ok((exit, Some(token)))
 }
 
-impl Shell {
+impl Shell<'_> {
     async fn lockstep(
         &mut self,
         paths: &[(u32, GeneralizedPath)],
