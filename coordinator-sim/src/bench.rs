@@ -30,6 +30,21 @@ use tokio::process::{Child, Command};
 
 const PING: &str = "tcpf/bench/ping";
 const PONG: &str = "tcpf/bench/pong";
+
+/// How long the pong process may take to come up, and to answer one probe: bounds on a process
+/// that does not, not part of any figure.
+const PONG_UP: Duration = Duration::from_secs(30);
+const PONG_ANSWER: Duration = Duration::from_secs(5);
+/// How long the idle clients may take to come up, all of them.
+const IDLE_UP: Duration = Duration::from_secs(120);
+/// How long the idle clients are left before their memory is read, to settle as a running fleet
+/// has (their start's buffers freed).
+const IDLE_SETTLE: Duration = Duration::from_secs(1);
+/// How often a running fleet's memory is read: often enough to see a fleet of a second at least
+/// once (the memory is read from `/proc`, which tells no one when it changes).
+const FLEET_SAMPLE: Duration = Duration::from_millis(100);
+/// How long the last reading may take once the fleet has gone.
+const FLEET_SAMPLED: Duration = Duration::from_secs(2);
 /// The provenance of the bench's own runs: none, as they are removed unread once measured.
 const SCRATCH: Invocation = Invocation {
     command: Vec::new(),
@@ -131,7 +146,7 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
             "--open",
         ],
     )?;
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+    let deadline = tokio::time::Instant::now() + PONG_UP;
     while tokio::time::timeout_at(deadline, alive.recv())
         .await
         .map_err(|_| anyhow!("pong never came up"))?
@@ -142,7 +157,7 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
         let start = Instant::now();
         out.put(&probe(k)).await?;
         loop {
-            let p = tokio::time::timeout(Duration::from_secs(5), pongs.recv())
+            let p = tokio::time::timeout(PONG_ANSWER, pongs.recv())
                 .await
                 .map_err(|_| anyhow!("no pong"))?;
             if p.is_some_and(|p| p.message.tick == k) {
@@ -427,7 +442,7 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
         )?);
     }
     let mut up = std::collections::BTreeSet::new();
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
+    let deadline = tokio::time::Instant::now() + IDLE_UP;
     while up.len() < n {
         match tokio::time::timeout_at(deadline, alive.recv()).await {
             Ok(Some(p)) if p.alive => {
@@ -437,8 +452,7 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
             _ => return Err(anyhow!("only {} of {n} idle clients came up", up.len())),
         }
     }
-    // Let them settle as a running fleet has.
-    tokio::time::sleep(Duration::from_secs(1)).await;
+    tokio::time::sleep(IDLE_SETTLE).await;
     let footprint = Footprint::of_children("pong");
     for mut c in children {
         let _ = c.start_kill();
@@ -713,8 +727,7 @@ async fn processes(
     let sampling = tokio::spawn(async {
         let mut running = Footprint::default();
         loop {
-            // Often enough to see a fleet of a second at least once.
-            tokio::time::sleep(Duration::from_millis(100)).await;
+            tokio::time::sleep(FLEET_SAMPLE).await;
             let now = tokio::task::spawn_blocking(|| Footprint::of_children("agent"))
                 .await
                 .unwrap_or_default();
@@ -727,7 +740,7 @@ async fn processes(
         }
     });
     let sampled = launcher::run(mission, plan, &dir, exe, launcher::Options::default()).await?;
-    let running = tokio::time::timeout(Duration::from_secs(2), sampling).await;
+    let running = tokio::time::timeout(FLEET_SAMPLED, sampling).await;
     let running = running.ok().and_then(Result::ok).unwrap_or_default();
     if sampled.interrupted {
         return Ok(None);
