@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use common::{
     arrivals, assert_none_left, assert_played_together, config, descendants, failure, fleet, fleet_without_vehicle_2,
-    kill, logged, paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing,
+    kill, kill_and_wait, logged, paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing,
     wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
@@ -30,8 +30,25 @@ fn agent_pid(root: u32, id: u32) -> u32 {
                 return pid;
             }
         }
-        assert!(Instant::now() < deadline, "no agent {id} under {root}");
+        assert!(
+            Instant::now() < deadline,
+            "no agent {id} under {root}, whose processes are {:?}",
+            descendants(root)
+        );
         std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The world's log lines on `who` leaving and coming back, for a failure to say when the world
+/// saw what the test did.
+fn world_saw(out: &Path, who: &str) -> String {
+    let log = std::fs::read_to_string(out.join("logs/world.log")).unwrap_or_default();
+    let (gone, back) = (format!("{who} is gone"), format!("{who} is here at"));
+    let seen: Vec<&str> = log.lines().filter(|l| l.contains(&gone) || l.contains(&back)).collect();
+    if seen.is_empty() {
+        format!("the world never saw {who} leave")
+    } else {
+        format!("the world logged: {}", seen.join(" | "))
     }
 }
 
@@ -318,9 +335,9 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
     wait_until_simulated(&out, 20.0);
-    kill("-9", agent_pid(launch.child.id(), 2));
-    // One simulated second at time scale 5.
-    std::thread::sleep(Duration::from_millis(200));
+    let exit = kill_and_wait(agent_pid(launch.child.id(), 2), Duration::from_secs(30));
+    // One simulated second at time scale 5, from the kill.
+    std::thread::sleep(Duration::from_millis(200).saturating_sub(exit));
     let log = std::fs::File::create(dir.join("agent-2-again.log")).unwrap();
     let mut again = Reaper(
         Command::new(env!("CARGO_BIN_EXE_tcpf"))
@@ -339,7 +356,11 @@ fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
     assert!(again_log.contains("rejoining"), "{again_log}");
     let s = launch.summary();
     let a = arrivals(&s);
-    assert!((a[0] - a[1]).abs() < 0.5, "arrivals {a:?}");
+    assert!(
+        (a[0] - a[1]).abs() < 0.5,
+        "arrivals {a:?} (the killed agent took {exit:?} to exit; {})",
+        world_saw(&out, "agent 2")
+    );
     let world = timing(&s, "world", 0);
     assert_eq!(world["rejoins"], serde_json::json!([[2, 1]]), "{world}");
     let gap = without_command(&s, 2);
@@ -503,12 +524,17 @@ fn a_realtime_agent_killed_for_good_leaves_the_coordination_error() {
     let out = dir.join("run");
     let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
     wait_until_simulated(&out, 15.0);
-    kill("-9", agent_pid(launch.child.id(), 2));
+    let exit = kill_and_wait(agent_pid(launch.child.id(), 2), Duration::from_secs(30));
     let status = launch.wait(Duration::from_secs(60));
     assert_eq!(status.code(), Some(1), "a vehicle lost: not completed");
     let s = launch.summary();
     let vehicles = s["vehicles"].as_array().unwrap();
-    assert_eq!(vehicles[1]["lost"], true, "{vehicles:?}");
+    assert_eq!(
+        vehicles[1]["lost"],
+        true,
+        "{vehicles:?} (the killed agent took {exit:?} to exit; {})",
+        world_saw(&out, "agent 2")
+    );
     assert!(vehicles[0]["arrival_time"].as_f64().is_some(), "{vehicles:?}");
     let error = s["max_coordination_error"].as_f64().unwrap();
     let held = common::held_gamma_s(&s);
