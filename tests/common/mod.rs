@@ -170,11 +170,7 @@ pub fn kill(signal: &str, pid: u32) {
 pub fn kill_and_wait(pid: u32, within: Duration) -> Duration {
     let killed = Instant::now();
     kill("-9", pid);
-    let exited = || {
-        std::fs::read_to_string(format!("/proc/{pid}/stat"))
-            .map_or(true, |stat| stat[stat.rfind(')').unwrap() + 2..].starts_with('Z'))
-    };
-    while !exited() && killed.elapsed() < within {
+    while alive(pid) && killed.elapsed() < within {
         std::thread::sleep(Duration::from_millis(5));
     }
     killed.elapsed()
