@@ -448,7 +448,27 @@ async fn a_flood_from_inside_the_run_changes_nothing_and_is_counted_by_kind() {
     // With the world's own certificate, which may say anything: what is sent is refused by the
     // roles' own checks.
     let flooder = tokio::spawn(flood(holding(&dir.join("p"), "world"), sent.clone()));
-    let flooded = tokio::task::block_in_place(|| peaks(&mut launch, || {}));
+    // Once the flood runs, agent 2 is stopped for a second: the world holds the tick under way
+    // open for its command, and the insider's copies of agent 1's command reach it while it
+    // does. Otherwise only an insider faster than the fleet reaches a tick under way: beside a
+    // CPU hog, every copy of a run of 27 734 ticks came after its tick (counted as `past`), and
+    // the run was rightly reproducible.
+    let root = launch.child.id();
+    let mut held = false;
+    let flooded = tokio::task::block_in_place(|| {
+        peaks(&mut launch, || {
+            if held || *sent.lock().unwrap() < 1000 {
+                return;
+            }
+            if let Some(agent) = common::agent_under(root, 2) {
+                common::kill("-STOP", agent);
+                std::thread::sleep(Duration::from_secs(1));
+                common::kill("-CONT", agent);
+                held = true;
+            }
+        })
+    });
+    assert!(held, "agent 2 was held while the flood ran");
     let status = launch.wait(Duration::from_secs(1));
     let sent = *sent.lock().unwrap();
     flooder.abort();

@@ -10,9 +10,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{
-    arrivals, assert_none_left, assert_played_together, config, descendants, failure, fleet, fleet_without_vehicle_2,
-    kill, kill_and_wait, logged, paper, record_by_hand, run_in_process, scratch, stop_the_planner, summary, timing,
-    wait_until_simulated, without_command, Launch, Reaper,
+    agent_under, arrivals, assert_none_left, assert_played_together, config, descendants, failure, fleet,
+    fleet_without_vehicle_2, kill, kill_and_wait, logged, paper, record_by_hand, run_in_process, scratch,
+    stop_the_planner, summary, timing, wait_until_simulated, without_command, Launch, Reaper,
 };
 use serde_json::Value;
 
@@ -20,15 +20,8 @@ use serde_json::Value;
 fn agent_pid(root: u32, id: u32) -> u32 {
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
-        for pid in descendants(root) {
-            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-            let args: Vec<String> = cmdline
-                .split(|&b| b == 0)
-                .map(|a| String::from_utf8_lossy(a).into_owned())
-                .collect();
-            if args.iter().any(|a| a == "agent") && args.windows(2).any(|w| w[0] == "--id" && w[1] == id.to_string()) {
-                return pid;
-            }
+        if let Some(pid) = agent_under(root, id) {
+            return pid;
         }
         assert!(
             Instant::now() < deadline,

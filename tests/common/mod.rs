@@ -153,6 +153,14 @@ pub fn descendants(root: u32) -> Vec<u32> {
     found
 }
 
+/// The pid of the agent of vehicle `id` under `root`, if one runs there.
+pub fn agent_under(root: u32, id: u32) -> Option<u32> {
+    let id = id.to_string();
+    find_pid(root, |args| {
+        args.contains(&&b"agent"[..]) && args.windows(2).any(|w| w[0] == b"--id" && w[1] == id.as_bytes())
+    })
+}
+
 pub fn alive(pid: u32) -> bool {
     processes().iter().any(|p| p.0 == pid && p.2 != 'Z')
 }
@@ -312,15 +320,17 @@ pub fn assert_same_run(processes: &Path, in_process: &Path) {
     assert_eq!(sb["mode"], "in-process");
 }
 
+/// The pid of the process under `root` whose arguments `matches`, if one runs there.
+pub fn find_pid(root: u32, matches: impl Fn(&[&[u8]]) -> bool) -> Option<u32> {
+    descendants(root).into_iter().find(|pid| {
+        let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+        matches(&cmdline.split(|b| *b == 0).collect::<Vec<_>>())
+    })
+}
+
 /// The pid of the process under `root` whose arguments `matches` (`what` it is, for the panic).
 pub fn pid_of(root: u32, what: &str, matches: impl Fn(&[&[u8]]) -> bool) -> u32 {
-    descendants(root)
-        .into_iter()
-        .find(|pid| {
-            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
-            matches(&cmdline.split(|b| *b == 0).collect::<Vec<_>>())
-        })
-        .unwrap_or_else(|| panic!("{what} runs"))
+    find_pid(root, matches).unwrap_or_else(|| panic!("{what} runs"))
 }
 
 /// Stops the planner of a launch with SIGTERM.
