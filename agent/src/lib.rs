@@ -2,6 +2,8 @@
 //! `RealtimeAgent` (realtime): it fetches its path, takes its vehicle's state, exchanges γ with
 //! its neighbours and publishes commands. Started while the run is under way, it rejoins.
 
+mod footprint;
+
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
@@ -119,7 +121,7 @@ enum Inbound {
 /// while later: a lockstep run of the paper is over in a second.
 fn let_go_of_the_start(id: u32) {
     tokio::task::spawn_blocking(move || {
-        if let Some(kib) = tcpf_bus::footprint::drop_startup_code() {
+        if let Some(kib) = footprint::drop_startup_code() {
             tracing::debug!("agent {id}: let go of {kib} KiB of mapped code");
         }
     });

@@ -11,7 +11,6 @@ pub mod codec;
 pub mod credential;
 pub mod error;
 pub mod exit_report;
-pub mod footprint;
 pub mod handover;
 pub mod history;
 pub mod keys;

@@ -723,7 +723,7 @@ async fn processes(
     };
     let dir = RunDir::create(Some(scratch), mission, SCRATCH)?;
     // The fleet's footprint as it runs: the last sample of the whole fleet, once its agents have
-    // let go of the code of their start (`tcpf_bus::footprint`), before the first leaves.
+    // let go of the code of their start (`agent/src/footprint.rs`), before the first leaves.
     let sampling = tokio::spawn(async {
         let mut running = Footprint::default();
         loop {
