@@ -45,6 +45,31 @@ fn world_saw(out: &Path, who: &str) -> String {
     }
 }
 
+/// How long a killed agent may take to exit for a test of a kill: it normally takes 7–20 ms.
+const EXIT_HELD: Duration = Duration::from_millis(500);
+
+/// Case (b) in realtime at ×5 into `dir/run-N`, with agent 2 killed once the run is at `at`
+/// simulated seconds: the launch, and how long the killed agent took to exit. Beside a CPU hog
+/// the kernel once held a killed agent in its exit for 5 s (in `unlink_file_vma_batch_process`,
+/// closing its mapping of the binary). Meanwhile its Zenoh session stays open, and its vehicle
+/// drifts for 25 simulated seconds while the agent is neither alive nor gone. That is not the
+/// kill these tests mean: the fleet is stopped and started again, up to three times.
+fn kill_agent_2_at(dir: &Path, at: f64) -> (Launch, Duration) {
+    let mut held = Vec::new();
+    for attempt in 1..=3 {
+        let out = dir.join(format!("run-{attempt}"));
+        let launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
+        wait_until_simulated(&out, at);
+        let exit = kill_and_wait(agent_pid(launch.child.id(), 2), Duration::from_secs(30));
+        if exit <= EXIT_HELD {
+            return (launch, exit);
+        }
+        eprintln!("attempt {attempt}: the killed agent took {exit:?} to exit; starting the fleet again");
+        held.push(exit);
+    }
+    panic!("a killed agent took longer than {EXIT_HELD:?} to exit three times: {held:?}");
+}
+
 /// `mission` in-process into `dir/lockstep`, then as processes in realtime at ×10 into
 /// `dir/realtime`: both summaries, and what the realtime run printed.
 fn beside_lockstep(mission: &str, dir: &Path) -> (Value, Value, String) {
@@ -325,10 +350,8 @@ fn a_recorder_says_whose_states_never_come_when_nobody_plays_a_vehicle() {
 fn an_agent_killed_and_started_again_by_hand_rejoins_a_realtime_run() {
     let _fleet = fleet();
     let dir = scratch("rejoin-realtime");
-    let out = dir.join("run");
-    let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
-    wait_until_simulated(&out, 20.0);
-    let exit = kill_and_wait(agent_pid(launch.child.id(), 2), Duration::from_secs(30));
+    let (mut launch, exit) = kill_agent_2_at(&dir, 20.0);
+    let out = launch.out.clone();
     // One simulated second at time scale 5, from the kill.
     std::thread::sleep(Duration::from_millis(200).saturating_sub(exit));
     let log = std::fs::File::create(dir.join("agent-2-again.log")).unwrap();
@@ -516,10 +539,8 @@ fn a_role_that_loses_its_network_in_realtime_lets_the_others_finish() {
 fn a_realtime_agent_killed_for_good_leaves_the_coordination_error() {
     let _fleet = fleet();
     let dir = scratch("killed-realtime");
-    let out = dir.join("run");
-    let mut launch = Launch::start(&paper("b-current"), &out, &["--clock", "realtime", "--time-scale", "5"]);
-    wait_until_simulated(&out, 15.0);
-    let exit = kill_and_wait(agent_pid(launch.child.id(), 2), Duration::from_secs(30));
+    let (mut launch, exit) = kill_agent_2_at(&dir, 15.0);
+    let out = launch.out.clone();
     let status = launch.wait(Duration::from_secs(60));
     assert_eq!(status.code(), Some(1), "a vehicle lost: not completed");
     let s = launch.summary();
