@@ -18,7 +18,7 @@
 //!
 //! The README's Benchmarks give what each is worth. `TCPF_LINK_ORDER`, which the tests read,
 //! says what was done.
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 fn main() {
@@ -80,7 +80,7 @@ fn link_order(var: &dyn Fn(&str) -> String) -> Result<Vec<String>, Skip> {
             warn: false,
         });
     }
-    let list = Path::new(env!("CARGO_MANIFEST_DIR")).join("link-order.txt");
+    let list = root().join("link-order.txt");
     let text = std::fs::read_to_string(&list).map_err(|e| skip(format!("{}: {e}", list.display())))?;
     let rustc = Command::new(var("RUSTC"))
         .arg("-V")
@@ -146,11 +146,19 @@ fn takes(args: &[String], var: &dyn Fn(&str) -> String) -> Result<(), Skip> {
 
 include!("build/commit.rs");
 
+/// The checkout being built, as cargo says when it runs this script: not `env!`, the checkout this
+/// script was compiled in. Two checkouts sharing a target directory share the compiled script
+/// (cargo leaves the workspace's path out of its hash), and a fresh clone built beside main had
+/// main's runs record the clone's commit and state.
+fn root() -> PathBuf {
+    PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"))
+}
+
 /// `TCPF_COMMIT`: the git commit this is built from (`-dirty` if the tree was modified), where it
 /// is built from a checkout with git at hand (empty otherwise), for the provenance of every
 /// run. Built again when HEAD moves or any file of the workspace changes.
 fn commit() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = root();
     let git = root.join(".git");
     for watched in [git.join("HEAD"), git.join("packed-refs"), git.join("index")] {
         if watched.is_file() {
@@ -165,11 +173,11 @@ fn commit() {
         }
     }
     // A change anywhere in the sources makes the tree dirty (cargo scans a directory whole).
-    for entry in std::fs::read_dir(root).into_iter().flatten().flatten() {
+    for entry in std::fs::read_dir(&root).into_iter().flatten().flatten() {
         let name = entry.file_name();
         if !matches!(name.to_str(), Some("target" | "runs" | ".git")) {
             println!("cargo:rerun-if-changed={}", entry.path().display());
         }
     }
-    println!("cargo:rustc-env=TCPF_COMMIT={}", commit_of(root).unwrap_or_default());
+    println!("cargo:rustc-env=TCPF_COMMIT={}", commit_of(&root).unwrap_or_default());
 }
