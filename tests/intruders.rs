@@ -910,7 +910,7 @@ async fn a_clock_answered_by_another_process_than_the_world_is_counted_and_not_l
         version: PROTOCOL_VERSION,
         realtime: false,
         time_scale: 1.0,
-        epoch: 0.0,
+        epoch: tcpf_core::time::UnixTime(0.0),
         tick: 0,
         mission: 0xdead_beef,
     };

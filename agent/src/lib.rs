@@ -29,6 +29,7 @@ use tcpf_core::roles::agent::Agent;
 use tcpf_core::roles::lockstep::{AgentNode, Timing};
 use tcpf_core::roles::lockstep_agent::{Input, LockstepAgent, Output, Source};
 use tcpf_core::roles::realtime::RealtimeAgent;
+use tcpf_core::time::Moment;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
 use zenoh::pubsub::Subscriber;
@@ -180,7 +181,7 @@ impl Feed {
     }
 
     /// Does `change` to the machine, then what it has ready.
-    fn with<R>(&self, change: impl FnOnce(&mut LockstepAgent, f64) -> R) -> R {
+    fn with<R>(&self, change: impl FnOnce(&mut LockstepAgent, Moment) -> R) -> R {
         let mut fed = self.lock();
         let result = change(&mut fed.machine, self.monotonic.now());
         self.perform(&mut fed);

@@ -13,12 +13,13 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::Clock;
 use tcpf_core::roles::realtime::AHEAD_LIMIT_WALL_S;
+use tcpf_core::time::{Moment, UnixTime};
 use tokio::sync::mpsc;
 
 use crate::error::Error;
 
-/// A role's monotonic clock as `tcpf_core`'s machines take it: seconds since it was made. The
-/// machines say when they want waking in those seconds, and this turns that into a deadline.
+/// A role's monotonic clock as `tcpf_core`'s machines take it: `Moment`s from when it was made.
+/// The machines say when they want waking in those, and this turns that into a deadline.
 #[derive(Debug, Clone, Copy)]
 pub struct Monotonic(Instant);
 
@@ -27,8 +28,8 @@ impl Monotonic {
         Monotonic(Instant::now())
     }
 
-    pub fn now(&self) -> f64 {
-        self.0.elapsed().as_secs_f64()
+    pub fn now(&self) -> Moment {
+        Moment::from_secs(self.0.elapsed().as_secs_f64())
     }
 
     /// Seconds from the start to `at`.
@@ -36,9 +37,9 @@ impl Monotonic {
         at.saturating_duration_since(self.0).as_secs_f64()
     }
 
-    /// The instant `s` seconds after the start.
-    pub fn at(&self, s: f64) -> tokio::time::Instant {
-        (self.0 + Duration::try_from_secs_f64(s).unwrap_or_default()).into()
+    /// The instant `at` of this clock (its start, if `at` is before it).
+    pub fn at(&self, at: Moment) -> tokio::time::Instant {
+        (self.0 + Duration::try_from_secs_f64(at.secs()).unwrap_or_default()).into()
     }
 }
 
@@ -110,11 +111,13 @@ pub fn check_clock(role: &str, expected: &Expected, clock: &Clock) -> Result<(),
 /// farther one is a host's clock that was never set (or a message that lies).
 const MAX_SKEW_S: f64 = 365.0 * 86_400.0;
 
-/// Unix time now, in seconds.
-pub fn unix_now() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
+/// This host's wall clock now.
+pub fn unix_now() -> UnixTime {
+    UnixTime(
+        SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64()),
+    )
 }
 
 /// The fleet's simulated time on this process's monotonic clock.
@@ -256,7 +259,7 @@ mod tests {
 
     #[test]
     fn an_epoch_a_year_away_is_a_host_clock_never_set() {
-        let clock = |epoch: f64| Clock {
+        let clock = |epoch: UnixTime| Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
             time_scale: 1.0,
@@ -278,7 +281,9 @@ mod tests {
         };
         assert!(check_clock("agent", &slow, &clock(unix_now() - 5e7)).is_ok());
         for epoch in [1e20, -1e20, 0.0] {
-            let e = check_clock("agent", &expected, &clock(epoch)).unwrap_err().to_string();
+            let e = check_clock("agent", &expected, &clock(UnixTime(epoch)))
+                .unwrap_err()
+                .to_string();
             assert!(e.contains("the hosts' clocks disagree"), "{e}");
         }
     }

@@ -39,6 +39,7 @@ mod tests {
     use tcpf_core::msg::{
         Cause, Clock, Gamma, Loss, LossReason, Reception, Sample, State, TickRecord, PROTOCOL_VERSION,
     };
+    use tcpf_core::time::UnixTime;
 
     fn state() -> State {
         State {
@@ -95,7 +96,7 @@ mod tests {
             version: PROTOCOL_VERSION,
             realtime: true,
             time_scale: 10.0,
-            epoch: 1.5,
+            epoch: UnixTime(1.5),
             tick: 300,
             mission: 5,
         };
@@ -287,7 +288,7 @@ mod tests {
             version: PROTOCOL_VERSION,
             realtime: true,
             time_scale: 1.0,
-            epoch: 1.0,
+            epoch: UnixTime(1.0),
             tick: u64::MAX,
             mission: u64::MAX,
         };

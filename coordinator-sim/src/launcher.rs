@@ -20,6 +20,7 @@ use tcpf_bus::waits;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::Report;
+use tcpf_core::time::Moment;
 use tokio::process::Command;
 
 pub use crate::access::Links;
@@ -642,7 +643,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     }
     // One timer, moved when the supervisor's next wake-up does: not one made for every step of
     // the recording, which comes with every message.
-    let timer = tokio::time::sleep_until(clock.at(0.0));
+    let timer = tokio::time::sleep_until(clock.at(Moment::default()));
     tokio::pin!(timer);
     loop {
         while let Some(output) = supervisor.poll_output() {

@@ -37,6 +37,7 @@ use tcpf_core::outputs::ros2::Stamp;
 
 use crate::progress::Ticks;
 use tcpf_core::outputs::summary::{self, Closing, Mode, Recorded, Summary};
+use tcpf_core::time::UnixTime;
 use tcpf_report::rundir::{RunDir, Telemetry};
 
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a
@@ -132,9 +133,9 @@ pub struct Recording {
     expected: Expected,
     /// `tcpf record --ros2`: the fleet as a ROS 2 node, for a world that does not speak it.
     ros2: Option<Speaking>,
-    /// When every subscription was in place, Unix seconds: what the world published since, this
-    /// recorder heard (or may fetch).
-    subscribed: f64,
+    /// When every subscription was in place, on the wall clock: what the world published since,
+    /// this recorder heard (or may fetch).
+    subscribed: UnixTime,
 }
 
 /// What `tcpf record --ros2` publishes of each tick it writes, as the node `recorder`: what a
@@ -689,7 +690,7 @@ pub async fn record(
         question.abort();
     }
     progress.finish();
-    let wall_time_s = clock.now();
+    let wall_time_s = clock.now().secs();
     // The world and the agents report as they exit, just after the end: a moment for them.
     let _ = tokio::time::timeout(REPORT_GRACE, async {
         while !interrupted && !recording.unreported().is_empty() {

@@ -4,8 +4,8 @@
 //! Read it in layers, each a folder: the paper's `model` (paths, the planner, path following,
 //! time coordination, the vehicle's dynamics); the `links` that carry γ between vehicles; the
 //! `fleet`'s presence (who holds a role, who is waited for); each of the `roles`' machines, which
-//! the processes drive; and the `outputs` a run leaves. The `mission` and the wire's messages
-//! (`msg`) are what all of them share.
+//! the processes drive; and the `outputs` a run leaves. The `mission`, the wire's messages
+//! (`msg`) and the clocks' instants (`time`) are what all of them share.
 
 pub mod fleet;
 pub mod links;
@@ -14,6 +14,7 @@ pub mod model;
 pub mod msg;
 pub mod outputs;
 pub mod roles;
+pub mod time;
 
 #[cfg(test)]
 mod fixtures;

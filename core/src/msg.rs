@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 pub use crate::links::modem::Cause;
 use crate::model::path::GeneralizedPath;
+use crate::time::UnixTime;
 
 /// 2: `Gamma` carries γ's rate, sampling instant and the sender's position, or no sample (D19–D21).
 /// 3: why a vehicle was lost. 4: `Clock`, and realtime timing in `Report`. 5: the γ a realtime
@@ -526,7 +527,7 @@ pub struct Clock {
     /// Simulated seconds per wall second (realtime).
     pub time_scale: f64,
     /// Unix time, s, of simulated t = 0 (realtime).
-    pub epoch: f64,
+    pub epoch: UnixTime,
     /// The world's tick when it answered.
     pub tick: u64,
     /// The world's `Mission::digest`: agents and recorders check they run the same mission.
@@ -540,7 +541,7 @@ impl Checked for Clock {
         self.version
     }
     fn finite(&self) -> bool {
-        all_finite([self.time_scale, self.epoch])
+        all_finite([self.time_scale, self.epoch.secs()])
     }
 }
 

@@ -19,6 +19,7 @@ use tcpf_core::mission::{Mission, Ros2Config};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Clock, Command, State};
 use tcpf_core::outputs::ros2::{self, FleetTopic, LinkCounts, Stamp};
+use tcpf_core::time::UnixTime;
 
 /// The bag's directory in the run directory, and its one file, named as rosbag2 names them.
 pub const DIR: &str = "rosbag2";
@@ -111,11 +112,11 @@ impl Bag {
             .with_context(|| format!("cannot write {}", self.dir.join(FILE).display()))
     }
 
-    /// One row: every vehicle's state and command. `epoch` is the Unix time of the run's t = 0;
+    /// One row: every vehicle's state and command. `epoch` is the run's t = 0;
     /// `clock` a realtime fleet's clock, whose stamps are wall time (none in lockstep).
     pub fn tick(
         &mut self,
-        epoch: f64,
+        epoch: UnixTime,
         clock: Option<&Clock>,
         states: &[State],
         commands: &[Option<Command>],
@@ -125,7 +126,7 @@ impl Bag {
         };
         let stamp_of = |t: f64| Stamp::of(clock, t);
         // Apart, so that the epoch's size costs the simulated time no precision.
-        let log_time = nanos(epoch) + nanos(first.t);
+        let log_time = nanos(epoch.secs()) + nanos(first.t);
         for (id, path) in std::mem::take(&mut self.paths) {
             self.write(FleetTopic::Path(id), &ros2::path(&path, stamp_of), log_time)?;
         }

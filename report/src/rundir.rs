@@ -13,6 +13,7 @@ use tcpf_core::mission::{Mission, Ros2Config};
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{Clock, Command, State};
 use tcpf_core::outputs::telemetry;
+use tcpf_core::time::UnixTime;
 
 use crate::bag::Bag;
 use crate::provenance::Invocation;
@@ -257,14 +258,16 @@ pub const UNFINISHED: &str =
 /// A tick's states and commands, on their way to the thread writing run.mcap.
 type Tick = (Vec<State>, Vec<Option<Command>>);
 /// Ticks for that thread, with the fleet's epoch and a realtime fleet's clock.
-type Batch = (f64, Option<Clock>, Vec<Tick>);
+type Batch = (UnixTime, Option<Clock>, Vec<Tick>);
 type Batches = SyncSender<Batch>;
 
-/// The wall clock as Unix time, s.
-fn unix_now() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
+/// The wall clock now.
+fn unix_now() -> UnixTime {
+    UnixTime(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64()),
+    )
 }
 
 /// Ticks that may wait for the thread writing run.mcap before the run waits for it.
@@ -282,9 +285,9 @@ pub struct Telemetry {
     /// The ticks' way to the thread writing run.mcap, and the thread; taken by `finish`, or by
     /// `drop` on a run that failed.
     viewer: Option<(Batches, JoinHandle<Result<()>>)>,
-    /// Unix time, s, of the run's t = 0, which run.mcap's times count from: the wall clock as
-    /// the run started, or the realtime fleet's own epoch (`set_clock`).
-    epoch: f64,
+    /// The run's t = 0, which run.mcap's times count from: the wall clock as the run started, or
+    /// the realtime fleet's own epoch (`set_clock`).
+    epoch: UnixTime,
     /// A realtime fleet's clock, whose stamps the bag's messages carry.
     clock: Option<Clock>,
     /// Ticks not yet handed to it, and since when the first of them waits.

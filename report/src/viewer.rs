@@ -30,6 +30,7 @@ use serde::Serialize;
 use tcpf_core::mission::{digest_of, Mission};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Command, State};
+use tcpf_core::time::UnixTime;
 
 use crate::live::{ChannelInfo, Live};
 use crate::provenance::Invocation;
@@ -64,8 +65,8 @@ pub struct Viewer {
     /// Owns the file's channels: they close when it goes.
     context: Arc<Context>,
     vehicles: Vec<Vehicle>,
-    /// Unix time, s, of the run's t = 0: known at the first tick.
-    epoch: Option<f64>,
+    /// The run's t = 0: known at the first tick.
+    epoch: Option<UnixTime>,
     /// What goes out at the first tick, once the epoch is known: each planned path, and the
     /// file's metadata with the mission.
     paths: Vec<(Topic, Vec<Pose>)>,
@@ -129,15 +130,15 @@ struct Link {
     to: u32,
 }
 
-/// Nanoseconds of Unix time `t` (s).
-fn nanos(t: f64) -> u64 {
-    (t.max(0.0) * 1e9).round() as u64
+/// Nanoseconds since the Unix epoch of `t`.
+fn nanos(t: UnixTime) -> u64 {
+    (t.secs().max(0.0) * 1e9).round() as u64
 }
 
 /// What `run.mcap` says of its times and frames (its `tcpf` metadata).
 const FRAMES: &str = "ENU (x east, y north, metres), as ROS's REP 103, in frame map (REP 105); headings and yaw counter-clockwise from x, in radians; the current's direction is where the water flows to";
 
-fn stamp(t: f64) -> Timestamp {
+fn stamp(t: UnixTime) -> Timestamp {
     let ns = nanos(t);
     Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32)
 }
@@ -223,7 +224,7 @@ impl Viewer {
         topic(&self.context, &self.live, name, (schema, T::get_message_encoding()))
     }
 
-    fn log(&self, topic: &Topic, bytes: &[u8], t: f64) {
+    fn log(&self, topic: &Topic, bytes: &[u8], t: UnixTime) {
         topic
             .file
             .log_with_meta(bytes, PartialMetadata::with_log_time(nanos(t)));
@@ -234,7 +235,7 @@ impl Viewer {
         }
     }
 
-    fn log_encoded<T: Encode>(&mut self, topic: &Topic, message: &T, t: f64) {
+    fn log_encoded<T: Encode>(&mut self, topic: &Topic, message: &T, t: UnixTime) {
         let mut buffer = std::mem::take(&mut self.buffer);
         buffer.clear();
         if message.encode(&mut buffer).is_ok() {
@@ -244,7 +245,7 @@ impl Viewer {
     }
 
     /// The first tick's work: the epoch, the planned paths at t = 0, and the file's metadata.
-    fn start(&mut self, epoch: f64) {
+    fn start(&mut self, epoch: UnixTime) {
         self.epoch = Some(epoch);
         for (drawn, poses) in std::mem::take(&mut self.paths) {
             let message = PosesInFrame {
@@ -262,7 +263,7 @@ impl Viewer {
                 "time",
                 "log times are Unix time: the fleet's epoch plus simulated time (the wall clock as a lockstep run started; a realtime fleet's clock)".to_string(),
             ),
-            ("epoch_unix_s", format!("{epoch}")),
+            ("epoch_unix_s", format!("{}", epoch.secs())),
             ("mission_digest", format!("{:016x}", digest_of(&self.mission))),
             ("command", invocation.command.join(" ")),
             ("tcpf_version", invocation.version.clone()),
@@ -284,8 +285,8 @@ impl Viewer {
     }
 
     /// One tick: every vehicle's state, and the commands of those that are not lost; `epoch` is
-    /// the Unix time of the run's t = 0.
-    pub fn tick(&mut self, epoch: f64, states: &[State], commands: &[Option<Command>]) {
+    /// the run's t = 0.
+    pub fn tick(&mut self, epoch: UnixTime, states: &[State], commands: &[Option<Command>]) {
         if self.epoch.is_none() {
             self.start(epoch);
         }
@@ -357,7 +358,7 @@ impl Viewer {
         self.vehicles = vehicles;
     }
 
-    fn log_json<T: Serialize>(&self, buffer: &mut Vec<u8>, topic: &Topic, message: &T, t: f64) {
+    fn log_json<T: Serialize>(&self, buffer: &mut Vec<u8>, topic: &Topic, message: &T, t: UnixTime) {
         buffer.clear();
         if serde_json::to_writer(&mut *buffer, message).is_ok() {
             self.log(topic, buffer, t);

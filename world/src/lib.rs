@@ -31,6 +31,7 @@ use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State,
 use tcpf_core::outputs::ros2::{Played, Refused, Stamp, MAP_FRAME};
 use tcpf_core::roles::lockstep::{Reject, Timing, WorldNode};
 use tcpf_core::roles::realtime::RealtimeWorld;
+use tcpf_core::time::UnixTime;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::sample::Locality;
@@ -394,7 +395,7 @@ async fn serve(
                     version: PROTOCOL_VERSION,
                     realtime: false,
                     time_scale: mission.mission.time_scale,
-                    epoch: 0.0,
+                    epoch: UnixTime::default(),
                     tick: 0,
                     mission: digest,
                 },

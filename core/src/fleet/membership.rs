@@ -2,8 +2,8 @@
 //! the lockstep world's command timeout and rejoin deadlines, an agent's stale neighbours and a
 //! realtime agent's world out of reach. Each is a machine of the quinn-proto kind: the shell
 //! hands it liveliness changes and `now`, asks `poll_timeout()` when to wake it, and wakes it
-//! with `handle_timeout(now)`; what it decides comes back as values. Times are inputs: seconds on
-//! the role's monotonic clock, from any origin.
+//! with `handle_timeout(now)`; what it decides comes back as values. Times are inputs: instants
+//! on the role's monotonic clock (`Moment`).
 //!
 //! A timer that fires long after the shell set it for measures a pause of the role itself
 //! (`pause`): the wait is put off, not ended. So `handle_timeout` takes, beside `now`, the time
@@ -17,6 +17,7 @@ use std::time::Duration;
 
 use crate::fleet::pause;
 use crate::msg::{LossReason, Lost};
+use crate::time::Moment;
 
 /// A liveliness change the world gathers: an agent (by vehicle id) or a recorder (by its id).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -62,18 +63,18 @@ pub struct Gathering {
     agents: BTreeSet<u32>,
     recorders: BTreeSet<u32>,
     timeout: Duration,
-    deadline: f64,
+    deadline: Moment,
 }
 
 impl Gathering {
-    pub fn new(ids: &[u32], recorders: usize, timeout: Duration, now: f64) -> Gathering {
+    pub fn new(ids: &[u32], recorders: usize, timeout: Duration, now: Moment) -> Gathering {
         Gathering {
             ids: ids.to_vec(),
             recorders_wanted: recorders,
             agents: BTreeSet::new(),
             recorders: BTreeSet::new(),
             timeout,
-            deadline: now + timeout.as_secs_f64(),
+            deadline: now + timeout,
         }
     }
 
@@ -111,12 +112,12 @@ impl Gathering {
         self.agents.len() == self.ids.len() && self.recorders.len() >= self.recorders_wanted
     }
 
-    pub fn poll_timeout(&self) -> f64 {
+    pub fn poll_timeout(&self) -> Moment {
         self.deadline
     }
 
     /// Who is still missing, once the startup timeout has passed and the fleet is not complete.
-    pub fn handle_timeout(&self, now: f64) -> Option<Missing> {
+    pub fn handle_timeout(&self, now: Moment) -> Option<Missing> {
         (now >= self.deadline && !self.complete()).then(|| Missing {
             after: self.timeout,
             agents: self.ids.iter().copied().filter(|i| !self.agents.contains(i)).collect(),
@@ -146,18 +147,18 @@ pub enum Decision {
 /// The lockstep world once running: each tick waits up to the command timeout for the agents it
 /// waits for, and a gone agent up to the rejoin timeout to come back.
 pub struct Deadlines {
-    command_timeout: f64,
+    command_timeout: Duration,
     rejoin_timeout: Option<Duration>,
     /// When the tick under way began.
-    tick_since: f64,
+    tick_since: Moment,
     /// Agents gone whose return is awaited, and until when.
-    restarting: Vec<(u32, f64)>,
+    restarting: Vec<(u32, Moment)>,
 }
 
 impl Deadlines {
-    pub fn new(command_timeout: Duration, rejoin_timeout: Option<Duration>, now: f64) -> Deadlines {
+    pub fn new(command_timeout: Duration, rejoin_timeout: Option<Duration>, now: Moment) -> Deadlines {
         Deadlines {
-            command_timeout: command_timeout.as_secs_f64(),
+            command_timeout,
             rejoin_timeout,
             tick_since: now,
             restarting: Vec::new(),
@@ -165,17 +166,17 @@ impl Deadlines {
     }
 
     /// A tick began: its states are out.
-    pub fn on_tick(&mut self, now: f64) {
+    pub fn on_tick(&mut self, now: Moment) {
         self.tick_since = now;
     }
 
     /// Agent `id` came (`alive`) or went; `lost` is its vehicle's loss, if the world gave up on it.
-    pub fn on_agent(&mut self, id: u32, alive: bool, lost: Option<Lost>, now: f64) -> Option<Decision> {
+    pub fn on_agent(&mut self, id: u32, alive: bool, lost: Option<Lost>, now: Moment) -> Option<Decision> {
         match (alive, lost, self.rejoin_timeout) {
             (false, Some(_), _) => None,
             (false, None, Some(within)) => {
                 self.restarting.retain(|r| r.0 != id);
-                self.restarting.push((id, now + within.as_secs_f64()));
+                self.restarting.push((id, now + within));
                 Some(Decision::AwaitReturn { id, within })
             }
             (false, None, None) => Some(Decision::Lose {
@@ -193,24 +194,23 @@ impl Deadlines {
     }
 
     /// When to wake the world: the tick's command timeout, or the first rejoin deadline.
-    pub fn poll_timeout(&self) -> f64 {
+    pub fn poll_timeout(&self) -> Moment {
         let command = self.tick_since + self.command_timeout;
-        self.restarting.iter().map(|r| r.1).fold(command, f64::min)
+        self.restarting.iter().map(|r| r.1).fold(command, Moment::min)
     }
 
     /// The deadlines passed by `now`, woken from a sleep until `woken_for`; `waiting_for` says
     /// which agents the tick still waits for.
     pub fn handle_timeout(
         &mut self,
-        now: f64,
-        woken_for: f64,
+        now: Moment,
+        woken_for: Moment,
         waiting_for: impl FnOnce() -> Vec<u32>,
     ) -> Vec<Decision> {
-        if let Some(more) = late_by(now - woken_for).and_then(pause::extension) {
-            let s = more.as_secs_f64();
-            self.tick_since += s;
+        if let Some(more) = now.since(woken_for).and_then(pause::extension) {
+            self.tick_since = self.tick_since + more;
             for r in &mut self.restarting {
-                r.1 += s;
+                r.1 = r.1 + more;
             }
             return vec![Decision::Resumed(more)];
         }
@@ -240,10 +240,6 @@ impl Deadlines {
         }
         decisions
     }
-}
-
-fn late_by(s: f64) -> Option<Duration> {
-    Duration::try_from_secs_f64(s).ok()
 }
 
 /// Whom an agent meets before it starts.
@@ -284,18 +280,18 @@ pub struct AgentStartup {
     deserted: Option<Peer>,
     neighbours: Vec<u32>,
     present: BTreeSet<u32>,
-    deadline: f64,
+    deadline: Moment,
 }
 
 impl AgentStartup {
-    pub fn new(neighbours: &[u32], timeout: Duration, now: f64) -> AgentStartup {
+    pub fn new(neighbours: &[u32], timeout: Duration, now: Moment) -> AgentStartup {
         AgentStartup {
             world: false,
             planner: false,
             deserted: None,
             neighbours: neighbours.to_vec(),
             present: BTreeSet::new(),
-            deadline: now + timeout.as_secs_f64(),
+            deadline: now + timeout,
         }
     }
 
@@ -338,13 +334,13 @@ impl AgentStartup {
             .collect()
     }
 
-    pub fn poll_timeout(&self) -> f64 {
+    pub fn poll_timeout(&self) -> Moment {
         self.deadline
     }
 
     /// What the startup timeout leaves, once it has passed: without the fleet, nothing to do;
     /// without some neighbours, a start without them.
-    pub fn handle_timeout(&self, now: f64) -> Option<StartupCheck> {
+    pub fn handle_timeout(&self, now: Moment) -> Option<StartupCheck> {
         if now < self.deadline {
             return None;
         }
@@ -370,21 +366,18 @@ pub enum StaleCheck {
 /// A lockstep agent's wait for its neighbours' γ: a live neighbour silent for the stale timeout
 /// stops being waited for.
 pub struct StaleTimer {
-    timeout: f64,
+    timeout: Duration,
     /// Since when the node has been waiting for a neighbour's γ.
-    since: Option<f64>,
+    since: Option<Moment>,
 }
 
 impl StaleTimer {
     pub fn new(timeout: Duration) -> StaleTimer {
-        StaleTimer {
-            timeout: timeout.as_secs_f64(),
-            since: None,
-        }
+        StaleTimer { timeout, since: None }
     }
 
     /// Whether the node waits now.
-    pub fn note(&mut self, waiting: bool, now: f64) {
+    pub fn note(&mut self, waiting: bool, now: Moment) {
         if !waiting {
             self.since = None;
         } else if self.since.is_none() {
@@ -392,14 +385,14 @@ impl StaleTimer {
         }
     }
 
-    pub fn poll_timeout(&self) -> Option<f64> {
+    pub fn poll_timeout(&self) -> Option<Moment> {
         self.since.map(|s| s + self.timeout)
     }
 
     /// Woken at `now` from a sleep until `woken_for`.
-    pub fn handle_timeout(&mut self, now: f64, woken_for: f64) -> StaleCheck {
-        if let Some(more) = late_by(now - woken_for).and_then(pause::extension) {
-            self.since = self.since.map(|s| s + more.as_secs_f64());
+    pub fn handle_timeout(&mut self, now: Moment, woken_for: Moment) -> StaleCheck {
+        if let Some(more) = now.since(woken_for).and_then(pause::extension) {
+            self.since = self.since.map(|s| s + more);
             return StaleCheck::Resumed(more);
         }
         if self.poll_timeout().is_none_or(|due| now < due) {
@@ -423,7 +416,7 @@ pub enum WorldReach {
 /// the vehicle's mission, so the agent waits up to a grace period for the world to come back.
 pub struct WorldAway {
     grace: Duration,
-    until: Option<f64>,
+    until: Option<Moment>,
 }
 
 impl WorldAway {
@@ -431,10 +424,10 @@ impl WorldAway {
         WorldAway { grace, until: None }
     }
 
-    pub fn on_world(&mut self, alive: bool, now: f64) -> Option<WorldReach> {
+    pub fn on_world(&mut self, alive: bool, now: Moment) -> Option<WorldReach> {
         match (alive, self.until) {
             (false, None) => {
-                self.until = Some(now + self.grace.as_secs_f64());
+                self.until = Some(now + self.grace);
                 Some(WorldReach::Away(self.grace))
             }
             (true, Some(_)) => {
@@ -445,12 +438,12 @@ impl WorldAway {
         }
     }
 
-    pub fn poll_timeout(&self) -> Option<f64> {
+    pub fn poll_timeout(&self) -> Option<Moment> {
         self.until
     }
 
     /// Whether the world stayed away past the grace period: the agent has nobody to act for.
-    pub fn handle_timeout(&self, now: f64) -> bool {
+    pub fn handle_timeout(&self, now: Moment) -> bool {
         self.until.is_some_and(|until| now >= until)
     }
 }
@@ -461,10 +454,14 @@ mod tests {
 
     const S: Duration = Duration::from_secs(1);
 
+    fn at(s: f64) -> Moment {
+        Moment::from_secs(s)
+    }
+
     #[test]
     fn the_world_starts_once_every_agent_and_recorder_is_there_and_names_who_is_missing_after_the_timeout() {
-        let mut g = Gathering::new(&[1, 2], 1, 60 * S, 100.0);
-        assert_eq!(g.poll_timeout(), 160.0);
+        let mut g = Gathering::new(&[1, 2], 1, 60 * S, at(100.0));
+        assert_eq!(g.poll_timeout(), at(160.0));
         assert_eq!(
             g.on_presence(Member::Agent(2), true),
             Some(Arrival::Agent { id: 2, here: 1, of: 2 })
@@ -475,9 +472,9 @@ mod tests {
             Some(Arrival::Recorder { here: 1, of: 1 })
         );
         assert!(!g.complete());
-        assert_eq!(g.handle_timeout(159.9), None, "not yet due");
+        assert_eq!(g.handle_timeout(at(159.9)), None, "not yet due");
         assert_eq!(g.on_presence(Member::Recorder(77), false), None);
-        let missing = g.handle_timeout(160.0).unwrap();
+        let missing = g.handle_timeout(at(160.0)).unwrap();
         assert_eq!(
             missing.to_string(),
             "after 60s, agents [1] and 1 of 1 recorders still missing"
@@ -485,7 +482,7 @@ mod tests {
         g.on_presence(Member::Agent(1), true);
         g.on_presence(Member::Recorder(5), true);
         assert!(g.complete());
-        assert_eq!(g.handle_timeout(200.0), None, "complete: nothing missing");
+        assert_eq!(g.handle_timeout(at(200.0)), None, "complete: nothing missing");
     }
 
     fn lost(id: u32, tick: u64) -> Lost {
@@ -498,15 +495,15 @@ mod tests {
 
     #[test]
     fn a_tick_waits_the_command_timeout_then_loses_the_silent_and_rearms() {
-        let mut d = Deadlines::new(10 * S, None, 0.0);
-        d.on_tick(5.0);
-        assert_eq!(d.poll_timeout(), 15.0);
+        let mut d = Deadlines::new(10 * S, None, at(0.0));
+        d.on_tick(at(5.0));
+        assert_eq!(d.poll_timeout(), at(15.0));
         assert_eq!(
-            d.handle_timeout(14.9, 14.9, || unreachable!()),
+            d.handle_timeout(at(14.9), at(14.9), || unreachable!()),
             vec![],
             "a wake-up before it is due"
         );
-        let silent = d.handle_timeout(15.2, 15.0, || vec![3, 1]);
+        let silent = d.handle_timeout(at(15.2), at(15.0), || vec![3, 1]);
         assert_eq!(
             silent,
             vec![
@@ -522,28 +519,28 @@ mod tests {
                 },
             ]
         );
-        assert_eq!(d.poll_timeout(), 25.2, "re-armed, not due again at once");
+        assert_eq!(d.poll_timeout(), at(25.2), "re-armed, not due again at once");
     }
 
     #[test]
     fn a_timer_fired_after_a_pause_puts_the_deadlines_off_instead_of_losing_anyone() {
-        let mut d = Deadlines::new(10 * S, Some(30 * S), 0.0);
-        d.on_agent(2, false, None, 0.0);
+        let mut d = Deadlines::new(10 * S, Some(30 * S), at(0.0));
+        d.on_agent(2, false, None, at(0.0));
         // A 12 s Ctrl-Z: the command timeout due at 10 s is seen at 22 s.
         assert_eq!(
-            d.handle_timeout(22.0, 10.0, || vec![1]),
+            d.handle_timeout(at(22.0), at(10.0), || vec![1]),
             vec![Decision::Resumed(13 * S)]
         );
-        assert_eq!(d.poll_timeout(), 23.0);
-        assert_eq!(d.handle_timeout(22.5, 22.5, || vec![1]), vec![]);
+        assert_eq!(d.poll_timeout(), at(23.0));
+        assert_eq!(d.handle_timeout(at(22.5), at(22.5), || vec![1]), vec![]);
         // The rejoin deadline (30 s) moved by the pause too.
-        d.on_tick(23.0);
-        assert_eq!(d.poll_timeout(), 33.0);
+        d.on_tick(at(23.0));
+        assert_eq!(d.poll_timeout(), at(33.0));
         // Resumed, the world first reads a command that closes the tick, then its timer fires:
         // the deadline moved on, but the pause was still the world's own.
-        let mut moved = Deadlines::new(10 * S, None, 0.0);
-        moved.on_tick(12.0);
-        let resumed = moved.handle_timeout(12.1, 10.0, || vec![1]);
+        let mut moved = Deadlines::new(10 * S, None, at(0.0));
+        moved.on_tick(at(12.0));
+        let resumed = moved.handle_timeout(at(12.1), at(10.0), || vec![1]);
         assert!(
             matches!(resumed[..], [Decision::Resumed(more)] if (more.as_secs_f64() - 3.1).abs() < 1e-9),
             "{resumed:?}"
@@ -552,44 +549,48 @@ mod tests {
 
     #[test]
     fn a_gone_agent_is_lost_at_once_or_awaited_until_its_rejoin_deadline() {
-        let mut at_once = Deadlines::new(10 * S, None, 0.0);
+        let mut at_once = Deadlines::new(10 * S, None, at(0.0));
         assert_eq!(
-            at_once.on_agent(2, false, None, 1.0),
+            at_once.on_agent(2, false, None, at(1.0)),
             Some(Decision::Lose {
                 id: 2,
                 reason: LossReason::Gone,
                 awaited: false
             })
         );
-        assert_eq!(at_once.on_agent(2, false, Some(lost(2, 7)), 1.0), None, "already lost");
-
-        let mut d = Deadlines::new(10 * S, Some(5 * S), 0.0);
         assert_eq!(
-            d.on_agent(2, false, None, 1.0),
+            at_once.on_agent(2, false, Some(lost(2, 7)), at(1.0)),
+            None,
+            "already lost"
+        );
+
+        let mut d = Deadlines::new(10 * S, Some(5 * S), at(0.0));
+        assert_eq!(
+            d.on_agent(2, false, None, at(1.0)),
             Some(Decision::AwaitReturn { id: 2, within: 5 * S })
         );
         assert_eq!(
             d.poll_timeout(),
-            6.0,
+            at(6.0),
             "the rejoin deadline comes before the command timeout"
         );
-        assert_eq!(d.on_agent(2, true, None, 3.0), Some(Decision::Back(2)));
-        assert_eq!(d.poll_timeout(), 10.0, "back: no rejoin deadline left");
-        assert_eq!(d.on_agent(1, true, None, 3.0), None, "an agent nobody awaited");
+        assert_eq!(d.on_agent(2, true, None, at(3.0)), Some(Decision::Back(2)));
+        assert_eq!(d.poll_timeout(), at(10.0), "back: no rejoin deadline left");
+        assert_eq!(d.on_agent(1, true, None, at(3.0)), None, "an agent nobody awaited");
 
-        d.on_agent(3, false, None, 4.0);
-        d.on_tick(4.0);
+        d.on_agent(3, false, None, at(4.0));
+        d.on_tick(at(4.0));
         assert_eq!(
-            d.handle_timeout(9.0, 9.0, Vec::new),
+            d.handle_timeout(at(9.0), at(9.0), Vec::new),
             vec![Decision::Lose {
                 id: 3,
                 reason: LossReason::Gone,
                 awaited: true
             }]
         );
-        assert_eq!(d.poll_timeout(), 14.0);
+        assert_eq!(d.poll_timeout(), at(14.0));
         assert_eq!(
-            d.on_agent(3, true, Some(lost(3, 40)), 9.5),
+            d.on_agent(3, true, Some(lost(3, 40)), at(9.5)),
             Some(Decision::TellAgain(lost(3, 40)))
         );
     }
@@ -598,69 +599,69 @@ mod tests {
     fn a_neighbour_is_stale_after_the_timeout_of_waiting_unless_the_agent_was_paused() {
         let mut t = StaleTimer::new(3 * S);
         assert_eq!(t.poll_timeout(), None, "not waiting");
-        t.note(true, 10.0);
-        t.note(true, 11.0);
+        t.note(true, at(10.0));
+        t.note(true, at(11.0));
         assert_eq!(
             t.poll_timeout(),
-            Some(13.0),
+            Some(at(13.0)),
             "since it began waiting, not since the last look"
         );
-        assert_eq!(t.handle_timeout(12.0, 12.0), StaleCheck::Nothing);
-        assert_eq!(t.handle_timeout(13.1, 13.0), StaleCheck::Stale);
-        assert_eq!(t.poll_timeout(), Some(16.1), "re-armed");
-        t.note(false, 13.2);
-        assert_eq!(t.handle_timeout(20.0, 20.0), StaleCheck::Nothing, "the γ came");
+        assert_eq!(t.handle_timeout(at(12.0), at(12.0)), StaleCheck::Nothing);
+        assert_eq!(t.handle_timeout(at(13.1), at(13.0)), StaleCheck::Stale);
+        assert_eq!(t.poll_timeout(), Some(at(16.1)), "re-armed");
+        t.note(false, at(13.2));
+        assert_eq!(t.handle_timeout(at(20.0), at(20.0)), StaleCheck::Nothing, "the γ came");
         // Stopped 5 s by SIGSTOP as it waited.
-        t.note(true, 30.0);
-        assert_eq!(t.handle_timeout(38.0, 33.0), StaleCheck::Resumed(6 * S));
-        assert_eq!(t.poll_timeout(), Some(39.0));
-        assert_eq!(t.handle_timeout(39.0, 39.0), StaleCheck::Stale);
+        t.note(true, at(30.0));
+        assert_eq!(t.handle_timeout(at(38.0), at(33.0)), StaleCheck::Resumed(6 * S));
+        assert_eq!(t.poll_timeout(), Some(at(39.0)));
+        assert_eq!(t.handle_timeout(at(39.0), at(39.0)), StaleCheck::Stale);
     }
 
     #[test]
     fn a_realtime_agent_waits_its_grace_for_a_world_out_of_reach() {
         let mut w = WorldAway::new(60 * S);
-        assert_eq!(w.on_world(true, 0.0), None);
-        assert_eq!(w.on_world(false, 10.0), Some(WorldReach::Away(60 * S)));
+        assert_eq!(w.on_world(true, at(0.0)), None);
+        assert_eq!(w.on_world(false, at(10.0)), Some(WorldReach::Away(60 * S)));
         assert_eq!(
-            w.on_world(false, 20.0),
+            w.on_world(false, at(20.0)),
             None,
             "already away: the grace runs from the first"
         );
-        assert_eq!(w.poll_timeout(), Some(70.0));
-        assert!(!w.handle_timeout(69.0));
-        assert_eq!(w.on_world(true, 30.0), Some(WorldReach::Back));
+        assert_eq!(w.poll_timeout(), Some(at(70.0)));
+        assert!(!w.handle_timeout(at(69.0)));
+        assert_eq!(w.on_world(true, at(30.0)), Some(WorldReach::Back));
         assert_eq!(w.poll_timeout(), None);
-        w.on_world(false, 40.0);
-        assert!(w.handle_timeout(100.0), "did not come back");
+        w.on_world(false, at(40.0));
+        assert!(w.handle_timeout(at(100.0)), "did not come back");
     }
 
     #[test]
     fn an_agent_waits_for_its_world_planner_and_neighbours_within_one_timeout() {
-        let mut start = AgentStartup::new(&[2, 3], 60 * S, 0.0);
-        assert_eq!(start.poll_timeout(), 60.0);
+        let mut start = AgentStartup::new(&[2, 3], 60 * S, at(0.0));
+        assert_eq!(start.poll_timeout(), at(60.0));
         start.on_presence(Peer::Neighbour(2), true);
         start.on_presence(Peer::Neighbour(7), true);
         start.on_presence(Peer::World, true);
         assert!(!start.fleet_here());
-        assert_eq!(start.handle_timeout(59.0), None, "not yet due");
-        assert_eq!(start.handle_timeout(60.0), Some(StartupCheck::NoFleet));
+        assert_eq!(start.handle_timeout(at(59.0)), None, "not yet due");
+        assert_eq!(start.handle_timeout(at(60.0)), Some(StartupCheck::NoFleet));
         start.on_presence(Peer::Planner, true);
         assert!(start.fleet_here());
         assert_eq!(start.absent(), vec![3], "not a neighbour: 7 is not waited for");
         assert_eq!(
-            start.handle_timeout(60.0),
+            start.handle_timeout(at(60.0)),
             Some(StartupCheck::WithoutNeighbours(vec![3]))
         );
         start.on_presence(Peer::Neighbour(3), true);
-        assert_eq!(start.handle_timeout(61.0), None, "everyone here");
+        assert_eq!(start.handle_timeout(at(61.0)), None, "everyone here");
         start.on_presence(Peer::Neighbour(2), false);
         assert_eq!(start.absent(), vec![2], "a neighbour whose token went is absent again");
         assert_eq!(start.deserted(), None);
         start.on_presence(Peer::World, false);
         assert_eq!(start.deserted(), Some(Peer::World), "the world gave up before the run");
         // A world that goes before the planner came did not desert a fleet it had.
-        let mut early = AgentStartup::new(&[], 60 * S, 0.0);
+        let mut early = AgentStartup::new(&[], 60 * S, at(0.0));
         early.on_presence(Peer::World, true);
         early.on_presence(Peer::World, false);
         assert_eq!(early.deserted(), None);

@@ -5,7 +5,9 @@
 //! asked after (who is present, by tokens), and taken for gone on two answers in a row without
 //! it and nothing heard from it in between: one answer may be cut short on a busy link, and a
 //! lockstep world may be silent for seconds while it waits for a slow agent. Times are inputs:
-//! seconds on the recorder's monotonic clock.
+//! instants on the recorder's monotonic clock.
+
+use crate::time::Moment;
 
 /// How long the world may be silent before the recorder asks whether it is still there, and how
 /// often it asks again, in seconds.
@@ -13,15 +15,15 @@ pub const SILENCE_S: f64 = 5.0;
 
 pub struct WorldWatch {
     seen: bool,
-    left: Option<f64>,
+    left: Option<Moment>,
     /// The world's last message, its token's arrival, or the last question about it.
-    quiet_since: f64,
+    quiet_since: Moment,
     /// The last answer was without the world, and nothing came from it since.
     doubted: bool,
 }
 
 impl WorldWatch {
-    pub fn new(now: f64) -> WorldWatch {
+    pub fn new(now: Moment) -> WorldWatch {
         WorldWatch {
             seen: false,
             left: None,
@@ -31,27 +33,27 @@ impl WorldWatch {
     }
 
     /// The world's token came (`alive`) or went.
-    pub fn on_presence(&mut self, alive: bool, now: f64) {
+    pub fn on_presence(&mut self, alive: bool, now: Moment) {
         self.seen |= alive;
         self.left = (!alive).then_some(now);
         self.heard(now);
     }
 
     /// A message from the world.
-    pub fn heard(&mut self, now: f64) {
+    pub fn heard(&mut self, now: Moment) {
         self.quiet_since = now;
         self.doubted = false;
     }
 
     /// When to ask whether the world is there, if at all: it is believed present and has been
     /// silent for `SILENCE`.
-    pub fn ask_at(&self) -> Option<f64> {
+    pub fn ask_at(&self) -> Option<Moment> {
         (self.seen && self.left.is_none()).then_some(self.quiet_since + SILENCE_S)
     }
 
     /// The answer to that question: whether the world's token is among those present, or `None`
     /// when the question failed (which says nothing).
-    pub fn on_answer(&mut self, there: Option<bool>, now: f64) {
+    pub fn on_answer(&mut self, there: Option<bool>, now: Moment) {
         match there {
             Some(true) => self.heard(now),
             Some(false) if self.doubted => self.left = Some(now),
@@ -68,7 +70,7 @@ impl WorldWatch {
     }
 
     /// When the world was found gone, if it was.
-    pub fn left(&self) -> Option<f64> {
+    pub fn left(&self) -> Option<Moment> {
         self.left
     }
 }
@@ -92,20 +94,20 @@ pub enum Due {
 /// Every wait of `tcpf record`, as one machine: for a world to come (within the startup
 /// timeout), whether a silent one is still there (`WorldWatch`), and for the last ticks once it
 /// ended or left. A realtime recording goes on sampling without a world, so there only the
-/// world's absence counts. Times are inputs, in seconds.
+/// world's absence counts. Times are inputs.
 pub struct RecorderWaits {
     world: WorldWatch,
-    give_up_at: f64,
+    give_up_at: Moment,
     realtime: bool,
     /// When the last tick was written (or the recording started).
-    progress: f64,
+    progress: Moment,
     ended: bool,
     /// A question about the world is out: not asked again until it is answered.
     asking: bool,
 }
 
 impl RecorderWaits {
-    pub fn new(now: f64, startup_timeout_s: f64, realtime: bool) -> RecorderWaits {
+    pub fn new(now: Moment, startup_timeout_s: f64, realtime: bool) -> RecorderWaits {
         RecorderWaits {
             world: WorldWatch::new(now),
             give_up_at: now + startup_timeout_s,
@@ -116,17 +118,17 @@ impl RecorderWaits {
         }
     }
 
-    pub fn on_presence(&mut self, alive: bool, now: f64) {
+    pub fn on_presence(&mut self, alive: bool, now: Moment) {
         self.world.on_presence(alive, now);
     }
 
     /// A message from the world.
-    pub fn heard(&mut self, now: f64) {
+    pub fn heard(&mut self, now: Moment) {
         self.world.heard(now);
     }
 
     /// A tick was written.
-    pub fn progressed(&mut self, now: f64) {
+    pub fn progressed(&mut self, now: Moment) {
         self.progress = now;
     }
 
@@ -136,12 +138,12 @@ impl RecorderWaits {
     }
 
     /// The answer to the question `Due::Ask` called for (see `WorldWatch::on_answer`).
-    pub fn on_answer(&mut self, there: Option<bool>, now: f64) {
+    pub fn on_answer(&mut self, there: Option<bool>, now: Moment) {
         self.asking = false;
         self.world.on_answer(there, now);
     }
 
-    pub fn left(&self) -> Option<f64> {
+    pub fn left(&self) -> Option<Moment> {
         self.world.left()
     }
 
@@ -150,21 +152,24 @@ impl RecorderWaits {
         self.world.seen()
     }
 
-    fn stall_at(&self) -> Option<f64> {
+    fn stall_at(&self) -> Option<Moment> {
         match self.world.left() {
             Some(left) if self.realtime => Some(left + END_STALL_S),
             left => (self.ended || left.is_some()).then_some(self.progress + END_STALL_S),
         }
     }
 
-    pub fn poll_timeout(&self) -> Option<f64> {
+    pub fn poll_timeout(&self) -> Option<Moment> {
         let give_up = (!self.world.seen()).then_some(self.give_up_at);
         let ask = self.world.ask_at().filter(|_| !self.asking);
-        [give_up, ask, self.stall_at()].into_iter().flatten().reduce(f64::min)
+        [give_up, ask, self.stall_at()]
+            .into_iter()
+            .flatten()
+            .reduce(Moment::min)
     }
 
     /// What is due at `now`, if anything; `Ask` marks the question as out.
-    pub fn handle_timeout(&mut self, now: f64) -> Option<Due> {
+    pub fn handle_timeout(&mut self, now: Moment) -> Option<Due> {
         if !self.world.seen() && now >= self.give_up_at {
             return Some(Due::NoWorld);
         }
@@ -183,10 +188,14 @@ impl RecorderWaits {
 mod tests {
     use super::*;
 
+    fn at(s: f64) -> Moment {
+        Moment::from_secs(s)
+    }
+
     #[test]
     fn a_silent_world_is_gone_after_two_answers_without_it() {
-        let at = |s: u64| s as f64;
-        let mut watch = WorldWatch::new(0.0);
+        let at = |s: u64| Moment::from_secs(s as f64);
+        let mut watch = WorldWatch::new(at(0));
         assert_eq!(watch.ask_at(), None, "nothing to ask before the world came");
         watch.on_presence(true, at(1));
         assert_eq!(watch.ask_at(), Some(at(6)));
@@ -204,9 +213,9 @@ mod tests {
 
     #[test]
     fn what_comes_between_two_answers_without_the_world_keeps_it() {
-        let at = |s: u64| s as f64;
-        let mut watch = WorldWatch::new(0.0);
-        watch.on_presence(true, 0.0);
+        let at = |s: u64| Moment::from_secs(s as f64);
+        let mut watch = WorldWatch::new(at(0));
+        watch.on_presence(true, at(0));
         watch.on_answer(Some(false), at(5));
         watch.heard(at(7));
         watch.on_answer(Some(false), at(12));
@@ -224,53 +233,57 @@ mod tests {
 
     #[test]
     fn a_recorder_gives_up_on_a_world_that_never_comes() {
-        let mut waits = RecorderWaits::new(0.0, 60.0, false);
-        assert_eq!(waits.poll_timeout(), Some(60.0));
-        assert_eq!(waits.handle_timeout(59.0), None);
-        assert_eq!(waits.handle_timeout(60.0), Some(Due::NoWorld));
-        waits.on_presence(true, 61.0);
-        assert_eq!(waits.handle_timeout(61.0), None, "it came, late but before the look");
+        let mut waits = RecorderWaits::new(at(0.0), 60.0, false);
+        assert_eq!(waits.poll_timeout(), Some(at(60.0)));
+        assert_eq!(waits.handle_timeout(at(59.0)), None);
+        assert_eq!(waits.handle_timeout(at(60.0)), Some(Due::NoWorld));
+        waits.on_presence(true, at(61.0));
+        assert_eq!(
+            waits.handle_timeout(at(61.0)),
+            None,
+            "it came, late but before the look"
+        );
     }
 
     #[test]
     fn a_recorder_asks_after_a_silent_world_once_at_a_time() {
-        let mut waits = RecorderWaits::new(0.0, 60.0, false);
-        waits.on_presence(true, 1.0);
-        assert_eq!(waits.poll_timeout(), Some(1.0 + SILENCE_S));
-        assert_eq!(waits.handle_timeout(6.0), Some(Due::Ask));
+        let mut waits = RecorderWaits::new(at(0.0), 60.0, false);
+        waits.on_presence(true, at(1.0));
+        assert_eq!(waits.poll_timeout(), Some(at(1.0) + SILENCE_S));
+        assert_eq!(waits.handle_timeout(at(6.0)), Some(Due::Ask));
         assert_eq!(waits.poll_timeout(), None, "not asked again while the question is out");
-        assert_eq!(waits.handle_timeout(30.0), None);
-        waits.progressed(10.0);
-        waits.on_answer(Some(false), 7.0);
-        assert_eq!(waits.handle_timeout(12.0), Some(Due::Ask));
-        waits.on_answer(Some(false), 12.0);
-        assert_eq!(waits.left(), Some(12.0));
+        assert_eq!(waits.handle_timeout(at(30.0)), None);
+        waits.progressed(at(10.0));
+        waits.on_answer(Some(false), at(7.0));
+        assert_eq!(waits.handle_timeout(at(12.0)), Some(Due::Ask));
+        waits.on_answer(Some(false), at(12.0));
+        assert_eq!(waits.left(), Some(at(12.0)));
         assert_eq!(
             waits.poll_timeout(),
-            Some(10.0 + END_STALL_S),
+            Some(at(10.0) + END_STALL_S),
             "then the last ticks are waited for, from the last one written"
         );
-        assert_eq!(waits.handle_timeout(15.0), Some(Due::Stalled));
+        assert_eq!(waits.handle_timeout(at(15.0)), Some(Due::Stalled));
     }
 
     #[test]
     fn after_the_end_a_recorder_waits_for_the_last_ticks_from_the_last_one_written() {
-        let mut lockstep = RecorderWaits::new(0.0, 60.0, false);
-        lockstep.on_presence(true, 0.0);
-        lockstep.heard(4.0);
-        lockstep.progressed(4.0);
+        let mut lockstep = RecorderWaits::new(at(0.0), 60.0, false);
+        lockstep.on_presence(true, at(0.0));
+        lockstep.heard(at(4.0));
+        lockstep.progressed(at(4.0));
         lockstep.ended();
-        assert_eq!(lockstep.poll_timeout(), Some(4.0 + END_STALL_S));
-        lockstep.heard(6.0);
-        lockstep.progressed(6.0);
-        assert_eq!(lockstep.handle_timeout(9.0), None, "a tick written since");
-        assert_eq!(lockstep.handle_timeout(11.0), Some(Due::Stalled));
+        assert_eq!(lockstep.poll_timeout(), Some(at(4.0) + END_STALL_S));
+        lockstep.heard(at(6.0));
+        lockstep.progressed(at(6.0));
+        assert_eq!(lockstep.handle_timeout(at(9.0)), None, "a tick written since");
+        assert_eq!(lockstep.handle_timeout(at(11.0)), Some(Due::Stalled));
         // Realtime samples on without the world: only how long it has been gone counts.
-        let mut realtime = RecorderWaits::new(0.0, 60.0, true);
-        realtime.on_presence(true, 0.0);
-        realtime.on_presence(false, 20.0);
-        realtime.progressed(24.0);
-        assert_eq!(realtime.poll_timeout(), Some(20.0 + END_STALL_S));
-        assert_eq!(realtime.handle_timeout(25.0), Some(Due::Stalled));
+        let mut realtime = RecorderWaits::new(at(0.0), 60.0, true);
+        realtime.on_presence(true, at(0.0));
+        realtime.on_presence(false, at(20.0));
+        realtime.progressed(at(24.0));
+        assert_eq!(realtime.poll_timeout(), Some(at(20.0) + END_STALL_S));
+        assert_eq!(realtime.handle_timeout(at(25.0)), Some(Due::Stalled));
     }
 }

@@ -7,6 +7,7 @@
 use crate::mission::{Mission, Ros2Config};
 use crate::model::path::GeneralizedPath;
 use crate::msg::{Clock, Command, State};
+use crate::time::UnixTime;
 use std::collections::BTreeMap;
 
 /// A ROS 2 message type: its name, the name the RMW puts in keys, and its RIHS01 type hash
@@ -393,7 +394,7 @@ impl Stamp {
     /// time runs `time_scale` times faster than the wall.
     pub fn of_fleet(clock: &Clock, t: f64) -> Stamp {
         match clock.realtime {
-            true => Stamp::from_seconds(clock.epoch + t / clock.time_scale),
+            true => Stamp::from_seconds(clock.epoch.at_simulated(t, clock.time_scale).secs()),
             false => Stamp::from_seconds(t),
         }
     }
@@ -774,7 +775,7 @@ pub struct Played {
     current: [f64; 2],
     /// The fleet's t = 0 as the stamps count time, s; and how many simulated seconds a stamp's
     /// second is.
-    epoch: f64,
+    epoch: UnixTime,
     time_scale: f64,
     control_period: f64,
     /// Per vehicle, its newest state.
@@ -829,7 +830,7 @@ pub const LEAD: f64 = 1.0;
 
 impl Played {
     /// The vehicles of `mission`'s fleet whose clock began at Unix time `epoch` (realtime).
-    pub fn new(mission: &Mission, epoch: f64) -> Played {
+    pub fn new(mission: &Mission, epoch: UnixTime) -> Played {
         let (sin, cos) = mission.current.direction.sin_cos();
         Played {
             current: [mission.current.speed * cos, mission.current.speed * sin],
@@ -918,7 +919,9 @@ impl Played {
     /// current, and a driver that leaves it zero would turn the current into a false β. Refused:
     /// odometry stamped before the fleet's t = 0, or not finite.
     fn state(&self, o: &Odometry) -> Result<State, Refused> {
-        let t = (o.stamp.nanos() as f64 * 1e-9 - self.epoch) * self.time_scale;
+        let t = self
+            .epoch
+            .simulated_at(UnixTime(o.stamp.nanos() as f64 * 1e-9), self.time_scale);
         if ![o.position[0], o.position[1], o.yaw, t].iter().all(|v| v.is_finite()) {
             return Err(Refused::NonFinite);
         }
@@ -1068,7 +1071,7 @@ mod tests {
             version: crate::msg::PROTOCOL_VERSION,
             realtime: false,
             time_scale: 5.0,
-            epoch: 1_000.0,
+            epoch: UnixTime(1_000.0),
             tick: 0,
             mission: 0,
         };
@@ -1245,7 +1248,7 @@ mod tests {
     fn a_played_vehicles_odometry_is_the_state_of_the_tick_its_stamp_falls_on() {
         let (mut mission, _, _) = crate::fixtures::case_b();
         mission.mission.time_scale = 5.0;
-        let mut played = Played::new(&mission, 1_000.0);
+        let mut played = Played::new(&mission, UnixTime(1_000.0));
         let o = Odometry {
             id: 2,
             stamp: Stamp::from_seconds(1_002.000_6),

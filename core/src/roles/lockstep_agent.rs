@@ -12,6 +12,7 @@ use std::time::Duration;
 use crate::fleet::membership::{StaleCheck, StaleTimer};
 use crate::msg::{Command, End, Gamma, Lost, State};
 use crate::roles::lockstep::{AgentNode, Reject, Timing};
+use crate::time::Moment;
 
 /// What reaches a lockstep agent on the fleet's bus.
 #[derive(Debug, Clone, PartialEq)]
@@ -82,8 +83,8 @@ impl LockstepAgent {
         }
     }
 
-    /// A state or γ came at `now` (monotonic s).
-    pub fn handle(&mut self, input: Input, now: f64) {
+    /// A state or γ came at `now`.
+    pub fn handle(&mut self, input: Input, now: Moment) {
         match &mut self.phase {
             Phase::Stopped => {}
             Phase::Held(held) => {
@@ -102,7 +103,7 @@ impl LockstepAgent {
     }
 
     /// The world's clock answered for this agent's mission: what was held goes into the node.
-    pub fn start(&mut self, now: f64) {
+    pub fn start(&mut self, now: Moment) {
         if let Phase::Held(held) = std::mem::replace(&mut self.phase, Phase::Started) {
             for input in held {
                 self.apply(input);
@@ -117,7 +118,7 @@ impl LockstepAgent {
     }
 
     /// Does `change` to the node (a neighbour gone or back, a rejoining), then what is ready.
-    pub fn with<R>(&mut self, now: f64, change: impl FnOnce(&mut AgentNode) -> R) -> R {
+    pub fn with<R>(&mut self, now: Moment, change: impl FnOnce(&mut AgentNode) -> R) -> R {
         let result = change(&mut self.node);
         if matches!(self.phase, Phase::Started) {
             self.settle(now);
@@ -131,17 +132,17 @@ impl LockstepAgent {
     }
 
     /// The world gave up on a vehicle; whether it is this agent's own.
-    pub fn on_lost(&mut self, lost: &Lost, now: f64) -> Result<bool, Reject> {
+    pub fn on_lost(&mut self, lost: &Lost, now: Moment) -> Result<bool, Reject> {
         self.with(now, |node| node.on_lost(lost))
     }
 
     /// When the stale timeout falls due, if the node waits.
-    pub fn poll_timeout(&self) -> Option<f64> {
+    pub fn poll_timeout(&self) -> Option<Moment> {
         self.stale.poll_timeout()
     }
 
     /// Woken at `now` from a sleep until `woken_for`.
-    pub fn handle_timeout(&mut self, now: f64, woken_for: f64) {
+    pub fn handle_timeout(&mut self, now: Moment, woken_for: Moment) {
         match self.stale.handle_timeout(now, woken_for) {
             StaleCheck::Nothing => {}
             StaleCheck::Resumed(more) => self.outputs.push_back(Output::Resumed(more)),
@@ -187,7 +188,7 @@ impl LockstepAgent {
     }
 
     /// The commands the node has ready, and whether it now waits.
-    fn settle(&mut self, now: f64) {
+    fn settle(&mut self, now: Moment) {
         while let Some(command) = self.node.command() {
             self.outputs.push_back(Output::Command(command));
         }
@@ -203,6 +204,10 @@ mod tests {
     use crate::roles::lockstep::WorldNode;
 
     const TIMEOUT: Duration = Duration::from_secs(3);
+
+    fn at(s: f64) -> Moment {
+        Moment::from_secs(s)
+    }
 
     fn agent_1() -> (LockstepAgent, State, Gamma) {
         let (m, paths, _) = case_b();
@@ -221,15 +226,15 @@ mod tests {
     #[test]
     fn what_comes_before_the_start_is_held_in_order_and_then_answered() {
         let (mut m, state, theirs) = agent_1();
-        m.handle(Input::Gamma(theirs), 0.0);
-        m.handle(Input::State(state), 0.1);
-        m.handle(Input::State(state), 0.2);
+        m.handle(Input::Gamma(theirs), at(0.0));
+        m.handle(Input::State(state), at(0.1));
+        m.handle(Input::State(state), at(0.2));
         assert_eq!(
             outputs(&mut m),
             vec![Output::WorldStarted],
             "nothing leaves before the clock answers; the first state says the world runs"
         );
-        m.start(1.0);
+        m.start(at(1.0));
         let out = outputs(&mut m);
         assert!(
             matches!(out[0], Output::Gamma(g) if g.from == 1 && g.tick == 0),
@@ -245,29 +250,29 @@ mod tests {
             "neighbour 2's γ, held before the state, is in tick 0's command: {out:?}"
         );
         assert_eq!(out.len(), 3, "{out:?}");
-        m.start(2.0);
+        m.start(at(2.0));
         assert!(outputs(&mut m).is_empty(), "started once");
     }
 
     #[test]
     fn a_stopped_agent_answers_nothing() {
         let (mut m, state, theirs) = agent_1();
-        m.start(0.0);
+        m.start(at(0.0));
         m.stop();
-        m.handle(Input::State(state), 0.1);
-        m.handle(Input::Gamma(theirs), 0.1);
+        m.handle(Input::State(state), at(0.1));
+        m.handle(Input::Gamma(theirs), at(0.1));
         assert!(outputs(&mut m).is_empty());
     }
 
     #[test]
     fn a_neighbour_silent_for_the_stale_timeout_is_gone_on_without() {
         let (mut m, state, _) = agent_1();
-        m.start(0.0);
+        m.start(at(0.0));
         assert_eq!(m.poll_timeout(), None, "nothing awaited yet");
-        m.handle(Input::State(state), 1.0);
+        m.handle(Input::State(state), at(1.0));
         assert!(matches!(outputs(&mut m)[..], [Output::Gamma(_)]), "its γ, no command");
         let due = m.poll_timeout().expect("waits for neighbour 2");
-        assert_eq!(due, 1.0 + TIMEOUT.as_secs_f64());
+        assert_eq!(due, at(1.0) + TIMEOUT);
         m.handle_timeout(due - 0.5, due - 0.5);
         assert!(outputs(&mut m).is_empty(), "not yet");
         m.handle_timeout(due, due);
@@ -283,8 +288,8 @@ mod tests {
     #[test]
     fn an_agent_woken_long_after_its_timeout_gives_its_neighbours_that_long_more() {
         let (mut m, state, _) = agent_1();
-        m.start(0.0);
-        m.handle(Input::State(state), 1.0);
+        m.start(at(0.0));
+        m.handle(Input::State(state), at(1.0));
         outputs(&mut m);
         let due = m.poll_timeout().unwrap();
         m.handle_timeout(due + 10.0, due);

@@ -3,9 +3,11 @@
 //! travel separately, so the End may come after the token has gone: a world gone without one is
 //! given `end_grace` for it. An End alone lets nothing go (it may come from anyone the bus lets
 //! speak; only the world's going away takes the paths from a running fleet). Times are inputs:
-//! seconds on the planner's monotonic clock.
+//! instants on the planner's monotonic clock.
 
 use std::time::Duration;
+
+use crate::time::Moment;
 
 /// What the planner's process hears besides the queries for paths.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,7 +43,7 @@ pub struct PlannerNode {
     world_seen: bool,
     ended: bool,
     /// When the world's token went, while its End is awaited.
-    left_at: Option<f64>,
+    left_at: Option<Moment>,
     exit: Option<Exit>,
 }
 
@@ -57,7 +59,7 @@ impl PlannerNode {
     }
 
     /// `input` came at `now`.
-    pub fn handle(&mut self, input: Input, now: f64) {
+    pub fn handle(&mut self, input: Input, now: Moment) {
         if self.exit.is_some() {
             return;
         }
@@ -81,14 +83,14 @@ impl PlannerNode {
     }
 
     /// When the grace for a gone world's End runs out, if one runs.
-    pub fn poll_timeout(&self) -> Option<f64> {
+    pub fn poll_timeout(&self) -> Option<Moment> {
         self.left_at
             .filter(|_| self.exit.is_none())
-            .map(|left| left + self.end_grace.as_secs_f64())
+            .map(|left| left + self.end_grace)
     }
 
     /// The clock reached `now`: a world gone for the grace without an End is gone for good.
-    pub fn handle_timeout(&mut self, now: f64) {
+    pub fn handle_timeout(&mut self, now: Moment) {
         if self.poll_timeout().is_some_and(|due| now >= due) {
             self.exit = Some(Exit::WorldGone);
         }
@@ -106,18 +108,22 @@ mod tests {
 
     const GRACE: Duration = Duration::from_millis(500);
 
+    fn at(s: f64) -> Moment {
+        Moment::from_secs(s)
+    }
+
     fn serving() -> PlannerNode {
         let mut m = PlannerNode::new(GRACE);
-        m.handle(Input::World(true), 1.0);
+        m.handle(Input::World(true), at(1.0));
         m
     }
 
     #[test]
     fn a_world_that_ended_the_run_and_left_ends_the_planner_at_once() {
         let mut m = serving();
-        m.handle(Input::End, 50.0);
+        m.handle(Input::End, at(50.0));
         assert_eq!(m.exit(), None, "an End alone takes no path away");
-        m.handle(Input::World(false), 50.1);
+        m.handle(Input::World(false), at(50.1));
         assert_eq!(m.exit(), Some(Exit::Ended));
         assert_eq!(m.poll_timeout(), None);
     }
@@ -125,49 +131,49 @@ mod tests {
     #[test]
     fn an_end_behind_the_worlds_token_within_the_grace_is_an_end() {
         let mut m = serving();
-        m.handle(Input::World(false), 50.0);
-        assert_eq!(m.poll_timeout(), Some(50.5));
-        m.handle_timeout(50.4);
+        m.handle(Input::World(false), at(50.0));
+        assert_eq!(m.poll_timeout(), Some(at(50.5)));
+        m.handle_timeout(at(50.4));
         assert_eq!(m.exit(), None, "the grace has not run out");
-        m.handle(Input::End, 50.45);
+        m.handle(Input::End, at(50.45));
         assert_eq!(m.exit(), Some(Exit::Ended));
     }
 
     #[test]
     fn a_world_gone_for_the_grace_without_an_end_is_gone() {
         let mut m = serving();
-        m.handle(Input::World(false), 50.0);
-        m.handle_timeout(50.5);
+        m.handle(Input::World(false), at(50.0));
+        m.handle_timeout(at(50.5));
         assert_eq!(m.exit(), Some(Exit::WorldGone));
-        m.handle(Input::End, 50.6);
+        m.handle(Input::End, at(50.6));
         assert_eq!(m.exit(), Some(Exit::WorldGone), "what is decided stays");
     }
 
     #[test]
     fn a_token_gone_before_the_world_was_seen_is_not_its_leaving() {
         let mut m = PlannerNode::new(GRACE);
-        m.handle(Input::World(false), 0.1);
+        m.handle(Input::World(false), at(0.1));
         assert_eq!((m.exit(), m.poll_timeout()), (None, None));
-        m.handle(Input::World(true), 0.2);
-        m.handle(Input::World(false), 9.0);
-        assert_eq!(m.poll_timeout(), Some(9.5));
+        m.handle(Input::World(true), at(0.2));
+        m.handle(Input::World(false), at(9.0));
+        assert_eq!(m.poll_timeout(), Some(at(9.5)));
     }
 
     #[test]
     fn a_world_back_within_the_grace_is_served_on() {
         let mut m = serving();
-        m.handle(Input::World(false), 10.0);
-        m.handle(Input::World(true), 10.2);
+        m.handle(Input::World(false), at(10.0));
+        m.handle(Input::World(true), at(10.2));
         assert_eq!(m.poll_timeout(), None);
-        m.handle_timeout(11.0);
+        m.handle_timeout(at(11.0));
         assert_eq!(m.exit(), None);
     }
 
     #[test]
     fn a_signal_stops_serving_whatever_the_world_does() {
         let mut m = serving();
-        m.handle(Input::World(false), 10.0);
-        m.handle(Input::Interrupted, 10.1);
+        m.handle(Input::World(false), at(10.0));
+        m.handle(Input::Interrupted, at(10.1));
         assert_eq!(m.exit(), Some(Exit::Interrupted));
         assert_eq!(m.poll_timeout(), None);
     }

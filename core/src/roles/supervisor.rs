@@ -2,7 +2,7 @@
 //! progress, whether the run goes on, has failed (and why) or is over; which agent to start
 //! again; and when the children have had their time to exit by themselves.
 //!
-//! Time is seconds on the launcher's monotonic clock. The launcher looks at its children when
+//! Times are instants on the launcher's monotonic clock. The launcher looks at its children when
 //! `poll_timeout` says (Zenoh gives no event for a child's exit), tells the supervisor what it
 //! saw and what the recording holds, and does what `poll_output` asks: start an agent again,
 //! warn, tell the children to stop, kill what is left.
@@ -12,6 +12,7 @@ use std::fmt;
 
 use crate::msg::Role;
 use crate::outputs::summary::Restarts;
+use crate::time::Moment;
 
 /// Every wait of the supervisor, each with its default.
 #[derive(Debug, Clone, PartialEq)]
@@ -276,8 +277,8 @@ enum Phase {
     /// After the end or an interrupt, until `deadline`: the children exit by themselves. Once
     /// every one has (at `exited`), a report still missing has the settle time to come.
     Grace {
-        deadline: f64,
-        exited: Option<f64>,
+        deadline: Moment,
+        exited: Option<Moment>,
     },
     Done,
 }
@@ -289,8 +290,8 @@ pub struct Supervisor {
     kids: Vec<Kid>,
     recorded: Recorded,
     /// When a tick was last written (or the run began, or the fleet continued after a stop).
-    progress_at: f64,
-    next_check: f64,
+    progress_at: Moment,
+    next_check: Moment,
     phase: Phase,
     planner_gone_said: bool,
     restarts: Vec<Restarts>,
@@ -299,7 +300,7 @@ pub struct Supervisor {
 
 impl Supervisor {
     /// A run of these children (in the order the launcher lists them), begun at `now`.
-    pub fn new(config: Supervision, children: impl IntoIterator<Item = Child>, now: f64) -> Supervisor {
+    pub fn new(config: Supervision, children: impl IntoIterator<Item = Child>, now: Moment) -> Supervisor {
         Supervisor {
             next_check: now,
             config,
@@ -346,7 +347,7 @@ impl Supervisor {
     }
 
     /// The recording after a step.
-    pub fn recorded(&mut self, recorded: Recorded, now: f64) {
+    pub fn recorded(&mut self, recorded: Recorded, now: Moment) {
         if recorded.ticks > self.recorded.ticks {
             self.progress_at = now;
         }
@@ -359,18 +360,18 @@ impl Supervisor {
 
     /// The fleet went on after being stopped with the launcher (Ctrl-Z): no tick came because
     /// none could.
-    pub fn continued(&mut self, now: f64) {
+    pub fn continued(&mut self, now: Moment) {
         self.progress_at = now;
     }
 
     /// Ctrl-C, or a signal to stop.
-    pub fn interrupted(&mut self, now: f64) {
+    pub fn interrupted(&mut self, now: Moment) {
         self.over(Outcome::Interrupted, now);
     }
 
     /// The launcher failed the run: its recorder failed, or an agent could not be started.
     /// In the grace after the end, it only cuts the grace short.
-    pub fn failed(&mut self, why: String, now: f64) {
+    pub fn failed(&mut self, why: String, now: Moment) {
         match self.phase {
             Phase::Running => self.over(Outcome::Failed(Failure::Other(why)), now),
             Phase::Grace { .. } => self.finish(),
@@ -379,7 +380,7 @@ impl Supervisor {
     }
 
     /// When the launcher should next call `handle_timeout`.
-    pub fn poll_timeout(&self) -> Option<f64> {
+    pub fn poll_timeout(&self) -> Option<Moment> {
         match self.phase {
             Phase::Running => Some(self.next_check),
             Phase::Grace { deadline, .. } => Some(self.next_check.min(deadline)),
@@ -388,7 +389,7 @@ impl Supervisor {
     }
 
     /// The children's exits as of `now` are told: what they mean.
-    pub fn handle_timeout(&mut self, now: f64) {
+    pub fn handle_timeout(&mut self, now: Moment) {
         if now >= self.next_check {
             self.next_check = now + self.config.timeouts.check_s;
         }
@@ -426,7 +427,7 @@ impl Supervisor {
         self.phase == Phase::Done
     }
 
-    fn check(&mut self, now: f64) {
+    fn check(&mut self, now: Moment) {
         let waited = now - self.progress_at;
         let ticks = self.recorded.ticks;
         let timeouts = &self.config.timeouts;
@@ -515,7 +516,7 @@ impl Supervisor {
         }
     }
 
-    fn over(&mut self, outcome: Outcome, now: f64) {
+    fn over(&mut self, outcome: Outcome, now: Moment) {
         if self.phase != Phase::Running {
             return;
         }
@@ -582,7 +583,7 @@ mod tests {
                 id: 2,
             },
         ];
-        Supervisor::new(supervision(restart), children, 0.0)
+        Supervisor::new(supervision(restart), children, at(0.0))
     }
 
     const CODE_1: Exit = Exit {
@@ -609,8 +610,13 @@ mod tests {
         }
     }
 
-    /// Checks at every `check_s` from `from` to `to`, as the launcher's timer would.
+    fn at(s: f64) -> Moment {
+        Moment::from_secs(s)
+    }
+
+    /// Checks at every `check_s` up to `to` s, as the launcher's timer would.
     fn run_until(s: &mut Supervisor, to: f64) -> Vec<Output> {
+        let to = at(to);
         let mut out = Vec::new();
         while let Some(at) = s.poll_timeout().filter(|&at| at <= to) {
             s.handle_timeout(at);
@@ -651,7 +657,7 @@ mod tests {
     fn a_run_that_ticks_on_goes_on_until_it_is_complete_then_gives_the_children_their_grace() {
         let mut s = fleet(false);
         for k in 1..=100 {
-            s.recorded(ticks(k), k as f64);
+            s.recorded(ticks(k), at(k as f64));
             assert_eq!(run_until(&mut s, k as f64), []);
         }
         s.recorded(
@@ -661,7 +667,7 @@ mod tests {
                 complete: true,
                 ..Recorded::default()
             },
-            101.0,
+            at(101.0),
         );
         assert_eq!(outputs(&mut s), [Output::Over(Outcome::Completed)]);
         // Every child exits and reports within its grace: the run closes at once.
@@ -684,7 +690,7 @@ mod tests {
                 complete: true,
                 ..Recorded::default()
             },
-            10.0,
+            at(10.0),
         );
         for child in 0..3 {
             s.exited(child, CLEAN);
@@ -703,7 +709,7 @@ mod tests {
                 complete: true,
                 ..Recorded::default()
             },
-            10.0,
+            at(10.0),
         );
         run_until(&mut s, 10.0);
         for child in 0..4 {
@@ -718,8 +724,8 @@ mod tests {
     #[test]
     fn an_interrupt_tells_the_children_to_stop_and_kills_them_a_second_later() {
         let mut s = fleet(false);
-        s.recorded(ticks(5), 5.0);
-        s.interrupted(5.5);
+        s.recorded(ticks(5), at(5.0));
+        s.interrupted(at(5.5));
         assert_eq!(outputs(&mut s), [Output::Over(Outcome::Interrupted), Output::Terminate]);
         assert_eq!(run_until(&mut s, 6.45), []);
         assert_eq!(run_until(&mut s, 6.5), [Output::Kill]);
@@ -728,7 +734,7 @@ mod tests {
     #[test]
     fn the_world_dying_before_the_end_fails_the_run_naming_it_and_its_log() {
         let mut s = fleet(false);
-        s.recorded(ticks(7), 1.0);
+        s.recorded(ticks(7), at(1.0));
         run_until(&mut s, 1.0);
         s.exited(1, KILLED);
         let out = run_until(&mut s, 1.1);
@@ -750,7 +756,7 @@ mod tests {
     #[test]
     fn a_world_that_ended_the_run_has_five_seconds_for_its_last_ticks_to_arrive() {
         let mut s = fleet(false);
-        s.recorded(ticks(50), 10.0);
+        s.recorded(ticks(50), at(10.0));
         s.exited(1, CLEAN);
         assert_eq!(
             fails_after(&mut s, 15.0),
@@ -792,7 +798,7 @@ mod tests {
                 lost: vec![1],
                 ..Recorded::default()
             },
-            0.0,
+            at(0.0),
         );
         s.exited(2, CODE_1);
         s.exited(3, CLEAN);
@@ -805,7 +811,7 @@ mod tests {
                 ended: true,
                 ..Recorded::default()
             },
-            0.0,
+            at(0.0),
         );
         s.exited(3, KILLED);
         assert_eq!(run_until(&mut s, 1.0), []);
@@ -818,7 +824,7 @@ mod tests {
         assert!(failure(&run_until(&mut s, 0.0)).is_some(), "no paths were served");
 
         let mut s = fleet(false);
-        s.recorded(ticks(1), 0.0);
+        s.recorded(ticks(1), at(0.0));
         s.exited(0, CODE_1);
         let gone = Output::PlannerGone {
             child: 0,
@@ -826,7 +832,7 @@ mod tests {
             ticks: 1,
         };
         assert_eq!(run_until(&mut s, 0.0), [gone]);
-        s.recorded(ticks(2), 0.5);
+        s.recorded(ticks(2), at(0.5));
         assert_eq!(run_until(&mut s, 1.0), []);
     }
 
@@ -842,7 +848,7 @@ mod tests {
     #[test]
     fn a_run_stuck_after_a_tick_fails_after_the_stall_limit() {
         let mut s = fleet(false);
-        s.recorded(ticks(12), 1.0);
+        s.recorded(ticks(12), at(1.0));
         assert_eq!(
             fails_after(&mut s, 61.0),
             Failure::Stalled {
@@ -855,10 +861,10 @@ mod tests {
     #[test]
     fn a_fleet_stopped_with_the_launcher_does_not_stall_by_it() {
         let mut s = fleet(false);
-        s.recorded(ticks(12), 1.0);
+        s.recorded(ticks(12), at(1.0));
         assert_eq!(run_until(&mut s, 50.0), []);
         // Ctrl-Z at 50 s, `fg` at 500 s.
-        s.continued(500.0);
+        s.continued(at(500.0));
         assert_eq!(run_until(&mut s, 559.9), []);
         assert!(failure(&run_until(&mut s, 560.1)).is_some());
     }
@@ -871,7 +877,7 @@ mod tests {
             refused_ahead: 3,
             ..Recorded::default()
         };
-        s.recorded(ahead.clone(), 2.0);
+        s.recorded(ahead.clone(), at(2.0));
         assert_eq!(
             fails_after(&mut s, 7.0),
             Failure::LostMessages {
@@ -890,16 +896,16 @@ mod tests {
                 role: Role::World,
                 id: 0,
             }],
-            0.0,
+            at(0.0),
         );
-        s.recorded(ahead, 2.0);
+        s.recorded(ahead, at(2.0));
         assert_eq!(run_until(&mut s, 30.0), []);
     }
 
     #[test]
     fn a_failure_said_by_the_launcher_ends_the_run_at_once_but_only_cuts_a_grace_short() {
         let mut s = fleet(false);
-        s.failed("the recorder failed: gone".into(), 1.0);
+        s.failed("the recorder failed: gone".into(), at(1.0));
         assert_eq!(
             outputs(&mut s),
             [
@@ -908,8 +914,8 @@ mod tests {
             ]
         );
         let mut s = fleet(false);
-        s.interrupted(1.0);
-        s.failed("the recorder failed: gone".into(), 1.2);
+        s.interrupted(at(1.0));
+        s.failed("the recorder failed: gone".into(), at(1.2));
         assert_eq!(
             outputs(&mut s),
             [Output::Over(Outcome::Interrupted), Output::Terminate, Output::Kill]
