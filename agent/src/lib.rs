@@ -10,7 +10,7 @@ use std::time::Duration;
 use anyhow::{anyhow, Result};
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{self, metronome, FleetClock, Monotonic};
-use tcpf_bus::clock_query::{answered, ask_clock, await_clock};
+use tcpf_bus::clock_query::{answered, ask_clock, await_clock, ClockAnswer, ClockBell};
 use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::Outlet;
@@ -35,10 +35,6 @@ use tokio::sync::Notify;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
-/// How often an agent asks for the clock while the world has not started: a realtime agent
-/// waits for it; a lockstep one, running meanwhile, asks less and less often, up to the max.
-const CLOCK_POLL: Duration = Duration::from_millis(50);
-const CLOCK_POLL_MAX: Duration = Duration::from_secs(1);
 /// How long a realtime agent waits for a world out of reach before it stops: a radio link that
 /// drops for a while must not end the vehicle's mission.
 const WORLD_AWAY: Duration = Duration::from_secs(60);
@@ -358,6 +354,9 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             ))
         }
     }
+    // Listened for before the question, and before this agent's token, which the world waits for
+    // before it starts: its announcement of the start cannot pass between them.
+    let bell = ClockBell::declare(&session, &keys).await?;
     let under_way = ask_clock(&session, &keys, &rejected).await?;
     if let Some(clock) = &under_way {
         check_clock(mission, clock)?;
@@ -387,7 +386,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 Some(clock) => Some(clock),
                 None => {
                     shell
-                        .wait_for_clock(mission, monotonic.at(startup.poll_timeout()))
+                        .wait_for_clock(mission, bell, monotonic.at(startup.poll_timeout()))
                         .await?
                 }
             };
@@ -419,7 +418,13 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 }
             }
             let exit = shell
-                .lockstep(mission, under_way.is_none(), &feed, &mut faults, options)
+                .lockstep(
+                    mission,
+                    under_way.is_none().then_some(bell),
+                    &feed,
+                    &mut faults,
+                    options,
+                )
                 .await;
             feed.lock().machine.stop();
             exit?
@@ -488,14 +493,13 @@ fn check_clock(mission: &Mission, clock: &Clock) -> Result<()> {
 
 impl Shell {
     /// Realtime: asks for the world's clock until it has started (`None` on a signal).
-    async fn wait_for_clock(&mut self, mission: &Mission, deadline: tokio::time::Instant) -> Result<Option<Clock>> {
-        let mut answer = Some(await_clock(
-            &self.session,
-            &self.keys,
-            &self.rejected,
-            CLOCK_POLL,
-            CLOCK_POLL,
-        ));
+    async fn wait_for_clock(
+        &mut self,
+        mission: &Mission,
+        bell: ClockBell,
+        deadline: tokio::time::Instant,
+    ) -> Result<Option<Clock>> {
+        let mut answer = Some(await_clock(&self.session, &self.keys, &self.rejected, bell));
         let waited = tokio::time::timeout_at(deadline, answered(&mut answer));
         match self.shutdown.unless(waited).await {
             None => Ok(None),
@@ -525,11 +529,11 @@ impl Shell {
     }
 
     /// `unchecked`: the world had not started when this agent came, so whether its clock is
-    /// lockstep is known only once it answers; until then the agent asks.
+    /// lockstep is known only once it answers; until then the agent asks, when `unchecked` rings.
     async fn lockstep(
         &mut self,
         mission: &Mission,
-        unchecked: bool,
+        unchecked: Option<ClockBell>,
         feed: &Feed,
         faults: &mut UnboundedReceiver<anyhow::Error>,
         options: &Options,
@@ -538,10 +542,9 @@ impl Shell {
         // Came before the world started: what arrives stays held, and no command leaves, until
         // the world's clock says it runs this agent's mission (an agent of another would steer
         // its vehicle for hundreds of ticks before it heard). The clock answers once the world
-        // has started, which its first state shows: asked then, and every so often meanwhile.
-        let mut clock =
-            unchecked.then(|| await_clock(&self.session, &self.keys, &self.rejected, CLOCK_POLL, CLOCK_POLL_MAX));
-        if !unchecked {
+        // has started, which it announces and its first state shows: asked at each.
+        let mut clock = unchecked.map(|bell| await_clock(&self.session, &self.keys, &self.rejected, bell));
+        if clock.is_none() {
             feed.start();
         }
         let exit = loop {
@@ -561,11 +564,7 @@ impl Shell {
                     feed.start();
                 }
                 _ = feed.first_state.notified(), if clock.is_some() => {
-                    if let Some(answer) = ask_clock(&self.session, &self.keys, &self.rejected).await? {
-                        clock = None;
-                        check_clock(mission, &answer)?;
-                        feed.start();
-                    }
+                    clock.iter().for_each(ClockAnswer::look_again);
                 }
                 Some(p) = self.presence.recv() => match p.role {
                     Role::World if !p.alive => {

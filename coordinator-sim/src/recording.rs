@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
-use tcpf_bus::clock_query::{answered, await_clock, ClockAnswer};
+use tcpf_bus::clock_query::{answered, await_clock, ClockAnswer, ClockBell};
 use tcpf_bus::handover::{take_over, take_over_held, Ack};
 use tcpf_bus::history;
 use tcpf_bus::keys::{Keys, Role};
@@ -71,8 +71,6 @@ impl Message {
 }
 /// How long `tcpf record` waits after the end for the roles' exit reports.
 const REPORT_GRACE: Duration = Duration::from_secs(2);
-/// How often the recorder asks for the clock before the world has started.
-const CLOCK_POLL: Duration = Duration::from_millis(50);
 
 /// Each machine boxed: both are large (their metrics), and a recording holds one.
 enum Machine {
@@ -212,7 +210,9 @@ impl Recording {
                 control_period: dt,
             },
         };
-        let clock = await_clock(session, &keys, &rejected, CLOCK_POLL, CLOCK_POLL);
+        // Before the recorder's token, which the world waits for: its announcement that it has
+        // started cannot pass by unheard.
+        let clock = await_clock(session, &keys, &rejected, ClockBell::declare(session, &keys).await?);
         Ok(Recording {
             rejected,
             machine,
@@ -312,11 +312,9 @@ impl Recording {
                                         t.tick
                                     ));
                                 }
-                                // The clock answers now: asked again at once rather than at the
-                                // next poll, as ticks are held until it has.
-                                if self.clock.is_some() {
-                                    self.clock = Some(await_clock(&self.session, &self.keys, &self.rejected, CLOCK_POLL, CLOCK_POLL));
-                                }
+                                // The clock answers now: asked again at once, should its
+                                // announcement be slower, as ticks are held until it has.
+                                self.clock.iter().for_each(ClockAnswer::look_again);
                             }
                             if let Err(why) = recorder.on_tick(t) {
                                 self.rejected.reject(why, &m.key);
