@@ -184,17 +184,9 @@ mod tests {
 
     use super::*;
     use crate::claim::{claim, Rivals};
+    use crate::lone_session;
     use tcpf_core::msg::PROTOCOL_VERSION;
     use tcpf_core::time::UnixTime;
-
-    async fn lone_session() -> Session {
-        let mut config = zenoh::Config::default();
-        config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-        config
-            .insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#)
-            .unwrap();
-        zenoh::open(config).await.unwrap()
-    }
 
     /// Waits up to 10 s, for a loaded machine, for `done`.
     async fn until(done: impl Fn() -> bool, what: &str) {

@@ -183,16 +183,8 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lone_session;
     use tcpf_core::msg::{End, PROTOCOL_VERSION};
-
-    async fn lone_session() -> Session {
-        let mut config = zenoh::Config::default();
-        config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-        config
-            .insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#)
-            .unwrap();
-        zenoh::open(config).await.unwrap()
-    }
 
     /// The world waits for a recorder's acknowledgement of the end, asking again meanwhile, for
     /// as long as the recorder holds it (while it fetches the ticks it lost).

@@ -24,3 +24,14 @@ pub mod session;
 pub mod signals;
 pub mod subscribe;
 pub mod waits;
+
+/// A session of its own for a unit test: a peer alone on a free loopback port, no scouting.
+#[cfg(test)]
+async fn lone_session() -> zenoh::Session {
+    let mut config = zenoh::Config::default();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    config
+        .insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#)
+        .unwrap();
+    zenoh::open(config).await.unwrap()
+}
