@@ -1,7 +1,6 @@
 //! `tcpf run` as a fleet of processes over Zenoh, spawned as a user would. Every test kills what
 //! it started, whatever happens, and checks that no process is left behind.
 
-use std::collections::HashSet;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -1053,81 +1052,20 @@ fn policy(pid: u32) -> u32 {
     rest[41 - 3].parse().unwrap()
 }
 
-/// The binary is position-independent (ELF type 3, a shared object), so that its image loads at
-/// a random address, unless it was built with `TCPF_FLEET_LINK=1` for a host of many agents:
-/// then it is linked at a fixed address (type 2, an executable), so that every process of a
-/// fleet shares its relocated data instead of holding a copy the loader wrote.
+/// The binary is position-independent (ELF type DYN, a shared object), so that its image loads at
+/// a random address: the build at a fixed address for a host of many agents is one a user opts
+/// into (`cargo xtask fleet-build`), which `.ci/run` builds and checks apart.
 #[test]
 #[cfg(all(target_os = "linux", target_env = "gnu", not(target_feature = "crt-static")))]
-fn the_binary_is_position_independent_unless_linked_for_a_fleet() {
-    let header = std::fs::read(env!("CARGO_BIN_EXE_tcpf")).unwrap();
-    assert_eq!(&header[..4], b"\x7fELF");
-    // e_type in the file's byte order (EI_DATA: 1 little-endian, 2 big-endian).
-    let e_type = [header[16], header[17]];
-    let e_type = match header[5] {
-        1 => u16::from_le_bytes(e_type),
-        _ => u16::from_be_bytes(e_type),
-    };
-    let fixed = option_env!("TCPF_FIXED_ADDRESS").is_some();
-    assert_eq!(e_type, if fixed { 2 } else { 3 }, "e_type (fleet link: {fixed})");
+fn the_binary_is_position_independent() {
     let readelf = Command::new("readelf")
         .args(["-h", env!("CARGO_BIN_EXE_tcpf")])
         .output()
         .expect("binutils' readelf reads the header");
     let header = String::from_utf8_lossy(&readelf.stdout);
-    let kind = if fixed { "EXEC" } else { "DYN" };
     assert!(
-        header.lines().any(|l| l.contains("Type:") && l.contains(kind)),
+        header.lines().any(|l| l.contains("Type:") && l.contains("DYN")),
         "{header}"
-    );
-}
-
-/// Built with `TCPF_FLEET_LINK=1`, the functions an agent runs lie side by side (build.rs,
-/// link-order.txt), so that an agent maps about 3 MiB of the binary's code rather than 11: its
-/// functions are found in the binary, and they fill the span they take. Where build.rs did not
-/// pass the list (a default build, a debug build, another compiler, a linker that does not take
-/// it), it said why as it built; `.ci/run` builds once with it.
-#[test]
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn an_agents_functions_are_linked_side_by_side() {
-    let order = env!("TCPF_LINK_ORDER");
-    if order != "applied" {
-        eprintln!("link-order.txt {order}: not checked");
-        return;
-    }
-    let list = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/link-order.txt")).unwrap();
-    let wanted: HashSet<&str> = list.lines().filter(|l| !l.starts_with('#')).collect();
-    let nm = Command::new("nm")
-        .args(["--defined-only", "-S", env!("CARGO_BIN_EXE_tcpf")])
-        .output()
-        .expect("binutils' nm lists the binary's symbols");
-    let symbols = String::from_utf8(nm.stdout).unwrap();
-    let (mut found, mut start, mut end, mut code) = (HashSet::new(), u64::MAX, 0, 0);
-    for line in symbols.lines() {
-        let fields: Vec<&str> = line.split(' ').collect();
-        if let [address, size, _, name] = fields[..] {
-            if wanted.contains(name) {
-                let (address, size) = (
-                    u64::from_str_radix(address, 16).unwrap(),
-                    u64::from_str_radix(size, 16).unwrap(),
-                );
-                found.insert(name);
-                (start, end, code) = (start.min(address), end.max(address + size), code + size);
-            }
-        }
-    }
-    assert!(
-        found.len() * 100 >= wanted.len() * 95,
-        "only {} of the {} functions of link-order.txt are in the binary: a change of Cargo.lock, of \
-         features, of the release profile or of what an agent runs? scripts/link-order makes the \
-         list anew",
-        found.len(),
-        wanted.len()
-    );
-    let span = end - start;
-    assert!(
-        span * 100 <= code * 105,
-        "the agent's {code} bytes of code span {span}: the linker did not take link-order.txt"
     );
 }
 
