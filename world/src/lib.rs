@@ -24,14 +24,15 @@ use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
-use tcpf_core::fleet::membership::{Arrival, Deadlines, Decision, Gathering, Member};
+use tcpf_core::fleet::membership::{Arrival, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
-use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, PROTOCOL_VERSION};
+use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, TickRecord, PROTOCOL_VERSION};
 use tcpf_core::outputs::ros2::{Played, Refused, Stamp, MAP_FRAME};
 use tcpf_core::roles::lockstep::{Reject, Timing, WorldNode};
+use tcpf_core::roles::lockstep_world::{Io, LockstepWorld};
 use tcpf_core::roles::realtime::RealtimeWorld;
-use tcpf_core::time::UnixTime;
+use tcpf_core::time::{Moment, UnixTime};
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::sample::Locality;
@@ -160,9 +161,11 @@ struct Stepper {
     tick_out: Outlet,
     end_out: Arc<Outlet>,
     clock: Arc<ClockServer>,
-    /// The world's monotonic clock, which `deadlines` counts in.
+    /// The world's monotonic clock, which its machine's deadlines count in.
     monotonic: Monotonic,
     rejected: Rejected,
+    /// For the log of a vehicle lost for silence.
+    command_timeout: Duration,
     /// The end, once published, or a publication that failed: the task stops on either.
     ends: UnboundedSender<Result<End>>,
     /// The losses being handed over to the recorders.
@@ -170,15 +173,9 @@ struct Stepper {
 }
 
 struct Stepped {
-    node: WorldNode,
-    /// Until the first states are out, commands that came.
-    held: Option<Vec<(String, Command)>>,
+    world: LockstepWorld,
     /// The clock the world serves, but for its tick.
     clock: Clock,
-    /// The command timeout of the tick under way, and the rejoin deadlines.
-    deadlines: Deadlines,
-    /// The end is out: nothing more is published.
-    over: bool,
     /// Each closed tick, for ROS 2 nodes (`--ros2`).
     ros2: Option<tcpf_bus::ros2::World>,
 }
@@ -188,75 +185,35 @@ impl Stepper {
         self.stepped.lock().unwrap_or_else(|e| e.into_inner())
     }
 
+    /// Hands `act` the world's machine, the time and the outlets it does its work through.
+    fn with(&self, act: impl FnOnce(&mut LockstepWorld, Moment, &mut Doing)) {
+        let now = self.monotonic.now();
+        let mut stepped = self.lock();
+        let Stepped { world, clock, ros2 } = &mut *stepped;
+        act(
+            world,
+            now,
+            &mut Doing {
+                stepper: self,
+                clock,
+                ros2,
+            },
+        );
+    }
+
+    /// A command on `key`: one whose contents name another vehicle is counted and dropped, as
+    /// is anything once the end is out.
     fn take(&self, key: &str, command: Command) {
-        let mut stepped = self.lock();
-        if let Some(held) = &mut stepped.held {
-            held.push((key.to_string(), command));
-        } else if !stepped.over {
-            self.rejected
-                .check(key, command.id, || stepped.node.on_command(command));
-            self.step(&mut stepped);
-        }
-    }
-
-    /// The run starts: the first states go out, then what came before them goes in.
-    fn start(&self) {
-        let mut stepped = self.lock();
-        self.publish(&mut stepped);
-        for (key, command) in stepped.held.take().unwrap_or_default() {
-            self.rejected
-                .check(&key, command.id, || stepped.node.on_command(command));
-        }
-        self.step(&mut stepped);
-    }
-
-    /// Advances every tick that waits for nobody, publishing each one's states, or the end.
-    fn step(&self, stepped: &mut Stepped) {
-        while !stepped.over && !stepped.node.waiting() {
-            let mut recorded = Ok(());
-            let ros2 = &mut stepped.ros2;
-            let closed = stepped.node.advance(|record| {
-                let put = self.tick_out.put_now(&record);
-                recorded = match ros2 {
-                    Some(ros2) => put.and_then(|()| {
-                        let fleet = record.states.iter().zip(record.commands.iter().map(Option::as_ref));
-                        ros2.put(fleet, Stamp::from_seconds(record.states[0].t))
-                    }),
-                    None => put,
-                };
-            });
-            if let Err(e) = recorded {
-                let _ = self.ends.send(Err(e));
+        self.with(|world, now, doing| {
+            if world.over() {
+                return;
             }
-            match closed {
-                Some(end) => {
-                    stepped.over = true;
-                    let _ = self.ends.send(self.end_out.put_now(&end).map(|()| end));
-                }
-                None => self.publish(stepped),
+            if Keys::id_of(key) != Some(command.id) {
+                self.rejected.wrong_sender(key);
+                return;
             }
-        }
-    }
-
-    fn publish(&self, stepped: &mut Stepped) {
-        self.clock.set(Clock {
-            tick: stepped.node.tick(),
-            ..stepped.clock
+            world.handle_command(command, now, doing);
         });
-        for (outlet, state) in self.outlets.iter().zip(stepped.node.states()) {
-            if let Err(e) = outlet.put_now(state) {
-                let _ = self.ends.send(Err(e));
-            }
-        }
-        stepped.deadlines.on_tick(self.monotonic.now());
-    }
-
-    /// Vehicle `id` is lost: says so, then the tick goes on without it.
-    fn lose(&self, stepped: &mut Stepped, id: u32, reason: LossReason) {
-        if let Some(lost) = stepped.node.on_lost(id, reason) {
-            self.announce(lost);
-        }
-        self.step(stepped);
     }
 
     /// Tells the agents that a vehicle is lost, and hands it over to the recorders on a task of
@@ -274,6 +231,100 @@ impl Stepper {
             }
         });
         self.handovers.lock().unwrap_or_else(|e| e.into_inner()).push(handing);
+    }
+
+    /// A publication failed: the task stops on it.
+    fn failed(&self, e: anyhow::Error) {
+        let _ = self.ends.send(Err(e));
+    }
+}
+
+/// What the lockstep world's machine does, through the process's outlets, under its lock.
+struct Doing<'a> {
+    stepper: &'a Stepper,
+    clock: &'a Clock,
+    ros2: &'a mut Option<tcpf_bus::ros2::World>,
+}
+
+impl Io for Doing<'_> {
+    fn states(&mut self, tick: u64, states: &[State]) {
+        self.stepper.clock.set(Clock { tick, ..*self.clock });
+        for (outlet, state) in self.stepper.outlets.iter().zip(states) {
+            if let Err(e) = outlet.put_now(state) {
+                self.stepper.failed(e);
+            }
+        }
+    }
+
+    fn record(&mut self, record: TickRecord<'_>) {
+        let put = self.stepper.tick_out.put_now(&record);
+        let recorded = match self.ros2 {
+            Some(ros2) => put.and_then(|()| {
+                let fleet = record.states.iter().zip(record.commands.iter().map(Option::as_ref));
+                ros2.put(fleet, Stamp::from_seconds(record.states[0].t))
+            }),
+            None => put,
+        };
+        if let Err(e) = recorded {
+            self.stepper.failed(e);
+        }
+    }
+
+    fn end(&mut self, end: &End) {
+        let _ = self
+            .stepper
+            .ends
+            .send(self.stepper.end_out.put_now(end).map(|()| end.clone()));
+    }
+
+    fn lost(&mut self, lost: Lost) {
+        self.stepper.announce(lost);
+    }
+
+    fn rejected(&mut self, id: u32, reject: Reject) {
+        self.stepper.rejected.reject(reject, &self.stepper.keys.cmd(id));
+    }
+
+    fn decided(&mut self, decision: &Decision, t: f64) {
+        match *decision {
+            Decision::AwaitReturn { id, within } => {
+                tracing::warn!("world: agent {id} is gone at t = {t:.2} s; waiting {within:?} for it to come back");
+            }
+            Decision::Lose {
+                id,
+                reason: LossReason::Silent,
+                ..
+            } => tracing::warn!(
+                "world: agent {id} sent no command of t = {t:.2} s within {:?}; its vehicle is lost and drifts",
+                self.stepper.command_timeout
+            ),
+            Decision::Lose {
+                id,
+                reason: LossReason::Gone,
+                awaited: true,
+            } => tracing::warn!("world: agent {id} did not come back; its vehicle drifts"),
+            Decision::Lose {
+                id,
+                reason: LossReason::Gone,
+                awaited: false,
+            } => tracing::warn!("world: agent {id} is gone at t = {t:.2} s; its vehicle drifts"),
+            Decision::TellAgain(lost) => tracing::warn!(
+                "world: an agent of vehicle {} is here at t = {t:.2} s, but the vehicle was lost at tick {}: telling it again",
+                lost.id,
+                lost.tick
+            ),
+            Decision::Back(id) => tracing::info!("world: agent {id} is back at t = {t:.2} s"),
+            Decision::Resumed(more) => tracing::info!(
+                "world: resumed after {:.1} s stopped or starved; the agents' commands get that long more",
+                more.as_secs_f64()
+            ),
+        }
+    }
+
+    fn again(&mut self, n: usize, state: &State) {
+        if let Err(e) = self.stepper.outlets[n].put_now(state) {
+            self.stepper.failed(e);
+        }
     }
 }
 
@@ -389,8 +440,12 @@ async fn serve(
         let (ends_tx, ends) = mpsc::unbounded_channel();
         let stepper = Arc::new(Stepper {
             stepped: Mutex::new(Stepped {
-                node: WorldNode::new(mission, &paths),
-                held: Some(Vec::new()),
+                world: LockstepWorld::new(
+                    WorldNode::new(mission, &paths),
+                    options.command_timeout,
+                    options.rejoin_timeout,
+                    monotonic.now(),
+                ),
                 clock: Clock {
                     version: PROTOCOL_VERSION,
                     realtime: false,
@@ -399,8 +454,6 @@ async fn serve(
                     tick: 0,
                     mission: digest,
                 },
-                deadlines: Deadlines::new(options.command_timeout, options.rejoin_timeout, monotonic.now()),
-                over: false,
                 ros2: ros2.take().map(|r| r.node),
             }),
             session: session.clone(),
@@ -411,6 +464,7 @@ async fn serve(
             clock: clock.clone(),
             monotonic,
             rejected: rejected.clone(),
+            command_timeout: options.command_timeout,
             ends: ends_tx,
             handovers: Mutex::new(Vec::new()),
         });
@@ -473,7 +527,7 @@ async fn serve(
     };
     let exit = match inbound {
         Inbound::Queued(commands) => shell.realtime(mission, digest, &paths, &simulated, commands).await?,
-        Inbound::Fed { stepper, mut ends } => shell.lockstep(&paths, &stepper, &mut ends, options).await?,
+        Inbound::Fed { stepper, mut ends } => shell.lockstep(&paths, &stepper, &mut ends).await?,
     };
     Ok((exit, Some(token)))
 }
@@ -484,54 +538,36 @@ impl Shell<'_> {
         paths: &[(u32, GeneralizedPath)],
         stepper: &Stepper,
         ends: &mut UnboundedReceiver<Result<End>>,
-        options: &Options,
     ) -> Result<Exit> {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         stepper.lock().clock.epoch = unix_now();
-        stepper.start();
+        stepper.with(|world, now, doing| world.start(now, doing));
         let (exit, end) = loop {
-            let (woken_for, over) = {
-                let stepped = stepper.lock();
-                (stepped.deadlines.poll_timeout(), stepped.over)
-            };
+            let woken_for = stepper.lock().world.poll_timeout();
             tokio::select! {
                 Some(end) = ends.recv() => {
                     let end = end?;
                     let exit = Exit::Ended {
                         ticks: end.ticks,
                         lost: end.lost.len(),
-                        short: stepper.lock().node.not_arrived(),
+                        short: stepper.lock().world.not_arrived(),
                     };
                     break (exit, Some(end));
                 }
                 Some(p) = self.presence.recv() => {
-                    if p.role != Role::Agent || !ids.contains(&p.id) {
-                        continue;
-                    }
-                    let mut stepped = stepper.lock();
-                    let lost = stepped.node.loss_of(p.id);
-                    let now = stepper.monotonic.now();
-                    if let Some(decision) = stepped.deadlines.on_agent(p.id, p.alive, lost, now) {
-                        self.decide(stepper, &mut stepped, decision, &ids, options)?;
+                    if p.role == Role::Agent && ids.contains(&p.id) {
+                        stepper.with(|world, now, doing| world.handle_agent(p.id, p.alive, now, doing));
                     }
                 }
-                _ = tokio::time::sleep_until(stepper.monotonic.at(woken_for)), if !over => {
-                    let mut stepped = stepper.lock();
-                    let Stepped { node, deadlines, .. } = &mut *stepped;
-                    let now = stepper.monotonic.now();
-                    for decision in deadlines.handle_timeout(now, woken_for, || node.waiting_for()) {
-                        self.decide(stepper, &mut stepped, decision, &ids, options)?;
-                    }
+                _ = tokio::time::sleep_until(stepper.monotonic.at(woken_for.unwrap_or_default())), if woken_for.is_some() => {
+                    let woken_for = woken_for.unwrap_or_default();
+                    stepper.with(|world, now, doing| world.handle_timeout(now, woken_for, doing));
                 }
                 _ = self.shutdown.recv() => {
-                    let mut stepped = stepper.lock();
-                    let end = if stepped.over {
-                        ends.try_recv().ok().and_then(Result::ok)
-                    } else {
-                        stepped.over = true;
-                        let end = stepped.node.interrupted();
-                        self.end_out.put_now(&end)?;
-                        Some(end)
+                    stepper.with(|world, _, doing| world.interrupt(doing));
+                    let end = match ends.try_recv() {
+                        Ok(end) => Some(end?),
+                        Err(_) => None,
                     };
                     break (Exit::Interrupted, end);
                 }
@@ -560,60 +596,6 @@ impl Shell<'_> {
     /// Hands the end over to the recorders: acknowledged, they have every tick before it too.
     async fn hand_over_end(&self, end: &End) -> Result<()> {
         hand_over(&self.session, &self.keys, self.keys.end(), end, "world: the end").await?;
-        Ok(())
-    }
-
-    /// Carries out what the world's deadlines decided, and says so.
-    fn decide(
-        &self,
-        stepper: &Stepper,
-        stepped: &mut Stepped,
-        decision: Decision,
-        ids: &[u32],
-        options: &Options,
-    ) -> Result<()> {
-        let t = stepped.node.states()[0].t;
-        match decision {
-            Decision::AwaitReturn { id, within } => {
-                tracing::warn!("world: agent {id} is gone at t = {t:.2} s; waiting {within:?} for it to come back");
-            }
-            Decision::Lose { id, reason, awaited } => {
-                match (reason, awaited) {
-                    (LossReason::Silent, _) => tracing::warn!(
-                        "world: agent {id} sent no command of t = {t:.2} s within {:?}; its vehicle is lost and drifts",
-                        options.command_timeout
-                    ),
-                    (LossReason::Gone, true) => {
-                        tracing::warn!("world: agent {id} did not come back; its vehicle drifts")
-                    }
-                    (LossReason::Gone, false) => {
-                        tracing::warn!("world: agent {id} is gone at t = {t:.2} s; its vehicle drifts")
-                    }
-                }
-                stepper.lose(stepped, id, reason);
-            }
-            // A new agent of a lost vehicle: the world refuses its commands, and its neighbours
-            // would wait for it again. It is told, and stops.
-            Decision::TellAgain(lost) => {
-                tracing::warn!(
-                    "world: an agent of vehicle {} is here at t = {t:.2} s, but the vehicle was lost at tick {}: telling it again",
-                    lost.id,
-                    lost.tick
-                );
-                stepper.announce(lost);
-            }
-            Decision::Back(id) => {
-                tracing::info!("world: agent {id} is back at t = {t:.2} s");
-                // It subscribed before its token: the state it missed, again.
-                if let Some(n) = ids.iter().position(|&i| i == id).filter(|_| !stepped.over) {
-                    self.outlets[n].put_now(&stepped.node.states()[n])?;
-                }
-            }
-            Decision::Resumed(more) => tracing::info!(
-                "world: resumed after {:.1} s stopped or starved; the agents' commands get that long more",
-                more.as_secs_f64()
-            ),
-        }
         Ok(())
     }
 

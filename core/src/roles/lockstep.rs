@@ -106,6 +106,11 @@ impl WorldNode {
         self.world.tick()
     }
 
+    /// Where vehicle `id` is in the fleet's order (of `states`), if it is one.
+    pub fn position(&self, id: u32) -> Option<usize> {
+        self.ids.position(id)
+    }
+
     /// The states of the current tick, to publish.
     pub fn states(&self) -> &[State] {
         &self.states
