@@ -492,6 +492,20 @@ fn check_clock(mission: &Mission, clock: &Clock) -> Result<()> {
 }
 
 impl Shell {
+    /// This agent's exit report: its lockstep timing, or its realtime one.
+    async fn report(&self, timing: &Timing, realtime: Option<RealtimeReport>) -> Result<()> {
+        report(
+            &self.session,
+            &self.keys,
+            Role::Agent,
+            self.id,
+            &self.rejected,
+            timing,
+            realtime,
+        )
+        .await
+    }
+
     /// Realtime: asks for the world's clock until it has started (`None` on a signal).
     async fn wait_for_clock(
         &mut self,
@@ -613,16 +627,7 @@ impl Shell {
             (fed.machine.node().agent().gamma(), fed.machine.timing().clone())
         };
         tracing::info!("agent {id}: {exit} at γ = {gamma:.3}");
-        report(
-            &self.session,
-            &self.keys,
-            Role::Agent,
-            id,
-            &self.rejected,
-            &timing,
-            None,
-        )
-        .await?;
+        self.report(&timing, None).await?;
         Ok(exit)
     }
 
@@ -697,12 +702,7 @@ impl Shell {
             timing.skipped,
             timing.stale_states
         );
-        report(
-            &self.session,
-            &self.keys,
-            Role::Agent,
-            id,
-            &self.rejected,
+        self.report(
             &Timing::default(),
             Some(RealtimeReport {
                 timing,

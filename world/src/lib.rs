@@ -533,6 +533,20 @@ async fn serve(
 }
 
 impl Shell<'_> {
+    /// The world's exit report: a realtime world's timing with it.
+    async fn report(&self, realtime: Option<RealtimeReport>) -> Result<()> {
+        report(
+            &self.session,
+            &self.keys,
+            Role::World,
+            0,
+            &self.rejected,
+            &Timing::default(),
+            realtime,
+        )
+        .await
+    }
+
     async fn lockstep(
         &mut self,
         paths: &[(u32, GeneralizedPath)],
@@ -580,16 +594,7 @@ impl Shell<'_> {
         if let Some(end) = &end {
             self.hand_over_end(end).await?;
         }
-        report(
-            &self.session,
-            &self.keys,
-            Role::World,
-            0,
-            &self.rejected,
-            &Timing::default(),
-            None,
-        )
-        .await?;
+        self.report(None).await?;
         Ok(exit)
     }
 
@@ -720,34 +725,26 @@ impl Shell<'_> {
             timing.skipped,
             timing.late_commands
         );
-        report(
-            &self.session,
-            &self.keys,
-            Role::World,
-            0,
-            &self.rejected,
-            &Timing::default(),
-            Some(RealtimeReport {
-                timing,
-                published: 0,
-                played: ids
-                    .iter()
-                    .filter(|id| !simulated.contains(id))
-                    .map(|&id| {
-                        (
-                            id,
-                            if played.heard(id) {
-                                Player::Ros2
-                            } else {
-                                Player::Process
-                            },
-                        )
-                    })
-                    .collect(),
-                wrong_frames: played.wrong_frames(),
-                surplus_odometries: played.surplus(),
-            }),
-        )
+        self.report(Some(RealtimeReport {
+            timing,
+            published: 0,
+            played: ids
+                .iter()
+                .filter(|id| !simulated.contains(id))
+                .map(|&id| {
+                    (
+                        id,
+                        if played.heard(id) {
+                            Player::Ros2
+                        } else {
+                            Player::Process
+                        },
+                    )
+                })
+                .collect(),
+            wrong_frames: played.wrong_frames(),
+            surplus_odometries: played.surplus(),
+        }))
         .await?;
         Ok(exit)
     }
