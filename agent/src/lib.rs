@@ -159,8 +159,8 @@ impl Feed {
     /// A state or γ that came on `key`: into the machine if it came on its sender's key.
     fn take(&self, key: &str, input: Input) {
         if let Input::Gamma(g) = &input {
-            if Keys::id_of(key) != Some(g.from) {
-                return self.rejected.wrong_sender(key);
+            if !self.rejected.from_sender(key, g.from) {
+                return;
             }
         }
         let mut fed = self.lock();
@@ -599,9 +599,7 @@ impl Shell {
                 },
                 Some(l) = self.losses.recv() => {
                     let lost = Lost::from(l.message);
-                    if Keys::id_of(&l.key) != Some(lost.id) {
-                        self.rejected.wrong_sender(&l.key);
-                    } else {
+                    if self.rejected.from_sender(&l.key, lost.id) {
                         match feed.with(|machine, now| machine.on_lost(&lost, now)) {
                             Ok(true) => {
                                 tracing::warn!(

@@ -44,11 +44,20 @@ impl Rejected {
     /// Hands a message that names sender `id` on to a machine (`take`) if it came on that
     /// sender's key; counts it if not, or if the machine refuses it.
     pub fn check(&self, key: &str, id: u32, take: impl FnOnce() -> Result<(), Reject>) {
-        if Keys::id_of(key) != Some(id) {
-            self.wrong_sender(key);
-        } else if let Err(e) = take() {
-            self.reject(e, key);
+        if self.from_sender(key, id) {
+            if let Err(e) = take() {
+                self.reject(e, key);
+            }
         }
+    }
+
+    /// Whether a message that names sender `id` came on that sender's key; counted if not.
+    pub fn from_sender(&self, key: &str, id: u32) -> bool {
+        let own = Keys::id_of(key) == Some(id);
+        if !own {
+            self.wrong_sender(key);
+        }
+        own
     }
 
     /// A message whose contents name another sender than its key.

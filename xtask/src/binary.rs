@@ -106,7 +106,7 @@ impl Layout {
             listed: wanted.len(),
             found: found.len(),
             code,
-            span: end.saturating_sub(start.min(end)),
+            span: end.saturating_sub(start),
         }
     }
 

@@ -34,8 +34,9 @@ pub fn build(root: &Path) -> Result<(), String> {
             list.rustc
         ));
     }
-    let built = link(root)?;
-    let binary = tools::target_dir(root)?.join("fleet/tcpf");
+    let target = tools::target_dir(root)?;
+    let built = link(root, &target)?;
+    let binary = target.join("fleet/tcpf");
     std::fs::copy(&built, &binary).map_err(|e| format!("copying {} to {}: {e}", built.display(), binary.display()))?;
     let layout = verify(&binary, &list)?;
     println!(
@@ -49,13 +50,14 @@ pub fn build(root: &Path) -> Result<(), String> {
 }
 
 /// Links `tcpf` at a fixed address in the order of the list at `List::PATH` (whatever it names),
-/// and returns where: `target/release/tcpf`, until the next plain build links it there again.
+/// and returns where: `release/tcpf` in `target`, cargo's target directory, until the next plain
+/// build links it there again.
 /// Cargo links again only when the arguments change, not the list they name: it gets a copy of
 /// the list named by its contents. (Arguments change no function's mangled name.)
-pub fn link(root: &Path) -> Result<PathBuf, String> {
+pub fn link(root: &Path, target: &Path) -> Result<PathBuf, String> {
     let path = root.join(List::PATH);
     let text = std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let fleet = tools::target_dir(root)?.join("fleet");
+    let fleet = target.join("fleet");
     std::fs::create_dir_all(&fleet).map_err(|e| format!("{}: {e}", fleet.display()))?;
     let copy = fleet.join(format!("link-order-{:016x}.txt", fnv1a(&text)));
     std::fs::write(&copy, &text).map_err(|e| format!("{}: {e}", copy.display()))?;
@@ -71,7 +73,7 @@ pub fn link(root: &Path) -> Result<PathBuf, String> {
             "{e}: a linker that takes no symbol ordering file (GNU ld, gold) cannot make it; rustc's own rust-lld can"
         )
     })?;
-    Ok(tools::target_dir(root)?.join("release/tcpf"))
+    Ok(target.join("release/tcpf"))
 }
 
 /// FNV-1a, 64 bits: a name for a list's contents that stays the same from one build to the next.
@@ -107,12 +109,7 @@ pub fn verify(binary: &Path, list: &List) -> Result<Layout, String> {
             ))
         }
     }
-    let nm = tools::output(
-        std::process::Command::new("nm")
-            .args(["--defined-only", "-S"])
-            .arg(binary),
-    )?;
-    let layout = Layout::of(&list.functions, &binary::symbols(&nm));
+    let layout = Layout::of(&list.functions, &binary::symbols(&tools::nm(binary)?));
     layout.check().map_err(|e| format!("{}: {e}", binary.display()))?;
     Ok(layout)
 }

@@ -73,7 +73,7 @@ pub fn make(root: &Path) -> Result<(), String> {
     if !path.exists() {
         std::fs::write(&path, "").map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    let tcpf = fleet::link(root)?;
+    let tcpf = fleet::link(root, &tools::target_dir(root)?)?;
     let work = Scratch::new()?;
     let lanes = work.0.join("lanes3.toml");
     let mission = tools::output(Command::new(&tcpf).args(["gen", "lanes", "--vehicles", "3"]))?;
@@ -114,7 +114,7 @@ pub fn make(root: &Path) -> Result<(), String> {
     if called.is_empty() {
         return Err(format!("no agent's profile in {}", work.0.display()));
     }
-    let nm = tools::output(Command::new("nm").args(["--defined-only", "-S"]).arg(&tcpf))?;
+    let nm = tools::nm(&tcpf)?;
     let defined: BTreeSet<&str> = binary::symbols(&nm)
         .into_iter()
         .filter(binary::Symbol::is_code)

@@ -64,6 +64,11 @@ pub fn rustc_version() -> Result<String, String> {
     Ok(output(Command::new(rustc).arg("-V"))?.trim().to_string())
 }
 
+/// The symbols `binary` defines, with their sizes, as `nm --defined-only -S` lists them.
+pub fn nm(binary: &Path) -> Result<String, String> {
+    output(Command::new("nm").args(["--defined-only", "-S"]).arg(binary))
+}
+
 /// Where cargo puts this workspace's builds (`CARGO_TARGET_DIR`, a configuration's, or `target/`).
 pub fn target_dir(root: &Path) -> Result<PathBuf, String> {
     let metadata = output(

@@ -233,6 +233,15 @@ mod tests {
         (LockstepWorld::new(node, COMMAND_TIMEOUT, rejoin, at(0.0)), ids)
     }
 
+    /// A world started at 0 s, what its start did already taken from the log.
+    fn started(rejoin: Option<Duration>) -> (LockstepWorld, Vec<u32>, Log) {
+        let (mut world, ids) = world(rejoin);
+        let mut log = Log::default();
+        world.start(at(0.0), &mut log);
+        log.take();
+        (world, ids, log)
+    }
+
     fn at(s: f64) -> Moment {
         Moment::from_secs(s)
     }
@@ -266,9 +275,7 @@ mod tests {
 
     #[test]
     fn a_silent_agent_is_lost_at_the_command_timeout_of_its_tick_and_the_tick_goes_on() {
-        let (mut world, ids) = world(None);
-        let mut log = Log::default();
-        world.start(at(0.0), &mut log);
+        let (mut world, ids, mut log) = started(None);
         world.handle_command(command(ids[0], 0), at(0.5), &mut log);
         log.take();
         let due = world.poll_timeout().unwrap();
@@ -302,10 +309,7 @@ mod tests {
 
     #[test]
     fn a_gone_agent_is_awaited_then_sent_its_state_again_or_lost() {
-        let (mut world, ids) = world(Some(REJOIN));
-        let mut log = Log::default();
-        world.start(at(0.0), &mut log);
-        log.take();
+        let (mut world, ids, mut log) = started(Some(REJOIN));
         world.handle_agent(ids[1], false, at(1.0), &mut log);
         let awaiting = Decision::AwaitReturn {
             id: ids[1],
@@ -344,10 +348,7 @@ mod tests {
 
     #[test]
     fn an_interrupt_ends_the_tick_under_way_once_and_nothing_leaves_after_the_end() {
-        let (mut world, ids) = world(None);
-        let mut log = Log::default();
-        world.start(at(0.0), &mut log);
-        log.take();
+        let (mut world, ids, mut log) = started(None);
         world.interrupt(&mut log);
         assert_eq!(log.take(), [Did::End(0)], "no tick closed");
         world.interrupt(&mut log);
