@@ -131,7 +131,7 @@ impl Process {
 /// The exit report of this very process (a role started again reports once per life).
 fn report_of<'a>(recording: &'a Recording, c: &Process) -> Option<&'a Report> {
     recording
-        .exit_reports
+        .reports()
         .iter()
         .find(|r| r.role == c.role.as_str() && r.id == c.id && r.pid == c.pid)
 }
@@ -709,7 +709,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                     supervisor.recorded(
                         Recorded {
                             ticks: recording.ticks(),
-                            ended: recording.end.is_some(),
+                            ended: recording.ended(),
                             complete: recording.complete(),
                             lost: recording.lost(),
                             refused_ahead: recording.rejected.totals().future,

@@ -3,7 +3,7 @@
 use crate::mission::{self, Mission};
 use crate::model::path::GeneralizedPath;
 use crate::model::planner;
-use crate::msg::{Command, PROTOCOL_VERSION};
+use crate::msg::{Command, State, PROTOCOL_VERSION};
 
 /// Case (b): the mission, each vehicle's planned path, and the common arrival time.
 pub fn case_b() -> (Mission, Vec<(u32, GeneralizedPath)>, f64) {
@@ -31,5 +31,21 @@ pub fn command_at(id: u32, tick: u64, gamma: f64) -> Command {
         y_e: 0.0,
         psi_e: 0.0,
         receptions: vec![],
+    }
+}
+
+/// The state of vehicle `id` at `tick`, standing at `position`.
+pub fn still(id: u32, tick: u64, dt: f64, position: [f64; 2]) -> State {
+    State {
+        version: PROTOCOL_VERSION,
+        tick,
+        id,
+        t: tick as f64 * dt,
+        position,
+        heading: 0.0,
+        sideslip: 0.0,
+        sideslip_rate: 0.0,
+        current: [0.0, 0.0],
+        dynamics: None,
     }
 }

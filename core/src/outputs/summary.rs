@@ -368,6 +368,7 @@ pub struct Closing {
 }
 
 /// What the recorder's clock left to judge, beside the metrics.
+#[derive(Debug, PartialEq)]
 pub enum Recorded {
     Lockstep {
         /// The end announced, and the tick of the message that contradicted it, if one did.

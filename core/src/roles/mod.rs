@@ -10,6 +10,7 @@ pub mod lockstep_world;
 pub mod planner_node;
 pub mod realtime;
 pub mod record;
+pub mod recorder_node;
 pub mod sim;
 pub mod supervisor;
 pub mod world;

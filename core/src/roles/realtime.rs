@@ -1136,26 +1136,11 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fixtures::case_b;
+    use crate::fixtures::{case_b, still};
     use crate::msg::Cause;
     use crate::msg::{Reception, Sample};
 
     /// Vehicle `id` at `position`, at rest, measured at `tick` of period `dt`.
-    fn still(id: u32, tick: u64, dt: f64, position: [f64; 2]) -> State {
-        State {
-            version: PROTOCOL_VERSION,
-            tick,
-            id,
-            t: tick as f64 * dt,
-            position,
-            heading: 0.0,
-            sideslip: 0.0,
-            sideslip_rate: 0.0,
-            current: [0.0, 0.0],
-            dynamics: None,
-        }
-    }
-
     /// How far ahead of the tick under way the machines of `on_time` take messages.
     const AHEAD: u64 = 100;
     #[test]
