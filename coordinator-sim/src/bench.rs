@@ -543,69 +543,58 @@ pub async fn measure(
     ));
     let measured = processes(mission, plan, exe, count, &scratch, shutdown).await;
     let _ = std::fs::remove_dir_all(&scratch);
-    let Some(Processes {
-        direct,
-        routed,
-        fleet,
-        ros2,
-        settled,
-        passwords,
-        plain,
-        running,
-        idle,
-    }) = measured?
-    else {
+    let Some(p) = measured? else {
         return Ok(false);
     };
     let median = |t: &[Duration]| t[t.len() / 2].as_secs_f64() * 1e6;
-    let tick = fleet.tick_wall_time_us;
+    let tick = p.fleet.tick_wall_time_us;
     say(format!(
         "zenoh round trip between two processes: median {:.1} µs direct, {:.1} µs through a router",
-        median(&direct),
-        median(&routed)
+        median(&p.direct),
+        median(&p.routed)
     ));
     say(format!(
         "lockstep tick ({} vehicles, {} ticks, best of {ROUNDS} runs): {:.1} µs; tick / round trip: {:.2} direct, {:.2} through a router",
         plan.vehicles.len(),
-        fleet.results.ticks,
+        p.fleet.results.ticks,
         tick,
-        tick / median(&direct),
-        tick / median(&routed)
+        tick / median(&p.direct),
+        tick / median(&p.routed)
     ));
     say(format!(
         "lockstep tick with a certificate per role (mutual TLS) and the world's access rules: {:.1} µs; with a user and password per role over TCP {:.1} µs; with neither (baseline) {:.1} µs: {:.2}x and {:.2}x",
         tick,
-        passwords.tick_wall_time_us,
-        plain.tick_wall_time_us,
-        tick / plain.tick_wall_time_us,
-        passwords.tick_wall_time_us / plain.tick_wall_time_us
+        p.passwords.tick_wall_time_us,
+        p.plain.tick_wall_time_us,
+        tick / p.plain.tick_wall_time_us,
+        p.passwords.tick_wall_time_us / p.plain.tick_wall_time_us
     ));
     say(format!(
         "lockstep tick with --ros2 (the world and every agent as ROS 2 nodes, no subscriber): {:.1} µs; / without it: {:.2}",
-        ros2.tick_wall_time_us,
-        ros2.tick_wall_time_us / tick
+        p.ros2.tick_wall_time_us,
+        p.ros2.tick_wall_time_us / tick
     ));
     // A short mission's wall time is much its start: the tick says how fast the fleet runs.
     say(format!(
         "simulated / wall time: {:.1} by the tick, {:.1} from the start to the end",
         mission.mission.control_period / (tick * 1e-6),
-        fleet.speedup()
+        p.fleet.speedup()
     ));
     let first = |s: &Summary| s.first_tick_s.unwrap_or(f64::NAN);
     say(format!(
         "start-up: the first tick {:.3} s after the launch; with the world and agents claiming their roles as roles started by hand do (baseline) {:.3} s: {:.2}x",
-        first(&fleet),
-        first(&settled),
-        first(&fleet) / first(&settled)
+        first(&p.fleet),
+        first(&p.settled),
+        first(&p.fleet) / first(&p.settled)
     ));
-    let (rss, pss) = running.per_process_mib();
-    let (idle_rss, idle_pss) = idle.per_process_mib();
+    let (rss, pss) = p.running.per_process_mib();
+    let (idle_rss, idle_pss) = p.idle.per_process_mib();
     say(format!(
         "per agent: RSS {rss:.1} MiB, PSS {pss:.1} MiB; an idle Zenoh client (baseline): RSS {idle_rss:.1} MiB, PSS {idle_pss:.1} MiB"
     ));
     say(format!(
         "agents' sockets: {} for {} agents; idle clients' (baseline): {}",
-        running.sockets, running.processes, idle.sockets
+        p.running.sockets, p.running.processes, p.idle.sockets
     ));
     let mut ticks = Vec::with_capacity(fleets.len());
     for &vehicles in fleets {
@@ -624,7 +613,7 @@ pub async fn measure(
             period / (tick * 1e-6),
             run.speedup(),
             first(&run),
-            tick / median(&direct)
+            tick / median(&p.direct)
         ));
         ticks.push((vehicles, tick));
     }

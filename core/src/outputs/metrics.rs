@@ -554,24 +554,9 @@ impl Metrics {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fixtures::still;
     use rand_chacha::rand_core::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-
-    /// Vehicle `id`'s state at `tick`, at `position`.
-    fn state_at(id: u32, tick: u64, dt: f64, position: [f64; 2]) -> crate::msg::State {
-        crate::msg::State {
-            version: crate::msg::PROTOCOL_VERSION,
-            tick,
-            id,
-            t: tick as f64 * dt,
-            position,
-            heading: 0.0,
-            sideslip: 0.0,
-            sideslip_rate: 0.0,
-            current: [0.0, 0.0],
-            dynamics: None,
-        }
-    }
 
     /// The definition: every pair.
     fn pairwise(gammas: &[f64], positions: &[[f64; 2]], live: impl Fn(usize) -> bool) -> (f64, f64) {
@@ -592,7 +577,7 @@ mod tests {
     #[test]
     fn the_en_route_window_closes_at_an_arrival_between_rows_periods_apart() {
         let dt = 0.01;
-        let state = |id: u32, tick: u64| state_at(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let state = |id: u32, tick: u64| still(id, tick, dt, [0.0, 10.0 * id as f64]);
         let command = |id, tick, gamma| Some(crate::fixtures::command_at(id, tick, gamma));
         let mut m = Metrics::new(&[1, 2], 1.0, dt);
         m.record(
@@ -621,7 +606,7 @@ mod tests {
     #[test]
     fn arrivals_are_the_worlds_verdict_timed_by_the_crossing_of_t_f() {
         let dt = 0.01;
-        let state = |id: u32, tick: u64| state_at(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let state = |id: u32, tick: u64| still(id, tick, dt, [0.0, 10.0 * id as f64]);
         let command = |id, tick, gamma| Some(crate::fixtures::command_at(id, tick, gamma));
         let mut m = Metrics::new(&[1, 2, 3], 1.0, dt);
         for (k, gamma) in [(10, 0.95), (11, 1.05), (12, 1.15)] {
@@ -652,7 +637,7 @@ mod tests {
         error: impl Fn(f64) -> f64,
         lost_at: Option<u64>,
     ) -> Results {
-        let state = |id: u32, tick: u64| state_at(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let state = |id: u32, tick: u64| still(id, tick, dt, [0.0, 10.0 * id as f64]);
         for k in 0..=ticks {
             let t = k as f64 * dt;
             if lost_at == Some(k) {
@@ -737,7 +722,7 @@ mod tests {
         let apart = |t: f64| if (2.0..4.0).contains(&t) { 20.0 } else { 10.0 };
         for k in 0..=20u64 {
             let t = k as f64 * dt;
-            let state = |id: u32, y: f64| state_at(id, k, dt, [0.0, y]);
+            let state = |id: u32, y: f64| still(id, k, dt, [0.0, y]);
             let gap = if t < 5.0 { 0.5 } else { 0.0 };
             m.record(
                 k,
@@ -768,7 +753,7 @@ mod tests {
     fn an_agent_away_and_back_is_a_window_and_one_lost_is_not_away() {
         let dt = 0.01;
         let mut m = Metrics::new(&[1, 2, 3], 100.0, dt);
-        let state = |id: u32, tick: u64| state_at(id, tick, dt, [0.0, 10.0 * id as f64]);
+        let state = |id: u32, tick: u64| still(id, tick, dt, [0.0, 10.0 * id as f64]);
         for k in 0..=400u64 {
             let t = k as f64 * dt;
             if k == 300 {
