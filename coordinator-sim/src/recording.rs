@@ -43,9 +43,6 @@ use crate::progress::Ticks;
 /// fleet sends, so it may lag behind a fast lockstep fleet by many ticks (one message each).
 const INBOX: usize = 65_536;
 
-/// How long `tcpf record` waits after the end for the roles' exit reports.
-const REPORT_GRACE: Duration = Duration::from_secs(2);
-
 /// `tcpf record` stopped before it recorded a tick (its session did not open, no world came,
 /// the world's clock refused it): the context of its error.
 #[derive(Debug)]
@@ -568,7 +565,8 @@ pub async fn record(
             }
             _ = tokio::time::sleep_until(clock.at(woken_for.unwrap_or_default())), if woken_for.is_some() => {
                 match waits.handle_timeout(clock.now()) {
-                    None => {}
+                    // Reports are waited for only once the recording has stopped, below.
+                    None | Some(Due::ReportsLate) => {}
                     Some(Due::Ask) => {
                         let (session, keys) = (session.clone(), keys.clone());
                         asking = Some(tokio::spawn(async move {
@@ -613,14 +611,20 @@ pub async fn record(
     progress.finish();
     let wall_time_s = clock.now().secs();
     // The world and the agents report as they exit, just after the end: a moment for them.
-    let _ = tokio::time::timeout(REPORT_GRACE, async {
-        while !interrupted && !recording.unreported().is_empty() {
-            if recording.step().await.is_err() {
-                break;
+    if !interrupted {
+        waits.closing(clock.now());
+        while !recording.unreported().is_empty() {
+            let woken_for = waits.poll_timeout().unwrap_or_default();
+            tokio::select! {
+                r = recording.step() => if r.is_err() {
+                    break;
+                },
+                _ = tokio::time::sleep_until(clock.at(woken_for)) => if waits.handle_timeout(clock.now()).is_some() {
+                    break;
+                },
             }
         }
-    })
-    .await;
+    }
     let _ = session.close().await;
     let ended = !interrupted && recording.ended();
     let first_tick_s = recording.first_tick().map(|at| clock.since(at));

@@ -79,6 +79,10 @@ impl WorldWatch {
 /// tick that does not come whole, in seconds.
 pub const END_STALL_S: f64 = 5.0;
 
+/// How long a recorder that stopped for another reason than a signal waits for the roles' exit
+/// reports, which they send as they exit, just after the end, in seconds.
+pub const REPORTS_GRACE_S: f64 = 2.0;
+
 /// What a recorder's wait found due.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Due {
@@ -89,6 +93,8 @@ pub enum Due {
     /// The world ended or left, and no tick was written for `END_STALL_S`; in realtime, the
     /// world has been gone that long.
     Stalled,
+    /// The recording stopped `REPORTS_GRACE_S` ago, and the reports still missing will not come.
+    ReportsLate,
 }
 
 /// Every wait of `tcpf record`, as one machine: for a world to come (within the startup
@@ -104,6 +110,8 @@ pub struct RecorderWaits {
     ended: bool,
     /// A question about the world is out: not asked again until it is answered.
     asking: bool,
+    /// Once the recording has stopped: until when the exit reports may come.
+    reports_due: Option<Moment>,
 }
 
 impl RecorderWaits {
@@ -115,7 +123,13 @@ impl RecorderWaits {
             progress: now,
             ended: false,
             asking: false,
+            reports_due: None,
         }
+    }
+
+    /// The recording has stopped: from now on only the exit reports are waited for.
+    pub fn closing(&mut self, now: Moment) {
+        self.reports_due = Some(now + REPORTS_GRACE_S);
     }
 
     pub fn on_presence(&mut self, alive: bool, now: Moment) {
@@ -160,6 +174,9 @@ impl RecorderWaits {
     }
 
     pub fn poll_timeout(&self) -> Option<Moment> {
+        if self.reports_due.is_some() {
+            return self.reports_due;
+        }
         let give_up = (!self.world.seen()).then_some(self.give_up_at);
         let ask = self.world.ask_at().filter(|_| !self.asking);
         [give_up, ask, self.stall_at()]
@@ -170,6 +187,9 @@ impl RecorderWaits {
 
     /// What is due at `now`, if anything; `Ask` marks the question as out.
     pub fn handle_timeout(&mut self, now: Moment) -> Option<Due> {
+        if let Some(due) = self.reports_due {
+            return (now >= due).then_some(Due::ReportsLate);
+        }
         if !self.world.seen() && now >= self.give_up_at {
             return Some(Due::NoWorld);
         }
@@ -285,5 +305,19 @@ mod tests {
         realtime.progressed(at(24.0));
         assert_eq!(realtime.poll_timeout(), Some(at(20.0) + END_STALL_S));
         assert_eq!(realtime.handle_timeout(at(25.0)), Some(Due::Stalled));
+    }
+
+    /// Once the recording has stopped, only the exit reports are waited for, and only
+    /// `REPORTS_GRACE_S`: a silent world is not asked after, nor a stall said.
+    #[test]
+    fn a_stopped_recording_waits_for_the_reports_a_while() {
+        let mut waits = RecorderWaits::new(at(0.0), 60.0, false);
+        waits.on_presence(true, at(0.0));
+        waits.ended();
+        waits.closing(at(1.0));
+        assert_eq!(waits.poll_timeout(), Some(at(1.0) + REPORTS_GRACE_S));
+        assert_eq!(waits.handle_timeout(at(2.9)), None);
+        assert_eq!(waits.handle_timeout(at(1.0) + REPORTS_GRACE_S), Some(Due::ReportsLate));
+        assert_eq!(waits.handle_timeout(at(60.0)), Some(Due::ReportsLate), "not a stall");
     }
 }
