@@ -15,7 +15,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::binary::{self, Layout, Load};
-use crate::order::List;
+use crate::list::List;
 use crate::tools;
 
 pub fn build(root: &Path) -> Result<(), String> {

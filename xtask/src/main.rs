@@ -13,6 +13,7 @@
 
 mod binary;
 mod fleet;
+mod list;
 mod order;
 mod tools;
 
