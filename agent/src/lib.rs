@@ -35,9 +35,6 @@ use tokio::sync::Notify;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
 
-/// How long a realtime agent waits for a world out of reach before it stops: a radio link that
-/// drops for a while must not end the vehicle's mission.
-const WORLD_AWAY: Duration = Duration::from_secs(60);
 /// Where in its period a realtime agent acts: after the world published the period's states,
 /// and early enough that its command reaches the world before the next.
 const AGENT_PHASE: f64 = 0.5;
@@ -631,7 +628,7 @@ impl Shell {
 
     async fn realtime(&mut self, mission: &Mission, mut queued: Queued, clock: &Clock) -> Result<Exit> {
         let id = self.id;
-        let mut away = WorldAway::new(WORLD_AWAY);
+        let mut away = WorldAway::new(waits::WORLD_AWAY);
         let monotonic = Monotonic::start();
         let mut published = 0;
         let fleet = FleetClock::new(clock, mission.mission.control_period);

@@ -12,31 +12,12 @@ use zenoh::Session;
 
 use crate::error::{AlreadyRunning, Error};
 use crate::keys::{Keys, Role};
-
-/// How long a claim takes to reach every other claimant, with room for a loaded machine: a
-/// claim made within this of another's must be seen by it. Peers, which may not have met yet,
-/// wait this long before they look.
-const SETTLE: Duration = Duration::from_millis(1500);
-
-/// How long the claim of a process that has just stopped may linger: until the router hears its
-/// connection close (an agent started again at once after it died). No longer than this either
-/// is a later contemporary's word waited for (`Outcome::Contested`): more than `SETTLE`, so
-/// that by then every claim made before this one is in and every later claimant has seen it.
-const LINGER: Duration = Duration::from_secs(2);
-
-/// How soon a claimant that cannot decide yet looks again: a holder that has just stopped goes
-/// when the router hears its connection close, a later contemporary steps back or marks its
-/// claim held within a round trip or two.
-const LOOK_AGAIN: Duration = Duration::from_millis(20);
-
-/// How long a look at the claims waits for the router's answer. The query ends when the router
-/// has answered, at once on a calm machine; the timeout only bounds a router that does not.
-const QUERY: Duration = Duration::from_secs(10);
+use crate::waits::{CLAIM_LINGER, CLAIM_LOOK_AGAIN, CLAIM_QUERY, CLAIM_SETTLE};
 
 /// Who else may be claiming the role at this moment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Rivals {
-    /// Started by hand as a peer: another process may claim the role within `SETTLE` of this
+    /// Started by hand as a peer: another process may claim the role within `CLAIM_SETTLE` of this
     /// one, and only after that long has every claim reached this one.
     #[default]
     Possible,
@@ -90,12 +71,12 @@ pub async fn claim(
     };
     let token = declare(mine.chunk()).await?;
     let (settle, contemporaries) = match rivals {
-        Rivals::Possible => (SETTLE, SETTLE),
-        Rivals::OneRouter => (Duration::ZERO, SETTLE),
+        Rivals::Possible => (CLAIM_SETTLE, CLAIM_SETTLE),
+        Rivals::OneRouter => (Duration::ZERO, CLAIM_SETTLE),
         Rivals::None => (Duration::ZERO, Duration::ZERO),
     };
     tokio::time::sleep(settle).await;
-    let deadline = tokio::time::Instant::now() + LINGER;
+    let deadline = tokio::time::Instant::now() + CLAIM_LINGER;
     let refused = |holder| AlreadyRunning {
         role,
         id,
@@ -117,7 +98,7 @@ pub async fn claim(
         let last_look = tokio::time::Instant::now() >= deadline;
         let decided = match claimant.outcome() {
             Outcome::HeldBy(_) | Outcome::Unseen | Outcome::Contested if !last_look => {
-                tokio::time::sleep(LOOK_AGAIN).await;
+                tokio::time::sleep(CLAIM_LOOK_AGAIN).await;
                 continue;
             }
             _ => claimant.settled(),
@@ -130,7 +111,7 @@ pub async fn claim(
             Outcome::Lost(holder) | Outcome::HeldBy(holder) => Err(Error::from(refused(holder)).into()),
             Outcome::Unseen | Outcome::Contested => Err(anyhow!(
                 "the router did not show this {role}'s claim within {:?}: cannot tell whether another process holds it",
-                settle + LINGER
+                settle + CLAIM_LINGER
             )),
         };
     }
@@ -149,7 +130,7 @@ async fn claims(session: &Session, keys: &Keys, role: Role, id: u32) -> Result<V
     let replies = session
         .liveliness()
         .get(keys.claims(role, id))
-        .timeout(QUERY)
+        .timeout(CLAIM_QUERY)
         .await
         .map_err(|e| anyhow!("cannot look at the claims of the {role}: {e}"))?;
     let mut seen = Vec::new();

@@ -10,7 +10,6 @@
 //! then.
 
 use std::collections::BTreeSet;
-use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use serde::de::DeserializeOwned;
@@ -25,13 +24,7 @@ use crate::keys::{Keys, Role};
 use crate::presence::present;
 use crate::rejected::Rejected;
 use crate::subscribe::{enqueue, Received};
-
-/// How many times a sender asks a recorder that does not answer.
-pub const ATTEMPTS: u32 = 3;
-/// How long one attempt waits for every recorder's answer.
-pub const WAIT: Duration = Duration::from_secs(2);
-/// The longest a hand-over takes: a role that waits for another's is bounded by this.
-pub const BOUND: Duration = Duration::from_secs(ATTEMPTS as u64 * WAIT.as_secs() + 1);
+use crate::waits::{HANDOVER_ATTEMPT, HANDOVER_ATTEMPTS};
 
 /// How a hand-over went: of the recorders present, how many acknowledged.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,7 +46,7 @@ pub async fn hand_over<T: Serialize>(
     let payload = encode(message);
     let mut acknowledged = BTreeSet::new();
     let mut recorders = 0;
-    for attempt in 1..=ATTEMPTS {
+    for attempt in 1..=HANDOVER_ATTEMPTS {
         recorders = present(session, keys)
             .await?
             .iter()
@@ -73,7 +66,7 @@ pub async fn hand_over<T: Serialize>(
             .payload(payload.clone())
             .target(QueryTarget::All)
             .consolidation(ConsolidationMode::None)
-            .timeout(WAIT)
+            .timeout(HANDOVER_ATTEMPT)
             .await
             .map_err(|e| anyhow!("cannot hand over {what}: {e}"))?;
         while let Ok(reply) = replies.recv_async().await {
@@ -84,14 +77,14 @@ pub async fn hand_over<T: Serialize>(
     }
     if acknowledged.len() < recorders {
         tracing::warn!(
-            "{what}: {} of {recorders} recorder(s) did not acknowledge it after {ATTEMPTS} attempts",
+            "{what}: {} of {recorders} recorder(s) did not acknowledge it after {HANDOVER_ATTEMPTS} attempts",
             recorders - acknowledged.len()
         );
     }
     Ok(Handed {
         acknowledged: acknowledged.len(),
         recorders,
-        attempts: ATTEMPTS,
+        attempts: HANDOVER_ATTEMPTS,
     })
 }
 

@@ -1,8 +1,6 @@
 //! The realtime world's history on the bus: the world serves `history` (what it answers is
 //! `RealtimeWorld::answer`'s), and a recorder asks it for the states its `Sampler` never got.
 
-use std::time::Duration;
-
 use anyhow::{anyhow, Result};
 use tcpf_core::msg::{Fetch, State};
 use tokio::sync::mpsc;
@@ -13,9 +11,7 @@ use crate::codec::{decode, encode};
 use crate::keys::Keys;
 use crate::rejected::Rejected;
 use crate::subscribe::{enqueue, Received};
-
-/// How long a recorder waits for the world's history: its rows wait as long.
-const FETCH_TIMEOUT: Duration = Duration::from_secs(2);
+use crate::waits;
 
 /// Fetches the world may hold before the next are dropped (and counted): a recorder asks once
 /// at a time.
@@ -102,7 +98,7 @@ pub fn ask<M: Send + 'static>(
             .get(key.clone())
             .payload(encode(&fetch))
             .consolidation(ConsolidationMode::None)
-            .timeout(FETCH_TIMEOUT);
+            .timeout(waits::HISTORY_FETCH);
         match get.await {
             Ok(replies) => {
                 while let Ok(reply) = replies.recv_async().await {

@@ -37,9 +37,6 @@ pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>>
     Ok(present)
 }
 
-/// How long a role stays after its last words for those who should hear them to leave.
-pub const LINGER: Duration = Duration::from_secs(2);
-
 /// Every liveliness change of the mission since `follow`, passed on, and who is present by them:
 /// a role that follows the fleet from its start knows at its end who is still there without
 /// asking the router again and again.

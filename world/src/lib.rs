@@ -14,16 +14,17 @@ use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
 use tcpf_bus::clock_query::ClockServer;
 use tcpf_bus::codec::Invalid;
 use tcpf_bus::exit_report::{report, RealtimeReport};
-use tcpf_bus::handover::{self, hand_over};
+use tcpf_bus::handover::hand_over;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::{say_now, Outlet};
 use tcpf_bus::paths::fetch_paths;
-use tcpf_bus::presence::{Followed, LINGER};
+use tcpf_bus::presence::Followed;
 use tcpf_bus::rejected::Rejected;
 use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_with, Received};
+use tcpf_bus::waits;
 use tcpf_core::fleet::membership::{Arrival, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
@@ -342,8 +343,8 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     tracing::info!("world: {exit}");
     // The recorders acknowledged the end; it reaches the agents before the world leaves.
     match (routes, exit) {
-        (true, _) => presence.linger(&[Role::Agent], handover::BOUND).await,
-        (false, Exit::Ended { .. }) => presence.linger(&[Role::Agent], LINGER).await,
+        (true, _) => presence.linger(&[Role::Agent], waits::HANDOVER).await,
+        (false, Exit::Ended { .. }) => presence.linger(&[Role::Agent], waits::LINGER).await,
         (false, Exit::Interrupted) => {}
     }
     if let Some(token) = token {
@@ -352,7 +353,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let _ = claimed.undeclare().await;
     // The planner reports once the world's token has gone.
     if routes {
-        presence.linger(&[Role::Planner], handover::BOUND).await;
+        presence.linger(&[Role::Planner], waits::HANDOVER).await;
     }
     let _ = session.close().await;
     Ok(exit)
