@@ -1654,6 +1654,7 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
     // is one that never came (a startup timeout). Killed once it said so: should a late history
     // then bring the world back, it asks again and finds the world gone.
     wait_for_text(&log, "the world is here", Duration::from_secs(30));
+    wait_for_text(&dir.join("world.log"), "agent 1 is here", Duration::from_secs(30));
     fleet.0[1].kill().unwrap();
     let code = wait_exit(
         &mut recorder.0[0],
@@ -1662,6 +1663,16 @@ fn a_recorder_outlives_a_dead_world(name: &str, clock: &[&str]) {
     );
     let stderr = std::fs::read_to_string(&log).unwrap();
     assert_eq!(code, Some(1), "{stderr}");
+    if clock.is_empty() {
+        // Waiting for the run to start, the lockstep agent gives the world's End its grace, and
+        // stops without one: a failed run.
+        let code = wait_exit(
+            &mut fleet.0[2],
+            Duration::from_secs(10),
+            "agent 1 still waits for a dead world",
+        );
+        assert_eq!(code, Some(1));
+    }
     assert!(stderr.contains("the world left without announcing the end"), "{stderr}");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();

@@ -22,6 +22,7 @@ use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
 use tcpf_bus::waits;
 use tcpf_core::fleet::membership::{AgentStartup, Peer, StartupCheck, WorldAway, WorldReach};
+use tcpf_core::fleet::watch::EndGrace;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
 use tcpf_core::outputs::ros2::Stamp;
@@ -527,18 +528,6 @@ impl Shell {
         }
     }
 
-    /// The world's token gone: an `End` on its way means the run is over, else the world is.
-    async fn world_gone(&mut self, accept: impl Fn(&End) -> bool) -> Exit {
-        // The world's end message may come after its token has gone.
-        if let Ok(Some(e)) = tokio::time::timeout(waits::END_AFTER_THE_WORLD, self.ends.recv()).await {
-            if accept(&e.message) {
-                return Exit::Ended;
-            }
-        }
-        tracing::warn!("agent {}: the world is gone; stopping", self.id);
-        Exit::Orphaned
-    }
-
     /// `unchecked`: the world had not started when this agent came, so whether its clock is
     /// lockstep is known only once it answers; until then the agent asks, when `unchecked` rings.
     async fn lockstep(
@@ -558,6 +547,7 @@ impl Shell {
         if clock.is_none() {
             feed.start();
         }
+        let mut gone = EndGrace::new(waits::END_AFTER_THE_WORLD);
         let exit = loop {
             // Not waiting: woken once per timeout while the fleet moves on, to look again.
             let woken_for = {
@@ -578,9 +568,9 @@ impl Shell {
                     clock.iter().for_each(ClockAnswer::look_again);
                 }
                 Some(p) = self.presence.recv() => match p.role {
-                    Role::World if !p.alive => {
-                        break self.world_gone(|e| feed.lock().machine.on_end(e).is_ok()).await;
-                    }
+                    // The world's end may come after its token has gone.
+                    Role::World if p.alive => gone.back(),
+                    Role::World => gone.left(feed.monotonic.now()),
                     // This agent has its path: the planner serves only agents that start.
                     Role::Planner if !p.alive => {
                         tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
@@ -612,6 +602,12 @@ impl Shell {
                     }
                 }
                 _ = self.shutdown.recv() => break Exit::Interrupted,
+                _ = tokio::time::sleep_until(feed.monotonic.at(gone.poll_timeout().unwrap_or_default())), if gone.waiting() => {
+                    if gone.handle_timeout(feed.monotonic.now()) {
+                        tracing::warn!("agent {id}: the world is gone; stopping");
+                        break Exit::Orphaned;
+                    }
+                }
                 _ = tokio::time::sleep_until(feed.monotonic.at(woken_for)) => {
                     feed.with(|machine, now| machine.handle_timeout(now, woken_for));
                 }

@@ -4,8 +4,11 @@
 //! that died as the recorder came could seem present forever. So a world silent for a while is
 //! asked after (who is present, by tokens), and taken for gone on two answers in a row without
 //! it and nothing heard from it in between: one answer may be cut short on a busy link, and a
-//! lockstep world may be silent for seconds while it waits for a slow agent. Times are inputs:
-//! instants on the recorder's monotonic clock.
+//! lockstep world may be silent for seconds while it waits for a slow agent. A world whose token
+//! went is given a grace for its `End` (`EndGrace`), by the agents and the planner. Times are
+//! inputs: instants on the role's monotonic clock.
+
+use std::time::Duration;
 
 use crate::time::Moment;
 
@@ -72,6 +75,47 @@ impl WorldWatch {
     /// When the world was found gone, if it was.
     pub fn left(&self) -> Option<Moment> {
         self.left
+    }
+}
+
+/// A world whose token went may have its `End` still on the way: the two travel apart, and the
+/// End may come after. What waits for it (an agent, the planner) gives it `grace`, and takes the
+/// world as gone without one only then: an end says the run is over, its absence that the world
+/// is.
+pub struct EndGrace {
+    grace: Duration,
+    /// When the world's token went, while its End is awaited.
+    left_at: Option<Moment>,
+}
+
+impl EndGrace {
+    pub fn new(grace: Duration) -> EndGrace {
+        EndGrace { grace, left_at: None }
+    }
+
+    /// The world's token went at `now`.
+    pub fn left(&mut self, now: Moment) {
+        self.left_at.get_or_insert(now);
+    }
+
+    /// The world's token came again: it was a link that dropped, not the world leaving.
+    pub fn back(&mut self) {
+        self.left_at = None;
+    }
+
+    /// Whether the world's token has gone, and its End is awaited.
+    pub fn waiting(&self) -> bool {
+        self.left_at.is_some()
+    }
+
+    /// When the grace runs out, if one runs.
+    pub fn poll_timeout(&self) -> Option<Moment> {
+        self.left_at.map(|left| left + self.grace)
+    }
+
+    /// Whether at `now` a world gone for the grace without an End is gone for good.
+    pub fn handle_timeout(&self, now: Moment) -> bool {
+        self.poll_timeout().is_some_and(|due| now >= due)
     }
 }
 
@@ -319,5 +363,21 @@ mod tests {
         assert_eq!(waits.handle_timeout(at(2.9)), None);
         assert_eq!(waits.handle_timeout(at(1.0) + REPORTS_GRACE_S), Some(Due::ReportsLate));
         assert_eq!(waits.handle_timeout(at(60.0)), Some(Due::ReportsLate), "not a stall");
+    }
+
+    #[test]
+    fn an_end_is_awaited_for_the_grace_after_the_world_left() {
+        let mut grace = EndGrace::new(Duration::from_millis(500));
+        assert_eq!(grace.poll_timeout(), None, "nothing awaited while the world is there");
+        grace.left(at(10.0));
+        grace.left(at(10.2));
+        assert_eq!(grace.poll_timeout(), Some(at(10.5)), "from the first time it went");
+        assert!(grace.waiting() && !grace.handle_timeout(at(10.4)));
+        assert!(grace.handle_timeout(at(10.5)));
+        grace.back();
+        assert!(
+            !grace.waiting() && !grace.handle_timeout(at(11.0)),
+            "a world back is not gone"
+        );
     }
 }

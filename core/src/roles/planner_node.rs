@@ -1,12 +1,13 @@
 //! The planner's process as a machine: it serves the plan until the world goes away, and says
 //! whether the world had ended the run first. The world's `End` and the deletion of its token
 //! travel separately, so the End may come after the token has gone: a world gone without one is
-//! given `end_grace` for it. An End alone lets nothing go (it may come from anyone the bus lets
+//! given `end_grace` for it (`fleet::watch::EndGrace`, as an agent gives it). An End alone lets nothing go (it may come from anyone the bus lets
 //! speak; only the world's going away takes the paths from a running fleet). Times are inputs:
 //! instants on the planner's monotonic clock.
 
 use std::time::Duration;
 
+use crate::fleet::watch::EndGrace;
 use crate::time::Moment;
 
 /// What the planner's process hears besides the queries for paths.
@@ -39,21 +40,18 @@ impl std::fmt::Display for Exit {
 }
 
 pub struct PlannerNode {
-    end_grace: Duration,
     world_seen: bool,
     ended: bool,
-    /// When the world's token went, while its End is awaited.
-    left_at: Option<Moment>,
+    gone: EndGrace,
     exit: Option<Exit>,
 }
 
 impl PlannerNode {
     pub fn new(end_grace: Duration) -> PlannerNode {
         PlannerNode {
-            end_grace,
             world_seen: false,
             ended: false,
-            left_at: None,
+            gone: EndGrace::new(end_grace),
             exit: None,
         }
     }
@@ -66,15 +64,15 @@ impl PlannerNode {
         match input {
             Input::World(true) => {
                 self.world_seen = true;
-                self.left_at = None;
+                self.gone.back();
             }
             // A token gone before any was seen is not this run's world leaving.
             Input::World(false) if !self.world_seen => {}
             Input::World(false) if self.ended => self.exit = Some(Exit::Ended),
-            Input::World(false) => self.left_at = Some(now),
+            Input::World(false) => self.gone.left(now),
             Input::End => {
                 self.ended = true;
-                if self.left_at.is_some() {
+                if self.gone.waiting() {
                     self.exit = Some(Exit::Ended);
                 }
             }
@@ -84,14 +82,12 @@ impl PlannerNode {
 
     /// When the grace for a gone world's End runs out, if one runs.
     pub fn poll_timeout(&self) -> Option<Moment> {
-        self.left_at
-            .filter(|_| self.exit.is_none())
-            .map(|left| left + self.end_grace)
+        self.gone.poll_timeout().filter(|_| self.exit.is_none())
     }
 
     /// The clock reached `now`: a world gone for the grace without an End is gone for good.
     pub fn handle_timeout(&mut self, now: Moment) {
-        if self.poll_timeout().is_some_and(|due| now >= due) {
+        if self.exit.is_none() && self.gone.handle_timeout(now) {
             self.exit = Some(Exit::WorldGone);
         }
     }
