@@ -8,6 +8,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{self, metronome, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, ask_clock, await_clock, ClockAnswer, ClockBell};
@@ -548,6 +549,7 @@ impl Shell {
             feed.start();
         }
         let mut gone = EndGrace::new(waits::END_AFTER_THE_WORLD);
+        let (mut alarm, mut grace) = (Alarm::new(feed.monotonic), Alarm::new(feed.monotonic));
         let exit = loop {
             // Not waiting: woken once per timeout while the fleet moves on, to look again.
             let woken_for = {
@@ -557,6 +559,8 @@ impl Shell {
                     .poll_timeout()
                     .unwrap_or(now + options.stale_timeout.as_secs_f64())
             };
+            alarm.set(Some(woken_for));
+            grace.set(gone.poll_timeout());
             tokio::select! {
                 Some(e) = faults.recv() => return Err(e),
                 answer = answered(&mut clock), if clock.is_some() => {
@@ -602,13 +606,13 @@ impl Shell {
                     }
                 }
                 _ = self.shutdown.recv() => break Exit::Interrupted,
-                _ = tokio::time::sleep_until(feed.monotonic.at(gone.poll_timeout().unwrap_or_default())), if gone.waiting() => {
+                _ = grace.rung() => {
                     if gone.handle_timeout(feed.monotonic.now()) {
                         tracing::warn!("agent {id}: the world is gone; stopping");
                         break Exit::Orphaned;
                     }
                 }
-                _ = tokio::time::sleep_until(feed.monotonic.at(woken_for)) => {
+                woken_for = alarm.rung() => {
                     feed.with(|machine, now| machine.handle_timeout(now, woken_for));
                 }
             }
@@ -626,6 +630,7 @@ impl Shell {
         let id = self.id;
         let mut away = WorldAway::new(waits::WORLD_AWAY);
         let monotonic = Monotonic::start();
+        let mut alarm = Alarm::new(monotonic);
         let mut published = 0;
         let fleet = FleetClock::new(clock, mission.mission.control_period);
         let period = fleet.period().as_secs_f64();
@@ -635,6 +640,7 @@ impl Shell {
         let mut beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
         let_go_of_the_start(id);
         let exit = loop {
+            alarm.set(away.poll_timeout());
             tokio::select! {
                 Some(beat) = beats.recv() => {
                     if let Some(action) = node.act(beat.tick, beat.late_s(), period, beat.skipped) {
@@ -671,7 +677,7 @@ impl Shell {
                     }
                     _ => {}
                 },
-                _ = tokio::time::sleep_until(monotonic.at(away.poll_timeout().unwrap_or_default())), if away.poll_timeout().is_some() => {
+                _ = alarm.rung() => {
                     if away.handle_timeout(monotonic.now()) {
                         tracing::warn!("agent {id}: the world did not come back; stopping");
                         break Exit::Orphaned;

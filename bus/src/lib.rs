@@ -3,6 +3,7 @@
 //! queries, paths, exit reports and hand-overs.
 
 pub mod acl;
+pub mod alarm;
 pub mod certificate;
 pub mod claim;
 pub mod clock;

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use tcpf_bus::acl::Identity;
+use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::clock::Monotonic;
 use tcpf_bus::error::Error;
@@ -20,7 +21,6 @@ use tcpf_bus::waits;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::Report;
-use tcpf_core::time::Moment;
 use tokio::process::Command;
 
 pub use crate::access::Links;
@@ -643,8 +643,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     }
     // One timer, moved when the supervisor's next wake-up does: not one made for every step of
     // the recording, which comes with every message.
-    let timer = tokio::time::sleep_until(clock.at(Moment::default()));
-    tokio::pin!(timer);
+    let mut alarm = Alarm::new(clock);
     loop {
         while let Some(output) = supervisor.poll_output() {
             match output {
@@ -691,9 +690,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         let Some(woken_for) = supervisor.poll_timeout() else {
             break;
         };
-        if timer.deadline() != clock.at(woken_for) {
-            timer.as_mut().reset(clock.at(woken_for));
-        }
+        alarm.set(Some(woken_for));
         let running = outcome.is_none();
         tokio::select! {
             r = recording.step() => match r {
@@ -723,7 +720,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
                 suspend_with(&children);
                 supervisor.continued(clock.now());
             }
-            _ = &mut timer => {
+            _ = alarm.rung() => {
                 for (index, c) in children.iter_mut().enumerate() {
                     if c.exit_code.is_none() && c.poll().is_some() {
                         supervisor.exited(index, c.exit());

@@ -2,6 +2,7 @@
 //! agent that starts late or restarts gets its path) and once as a publication.
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::alarm::Alarm;
 use tcpf_bus::clock::Monotonic;
 use tcpf_bus::codec::encode;
 use tcpf_bus::exit_report::report;
@@ -70,11 +71,12 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
 
     let monotonic = Monotonic::start();
     let mut machine = PlannerNode::new(waits::END_AFTER_THE_WORLD);
+    let mut alarm = Alarm::new(monotonic);
     let exit = loop {
         if let Some(exit) = machine.exit() {
             break exit;
         }
-        let grace = machine.poll_timeout();
+        alarm.set(machine.poll_timeout());
         tokio::select! {
             Ok(query) = queryable.recv_async() => {
                 for (key, bytes) in paths.iter().filter(|(k, _)| k.intersects(query.key_expr())) {
@@ -88,7 +90,7 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
             },
             Some(_) = ends.recv() => machine.handle(Input::End, monotonic.now()),
             _ = shutdown.recv() => machine.handle(Input::Interrupted, monotonic.now()),
-            _ = tokio::time::sleep_until(monotonic.at(grace.unwrap_or_default())), if grace.is_some() => {
+            _ = alarm.rung() => {
                 machine.handle_timeout(monotonic.now());
             }
         }

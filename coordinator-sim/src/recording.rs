@@ -7,6 +7,7 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::alarm::Alarm;
 use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, await_clock, ClockAnswer, ClockBell};
 use tcpf_bus::handover::{take_over, take_over_held, Ack};
@@ -514,6 +515,7 @@ pub async fn record(
     // A world that dies says no end, and one may never come (another mission name, endpoint or
     // credential): without these waits the recording would wait for it forever.
     let mut waits = RecorderWaits::new(clock.now(), startup_timeout.as_secs_f64(), realtime);
+    let mut alarm = Alarm::new(clock);
     let (mut from_world, mut written) = (recording.from_world(), 0);
     // Who is present, asked on a task of its own while the recording goes on.
     let mut asking: Option<tokio::task::JoinHandle<Option<bool>>> = None;
@@ -522,7 +524,7 @@ pub async fn record(
         if recording.complete() {
             break false;
         }
-        let woken_for = waits.poll_timeout();
+        alarm.set(waits.poll_timeout());
         tokio::select! {
             r = recording.step() => {
                 let ticks = recording.ticks();
@@ -563,7 +565,7 @@ pub async fn record(
                     tracing::warn!("recorder: the world's token is gone, though its leaving was never seen");
                 }
             }
-            _ = tokio::time::sleep_until(clock.at(woken_for.unwrap_or_default())), if woken_for.is_some() => {
+            _ = alarm.rung() => {
                 match waits.handle_timeout(clock.now()) {
                     // Reports are waited for only once the recording has stopped, below.
                     None | Some(Due::ReportsLate) => {}
@@ -614,12 +616,12 @@ pub async fn record(
     if !interrupted {
         waits.closing(clock.now());
         while !recording.unreported().is_empty() {
-            let woken_for = waits.poll_timeout().unwrap_or_default();
+            alarm.set(waits.poll_timeout());
             tokio::select! {
                 r = recording.step() => if r.is_err() {
                     break;
                 },
-                _ = tokio::time::sleep_until(clock.at(woken_for)) => if waits.handle_timeout(clock.now()).is_some() {
+                _ = alarm.rung() => if waits.handle_timeout(clock.now()).is_some() {
                     break;
                 },
             }

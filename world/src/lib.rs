@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
+use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
 use tcpf_bus::clock_query::ClockServer;
@@ -561,8 +562,9 @@ impl Shell<'_> {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         stepper.lock().clock.epoch = unix_now();
         stepper.with(|world, now, doing| world.start(now, doing));
+        let mut alarm = Alarm::new(stepper.monotonic);
         let (exit, end) = loop {
-            let woken_for = stepper.lock().world.poll_timeout();
+            alarm.set(stepper.lock().world.poll_timeout());
             tokio::select! {
                 Some(end) = ends.recv() => {
                     let end = end?;
@@ -578,8 +580,7 @@ impl Shell<'_> {
                         stepper.with(|world, now, doing| world.handle_agent(p.id, p.alive, now, doing));
                     }
                 }
-                _ = tokio::time::sleep_until(stepper.monotonic.at(woken_for.unwrap_or_default())), if woken_for.is_some() => {
-                    let woken_for = woken_for.unwrap_or_default();
+                woken_for = alarm.rung() => {
                     stepper.with(|world, now, doing| world.handle_timeout(now, woken_for, doing));
                 }
                 _ = self.shutdown.recv() => {
