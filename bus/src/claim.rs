@@ -17,8 +17,8 @@ use crate::waits::{CLAIM_LINGER, CLAIM_LOOK_AGAIN, CLAIM_QUERY, CLAIM_SETTLE};
 /// Who else may be claiming the role at this moment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Rivals {
-    /// Started by hand as a peer: another process may claim the role within `CLAIM_SETTLE` of this
-    /// one, and only after that long has every claim reached this one.
+    /// Started by hand as a peer: another process may claim the role within `CLAIM_SETTLE` of
+    /// this one, and only after that long has every claim reached this one.
     #[default]
     Possible,
     /// Started by hand as a client of a router, where every claimant of the fleet meets (the

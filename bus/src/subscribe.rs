@@ -51,16 +51,31 @@ pub async fn subscribe_into<T>(
 where
     T: DeserializeOwned + Checked + Send + 'static,
 {
-    subscribe_as(session, (key, Locality::Any), rejected, tx, |m| m).await
+    subscribe_as(session, key, rejected, tx, |m| m).await
 }
 
 /// As `subscribe_into`, each message wrapped by `wrap`: subscriptions of several types share
-/// one channel, and the receiver takes their messages in the order they arrived. `origin` says
-/// which sessions it hears: `Locality::Remote` for a process that publishes on `key` too, and
-/// must not take its own words for another's.
+/// one channel, and the receiver takes their messages in the order they arrived.
 pub async fn subscribe_as<T, M>(
     session: &Session,
-    (key, origin): (&str, Locality),
+    key: &str,
+    rejected: &Rejected,
+    tx: mpsc::Sender<Received<M>>,
+    wrap: fn(T) -> M,
+) -> Result<Subscriber<()>>
+where
+    T: DeserializeOwned + Checked + Send + 'static,
+    M: Send + 'static,
+{
+    subscribe_origin_as(session, key, Locality::Any, rejected, tx, wrap).await
+}
+
+/// As `subscribe_as`, hearing the sessions `origin` says: `Locality::Remote` for a process
+/// that publishes on `key` too, and must not take its own words for another's.
+pub async fn subscribe_origin_as<T, M>(
+    session: &Session,
+    key: &str,
+    origin: Locality,
     rejected: &Rejected,
     tx: mpsc::Sender<Received<M>>,
     wrap: fn(T) -> M,

@@ -35,7 +35,6 @@ use tokio::sync::mpsc::{self, Receiver, Sender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::query::Queryable;
-use zenoh::sample::Locality;
 use zenoh::Session;
 
 use crate::progress::Ticks;
@@ -201,44 +200,16 @@ impl Recording {
         let (tx, inbox) = mpsc::channel(INBOX);
         let mut subscribers = Vec::new();
         if mission.mission.clock == ClockKind::Lockstep {
-            subscribers.push(
-                subscribe_as(
-                    session,
-                    (&keys.tick(), Locality::Any),
-                    &rejected,
-                    tx.clone(),
-                    Input::Tick,
-                )
-                .await?,
-            );
+            subscribers.push(subscribe_as(session, &keys.tick(), &rejected, tx.clone(), Input::Tick).await?);
             // A loss as the world announces it, in order with its ticks: its hand-over, on a task
             // of the world's own, can come after the records of hundreds of ticks that no longer
             // wait for the lost vehicle (a loaded machine: 256 of them, the recorder's window, and
             // every later tick was refused as too far ahead). The hand-over, which this recorder
             // acknowledges, repeats it.
-            subscribers
-                .push(subscribe_as(session, (&keys.lost("*"), Locality::Any), &rejected, tx.clone(), loss).await?);
+            subscribers.push(subscribe_as(session, &keys.lost("*"), &rejected, tx.clone(), loss).await?);
         } else {
-            subscribers.push(
-                subscribe_as(
-                    session,
-                    (&keys.state("*"), Locality::Any),
-                    &rejected,
-                    tx.clone(),
-                    Input::State,
-                )
-                .await?,
-            );
-            subscribers.push(
-                subscribe_as(
-                    session,
-                    (&keys.cmd("*"), Locality::Any),
-                    &rejected,
-                    tx.clone(),
-                    Input::Command,
-                )
-                .await?,
-            );
+            subscribers.push(subscribe_as(session, &keys.state("*"), &rejected, tx.clone(), Input::State).await?);
+            subscribers.push(subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Input::Command).await?);
         }
         // The roles' last words come as hand-overs, which this recorder acknowledges.
         let queryables = vec![

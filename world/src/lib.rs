@@ -24,7 +24,7 @@ use tcpf_bus::rejected::Rejected;
 use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_with, Received};
+use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
 use tcpf_bus::waits;
 use tcpf_core::fleet::membership::{Arrival, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
@@ -424,22 +424,13 @@ async fn serve(
     let clock = Arc::new(ClockServer::declare(session, keys).await?);
     let (_commands, inbound) = if realtime {
         let (tx, heard) = queue();
-        let mut subscribers = vec![
-            subscribe_as(
-                session,
-                (&keys.cmd("*"), Locality::Any),
-                &rejected,
-                tx.clone(),
-                Heard::Command,
-            )
-            .await?,
-        ];
+        let mut subscribers = vec![subscribe_as(session, &keys.cmd("*"), &rejected, tx.clone(), Heard::Command).await?];
         // The states of the vehicles other processes play, by which the world judges their
         // arrival; not its own, which it publishes for those ROS 2 nodes play.
         for id in ids.iter().filter(|id| !simulated.contains(id)) {
             let key = keys.state(id);
             subscribers
-                .push(subscribe_as(session, (&key, Locality::Remote), &rejected, tx.clone(), Heard::State).await?);
+                .push(subscribe_origin_as(session, &key, Locality::Remote, &rejected, tx.clone(), Heard::State).await?);
         }
         (subscribers, Inbound::Queued(heard))
     } else {

@@ -1140,7 +1140,6 @@ mod tests {
     use crate::msg::Cause;
     use crate::msg::{Reception, Sample};
 
-    /// Vehicle `id` at `position`, at rest, measured at `tick` of period `dt`.
     /// How far ahead of the tick under way the machines of `on_time` take messages.
     const AHEAD: u64 = 100;
     #[test]
