@@ -79,7 +79,7 @@ impl<C: Clock> Alarm<C> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use std::sync::Arc;
     use std::time::Duration;
 
@@ -89,10 +89,14 @@ mod tests {
 
     /// A clock that moves only when the test says.
     #[derive(Clone)]
-    struct ByHand(Arc<watch::Sender<Moment>>);
+    pub(crate) struct ByHand(Arc<watch::Sender<Moment>>);
 
     impl ByHand {
-        fn advance(&self, to: f64) {
+        pub(crate) fn at_zero() -> ByHand {
+            ByHand(Arc::new(watch::channel(Moment::default()).0))
+        }
+
+        pub(crate) fn advance(&self, to: f64) {
             self.0.send_replace(Moment::from_secs(to));
         }
     }
@@ -127,7 +131,7 @@ mod tests {
 
     #[tokio::test]
     async fn an_alarm_rings_when_the_clock_reaches_it_with_the_instant_it_was_set_for() {
-        let clock = ByHand(Arc::new(watch::channel(at(0.0)).0));
+        let clock = ByHand::at_zero();
         let mut alarm = Alarm::new(clock.clone());
         assert_eq!(rings(&mut alarm).await, None, "unset, it never rings");
         alarm.set(Some(at(2.0)));

@@ -10,6 +10,7 @@ pub mod clock;
 pub mod clock_query;
 pub mod codec;
 pub mod credential;
+pub mod driver;
 pub mod error;
 pub mod exit_report;
 pub mod handover;

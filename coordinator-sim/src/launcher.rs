@@ -1,6 +1,7 @@
 //! `tcpf run` as processes: one planner, one world and one agent per vehicle, children of the same
 //! binary on a loopback port of their own; the launcher records them and stops them all.
 
+use std::convert::Infallible;
 use std::fs::File;
 use std::net::SocketAddr;
 use std::path::Path;
@@ -10,9 +11,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use tcpf_bus::acl::Identity;
-use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::clock::Monotonic;
+use tcpf_bus::driver::{drive, Wiring};
 use tcpf_bus::error::Error;
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
@@ -28,10 +29,12 @@ use crate::access::ROS2_CONFIG;
 use crate::progress::Ticks;
 use crate::recording::Recording;
 use tcpf_core::outputs::summary::{ChildSummary, Closing, Mode, Summary};
+use tcpf_core::roles::machine::Machine;
 use tcpf_core::roles::supervisor::{
-    Child, Exit, Failure, Outcome, Output, Recorded, Supervision, Supervisor, Timeouts, When,
+    Child, Exit, Failure, Input, Outcome, Output, Recorded, Supervision, Supervisor, Timeouts, When,
 };
 use tcpf_report::rundir::RunDir;
+use tokio::signal::unix::Signal;
 
 /// Zenoh's threads in a lockstep agent or planner (unless the user set ZENOH_RUNTIME): one,
 /// instead of six that hand every message to each other. Such a child is a client and routes
@@ -633,106 +636,32 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         children.iter().map(Process::child),
         clock.now(),
     );
-    // Agents that died and were started again: their exits are part of the run's record.
-    let mut retired: Vec<Process> = Vec::new();
-    // What went wrong without failing the run.
-    let mut warnings: Vec<String> = Vec::new();
-    let (mut outcome, mut ended_at) = (None, None);
     if let Err(e) = spawned {
-        supervisor.failed(format!("{e:#}"), clock.now());
+        supervisor.handle(Input::Failed(format!("{e:#}")), clock.now());
     }
-    // One timer, moved when the supervisor's next wake-up does: not one made for every step of
-    // the recording, which comes with every message.
-    let mut alarm = Alarm::new(clock);
-    loop {
-        while let Some(output) = supervisor.poll_output() {
-            match output {
-                Output::Restart { child, exit } => {
-                    let c = &mut children[child];
-                    tracing::warn!("agent {} died ({exit}); starting it again", c.id);
-                    match spawn(exe, dir, Role::Agent, Some(c.id), &c.args, lockstep) {
-                        Ok(again) => {
-                            retired.push(std::mem::replace(c, again));
-                            supervisor.restarted(child);
-                        }
-                        Err(e) => supervisor.failed(format!("agent {} died ({exit}) and {e:#}", c.id), clock.now()),
-                    }
-                }
-                Output::PlannerGone { child, exit, ticks } => {
-                    let gone = format!(
-                        "{} (at tick {ticks}); the run went on without it, but an agent started again could not have fetched its path",
-                        died(dir, children[child].child(), exit, When::AfterServingThePaths)
-                    );
-                    tracing::warn!("{gone}");
-                    warnings.push(gone);
-                }
-                Output::Over(over) => {
-                    ended_at = Some(started.elapsed());
-                    progress.finish();
-                    outcome = Some(match over {
-                        Outcome::Failed(Failure::Died { child, exit, when, .. }) => {
-                            Outcome::Failed(Failure::Other(died(dir, child, exit, when)))
-                        }
-                        over => over,
-                    });
-                }
-                Output::Terminate => {
-                    for c in children.iter_mut() {
-                        if c.poll().is_none() {
-                            // SAFETY: kill(2) on the pid of a child not yet reaped, hence not reused.
-                            unsafe { libc::kill(c.pid as libc::pid_t, libc::SIGTERM) };
-                        }
-                    }
-                }
-                Output::Kill => stop(&mut children).await,
-            }
-        }
-        let Some(woken_for) = supervisor.poll_timeout() else {
-            break;
-        };
-        alarm.set(Some(woken_for));
-        let running = outcome.is_none();
-        tokio::select! {
-            r = recording.step() => match r {
-                Err(e) if running => supervisor.failed(format!("the recorder failed: {e:#}"), clock.now()),
-                Err(e) => {
-                    tracing::error!("recorder: {e:#}; writing what was recorded");
-                    supervisor.failed(format!("{e:#}"), clock.now());
-                }
-                Ok(()) => {
-                    if running {
-                        progress.set(recording.ticks());
-                    }
-                    supervisor.recorded(
-                        Recorded {
-                            ticks: recording.ticks(),
-                            ended: recording.ended(),
-                            complete: recording.complete(),
-                            lost: recording.lost(),
-                            refused_ahead: recording.rejected.totals().future,
-                        },
-                        clock.now(),
-                    );
-                }
-            },
-            _ = shutdown.recv(), if running => supervisor.interrupted(clock.now()),
-            _ = suspend.recv(), if running => {
-                suspend_with(&children);
-                supervisor.continued(clock.now());
-            }
-            _ = alarm.rung() => {
-                for (index, c) in children.iter_mut().enumerate() {
-                    if c.exit_code.is_none() && c.poll().is_some() {
-                        supervisor.exited(index, c.exit());
-                    }
-                    if c.exit_code.is_some() && report_of(&recording, c).is_some() {
-                        supervisor.reported(index);
-                    }
-                }
-                supervisor.handle_timeout(clock.now());
-            }
-        }
-    }
+    let mut fleet = Fleet {
+        exe,
+        dir,
+        lockstep,
+        started,
+        children: &mut children,
+        retired: Vec::new(),
+        warnings: Vec::new(),
+        recording: &mut recording,
+        progress,
+        shutdown: &mut shutdown,
+        suspend: &mut suspend,
+        outcome: None,
+        ended_at: None,
+    };
+    let Ok(()) = drive(&mut supervisor, &mut fleet, clock).await;
+    let Fleet {
+        retired,
+        warnings,
+        outcome,
+        ended_at,
+        ..
+    } = fleet;
     let outcome = outcome.expect("a supervisor is done only once the run is over");
     let wall_time_s = ended_at.unwrap_or_else(|| started.elapsed()).as_secs_f64();
     let _ = session.close().await;
@@ -768,6 +697,126 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         }
         .into()),
         _ => Ok(summary),
+    }
+}
+
+/// The launcher's process for its supervisor: the recording's steps and the signals as inputs;
+/// the children it starts again, tells to stop and kills; their exits, looked at.
+struct Fleet<'a> {
+    exe: &'a Path,
+    dir: &'a RunDir,
+    lockstep: bool,
+    /// When the run began, as its wall time counts.
+    started: Instant,
+    children: &'a mut Vec<Process>,
+    /// Agents that died and were started again: their exits are part of the run's record.
+    retired: Vec<Process>,
+    /// What went wrong without failing the run.
+    warnings: Vec<String>,
+    recording: &'a mut Recording,
+    progress: Ticks,
+    shutdown: &'a mut Shutdown,
+    suspend: &'a mut Signal,
+    outcome: Option<Outcome>,
+    ended_at: Option<Duration>,
+}
+
+impl Wiring<Supervisor> for Fleet<'_> {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> Input {
+        let running = self.outcome.is_none();
+        tokio::select! {
+            r = self.recording.step() => match r {
+                Err(e) if running => Input::Failed(format!("the recorder failed: {e:#}")),
+                Err(e) => {
+                    tracing::error!("recorder: {e:#}; writing what was recorded");
+                    Input::Failed(format!("{e:#}"))
+                }
+                Ok(()) => {
+                    let recording = &self.recording;
+                    if running {
+                        self.progress.set(recording.ticks());
+                    }
+                    Input::Recorded(Recorded {
+                        ticks: recording.ticks(),
+                        ended: recording.ended(),
+                        complete: recording.complete(),
+                        lost: recording.lost(),
+                        refused_ahead: recording.rejected.totals().future,
+                    })
+                }
+            },
+            _ = self.shutdown.recv(), if running => Input::Interrupted,
+            _ = self.suspend.recv(), if running => {
+                suspend_with(self.children);
+                Input::Continued
+            }
+        }
+    }
+
+    async fn perform(&mut self, output: Output) -> Result<Option<Input>, Infallible> {
+        Ok(match output {
+            Output::Restart { child, exit } => {
+                let c = &mut self.children[child];
+                tracing::warn!("agent {} died ({exit}); starting it again", c.id);
+                match spawn(self.exe, self.dir, Role::Agent, Some(c.id), &c.args, self.lockstep) {
+                    Ok(again) => {
+                        self.retired.push(std::mem::replace(c, again));
+                        Some(Input::Restarted(child))
+                    }
+                    Err(e) => Some(Input::Failed(format!("agent {} died ({exit}) and {e:#}", c.id))),
+                }
+            }
+            Output::PlannerGone { child, exit, ticks } => {
+                let gone = format!(
+                    "{} (at tick {ticks}); the run went on without it, but an agent started again could not have fetched its path",
+                    died(self.dir, self.children[child].child(), exit, When::AfterServingThePaths)
+                );
+                tracing::warn!("{gone}");
+                self.warnings.push(gone);
+                None
+            }
+            Output::Over(over) => {
+                self.ended_at = Some(self.started.elapsed());
+                self.progress.finish();
+                self.outcome = Some(match over {
+                    Outcome::Failed(Failure::Died { child, exit, when, .. }) => {
+                        Outcome::Failed(Failure::Other(died(self.dir, child, exit, when)))
+                    }
+                    over => over,
+                });
+                None
+            }
+            Output::Terminate => {
+                for c in self.children.iter_mut() {
+                    if c.poll().is_none() {
+                        // SAFETY: kill(2) on the pid of a child not yet reaped, hence not reused.
+                        unsafe { libc::kill(c.pid as libc::pid_t, libc::SIGTERM) };
+                    }
+                }
+                None
+            }
+            Output::Kill => {
+                stop(self.children).await;
+                None
+            }
+        })
+    }
+
+    /// Zenoh gives no event for a child's exit: the children are looked at as the supervisor
+    /// wakes, every `Timeouts::check_s` at the most.
+    fn looked(&mut self) -> Vec<Input> {
+        let mut found = Vec::new();
+        for (index, c) in self.children.iter_mut().enumerate() {
+            if c.exit_code.is_none() && c.poll().is_some() {
+                found.push(Input::Exited(index, c.exit()));
+            }
+            if c.exit_code.is_some() && report_of(self.recording, c).is_some() {
+                found.push(Input::Reported(index));
+            }
+        }
+        found
     }
 }
 

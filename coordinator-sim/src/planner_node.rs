@@ -1,24 +1,30 @@
 //! `tcpf planner`: solves MODEL §1 and serves each vehicle's generalized path, as a queryable (an
 //! agent that starts late or restarts gets its path) and once as a publication.
 
+use std::convert::Infallible;
+
 use anyhow::{anyhow, Result};
-use tcpf_bus::alarm::Alarm;
 use tcpf_bus::clock::Monotonic;
 use tcpf_bus::codec::encode;
+use tcpf_bus::driver::drive;
 use tcpf_bus::exit_report::report;
 use tcpf_bus::keys::{Keys, Role};
-use tcpf_bus::presence::presence;
+use tcpf_bus::presence::{presence, Presence};
 use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::subscribe::subscribe;
+use tcpf_bus::subscribe::{subscribe, Received};
 use tcpf_bus::waits;
 use tcpf_core::mission::Mission;
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
 use tcpf_core::roles::lockstep::Timing;
 use tcpf_core::roles::planner_node::{Input, PlannerNode};
+use tokio::sync::mpsc::{Receiver, UnboundedReceiver};
+use zenoh::handlers::FifoChannelHandler;
 use zenoh::key_expr::KeyExpr;
+use zenoh::query::{Query, Queryable};
+use zenoh::Wait;
 
 pub use tcpf_core::roles::planner_node::Exit;
 
@@ -49,8 +55,8 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
         .declare_queryable(keys.plan("*"))
         .await
         .map_err(|e| anyhow!("cannot serve {}: {e}", keys.plan("*")))?;
-    let (_presence, mut presence) = presence(&session, &keys).await?;
-    let (_ends, mut ends) = subscribe::<End>(&session, &keys.end(), &rejected).await?;
+    let (_presence, presence) = presence(&session, &keys).await?;
+    let (_ends, ends) = subscribe::<End>(&session, &keys.end(), &rejected).await?;
     for (key, bytes) in &paths {
         session
             .put(key.clone(), bytes.clone())
@@ -69,35 +75,55 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
         keys.plan("*")
     );
 
-    let monotonic = Monotonic::start();
-    let mut machine = PlannerNode::new(waits::END_AFTER_THE_WORLD);
-    let mut alarm = Alarm::new(monotonic);
-    let exit = loop {
-        if let Some(exit) = machine.exit() {
-            break exit;
-        }
-        alarm.set(machine.poll_timeout());
-        tokio::select! {
-            Ok(query) = queryable.recv_async() => {
-                for (key, bytes) in paths.iter().filter(|(k, _)| k.intersects(query.key_expr())) {
-                    if let Err(e) = query.reply(key.clone(), bytes.clone()).await {
-                        tracing::warn!("planner: reply on {key} failed: {e}");
-                    }
-                }
-            }
-            Some(p) = presence.recv() => if p.role == Role::World {
-                machine.handle(Input::World(p.alive), monotonic.now());
-            },
-            Some(_) = ends.recv() => machine.handle(Input::End, monotonic.now()),
-            _ = shutdown.recv() => machine.handle(Input::Interrupted, monotonic.now()),
-            _ = alarm.rung() => {
-                machine.handle_timeout(monotonic.now());
-            }
-        }
+    let mut wiring = Wiring {
+        paths,
+        queryable,
+        presence,
+        ends,
+        shutdown,
     };
+    let mut machine = PlannerNode::new(waits::END_AFTER_THE_WORLD);
+    let exit = drive(&mut machine, &mut wiring, Monotonic::start()).await?;
     tracing::info!("planner: {exit}");
     report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default(), None).await?;
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)
+}
+
+/// The planner's process: the world's liveliness, ends and signals for its machine. It answers
+/// the queries for paths itself, which the machine has no say in.
+struct Wiring {
+    paths: Vec<(KeyExpr<'static>, Vec<u8>)>,
+    queryable: Queryable<FifoChannelHandler<Query>>,
+    presence: UnboundedReceiver<Presence>,
+    ends: Receiver<Received<End>>,
+    shutdown: Shutdown,
+}
+
+impl tcpf_bus::driver::Wiring<PlannerNode> for Wiring {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> Input {
+        loop {
+            tokio::select! {
+                Ok(query) = self.queryable.recv_async() => {
+                    for (key, bytes) in self.paths.iter().filter(|(k, _)| k.intersects(query.key_expr())) {
+                        if let Err(e) = query.reply(key.clone(), bytes.clone()).wait() {
+                            tracing::warn!("planner: reply on {key} failed: {e}");
+                        }
+                    }
+                }
+                Some(p) = self.presence.recv() => if p.role == Role::World {
+                    return Input::World(p.alive);
+                },
+                Some(_) = self.ends.recv() => return Input::End,
+                _ = self.shutdown.recv() => return Input::Interrupted,
+            }
+        }
+    }
+
+    async fn perform(&mut self, output: Infallible) -> Result<Option<Input>, Infallible> {
+        match output {}
+    }
 }

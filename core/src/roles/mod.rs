@@ -1,12 +1,14 @@
 //! Each role's machine, which a process drives: the vehicle's `agent`, the `world`, the
 //! recorder (`record`), the two clocks that pace them (`lockstep`, `realtime`), the lockstep
 //! agent and world around their nodes (`lockstep_agent`, `lockstep_world`), the planner's process (`planner_node`), the
-//! launcher's `supervisor`, and `sim`, all of them in one loop: the in-process fleet.
+//! launcher's `supervisor`, and `sim`, all of them in one loop: the in-process fleet. `machine` is
+//! the shape a process's driver runs them by.
 
 pub mod agent;
 pub mod lockstep;
 pub mod lockstep_agent;
 pub mod lockstep_world;
+pub mod machine;
 pub mod planner_node;
 pub mod realtime;
 pub mod record;

@@ -5,9 +5,11 @@
 //! speak; only the world's going away takes the paths from a running fleet). Times are inputs:
 //! instants on the planner's monotonic clock.
 
+use std::convert::Infallible;
 use std::time::Duration;
 
 use crate::fleet::watch::EndGrace;
+use crate::roles::machine::Machine;
 use crate::time::Moment;
 
 /// What the planner's process hears besides the queries for paths.
@@ -55,9 +57,15 @@ impl PlannerNode {
             exit: None,
         }
     }
+}
 
-    /// `input` came at `now`.
-    pub fn handle(&mut self, input: Input, now: Moment) {
+impl Machine for PlannerNode {
+    type Input = Input;
+    /// The planner's only output, its paths, is served by its process as asked.
+    type Output = Infallible;
+    type Exit = Exit;
+
+    fn handle(&mut self, input: Input, now: Moment) {
         if self.exit.is_some() {
             return;
         }
@@ -81,19 +89,23 @@ impl PlannerNode {
     }
 
     /// When the grace for a gone world's End runs out, if one runs.
-    pub fn poll_timeout(&self) -> Option<Moment> {
+    fn poll_timeout(&self) -> Option<Moment> {
         self.gone.poll_timeout().filter(|_| self.exit.is_none())
     }
 
-    /// The clock reached `now`: a world gone for the grace without an End is gone for good.
-    pub fn handle_timeout(&mut self, now: Moment) {
+    /// A world gone for the grace without an End is gone for good.
+    fn handle_timeout(&mut self, now: Moment, _due: Moment) {
         if self.exit.is_none() && self.gone.handle_timeout(now) {
             self.exit = Some(Exit::WorldGone);
         }
     }
 
+    fn poll_output(&mut self) -> Option<Infallible> {
+        None
+    }
+
     /// Whether, and why, serving is over.
-    pub fn exit(&self) -> Option<Exit> {
+    fn poll_exit(&mut self) -> Option<Exit> {
         self.exit
     }
 }
@@ -118,9 +130,9 @@ mod tests {
     fn a_world_that_ended_the_run_and_left_ends_the_planner_at_once() {
         let mut m = serving();
         m.handle(Input::End, at(50.0));
-        assert_eq!(m.exit(), None, "an End alone takes no path away");
+        assert_eq!(m.poll_exit(), None, "an End alone takes no path away");
         m.handle(Input::World(false), at(50.1));
-        assert_eq!(m.exit(), Some(Exit::Ended));
+        assert_eq!(m.poll_exit(), Some(Exit::Ended));
         assert_eq!(m.poll_timeout(), None);
     }
 
@@ -129,27 +141,27 @@ mod tests {
         let mut m = serving();
         m.handle(Input::World(false), at(50.0));
         assert_eq!(m.poll_timeout(), Some(at(50.5)));
-        m.handle_timeout(at(50.4));
-        assert_eq!(m.exit(), None, "the grace has not run out");
+        m.handle_timeout(at(50.4), at(50.4));
+        assert_eq!(m.poll_exit(), None, "the grace has not run out");
         m.handle(Input::End, at(50.45));
-        assert_eq!(m.exit(), Some(Exit::Ended));
+        assert_eq!(m.poll_exit(), Some(Exit::Ended));
     }
 
     #[test]
     fn a_world_gone_for_the_grace_without_an_end_is_gone() {
         let mut m = serving();
         m.handle(Input::World(false), at(50.0));
-        m.handle_timeout(at(50.5));
-        assert_eq!(m.exit(), Some(Exit::WorldGone));
+        m.handle_timeout(at(50.5), at(50.5));
+        assert_eq!(m.poll_exit(), Some(Exit::WorldGone));
         m.handle(Input::End, at(50.6));
-        assert_eq!(m.exit(), Some(Exit::WorldGone), "what is decided stays");
+        assert_eq!(m.poll_exit(), Some(Exit::WorldGone), "what is decided stays");
     }
 
     #[test]
     fn a_token_gone_before_the_world_was_seen_is_not_its_leaving() {
         let mut m = PlannerNode::new(GRACE);
         m.handle(Input::World(false), at(0.1));
-        assert_eq!((m.exit(), m.poll_timeout()), (None, None));
+        assert_eq!((m.poll_exit(), m.poll_timeout()), (None, None));
         m.handle(Input::World(true), at(0.2));
         m.handle(Input::World(false), at(9.0));
         assert_eq!(m.poll_timeout(), Some(at(9.5)));
@@ -161,8 +173,8 @@ mod tests {
         m.handle(Input::World(false), at(10.0));
         m.handle(Input::World(true), at(10.2));
         assert_eq!(m.poll_timeout(), None);
-        m.handle_timeout(at(11.0));
-        assert_eq!(m.exit(), None);
+        m.handle_timeout(at(11.0), at(11.0));
+        assert_eq!(m.poll_exit(), None);
     }
 
     #[test]
@@ -170,7 +182,7 @@ mod tests {
         let mut m = serving();
         m.handle(Input::World(false), at(10.0));
         m.handle(Input::Interrupted, at(10.1));
-        assert_eq!(m.exit(), Some(Exit::Interrupted));
+        assert_eq!(m.poll_exit(), Some(Exit::Interrupted));
         assert_eq!(m.poll_timeout(), None);
     }
 }

@@ -12,6 +12,7 @@ use std::fmt;
 
 use crate::msg::Role;
 use crate::outputs::summary::Restarts;
+use crate::roles::machine::Machine;
 use crate::time::Moment;
 
 /// Every wait of the supervisor, each with its default.
@@ -246,11 +247,31 @@ pub struct Recorded {
     pub refused_ahead: u64,
 }
 
+/// What the launcher tells its supervisor.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Input {
+    /// Child `index` has exited so.
+    Exited(usize, Exit),
+    /// Child `index`'s exit report has come.
+    Reported(usize),
+    /// Child `index` (an agent asked for by `Output::Restart`) runs again.
+    Restarted(usize),
+    /// The recording after a step.
+    Recorded(Recorded),
+    /// The fleet went on after being stopped with the launcher (Ctrl-Z): no tick came because
+    /// none could.
+    Continued,
+    /// Ctrl-C, or a signal to stop.
+    Interrupted,
+    /// The launcher failed the run: its recorder failed, or an agent could not be started.
+    Failed(String),
+}
+
 /// What the launcher is to do.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Output {
     /// Start this child (an agent) again: it died, and its vehicle is not lost. The launcher
-    /// answers with `restarted`, or with `failed` if it cannot.
+    /// answers with `Input::Restarted`, or with `Input::Failed` if it cannot.
     Restart { child: usize, exit: Exit },
     /// The planner exited once the fleet ran: the run goes on without it, and says so.
     PlannerGone { child: usize, exit: Exit, ticks: u64 },
@@ -322,7 +343,7 @@ impl Supervisor {
     }
 
     /// Child `index` has exited so.
-    pub fn exited(&mut self, index: usize, exit: Exit) {
+    fn exited(&mut self, index: usize, exit: Exit) {
         let kid = &mut self.kids[index];
         kid.exit = Some(exit);
         // Killed by a signal: no report is coming.
@@ -330,12 +351,12 @@ impl Supervisor {
     }
 
     /// Child `index`'s exit report has come.
-    pub fn reported(&mut self, index: usize) {
+    fn reported(&mut self, index: usize) {
         self.kids[index].reported = true;
     }
 
     /// Child `index` (an agent asked for by `Output::Restart`) runs again.
-    pub fn restarted(&mut self, index: usize) {
+    fn restarted(&mut self, index: usize) {
         let kid = &mut self.kids[index];
         kid.exit = None;
         kid.reported = false;
@@ -347,7 +368,7 @@ impl Supervisor {
     }
 
     /// The recording after a step.
-    pub fn recorded(&mut self, recorded: Recorded, now: Moment) {
+    fn recorded(&mut self, recorded: Recorded, now: Moment) {
         if recorded.ticks > self.recorded.ticks {
             self.progress_at = now;
         }
@@ -360,18 +381,18 @@ impl Supervisor {
 
     /// The fleet went on after being stopped with the launcher (Ctrl-Z): no tick came because
     /// none could.
-    pub fn continued(&mut self, now: Moment) {
+    fn continued(&mut self, now: Moment) {
         self.progress_at = now;
     }
 
     /// Ctrl-C, or a signal to stop.
-    pub fn interrupted(&mut self, now: Moment) {
+    fn interrupted(&mut self, now: Moment) {
         self.over(Outcome::Interrupted, now);
     }
 
     /// The launcher failed the run: its recorder failed, or an agent could not be started.
     /// In the grace after the end, it only cuts the grace short.
-    pub fn failed(&mut self, why: String, now: Moment) {
+    fn failed(&mut self, why: String, now: Moment) {
         match self.phase {
             Phase::Running => self.over(Outcome::Failed(Failure::Other(why)), now),
             Phase::Grace { .. } => self.finish(),
@@ -379,52 +400,9 @@ impl Supervisor {
         }
     }
 
-    /// When the launcher should next call `handle_timeout`.
-    pub fn poll_timeout(&self) -> Option<Moment> {
-        match self.phase {
-            Phase::Running => Some(self.next_check),
-            Phase::Grace { deadline, .. } => Some(self.next_check.min(deadline)),
-            Phase::Done => None,
-        }
-    }
-
-    /// The children's exits as of `now` are told: what they mean.
-    pub fn handle_timeout(&mut self, now: Moment) {
-        if now >= self.next_check {
-            self.next_check = now + self.config.timeouts.check_s;
-        }
-        match self.phase {
-            Phase::Running => self.check(now),
-            Phase::Grace { deadline, exited } => {
-                if now >= deadline {
-                    return self.finish();
-                }
-                if self.kids.iter().all(|k| k.exit.is_some()) {
-                    let since = exited.unwrap_or(now);
-                    self.phase = Phase::Grace {
-                        deadline,
-                        exited: Some(since),
-                    };
-                    if now - since >= self.config.timeouts.report_settle_s || self.kids.iter().all(|k| k.reported) {
-                        self.finish();
-                    }
-                }
-            }
-            Phase::Done => {}
-        }
-    }
-
-    pub fn poll_output(&mut self) -> Option<Output> {
-        self.outputs.pop_front()
-    }
-
     /// The agents started again, per vehicle.
     pub fn restarts(&self) -> &[Restarts] {
         &self.restarts
-    }
-
-    pub fn is_done(&self) -> bool {
-        self.phase == Phase::Done
     }
 
     fn check(&mut self, now: Moment) {
@@ -548,6 +526,69 @@ impl Supervisor {
     }
 }
 
+impl Machine for Supervisor {
+    type Input = Input;
+    type Output = Output;
+    /// The outcome is said once, by `Output::Over`.
+    type Exit = ();
+
+    fn handle(&mut self, input: Input, now: Moment) {
+        match input {
+            Input::Exited(index, exit) => self.exited(index, exit),
+            Input::Reported(index) => self.reported(index),
+            Input::Restarted(index) => self.restarted(index),
+            Input::Recorded(recorded) => self.recorded(recorded, now),
+            Input::Continued => self.continued(now),
+            Input::Interrupted => self.interrupted(now),
+            Input::Failed(why) => self.failed(why, now),
+        }
+    }
+
+    /// When the launcher should next call `handle_timeout`.
+    fn poll_timeout(&self) -> Option<Moment> {
+        match self.phase {
+            Phase::Running => Some(self.next_check),
+            Phase::Grace { deadline, .. } => Some(self.next_check.min(deadline)),
+            Phase::Done => None,
+        }
+    }
+
+    /// The children's exits as of `now` are told: what they mean.
+    fn handle_timeout(&mut self, now: Moment, _due: Moment) {
+        if now >= self.next_check {
+            self.next_check = now + self.config.timeouts.check_s;
+        }
+        match self.phase {
+            Phase::Running => self.check(now),
+            Phase::Grace { deadline, exited } => {
+                if now >= deadline {
+                    return self.finish();
+                }
+                if self.kids.iter().all(|k| k.exit.is_some()) {
+                    let since = exited.unwrap_or(now);
+                    self.phase = Phase::Grace {
+                        deadline,
+                        exited: Some(since),
+                    };
+                    if now - since >= self.config.timeouts.report_settle_s || self.kids.iter().all(|k| k.reported) {
+                        self.finish();
+                    }
+                }
+            }
+            Phase::Done => {}
+        }
+    }
+
+    fn poll_output(&mut self) -> Option<Output> {
+        self.outputs.pop_front()
+    }
+
+    /// Done once the children are gone, or killed.
+    fn poll_exit(&mut self) -> Option<()> {
+        (self.phase == Phase::Done).then_some(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -619,7 +660,7 @@ mod tests {
         let to = at(to);
         let mut out = Vec::new();
         while let Some(at) = s.poll_timeout().filter(|&at| at <= to) {
-            s.handle_timeout(at);
+            s.handle_timeout(at, at);
             out.extend(outputs(s));
         }
         out
@@ -676,7 +717,7 @@ mod tests {
             s.reported(child);
         }
         assert_eq!(run_until(&mut s, 101.0), [Output::Kill]);
-        assert!(s.is_done());
+        assert_eq!(s.poll_exit(), Some(()));
         assert_eq!(s.poll_timeout(), None);
     }
 
@@ -920,6 +961,6 @@ mod tests {
             outputs(&mut s),
             [Output::Over(Outcome::Interrupted), Output::Terminate, Output::Kill]
         );
-        assert!(s.is_done());
+        assert_eq!(s.poll_exit(), Some(()));
     }
 }
