@@ -3,22 +3,22 @@
 //! senders' keys and fed to core's `RecorderNode`, which writes every tick it completes, in
 //! order, through the outlets here.
 
+use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::alarm::Alarm;
 use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, await_clock, ClockAnswer, ClockBell};
+use tcpf_bus::driver::{drive, Wiring};
 use tcpf_bus::handover::{take_over, take_over_held, Ack};
 use tcpf_bus::history;
 use tcpf_bus::keys::{Keys, Role};
-use tcpf_bus::presence::{presence, present};
+use tcpf_bus::presence::{presence, present, Presence};
 use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{subscribe_as, Received};
-use tcpf_core::fleet::watch::{Due, RecorderWaits};
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::model::planner::Plan;
@@ -29,9 +29,11 @@ use tcpf_core::outputs::ros2::Stamp;
 use tcpf_core::outputs::summary::{self, Closing, Mode, Summary};
 use tcpf_core::roles::realtime::STATES_DUE_S;
 use tcpf_core::roles::recorder_node::{Input, Io, RecorderNode, Refused};
+use tcpf_core::roles::recorder_watch::{Input as WatchInput, Output as WatchOutput, RecorderWatch, Stop};
 use tcpf_core::time::UnixTime;
 use tcpf_report::rundir::{RunDir, Telemetry};
-use tokio::sync::mpsc::{self, Receiver, Sender};
+use tokio::sync::mpsc::{self, Receiver, Sender, UnboundedReceiver};
+use tokio::task::JoinHandle;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Subscriber;
 use zenoh::query::Queryable;
@@ -430,8 +432,6 @@ fn loss(loss: Loss) -> Input<Ack> {
     Input::Loss(loss.into())
 }
 
-/// `tcpf record`: records a fleet started elsewhere (start the world with `--recorders 1`) until
-/// the world's end or a signal, and writes the run directory.
 /// How `tcpf record` records: `live` serves it to Foxglove, `ros2` to ROS 2 tools.
 pub struct RecordOptions {
     pub live: Option<SocketAddr>,
@@ -439,6 +439,8 @@ pub struct RecordOptions {
     pub ros2: Option<Ros2Config>,
 }
 
+/// `tcpf record`: records a fleet started elsewhere (start the world with `--recorders 1`) until
+/// the world's end or a signal, and writes the run directory.
 pub async fn record(
     mission: &Mission,
     plan: &Plan,
@@ -478,126 +480,48 @@ pub async fn record(
         recording.speak_ros2(ros2, mission, plan).await.map_err(unrecorded)?;
     }
     let keys = Keys::new(&mission.mission.name);
-    let (_presence, mut presence) = presence(&session, &keys).await.map_err(unrecorded)?;
+    let (_presence, presence) = presence(&session, &keys).await.map_err(unrecorded)?;
     recording.declare().await.map_err(unrecorded)?;
-    let progress = Ticks::new(mission);
     let clock = recording.clock();
     let realtime = mission.mission.clock == ClockKind::Realtime;
     // A world that dies says no end, and one may never come (another mission name, endpoint or
     // credential): without these waits the recording would wait for it forever.
-    let mut waits = RecorderWaits::new(clock.now(), startup_timeout.as_secs_f64(), realtime);
-    let mut alarm = Alarm::new(clock);
-    let (mut from_world, mut written) = (recording.from_world(), 0);
-    // Who is present, asked on a task of its own while the recording goes on.
-    let mut asking: Option<tokio::task::JoinHandle<Option<bool>>> = None;
-    let mut failure = None;
-    let interrupted = loop {
-        if recording.complete() {
-            break false;
-        }
-        alarm.set(waits.poll_timeout());
-        tokio::select! {
-            r = recording.step() => {
-                let ticks = recording.ticks();
-                if let Err(e) = r {
-                    if ticks == 0 {
-                        return Err(unrecorded(e));
-                    }
-                    tracing::error!("recorder: {e:#}; writing what was recorded");
-                    failure = Some(format!("the recorder failed: {e:#}"));
-                    break false;
-                }
-                if ticks > written {
-                    written = ticks;
-                    waits.progressed(clock.now());
-                }
-                progress.set(ticks);
-                if recording.from_world() > from_world {
-                    from_world = recording.from_world();
-                    waits.heard(clock.now());
-                }
-                if recording.ended() {
-                    waits.ended();
-                }
-            }
-            _ = shutdown.recv() => break true,
-            Some(p) = presence.recv() => {
-                if p.role == Role::World {
-                    if p.alive && !waits.seen() {
-                        tracing::info!("recorder: the world is here");
-                    }
-                    waits.on_presence(p.alive, clock.now());
-                }
-            }
-            answer = async { asking.as_mut().expect("asked").await }, if asking.is_some() => {
-                asking = None;
-                waits.on_answer(answer.ok().flatten(), clock.now());
-                if waits.left().is_some() {
-                    tracing::warn!("recorder: the world's token is gone, though its leaving was never seen");
-                }
-            }
-            _ = alarm.rung() => {
-                match waits.handle_timeout(clock.now()) {
-                    // Reports are waited for only once the recording has stopped, below.
-                    None | Some(Due::ReportsLate) => {}
-                    Some(Due::Ask) => {
-                        let (session, keys) = (session.clone(), keys.clone());
-                        asking = Some(tokio::spawn(async move {
-                            match present(&session, &keys).await {
-                                Ok(present) => Some(present.iter().any(|(role, _)| *role == Role::World)),
-                                Err(e) => {
-                                    tracing::warn!("recorder: {e}");
-                                    None
-                                }
-                            }
-                        }));
-                    }
-                    Some(Due::NoWorld) => {
-                        return Err(unrecorded(anyhow!(
-                            "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
-                            mission.mission.name
-                        )));
-                    }
-                    Some(Due::Stalled) => {
-                        let why = if recording.ended() {
-                            format!(
-                                "the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder)",
-                                recording.ticks()
-                            )
-                        } else {
-                            format!(
-                                "the world left without announcing the end, after tick {}",
-                                recording.world_ticks()
-                            )
-                        };
-                        tracing::error!("recorder: {why}; writing what was recorded");
-                        failure = Some(why);
-                        break false;
-                    }
-                }
-            }
-        }
+    let mut watch = RecorderWatch::new(clock.now(), startup_timeout.as_secs_f64(), realtime);
+    let mut recorder = Recorder {
+        recording: &mut recording,
+        session: &session,
+        keys: &keys,
+        presence,
+        shutdown,
+        progress: Ticks::new(mission),
+        asking: None,
+        error: None,
+        failure: None,
     };
+    let Ok(exit) = drive(&mut watch, &mut recorder, clock).await;
+    let Recorder {
+        asking,
+        error,
+        failure,
+        progress,
+        ..
+    } = recorder;
     if let Some(question) = asking {
         question.abort();
     }
     progress.finish();
-    let wall_time_s = clock.now().secs();
-    // The world and the agents report as they exit, just after the end: a moment for them.
-    if !interrupted {
-        waits.closing(clock.now());
-        while !recording.unreported().is_empty() {
-            alarm.set(waits.poll_timeout());
-            tokio::select! {
-                r = recording.step() => if r.is_err() {
-                    break;
-                },
-                _ = alarm.rung() => if waits.handle_timeout(clock.now()).is_some() {
-                    break;
-                },
-            }
+    let interrupted = exit.stop == Stop::Interrupted;
+    match exit.stop {
+        Stop::Unrecorded => return Err(unrecorded(error.expect("a failed step keeps its error"))),
+        Stop::NoWorld => {
+            return Err(unrecorded(anyhow!(
+                "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
+                mission.mission.name
+            )))
         }
+        Stop::Complete | Stop::Interrupted | Stop::Failed | Stop::Stalled => {}
     }
+    let wall_time_s = exit.at.secs();
     let _ = session.close().await;
     let ended = !interrupted && recording.ended();
     let first_tick_s = recording.first_tick().map(|at| clock.since(at));
@@ -615,6 +539,98 @@ pub async fn record(
             warnings: Vec::new(),
         },
     )
+}
+
+/// `tcpf record`'s process for its watch: each step of the recording, the world's liveliness
+/// and signals as inputs; the question of who is present asked on a task of its own while the
+/// recording goes on.
+struct Recorder<'a> {
+    recording: &'a mut Recording,
+    session: &'a Session,
+    keys: &'a Keys,
+    presence: UnboundedReceiver<Presence>,
+    shutdown: Shutdown,
+    progress: Ticks,
+    asking: Option<JoinHandle<Option<bool>>>,
+    /// The error of a failed step.
+    error: Option<anyhow::Error>,
+    /// Why the run failed, for its summary.
+    failure: Option<String>,
+}
+
+impl Wiring<RecorderWatch> for Recorder<'_> {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> WatchInput {
+        loop {
+            tokio::select! {
+                r = self.recording.step() => {
+                    let ticks = self.recording.ticks();
+                    if let Err(e) = r {
+                        if ticks > 0 {
+                            tracing::error!("recorder: {e:#}; writing what was recorded");
+                            self.failure.get_or_insert_with(|| format!("the recorder failed: {e:#}"));
+                        }
+                        self.error.get_or_insert(e);
+                        return WatchInput::Failed { ticks };
+                    }
+                    self.progress.set(ticks);
+                    return WatchInput::Recorded {
+                        ticks,
+                        from_world: self.recording.from_world(),
+                        ended: self.recording.ended(),
+                        complete: self.recording.complete(),
+                        unreported: self.recording.unreported().len(),
+                    };
+                }
+                _ = self.shutdown.recv() => return WatchInput::Interrupted,
+                Some(p) = self.presence.recv() => if p.role == Role::World {
+                    return WatchInput::World(p.alive);
+                },
+                answer = async { self.asking.as_mut().expect("asked").await }, if self.asking.is_some() => {
+                    self.asking = None;
+                    return WatchInput::Answer(answer.ok().flatten());
+                }
+            }
+        }
+    }
+
+    async fn perform(&mut self, output: WatchOutput) -> Result<Option<WatchInput>, Infallible> {
+        match output {
+            WatchOutput::Ask => {
+                let (session, keys) = (self.session.clone(), self.keys.clone());
+                self.asking = Some(tokio::spawn(async move {
+                    match present(&session, &keys).await {
+                        Ok(present) => Some(present.iter().any(|(role, _)| *role == Role::World)),
+                        Err(e) => {
+                            tracing::warn!("recorder: {e}");
+                            None
+                        }
+                    }
+                }));
+            }
+            WatchOutput::WorldHere => tracing::info!("recorder: the world is here"),
+            WatchOutput::LeftUnseen => {
+                tracing::warn!("recorder: the world's token is gone, though its leaving was never seen")
+            }
+            WatchOutput::Stalled { ended } => {
+                let why = if ended {
+                    format!(
+                        "the world has ended, but tick {} never came whole here (a state or command of it did not reach the recorder)",
+                        self.recording.ticks()
+                    )
+                } else {
+                    format!(
+                        "the world left without announcing the end, after tick {}",
+                        self.recording.world_ticks()
+                    )
+                };
+                tracing::error!("recorder: {why}; writing what was recorded");
+                self.failure = Some(why);
+            }
+        }
+        Ok(None)
+    }
 }
 
 #[cfg(test)]

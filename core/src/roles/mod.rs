@@ -1,8 +1,9 @@
 //! Each role's machine, which a process drives: the vehicle's `agent`, the `world`, the
 //! recorder (`record`), the two clocks that pace them (`lockstep`, `realtime`), the lockstep
-//! agent and world around their nodes (`lockstep_agent`, `lockstep_world`), the planner's process (`planner_node`), the
-//! launcher's `supervisor`, and `sim`, all of them in one loop: the in-process fleet. `machine` is
-//! the shape a process's driver runs them by.
+//! agent and world around their nodes (`lockstep_agent`, `lockstep_world`), the recorder's
+//! process (`recorder_node`) and `tcpf record`'s waits around it (`recorder_watch`), the
+//! planner's process (`planner_node`), the launcher's `supervisor`, and `sim`, all of them in one
+//! loop: the in-process fleet. `machine` is the shape a process's driver runs them by.
 
 pub mod agent;
 pub mod lockstep;
@@ -13,6 +14,7 @@ pub mod planner_node;
 pub mod realtime;
 pub mod record;
 pub mod recorder_node;
+pub mod recorder_watch;
 pub mod sim;
 pub mod supervisor;
 pub mod world;
