@@ -10,8 +10,9 @@ use std::time::Duration;
 use anyhow::{anyhow, Result};
 use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::{claim, Rivals};
-use tcpf_bus::clock::{self, metronome, FleetClock, Monotonic};
+use tcpf_bus::clock::{self, metronome, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, ask_clock, await_clock, ClockAnswer, ClockBell};
+use tcpf_bus::driver::{drive, Wiring};
 use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::Outlet;
@@ -22,7 +23,7 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{AgentStartup, Peer, StartupCheck, WorldAway, WorldReach};
+use tcpf_core::fleet::membership::{AgentStartup, Peer, StartupCheck};
 use tcpf_core::fleet::watch::EndGrace;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
@@ -31,6 +32,9 @@ use tcpf_core::roles::agent::Agent;
 use tcpf_core::roles::lockstep::{AgentNode, Timing};
 use tcpf_core::roles::lockstep_agent::{Input, LockstepAgent, Output, Source};
 use tcpf_core::roles::realtime::RealtimeAgent;
+use tcpf_core::roles::realtime_agent::{
+    Exit as RealtimeExit, Input as RealtimeInput, Output as RealtimeOutput, RealtimeAgentNode,
+};
 use tcpf_core::time::Moment;
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
@@ -626,68 +630,38 @@ impl Shell {
         Ok(exit)
     }
 
-    async fn realtime(&mut self, mission: &Mission, mut queued: Queued, clock: &Clock) -> Result<Exit> {
+    async fn realtime(&mut self, mission: &Mission, queued: Queued, clock: &Clock) -> Result<Exit> {
         let id = self.id;
-        let mut away = WorldAway::new(waits::WORLD_AWAY);
-        let monotonic = Monotonic::start();
-        let mut alarm = Alarm::new(monotonic);
-        let mut published = 0;
         let fleet = FleetClock::new(clock, mission.mission.control_period);
-        let period = fleet.period().as_secs_f64();
         // γ_i starts at 0 for an agent there from the beginning, from wherever the vehicle is
         // for one that finds the run under way (started again, or late).
-        let mut node = RealtimeAgent::new(queued.agent, mission, true);
-        let mut beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
+        let node = RealtimeAgent::new(queued.agent, mission, true);
+        let mut machine = RealtimeAgentNode::new(node, fleet.period().as_secs_f64(), waits::WORLD_AWAY);
+        let beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
         let_go_of_the_start(id);
-        let exit = loop {
-            alarm.set(away.poll_timeout());
-            tokio::select! {
-                Some(beat) = beats.recv() => {
-                    if let Some(action) = node.act(beat.tick, beat.late_s(), period, beat.skipped) {
-                        if let Some(gamma) = action.gamma {
-                            queued.gamma_out.put(&gamma).await?;
-                            published += 1;
-                        }
-                        warn_if_not_finite(id, &action.command);
-                        queued.commands.put(&action.command).await?;
-                        if let Some(ros2) = &mut queued.ros2 {
-                            let t = action.command.tick as f64 * mission.mission.control_period;
-                            ros2.put(&action.command, Stamp::of_fleet(clock, t))?;
-                        }
-                    }
-                }
-                Some(s) = queued.states.recv() => {
-                    if let Err(e) = node.on_state(s.message, fleet.horizon()) {
-                        self.rejected.reject(e, &s.key);
-                    }
-                }
-                Some(g) = queued.gammas.recv() => {
-                    self.rejected.check(&g.key, g.message.from, || node.on_gamma(g.message, fleet.horizon()));
-                }
-                Some(p) = self.presence.recv() => match p.role {
-                    Role::World => match away.on_world(p.alive, monotonic.now()) {
-                        Some(WorldReach::Away(grace)) => tracing::warn!(
-                            "agent {id}: the world is out of reach; acting on what it last sent, and waiting up to {grace:?} for it"
-                        ),
-                        Some(WorldReach::Back) => tracing::info!("agent {id}: the world is back"),
-                        None => {}
-                    },
-                    Role::Planner if !p.alive => {
-                        tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
-                    }
-                    _ => {}
-                },
-                _ = alarm.rung() => {
-                    if away.handle_timeout(monotonic.now()) {
-                        tracing::warn!("agent {id}: the world did not come back; stopping");
-                        break Exit::Orphaned;
-                    }
-                }
-                Some(_) = self.ends.recv() => break Exit::Ended,
-                Some(_) = self.losses.recv() => {}
-                _ = self.shutdown.recv() => break Exit::Interrupted,
+        let mut wiring = Realtime {
+            shell: self,
+            states: queued.states,
+            gammas: queued.gammas,
+            commands: queued.commands,
+            gamma_out: queued.gamma_out,
+            ros2: queued.ros2,
+            beats,
+            fleet,
+            clock,
+            control_period: mission.mission.control_period,
+            published: 0,
+        };
+        let exit = match drive(&mut machine, &mut wiring, Monotonic::start()).await? {
+            RealtimeExit::Ended => Exit::Ended,
+            RealtimeExit::Interrupted => Exit::Interrupted,
+            RealtimeExit::Orphaned => {
+                tracing::warn!("agent {id}: the world did not come back; stopping");
+                Exit::Orphaned
             }
         };
+        let published = wiring.published;
+        let node = machine.node();
         let timing = node.timing();
         tracing::info!(
             "agent {id}: {exit} at γ = {:.3}; period lateness p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} overruns, {} skipped, {} stale states",
@@ -709,5 +683,79 @@ impl Shell {
         )
         .await?;
         Ok(exit)
+    }
+}
+
+/// A realtime agent's process for its machine: the metronome's beats, the vehicle's states, the
+/// neighbours' γ (each checked for its sender's key), liveliness, the end and signals as inputs;
+/// its γ and commands published, on ROS 2 too, and refusals counted by key.
+struct Realtime<'a> {
+    shell: &'a mut Shell,
+    states: Receiver<Received<State>>,
+    gammas: Receiver<Received<Gamma>>,
+    commands: Outlet,
+    gamma_out: Outlet,
+    ros2: Option<tcpf_bus::ros2::Agent>,
+    beats: Receiver<Beat>,
+    fleet: FleetClock,
+    clock: &'a Clock,
+    control_period: f64,
+    /// γ published.
+    published: u64,
+}
+
+impl Wiring<RealtimeAgentNode<String>> for Realtime<'_> {
+    type Error = anyhow::Error;
+
+    async fn next(&mut self) -> RealtimeInput<String> {
+        let shell = &mut *self.shell;
+        loop {
+            tokio::select! {
+                Some(beat) = self.beats.recv() => {
+                    return RealtimeInput::Beat { tick: beat.tick, late_s: beat.late_s(), skipped: beat.skipped };
+                }
+                Some(s) = self.states.recv() => {
+                    return RealtimeInput::State { state: s.message, horizon: self.fleet.horizon(), key: s.key };
+                }
+                Some(g) = self.gammas.recv() => if shell.rejected.from_sender(&g.key, g.message.from) {
+                    return RealtimeInput::Gamma { gamma: g.message, horizon: self.fleet.horizon(), key: g.key };
+                },
+                Some(p) = shell.presence.recv() => match p.role {
+                    Role::World => return RealtimeInput::World(p.alive),
+                    Role::Planner if !p.alive => return RealtimeInput::PlannerGone,
+                    _ => {}
+                },
+                Some(_) = shell.ends.recv() => return RealtimeInput::End,
+                Some(_) = shell.losses.recv() => {}
+                _ = shell.shutdown.recv() => return RealtimeInput::Interrupted,
+            }
+        }
+    }
+
+    async fn perform(&mut self, output: RealtimeOutput<String>) -> Result<Option<RealtimeInput<String>>> {
+        let id = self.shell.id;
+        match output {
+            RealtimeOutput::Gamma(gamma) => {
+                self.gamma_out.put(&gamma).await?;
+                self.published += 1;
+            }
+            RealtimeOutput::Command(command) => {
+                warn_if_not_finite(id, &command);
+                self.commands.put(&command).await?;
+                if let Some(ros2) = &mut self.ros2 {
+                    let t = command.tick as f64 * self.control_period;
+                    ros2.put(&command, Stamp::of_fleet(self.clock, t))?;
+                }
+            }
+            RealtimeOutput::Refused(why, key) => self.shell.rejected.reject(why, &key),
+            RealtimeOutput::WorldAway(grace) => tracing::warn!(
+                "agent {id}: the world is out of reach; acting on what it last sent, and waiting up to {grace:?} for it"
+            ),
+            RealtimeOutput::WorldBack => tracing::info!("agent {id}: the world is back"),
+            RealtimeOutput::PlannerGone => {
+                tracing::warn!("agent {id}: the planner is gone; going on with the path it served")
+            }
+        }
+        Ok(None)
     }
 }
