@@ -732,7 +732,11 @@ impl Wiring<RealtimeAgentNode<String>> for Realtime<'_> {
         }
     }
 
-    async fn perform(&mut self, output: RealtimeOutput<String>) -> Result<Option<RealtimeInput<String>>> {
+    async fn perform(
+        &mut self,
+        output: RealtimeOutput<String>,
+        _: &RealtimeAgentNode<String>,
+    ) -> Result<Option<RealtimeInput<String>>> {
         let id = self.shell.id;
         match output {
             RealtimeOutput::Gamma(gamma) => {

@@ -10,13 +10,7 @@ pub fn encode<T: Serialize>(message: &T) -> Vec<u8> {
     postcard::to_stdvec(message).expect("tcpf messages always encode")
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Invalid {
-    TooLarge,
-    Undecodable,
-    Version,
-    NonFinite,
-}
+pub use tcpf_core::msg::Invalid;
 
 pub fn decode<T: DeserializeOwned + Checked>(bytes: &[u8]) -> Result<T, Invalid> {
     if bytes.len() > T::MAX_BYTES {

@@ -19,9 +19,14 @@ pub trait Wiring<M: Machine> {
     /// `tokio::select!` of channel receives is): the driver drops it when the alarm rings first.
     fn next(&mut self) -> impl Future<Output = M::Input>;
 
-    /// Does what the machine asked. What came of it, if the machine is to know (an agent
-    /// started again, or not), is its next input.
-    fn perform(&mut self, output: M::Output) -> impl Future<Output = Result<Option<M::Input>, Self::Error>>;
+    /// Does what the machine asked, reading what it lends (a tick's states, which a queue of
+    /// owned outputs would copy). What came of it, if the machine is to know (an agent started
+    /// again, or not), is its next input.
+    fn perform(
+        &mut self,
+        output: M::Output,
+        machine: &M,
+    ) -> impl Future<Output = Result<Option<M::Input>, Self::Error>>;
 
     /// What the wiring can only look at, not be told of (a child's exit status): looked at as
     /// the machine wakes, and given to it before the wake-up.
@@ -40,7 +45,7 @@ where
     let mut alarm = Alarm::new(clock.clone());
     loop {
         while let Some(output) = machine.poll_output() {
-            if let Some(input) = wiring.perform(output).await? {
+            if let Some(input) = wiring.perform(output, machine).await? {
                 machine.handle(input, clock.now());
             }
         }
@@ -138,7 +143,7 @@ mod tests {
             }
         }
 
-        async fn perform(&mut self, said: String) -> Result<Option<Heard>, String> {
+        async fn perform(&mut self, said: String, _: &Watchdog) -> Result<Option<Heard>, String> {
             if said.starts_with("fail") {
                 return Err(said);
             }

@@ -755,7 +755,7 @@ impl Wiring<Supervisor> for Fleet<'_> {
         }
     }
 
-    async fn perform(&mut self, output: Output) -> Result<Option<Input>, Infallible> {
+    async fn perform(&mut self, output: Output, _: &Supervisor) -> Result<Option<Input>, Infallible> {
         Ok(match output {
             Output::Restart { child, exit } => {
                 let c = &mut self.children[child];

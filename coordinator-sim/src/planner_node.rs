@@ -123,7 +123,7 @@ impl tcpf_bus::driver::Wiring<PlannerNode> for Wiring {
         }
     }
 
-    async fn perform(&mut self, output: Infallible) -> Result<Option<Input>, Infallible> {
+    async fn perform(&mut self, output: Infallible, _: &PlannerNode) -> Result<Option<Input>, Infallible> {
         match output {}
     }
 }

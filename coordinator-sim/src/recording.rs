@@ -595,7 +595,7 @@ impl Wiring<RecorderWatch> for Recorder<'_> {
         }
     }
 
-    async fn perform(&mut self, output: WatchOutput) -> Result<Option<WatchInput>, Infallible> {
+    async fn perform(&mut self, output: WatchOutput, _: &RecorderWatch) -> Result<Option<WatchInput>, Infallible> {
         match output {
             WatchOutput::Ask => {
                 let (session, keys) = (self.session.clone(), self.keys.clone());

@@ -196,6 +196,15 @@ pub struct PathMsg {
     pub path: GeneralizedPath,
 }
 
+/// Why a payload was unusable as it came off the wire, as the receiver counts it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Invalid {
+    TooLarge,
+    Undecodable,
+    Version,
+    NonFinite,
+}
+
 /// Why a decoded message cannot be used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Unusable {
@@ -203,13 +212,13 @@ pub enum Unusable {
     NonFinite,
 }
 
-/// What a receiver checks before it uses a decoded message.
 /// Whether every number is finite, without a branch per number: x · 0 is 0 for a finite x and
 /// NaN otherwise, and it runs on every message of every tick.
 fn all_finite<const N: usize>(xs: [f64; N]) -> bool {
     xs.iter().map(|x| x * 0.0).sum::<f64>() == 0.0
 }
 
+/// What a receiver checks before it uses a decoded message.
 pub trait Checked {
     /// The longest payload of this kind a receiver decodes (docs/PROTOCOL.md, "Sizes"): what
     /// the largest mission tcpf accepts can make, with room to spare. A longer one is refused

@@ -11,11 +11,12 @@ use std::time::Duration;
 use anyhow::{anyhow, Result};
 use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::{claim, Rivals};
-use tcpf_bus::clock::{metronome, unix_now, FleetClock, Monotonic};
+use tcpf_bus::clock::{metronome, unix_now, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::ClockServer;
-use tcpf_bus::codec::Invalid;
+use tcpf_bus::driver::{drive, Wiring};
 use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::handover::hand_over;
+use tcpf_bus::history::Asked;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::{say_now, Outlet};
 use tcpf_bus::paths::fetch_paths;
@@ -30,10 +31,13 @@ use tcpf_core::fleet::membership::{Arrival, Decision, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, TickRecord, PROTOCOL_VERSION};
-use tcpf_core::outputs::ros2::{Played, Refused, Stamp, MAP_FRAME};
+use tcpf_core::outputs::ros2::{Played, Stamp, MAP_FRAME};
 use tcpf_core::roles::lockstep::{Reject, Timing, WorldNode};
 use tcpf_core::roles::lockstep_world::{Io, LockstepWorld};
 use tcpf_core::roles::realtime::RealtimeWorld;
+use tcpf_core::roles::realtime_world::{
+    Exit as RealtimeExit, Input as RealtimeInput, Output as RealtimeOutput, RealtimeWorldNode,
+};
 use tcpf_core::time::{Moment, UnixTime};
 use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
@@ -607,10 +611,9 @@ impl Shell<'_> {
         digest: u64,
         paths: &[(u32, GeneralizedPath)],
         simulated: &[u32],
-        mut heard: Receiver<Received<Heard>>,
+        heard: Receiver<Received<Heard>>,
     ) -> Result<Exit> {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
-        let mut node = RealtimeWorld::new(mission, paths, simulated);
         let clock = Clock {
             version: PROTOCOL_VERSION,
             realtime: true,
@@ -620,87 +623,42 @@ impl Shell<'_> {
             mission: digest,
         };
         self.clock.set(clock);
-        let fleet = FleetClock::new(&clock, mission.mission.control_period);
-        let period = fleet.period().as_secs_f64();
-        let stamp_of = |t: f64| Stamp::of_fleet(&clock, t);
-        let mut played = Played::new(mission, clock.epoch);
+        let control_period = mission.mission.control_period;
+        let fleet = FleetClock::new(&clock, control_period);
+        let mut machine = RealtimeWorldNode::new(
+            RealtimeWorld::new(mission, paths, simulated),
+            Played::new(mission, clock.epoch),
+            ids.clone(),
+            fleet.period().as_secs_f64(),
+            control_period,
+        );
         if let Some(ros2) = &mut self.ros2 {
-            ros2.node.put_paths(paths, stamp_of)?;
+            ros2.node.put_paths(paths, |t| Stamp::of_fleet(&clock, t))?;
             ros2.odometry = Some(ros2.node.listen(&self.rejected).await?);
         }
         // Before the first states: a recorder that missed them may ask at once.
         let (_history, mut fetches) = tcpf_bus::history::serve(&self.session, &self.keys, &self.rejected).await?;
-        for (outlet, state) in self.outlets.iter().zip(node.states()) {
+        for (outlet, state) in self.outlets.iter().zip(machine.node().states()) {
             outlet.put(state).await?;
         }
-        let mut beats = metronome(fleet, 0.0, 1);
-        let (exit, end) = loop {
-            tokio::select! {
-                Some(beat) = beats.recv() => {
-                    if let Some(end) = node.advance_to(beat.tick, beat.late_s(), period, beat.skipped) {
-                        self.end_out.put(&end).await?;
-                        let exit = Exit::Ended { ticks: end.ticks, lost: end.lost.len(), short: node.not_arrived() };
-                        break (exit, end);
-                    }
-                    self.clock.set(Clock { tick: node.tick(), ..clock });
-                    for (outlet, state) in self.outlets.iter().zip(node.states()) {
-                        outlet.put(state).await?;
-                    }
-                    if let Some(ros2) = &mut self.ros2 {
-                        let t = node.tick() as f64 * mission.mission.control_period;
-                        let fleet = node.states().iter().chain(played.states());
-                        ros2.node.put(fleet.map(|s| (s, node.command_of(s.id))), stamp_of(t))?;
-                    }
-                }
-                Some(asked) = fetches.recv() => answer_fetch(&node, asked),
-                Some(h) = heard.recv() => match h.message {
-                    Heard::Command(c) => self.rejected.check(&h.key, c.id, || node.on_command(c, fleet.horizon())),
-                    Heard::State(s) => self.rejected.check(&h.key, s.id, || node.on_played(s, fleet.horizon())),
-                },
-                Some(o) = played_odometry(&mut self.ros2) => {
-                    let (id, cdr) = &o.message;
-                    match (played.on_odometry(*id, cdr, node.tick()), &mut self.ros2) {
-                        (Ok(state), Some(ros2)) => {
-                            ros2.outlets[id].put(&state).await?;
-                            if let Err(e) = node.on_played(state, fleet.horizon()) {
-                                self.rejected.reject(e, &o.key);
-                            }
-                        }
-                        (Ok(_), None) => {}
-                        (Err(Refused::TooLarge), _) => self.rejected.invalid(Invalid::TooLarge, &o.key),
-                        (Err(Refused::Malformed), _) => self.rejected.invalid(Invalid::Undecodable, &o.key),
-                        (Err(Refused::NonFinite), _) => self.rejected.invalid(Invalid::NonFinite, &o.key),
-                        (Err(Refused::Ahead), _) => self.rejected.reject(Reject::Future, &o.key),
-                        (Err(Refused::Frame), _) => {
-                            let mut frames = played.refused_frames(*id);
-                            if let (Some((frame, 1)), None) = (frames.next(), frames.next()) {
-                                tracing::warn!(
-                                    "world: vehicle {id}'s odometry is in frame '{frame}', not '{MAP_FRAME}', the fleet's: refused, as is every one not in '{MAP_FRAME}' (the summary counts them by frame)"
-                                );
-                            }
-                        }
-                        // Odometry flows before the run starts, may be overtaken, and may come
-                        // faster than the ticks: none is wrong, and none is a new state of the run.
-                        (Err(Refused::Early | Refused::Stale | Refused::Surplus), _) => {}
-                    }
-                }
-                Some(p) = self.presence.recv() => {
-                    if p.role == Role::Agent && ids.contains(&p.id) {
-                        let t = node.tick() as f64 * mission.mission.control_period;
-                        if p.alive {
-                            tracing::info!("world: agent {} is here at t = {t:.2} s", p.id);
-                        } else {
-                            tracing::warn!("world: agent {} is gone at t = {t:.2} s; its vehicle drifts until it comes back", p.id);
-                        }
-                        node.set_gone(p.id, !p.alive);
-                    }
-                }
-                _ = self.shutdown.recv() => {
-                    let end = node.interrupted();
-                    self.end_out.put(&end).await?;
-                    break (Exit::Interrupted, end);
-                }
-            }
+        let mut wiring = Realtime {
+            shell: self,
+            heard,
+            fetches: &mut fetches,
+            beats: metronome(fleet, 0.0, 1),
+            fleet,
+            clock,
+            control_period,
+        };
+        let RealtimeExit { end, interrupted } = drive(&mut machine, &mut wiring, Monotonic::start()).await?;
+        let node = machine.node();
+        let exit = match interrupted {
+            true => Exit::Interrupted,
+            false => Exit::Ended {
+                ticks: end.ticks,
+                lost: end.lost.len(),
+                short: node.not_arrived(),
+            },
         };
         // A recorder acknowledges the end once it has every tick before it: the states it lost
         // of the last ones, it fetches meanwhile.
@@ -709,7 +667,7 @@ impl Shell<'_> {
         loop {
             tokio::select! {
                 handed = &mut handing => break handed?,
-                Some(asked) = fetches.recv() => answer_fetch(&node, asked),
+                Some(asked) = fetches.recv() => answer_fetch(node, asked),
             }
         }
         let timing = node.timing();
@@ -731,7 +689,7 @@ impl Shell<'_> {
                 .map(|&id| {
                     (
                         id,
-                        if played.heard(id) {
+                        if machine.played().heard(id) {
                             Player::Ros2
                         } else {
                             Player::Process
@@ -739,10 +697,101 @@ impl Shell<'_> {
                     )
                 })
                 .collect(),
-            wrong_frames: played.wrong_frames(),
-            surplus_odometries: played.surplus(),
+            wrong_frames: machine.played().wrong_frames(),
+            surplus_odometries: machine.played().surplus(),
         }))
         .await?;
         Ok(exit)
+    }
+}
+
+/// A realtime world's process for its machine: the metronome's beats, the commands and played
+/// states (each checked for its sender's key), ROS 2 nodes' odometry, the recorders' questions,
+/// the agents' liveliness and signals as inputs; each tick's states published, and the end.
+struct Realtime<'s, 'a> {
+    shell: &'s mut Shell<'a>,
+    heard: Receiver<Received<Heard>>,
+    fetches: &'s mut Receiver<Asked>,
+    beats: Receiver<Beat>,
+    fleet: FleetClock,
+    clock: Clock,
+    /// Simulated seconds a tick.
+    control_period: f64,
+}
+
+type RealtimeNode = RealtimeWorldNode<String, Asked>;
+
+impl Wiring<RealtimeNode> for Realtime<'_, '_> {
+    type Error = anyhow::Error;
+
+    async fn next(&mut self) -> RealtimeInput<String, Asked> {
+        let shell = &mut *self.shell;
+        let horizon = || self.fleet.horizon();
+        loop {
+            tokio::select! {
+                Some(beat) = self.beats.recv() => {
+                    return RealtimeInput::Beat { tick: beat.tick, late_s: beat.late_s(), skipped: beat.skipped };
+                }
+                Some(asked) = self.fetches.recv() => return RealtimeInput::Fetch(asked),
+                Some(h) = self.heard.recv() => match h.message {
+                    Heard::Command(command) => if shell.rejected.from_sender(&h.key, command.id) {
+                        return RealtimeInput::Command { command, horizon: horizon(), key: h.key };
+                    },
+                    Heard::State(state) => if shell.rejected.from_sender(&h.key, state.id) {
+                        return RealtimeInput::Played { state, horizon: horizon(), key: h.key };
+                    },
+                },
+                Some(o) = played_odometry(&mut shell.ros2) => {
+                    let (id, cdr) = o.message;
+                    return RealtimeInput::Odometry { id, cdr, horizon: horizon(), key: o.key };
+                }
+                Some(p) = shell.presence.recv() => if p.role == Role::Agent {
+                    return RealtimeInput::Agent { id: p.id, alive: p.alive };
+                },
+                _ = shell.shutdown.recv() => return RealtimeInput::Interrupted,
+            }
+        }
+    }
+
+    async fn perform(
+        &mut self,
+        output: RealtimeOutput<String, Asked>,
+        machine: &RealtimeNode,
+    ) -> Result<Option<RealtimeInput<String, Asked>>> {
+        let shell = &mut *self.shell;
+        match output {
+            RealtimeOutput::Tick(tick) => {
+                let node = machine.node();
+                shell.clock.set(Clock { tick, ..self.clock });
+                for (outlet, state) in shell.outlets.iter().zip(node.states()) {
+                    outlet.put(state).await?;
+                }
+                if let Some(ros2) = &mut shell.ros2 {
+                    let t = tick as f64 * self.control_period;
+                    let fleet = node.states().iter().chain(machine.played().states());
+                    ros2.node.put(
+                        fleet.map(|s| (s, node.command_of(s.id))),
+                        Stamp::of_fleet(&self.clock, t),
+                    )?;
+                }
+            }
+            RealtimeOutput::End(end) => shell.end_out.put(&end).await?,
+            RealtimeOutput::Answer(asked) => answer_fetch(machine.node(), asked),
+            RealtimeOutput::PlayedState(state) => {
+                if let Some(ros2) = &shell.ros2 {
+                    ros2.outlets[&state.id].put(&state).await?;
+                }
+            }
+            RealtimeOutput::Refused(why, key) => shell.rejected.reject(why, &key),
+            RealtimeOutput::Invalid(why, key) => shell.rejected.invalid(why, &key),
+            RealtimeOutput::WrongFrame { id, frame } => tracing::warn!(
+                "world: vehicle {id}'s odometry is in frame '{frame}', not '{MAP_FRAME}', the fleet's: refused, as is every one not in '{MAP_FRAME}' (the summary counts them by frame)"
+            ),
+            RealtimeOutput::Agent { id, alive: true, t } => tracing::info!("world: agent {id} is here at t = {t:.2} s"),
+            RealtimeOutput::Agent { id, alive: false, t } => {
+                tracing::warn!("world: agent {id} is gone at t = {t:.2} s; its vehicle drifts until it comes back")
+            }
+        }
+        Ok(None)
     }
 }

@@ -558,7 +558,7 @@ impl Odometry {
     }
 
     /// As `cdr`, its pose said to be in `frame`.
-    fn cdr_in(&self, frame: &str) -> Vec<u8> {
+    pub(crate) fn cdr_in(&self, frame: &str) -> Vec<u8> {
         let mut cdr = Cdr::new();
         cdr.header(self.stamp, frame);
         cdr.string(&body_frame(self.id));
