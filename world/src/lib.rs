@@ -5,11 +5,11 @@
 //! history of the states it ran).
 
 use std::collections::BTreeMap;
+use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{metronome, unix_now, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::ClockServer;
@@ -34,6 +34,7 @@ use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State,
 use tcpf_core::outputs::ros2::{Played, Stamp, MAP_FRAME};
 use tcpf_core::roles::lockstep::{Reject, Timing, WorldNode};
 use tcpf_core::roles::lockstep_world::{Io, LockstepWorld};
+use tcpf_core::roles::machine::Machine;
 use tcpf_core::roles::realtime::RealtimeWorld;
 use tcpf_core::roles::realtime_world::{
     Exit as RealtimeExit, Input as RealtimeInput, Output as RealtimeOutput, RealtimeWorldNode,
@@ -557,36 +558,26 @@ impl Shell<'_> {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         stepper.lock().clock.epoch = unix_now();
         stepper.with(|world, now, doing| world.start(now, doing));
-        let mut alarm = Alarm::new(stepper.monotonic);
-        let (exit, end) = loop {
-            alarm.set(stepper.lock().world.poll_timeout());
-            tokio::select! {
-                Some(end) = ends.recv() => {
-                    let end = end?;
-                    let exit = Exit::Ended {
-                        ticks: end.ticks,
-                        lost: end.lost.len(),
-                        short: stepper.lock().world.not_arrived(),
-                    };
-                    break (exit, Some(end));
-                }
-                Some(p) = self.presence.recv() => {
-                    if p.role == Role::Agent && ids.contains(&p.id) {
-                        stepper.with(|world, now, doing| world.handle_agent(p.id, p.alive, now, doing));
-                    }
-                }
-                woken_for = alarm.rung() => {
-                    stepper.with(|world, now, doing| world.handle_timeout(now, woken_for, doing));
-                }
-                _ = self.shutdown.recv() => {
-                    stepper.with(|world, _, doing| world.interrupt(doing));
-                    let end = match ends.try_recv() {
-                        Ok(end) => Some(end?),
-                        Err(_) => None,
-                    };
-                    break (Exit::Interrupted, end);
-                }
+        let mut machine = Locked { stepper, exit: None };
+        let mut wiring = Lockstep {
+            shell: self,
+            ids,
+            ends,
+            failed: None,
+        };
+        let Ok(exit) = drive(&mut machine, &mut wiring, stepper.monotonic).await;
+        let (exit, end) = match exit {
+            LockstepExit::Ended(end) => {
+                let exit = Exit::Ended {
+                    ticks: end.ticks,
+                    lost: end.lost.len(),
+                    short: stepper.lock().world.not_arrived(),
+                };
+                (exit, Some(end))
             }
+            // The end the interrupt published, unless one was out already.
+            LockstepExit::Interrupted => (Exit::Interrupted, wiring.ends.try_recv().ok().transpose()?),
+            LockstepExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
         };
         let handing: Vec<_> = std::mem::take(&mut *stepper.handovers.lock().unwrap_or_else(|e| e.into_inner()));
         for loss in handing {
@@ -793,5 +784,101 @@ impl Wiring<RealtimeNode> for Realtime<'_, '_> {
             }
         }
         Ok(None)
+    }
+}
+
+/// The lockstep world's machine as its task drives it: behind the lock it shares with Zenoh's
+/// thread, which feeds it the commands. The task feeds it the rest.
+struct Locked<'a> {
+    stepper: &'a Stepper,
+    exit: Option<LockstepExit>,
+}
+
+enum LockstepInput {
+    /// Agent `id` of the fleet came (`alive`) or went.
+    Agent(u32, bool),
+    /// The end is out.
+    End(End),
+    /// A publication failed.
+    Failed,
+    Interrupted,
+}
+
+enum LockstepExit {
+    Ended(End),
+    Interrupted,
+    Failed,
+}
+
+impl Machine for Locked<'_> {
+    type Input = LockstepInput;
+    type Output = Infallible;
+    type Exit = LockstepExit;
+
+    fn handle(&mut self, input: LockstepInput, _: Moment) {
+        match input {
+            LockstepInput::Agent(id, alive) => {
+                self.stepper
+                    .with(|world, now, doing| world.handle_agent(id, alive, now, doing));
+            }
+            LockstepInput::End(end) => self.exit = Some(LockstepExit::Ended(end)),
+            LockstepInput::Failed => self.exit = Some(LockstepExit::Failed),
+            LockstepInput::Interrupted => {
+                self.stepper.with(|world, _, doing| world.interrupt(doing));
+                self.exit = Some(LockstepExit::Interrupted);
+            }
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        self.stepper.lock().world.poll_timeout()
+    }
+
+    fn handle_timeout(&mut self, _: Moment, due: Moment) {
+        self.stepper
+            .with(|world, now, doing| world.handle_timeout(now, due, doing));
+    }
+
+    fn poll_output(&mut self) -> Option<Infallible> {
+        None
+    }
+
+    fn poll_exit(&mut self) -> Option<LockstepExit> {
+        self.exit.take()
+    }
+}
+
+/// A lockstep world's task: the agents' liveliness, the end and signals.
+struct Lockstep<'s, 'a> {
+    shell: &'s mut Shell<'a>,
+    ids: Vec<u32>,
+    ends: &'s mut UnboundedReceiver<Result<End>>,
+    /// The error of a publication that failed.
+    failed: Option<anyhow::Error>,
+}
+
+impl Wiring<Locked<'_>> for Lockstep<'_, '_> {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> LockstepInput {
+        loop {
+            tokio::select! {
+                Some(end) = self.ends.recv() => return match end {
+                    Ok(end) => LockstepInput::End(end),
+                    Err(e) => {
+                        self.failed = Some(e);
+                        LockstepInput::Failed
+                    }
+                },
+                Some(p) = self.shell.presence.recv() => if p.role == Role::Agent && self.ids.contains(&p.id) {
+                    return LockstepInput::Agent(p.id, p.alive);
+                },
+                _ = self.shell.shutdown.recv() => return LockstepInput::Interrupted,
+            }
+        }
+    }
+
+    async fn perform(&mut self, output: Infallible, _: &Locked<'_>) -> Result<Option<LockstepInput>, Infallible> {
+        match output {}
     }
 }
