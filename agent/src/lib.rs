@@ -4,11 +4,12 @@
 
 mod footprint;
 
+use std::collections::VecDeque;
+use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
-use tcpf_bus::alarm::Alarm;
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{self, metronome, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, ask_clock, await_clock, ClockAnswer, ClockBell};
@@ -29,8 +30,9 @@ use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
 use tcpf_core::outputs::ros2::Stamp;
 use tcpf_core::roles::agent::Agent;
-use tcpf_core::roles::lockstep::{AgentNode, Timing};
+use tcpf_core::roles::lockstep::{AgentNode, Reject, Timing};
 use tcpf_core::roles::lockstep_agent::{Input, LockstepAgent, Output, Source};
+use tcpf_core::roles::machine::Machine;
 use tcpf_core::roles::realtime::RealtimeAgent;
 use tcpf_core::roles::realtime_agent::{
     Exit as RealtimeExit, Input as RealtimeInput, Output as RealtimeOutput, RealtimeAgentNode,
@@ -548,78 +550,31 @@ impl Shell {
         // the world's clock says it runs this agent's mission (an agent of another would steer
         // its vehicle for hundreds of ticks before it heard). The clock answers once the world
         // has started, which it announces and its first state shows: asked at each.
-        let mut clock = unchecked.map(|bell| await_clock(&self.session, &self.keys, &self.rejected, bell));
+        let clock = unchecked.map(|bell| await_clock(&self.session, &self.keys, &self.rejected, bell));
         if clock.is_none() {
             feed.start();
         }
-        let mut gone = EndGrace::new(waits::END_AFTER_THE_WORLD);
-        let (mut alarm, mut grace) = (Alarm::new(feed.monotonic), Alarm::new(feed.monotonic));
-        let exit = loop {
-            // Not waiting: woken once per timeout while the fleet moves on, to look again.
-            let woken_for = {
-                let fed = feed.lock();
-                let now = feed.monotonic.now();
-                fed.machine
-                    .poll_timeout()
-                    .unwrap_or(now + options.stale_timeout.as_secs_f64())
-            };
-            alarm.set(Some(woken_for));
-            grace.set(gone.poll_timeout());
-            tokio::select! {
-                Some(e) = faults.recv() => return Err(e),
-                answer = answered(&mut clock), if clock.is_some() => {
-                    clock = None;
-                    check_clock(mission, &answer?)?;
-                    feed.start();
-                }
-                _ = feed.first_state.notified(), if clock.is_some() => {
-                    clock.iter().for_each(ClockAnswer::look_again);
-                }
-                Some(p) = self.presence.recv() => match p.role {
-                    // The world's end may come after its token has gone.
-                    Role::World if p.alive => gone.back(),
-                    Role::World => gone.left(feed.monotonic.now()),
-                    // This agent has its path: the planner serves only agents that start.
-                    Role::Planner if !p.alive => {
-                        tracing::warn!("agent {id}: the planner is gone; going on with the path it served");
-                    }
-                    Role::Agent if self.audible.contains(&p.id) => {
-                    feed.with(|machine, now| machine.with(now, |node| node.set_gone(p.id, !p.alive)))
-                }
-                    _ => {}
-                },
-                Some(e) = self.ends.recv() => match feed.lock().machine.on_end(&e.message) {
-                    Ok(()) => break Exit::Ended,
-                    Err(why) => self.rejected.reject(why, &e.key),
-                },
-                Some(l) = self.losses.recv() => {
-                    let lost = Lost::from(l.message);
-                    if self.rejected.from_sender(&l.key, lost.id) {
-                        match feed.with(|machine, now| machine.on_lost(&lost, now)) {
-                            Ok(true) => {
-                                tracing::warn!(
-                                    "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
-                                    lost.tick,
-                                    lost.reason
-                                );
-                                break Exit::Lost;
-                            }
-                            Ok(false) => {}
-                            Err(why) => self.rejected.reject(why, &l.key),
-                        }
-                    }
-                }
-                _ = self.shutdown.recv() => break Exit::Interrupted,
-                _ = grace.rung() => {
-                    if gone.handle_timeout(feed.monotonic.now()) {
-                        tracing::warn!("agent {id}: the world is gone; stopping");
-                        break Exit::Orphaned;
-                    }
-                }
-                woken_for = alarm.rung() => {
-                    feed.with(|machine, now| machine.handle_timeout(now, woken_for));
-                }
-            }
+        let now = feed.monotonic.now();
+        let mut machine = FedAgent {
+            feed,
+            gone: EndGrace::new(waits::END_AFTER_THE_WORLD),
+            stale_timeout: options.stale_timeout.as_secs_f64(),
+            look_at: now + options.stale_timeout.as_secs_f64(),
+            outputs: VecDeque::new(),
+            exit: None,
+        };
+        let mut wiring = Lockstep {
+            shell: self,
+            feed,
+            mission,
+            clock,
+            faults,
+            failed: None,
+        };
+        let Ok(exit) = drive(&mut machine, &mut wiring, feed.monotonic).await;
+        let exit = match exit {
+            FedExit::Stopped(exit) => exit,
+            FedExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
         };
         let (gamma, timing) = {
             let fed = feed.lock();
@@ -759,6 +714,186 @@ impl Wiring<RealtimeAgentNode<String>> for Realtime<'_> {
             RealtimeOutput::PlannerGone => {
                 tracing::warn!("agent {id}: the planner is gone; going on with the path it served")
             }
+        }
+        Ok(None)
+    }
+}
+
+/// The lockstep agent's machine as its task drives it: behind the lock it shares with Zenoh's
+/// thread, which feeds it the states and γ. The task feeds it the rest, and waits for a gone
+/// world's end (`EndGrace`).
+struct FedAgent<'a> {
+    feed: &'a Feed,
+    gone: EndGrace,
+    stale_timeout: f64,
+    /// Not waiting for anything, the machine is woken once per stale timeout while the fleet
+    /// moves on, to look again: the next time, from the last input.
+    look_at: Moment,
+    outputs: VecDeque<FedOutput>,
+    exit: Option<FedExit>,
+}
+
+enum FedInput {
+    /// The world's clock answered, and it is this agent's mission's: the run starts.
+    Started,
+    /// The world's token came (`true`) or went.
+    World(bool),
+    PlannerGone,
+    /// Neighbour `id`'s agent came (`true`) or went.
+    Neighbour(u32, bool),
+    /// An end, on `key`.
+    End(End, String),
+    /// A loss, on its vehicle's key.
+    Lost(Lost, String),
+    /// A publication failed, or the world's clock is not this agent's.
+    Failed,
+    Interrupted,
+}
+
+enum FedOutput {
+    Refused(Reject, String),
+    PlannerGone,
+    /// The world gave up on this vehicle at this tick, for this reason.
+    Lost(Lost),
+    WorldGone,
+}
+
+enum FedExit {
+    Stopped(Exit),
+    Failed,
+}
+
+impl Machine for FedAgent<'_> {
+    type Input = FedInput;
+    type Output = FedOutput;
+    type Exit = FedExit;
+
+    fn handle(&mut self, input: FedInput, now: Moment) {
+        self.look_at = now + self.stale_timeout;
+        match input {
+            FedInput::Started => self.feed.start(),
+            // The world's end may come after its token has gone.
+            FedInput::World(true) => self.gone.back(),
+            FedInput::World(false) => self.gone.left(now),
+            FedInput::PlannerGone => self.outputs.push_back(FedOutput::PlannerGone),
+            FedInput::Neighbour(j, alive) => {
+                self.feed
+                    .with(|machine, now| machine.with(now, |node| node.set_gone(j, !alive)));
+            }
+            FedInput::End(end, key) => match self.feed.lock().machine.on_end(&end) {
+                Ok(()) => self.exit = Some(FedExit::Stopped(Exit::Ended)),
+                Err(why) => self.outputs.push_back(FedOutput::Refused(why, key)),
+            },
+            FedInput::Lost(lost, key) => match self.feed.with(|machine, now| machine.on_lost(&lost, now)) {
+                Ok(true) => {
+                    self.outputs.push_back(FedOutput::Lost(lost));
+                    self.exit = Some(FedExit::Stopped(Exit::Lost));
+                }
+                Ok(false) => {}
+                Err(why) => self.outputs.push_back(FedOutput::Refused(why, key)),
+            },
+            FedInput::Failed => self.exit = Some(FedExit::Failed),
+            FedInput::Interrupted => self.exit = Some(FedExit::Stopped(Exit::Interrupted)),
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        let own = self.feed.lock().machine.poll_timeout().unwrap_or(self.look_at);
+        Some(self.gone.poll_timeout().map_or(own, |grace| grace.min(own)))
+    }
+
+    fn handle_timeout(&mut self, now: Moment, _due: Moment) {
+        if self.gone.poll_timeout().is_some_and(|grace| grace <= now) && self.gone.handle_timeout(now) {
+            self.outputs.push_back(FedOutput::WorldGone);
+            self.exit = Some(FedExit::Stopped(Exit::Orphaned));
+            return;
+        }
+        let own = self.feed.lock().machine.poll_timeout().unwrap_or(self.look_at);
+        if own <= now {
+            self.feed.with(|machine, now| machine.handle_timeout(now, own));
+            self.look_at = now + self.stale_timeout;
+        }
+    }
+
+    fn poll_output(&mut self) -> Option<FedOutput> {
+        self.outputs.pop_front()
+    }
+
+    fn poll_exit(&mut self) -> Option<FedExit> {
+        self.exit.take()
+    }
+}
+
+/// A lockstep agent's task: the world's clock until it answers, liveliness, the end, losses,
+/// publications that failed and signals.
+struct Lockstep<'s> {
+    shell: &'s mut Shell,
+    feed: &'s Feed,
+    mission: &'s Mission,
+    /// The world's clock, until it answers.
+    clock: Option<ClockAnswer>,
+    faults: &'s mut UnboundedReceiver<anyhow::Error>,
+    /// Why the run failed.
+    failed: Option<anyhow::Error>,
+}
+
+impl Lockstep<'_> {
+    fn failed(&mut self, e: anyhow::Error) -> FedInput {
+        self.failed = Some(e);
+        FedInput::Failed
+    }
+}
+
+impl<'a> Wiring<FedAgent<'a>> for Lockstep<'_> {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> FedInput {
+        let shell = &mut *self.shell;
+        loop {
+            tokio::select! {
+                Some(e) = self.faults.recv() => return self.failed(e),
+                answer = answered(&mut self.clock), if self.clock.is_some() => {
+                    self.clock = None;
+                    return match answer.and_then(|clock| check_clock(self.mission, &clock)) {
+                        Ok(()) => FedInput::Started,
+                        Err(e) => self.failed(e),
+                    };
+                }
+                _ = self.feed.first_state.notified(), if self.clock.is_some() => {
+                    self.clock.iter().for_each(ClockAnswer::look_again);
+                }
+                Some(p) = shell.presence.recv() => match p.role {
+                    Role::World => return FedInput::World(p.alive),
+                    // This agent has its path: the planner serves only agents that start.
+                    Role::Planner if !p.alive => return FedInput::PlannerGone,
+                    Role::Agent if shell.audible.contains(&p.id) => return FedInput::Neighbour(p.id, p.alive),
+                    _ => {}
+                },
+                Some(e) = shell.ends.recv() => return FedInput::End(e.message, e.key),
+                Some(l) = shell.losses.recv() => {
+                    let lost = Lost::from(l.message);
+                    if shell.rejected.from_sender(&l.key, lost.id) {
+                        return FedInput::Lost(lost, l.key);
+                    }
+                }
+                _ = shell.shutdown.recv() => return FedInput::Interrupted,
+            }
+        }
+    }
+
+    async fn perform(&mut self, output: FedOutput, _: &FedAgent<'a>) -> Result<Option<FedInput>, Infallible> {
+        let id = self.shell.id;
+        match output {
+            FedOutput::Refused(why, key) => self.shell.rejected.reject(why, &key),
+            FedOutput::PlannerGone => {
+                tracing::warn!("agent {id}: the planner is gone; going on with the path it served")
+            }
+            FedOutput::Lost(lost) => tracing::warn!(
+                "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
+                lost.tick,
+                lost.reason
+            ),
+            FedOutput::WorldGone => tracing::warn!("agent {id}: the world is gone; stopping"),
         }
         Ok(None)
     }
