@@ -187,22 +187,13 @@ mod tests {
         assert_eq!(outputs(&mut m), [], "no state yet: nothing to act on");
         let state = still(2, 3, 0.01, [0.0, 5.0]);
         let key = "tcpf/m/state/2";
-        m.handle(
-            Input::State {
-                state,
-                horizon: HORIZON,
-                key,
-            },
-            at(0.1),
-        );
-        m.handle(
-            Input::State {
-                state,
-                horizon: HORIZON,
-                key,
-            },
-            at(0.1),
-        );
+        let heard = || Input::State {
+            state,
+            horizon: HORIZON,
+            key,
+        };
+        m.handle(heard(), at(0.1));
+        m.handle(heard(), at(0.1));
         assert_eq!(outputs(&mut m), [Output::Refused(Reject::Duplicate, key)]);
         let ahead = State { tick: 5, ..state };
         m.handle(
