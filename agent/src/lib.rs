@@ -404,7 +404,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             if under_way.is_some() {
                 feed.with(|machine, now| machine.with(now, AgentNode::rejoin));
             } else {
-                let neighbours_here = |s: &AgentStartup| s.deserted().is_some() || s.absent().is_empty();
+                let neighbours_here: fn(&AgentStartup) -> bool = |s| s.deserted().is_some() || s.absent().is_empty();
                 let (presence, shutdown) = (&mut shell.presence, &mut shell.shutdown);
                 match await_startup(presence, shutdown, &mut startup, &monotonic, neighbours_here).await? {
                     Waited::Interrupted => return Ok(Exit::Interrupted),
@@ -457,28 +457,93 @@ async fn await_startup(
     shutdown: &mut Shutdown,
     startup: &mut AgentStartup,
     monotonic: &Monotonic,
-    done: impl Fn(&AgentStartup) -> bool,
+    done: fn(&AgentStartup) -> bool,
 ) -> Result<Waited> {
-    while !done(startup) {
-        let wake = monotonic.at(startup.poll_timeout());
-        let Some(arrived) = shutdown.unless(tokio::time::timeout_at(wake, presence.recv())).await else {
-            return Ok(Waited::Interrupted);
-        };
-        match arrived {
-            Ok(Some(p)) => {
-                if let Some(peer) = peer(p) {
-                    startup.on_presence(peer, p.alive);
-                }
-            }
-            Ok(None) => return Err(anyhow!("liveliness subscription closed")),
-            Err(_) => {
-                if let Some(check) = startup.handle_timeout(monotonic.now()) {
-                    return Ok(Waited::TimedOut(check));
-                }
+    let mut waiting = Awaiting {
+        startup,
+        done,
+        waited: None,
+    };
+    let mut heard = Heard { presence, shutdown };
+    let Ok(waited) = drive(&mut waiting, &mut heard, *monotonic).await;
+    waited.ok_or_else(|| anyhow!("liveliness subscription closed"))
+}
+
+/// An agent's start-up as its process drives it, until `done` holds.
+struct Awaiting<'a> {
+    startup: &'a mut AgentStartup,
+    done: fn(&AgentStartup) -> bool,
+    /// How the wait ended; `None` inside if the liveliness subscription closed.
+    waited: Option<Option<Waited>>,
+}
+
+/// A peer's token came (`true`) or went; nothing more will come (`None`); a signal.
+enum Arrived {
+    Peer(Option<(Peer, bool)>),
+    Interrupted,
+}
+
+impl Machine for Awaiting<'_> {
+    type Input = Arrived;
+    type Output = Infallible;
+    type Exit = Option<Waited>;
+
+    fn handle(&mut self, input: Arrived, _: Moment) {
+        match input {
+            Arrived::Peer(Some((peer, alive))) => self.startup.on_presence(peer, alive),
+            Arrived::Peer(None) => self.waited = Some(None),
+            Arrived::Interrupted => self.waited = Some(Some(Waited::Interrupted)),
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        Some(self.startup.poll_timeout())
+    }
+
+    fn handle_timeout(&mut self, now: Moment, _: Moment) {
+        if let Some(check) = self.startup.handle_timeout(now) {
+            self.waited.get_or_insert(Some(Waited::TimedOut(check)));
+        }
+    }
+
+    fn poll_output(&mut self) -> Option<Infallible> {
+        None
+    }
+
+    fn poll_exit(&mut self) -> Option<Option<Waited>> {
+        if self.waited.is_none() && (self.done)(self.startup) {
+            return Some(Some(Waited::Done));
+        }
+        self.waited.take()
+    }
+}
+
+/// Liveliness and signals, before the agent's other subscriptions are there.
+struct Heard<'a> {
+    presence: &'a mut UnboundedReceiver<Presence>,
+    shutdown: &'a mut Shutdown,
+}
+
+impl Wiring<Awaiting<'_>> for Heard<'_> {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> Arrived {
+        loop {
+            tokio::select! {
+                p = self.presence.recv() => match p {
+                    Some(p) => if let Some(peer) = peer(p) {
+                        return Arrived::Peer(Some((peer, p.alive)));
+                    },
+                    None => return Arrived::Peer(None),
+                },
+                _ = self.shutdown.recv() => return Arrived::Interrupted,
             }
         }
     }
-    Ok(Waited::Done)
+
+    async fn perform(&mut self, output: Infallible, _: &Awaiting<'_>) -> Result<Option<Arrived>, Infallible> {
+        match output {}
+    }
 }
 
 /// Whom a liveliness change is about, for an agent's startup.

@@ -4,7 +4,7 @@
 //! commands, serves the wall-clock epoch everyone keeps time by, and answers recorders from its
 //! history of the states it ran).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -27,7 +27,7 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{Arrival, Decision, Gathering, Member};
+use tcpf_core::fleet::membership::{Arrival, Decision, Gathering, Member, Missing};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, TickRecord, PROTOCOL_VERSION};
@@ -487,29 +487,21 @@ async fn serve(
         .await
         .map_err(|e| anyhow!("liveliness token: {e}"))?;
 
-    while !gathering.complete() {
-        let wake = monotonic.at(gathering.poll_timeout());
-        let Some(arrived) = shutdown.unless(tokio::time::timeout_at(wake, presence.recv())).await else {
-            return Ok((Exit::Interrupted, None));
-        };
-        let p = match arrived {
-            Ok(Some(p)) => p,
-            Ok(None) => return Err(anyhow!("liveliness subscription closed")),
-            Err(_) => match gathering.handle_timeout(monotonic.now()) {
-                Some(missing) => return Err(anyhow!("world: {missing}")),
-                None => continue,
-            },
-        };
-        let member = match p.role {
-            Role::Agent => Member::Agent(p.id),
-            Role::Record => Member::Recorder(p.id),
-            _ => continue,
-        };
-        match gathering.on_presence(member, p.alive) {
-            Some(Arrival::Agent { id, here, of }) => tracing::info!("world: agent {id} is here ({here} of {of})"),
-            Some(Arrival::Recorder { here, of }) => tracing::info!("world: a recorder is here ({here} of {of})"),
-            None => {}
-        }
+    let mut gathered = Gathered {
+        gathering: &mut gathering,
+        arrivals: VecDeque::new(),
+        exit: None,
+    };
+    let mut heard = Present {
+        presence,
+        shutdown: &mut shutdown,
+    };
+    let Ok(exit) = drive(&mut gathered, &mut heard, monotonic).await;
+    match exit {
+        Gather::Complete => {}
+        Gather::Interrupted => return Ok((Exit::Interrupted, None)),
+        Gather::Closed => return Err(anyhow!("liveliness subscription closed")),
+        Gather::Missing(missing) => return Err(anyhow!("world: {missing}")),
     }
     tracing::info!(
         "world: {} agents present, starting ({:?} clock, simulating vehicles {simulated:?})",
@@ -880,5 +872,100 @@ impl Wiring<Locked<'_>> for Lockstep<'_, '_> {
 
     async fn perform(&mut self, output: Infallible, _: &Locked<'_>) -> Result<Option<LockstepInput>, Infallible> {
         match output {}
+    }
+}
+
+/// The world's gathering before its first tick, as its process drives it.
+struct Gathered<'a> {
+    gathering: &'a mut Gathering,
+    arrivals: VecDeque<Arrival>,
+    exit: Option<Gather>,
+}
+
+/// A member's token came (`true`) or went; nothing more will come (`None`); a signal.
+enum Joined {
+    Member(Option<(Member, bool)>),
+    Interrupted,
+}
+
+enum Gather {
+    Complete,
+    Missing(Missing),
+    /// The liveliness subscription closed.
+    Closed,
+    Interrupted,
+}
+
+impl Machine for Gathered<'_> {
+    type Input = Joined;
+    type Output = Arrival;
+    type Exit = Gather;
+
+    fn handle(&mut self, input: Joined, _: Moment) {
+        match input {
+            Joined::Member(Some((member, alive))) => {
+                self.arrivals.extend(self.gathering.on_presence(member, alive));
+            }
+            Joined::Member(None) => self.exit = Some(Gather::Closed),
+            Joined::Interrupted => self.exit = Some(Gather::Interrupted),
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        Some(self.gathering.poll_timeout())
+    }
+
+    fn handle_timeout(&mut self, now: Moment, _: Moment) {
+        if let Some(missing) = self.gathering.handle_timeout(now) {
+            self.exit.get_or_insert(Gather::Missing(missing));
+        }
+    }
+
+    fn poll_output(&mut self) -> Option<Arrival> {
+        self.arrivals.pop_front()
+    }
+
+    fn poll_exit(&mut self) -> Option<Gather> {
+        if self.exit.is_none() && self.gathering.complete() {
+            return Some(Gather::Complete);
+        }
+        self.exit.take()
+    }
+}
+
+/// Liveliness and signals, as the world gathers its fleet.
+struct Present<'a> {
+    presence: &'a mut Followed,
+    shutdown: &'a mut Shutdown,
+}
+
+impl Wiring<Gathered<'_>> for Present<'_> {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> Joined {
+        loop {
+            tokio::select! {
+                p = self.presence.recv() => {
+                    let Some(p) = p else {
+                        return Joined::Member(None);
+                    };
+                    let member = match p.role {
+                        Role::Agent => Member::Agent(p.id),
+                        Role::Record => Member::Recorder(p.id),
+                        _ => continue,
+                    };
+                    return Joined::Member(Some((member, p.alive)));
+                }
+                _ = self.shutdown.recv() => return Joined::Interrupted,
+            }
+        }
+    }
+
+    async fn perform(&mut self, arrival: Arrival, _: &Gathered<'_>) -> Result<Option<Joined>, Infallible> {
+        match arrival {
+            Arrival::Agent { id, here, of } => tracing::info!("world: agent {id} is here ({here} of {of})"),
+            Arrival::Recorder { here, of } => tracing::info!("world: a recorder is here ({here} of {of})"),
+        }
+        Ok(None)
     }
 }
