@@ -24,7 +24,7 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{AgentStartup, Peer, StartupCheck};
+use tcpf_core::fleet::membership::{AgentStartup, Awaited, Liveliness, Peer, StartupCheck, Waited};
 use tcpf_core::fleet::watch::EndGrace;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
@@ -340,17 +340,10 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     // (the clock answers) is then known for sure.
     let monotonic = Monotonic::start();
     let mut startup = AgentStartup::new(&audible, options.startup_timeout, monotonic.now());
-    match await_startup(
-        &mut presence,
-        &mut shutdown,
-        &mut startup,
-        &monotonic,
-        AgentStartup::fleet_here,
-    )
-    .await?
-    {
+    match await_startup(&mut presence, &mut shutdown, &mut startup, &monotonic, Awaited::Fleet).await {
         Waited::Done => {}
         Waited::Interrupted => return Ok(Exit::Interrupted),
+        Waited::Closed => return Err(anyhow!("liveliness subscription closed")),
         Waited::TimedOut(_) => {
             return Err(anyhow!(
                 "agent {id}: no world and planner for mission {} within {:?}",
@@ -391,7 +384,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 Some(clock) => Some(clock),
                 None => {
                     shell
-                        .wait_for_clock(mission, bell, monotonic.at(startup.poll_timeout()))
+                        .wait_for_clock(mission, bell, monotonic.at(startup.deadline()))
                         .await?
                 }
             };
@@ -404,10 +397,10 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             if under_way.is_some() {
                 feed.with(|machine, now| machine.with(now, AgentNode::rejoin));
             } else {
-                let neighbours_here: fn(&AgentStartup) -> bool = |s| s.deserted().is_some() || s.absent().is_empty();
                 let (presence, shutdown) = (&mut shell.presence, &mut shell.shutdown);
-                match await_startup(presence, shutdown, &mut startup, &monotonic, neighbours_here).await? {
+                match await_startup(presence, shutdown, &mut startup, &monotonic, Awaited::Neighbours).await {
                     Waited::Interrupted => return Ok(Exit::Interrupted),
+                    Waited::Closed => return Err(anyhow!("liveliness subscription closed")),
                     Waited::TimedOut(StartupCheck::WithoutNeighbours(absent)) => {
                         tracing::warn!("agent {id}: starting without neighbours {absent:?}")
                     }
@@ -442,80 +435,18 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     Ok(exit)
 }
 
-/// How an agent's wait at its start ended.
-enum Waited {
-    /// What it waited for is there.
-    Done,
-    /// The startup timeout passed first, leaving this.
-    TimedOut(StartupCheck),
-    Interrupted,
-}
-
-/// Feeds liveliness changes into `startup` until `done` holds or its timeout leaves a check.
+/// Feeds liveliness changes into `startup` until what it awaits is there or its timeout leaves a
+/// check.
 async fn await_startup(
     presence: &mut UnboundedReceiver<Presence>,
     shutdown: &mut Shutdown,
     startup: &mut AgentStartup,
     monotonic: &Monotonic,
-    done: fn(&AgentStartup) -> bool,
-) -> Result<Waited> {
-    let mut waiting = Awaiting {
-        startup,
-        done,
-        waited: None,
-    };
-    let mut heard = Heard { presence, shutdown };
-    let Ok(waited) = drive(&mut waiting, &mut heard, *monotonic).await;
-    waited.ok_or_else(|| anyhow!("liveliness subscription closed"))
-}
-
-/// An agent's start-up as its process drives it, until `done` holds.
-struct Awaiting<'a> {
-    startup: &'a mut AgentStartup,
-    done: fn(&AgentStartup) -> bool,
-    /// How the wait ended; `None` inside if the liveliness subscription closed.
-    waited: Option<Option<Waited>>,
-}
-
-/// A peer's token came (`true`) or went; nothing more will come (`None`); a signal.
-enum Arrived {
-    Peer(Option<(Peer, bool)>),
-    Interrupted,
-}
-
-impl Machine for Awaiting<'_> {
-    type Input = Arrived;
-    type Output = Infallible;
-    type Exit = Option<Waited>;
-
-    fn handle(&mut self, input: Arrived, _: Moment) {
-        match input {
-            Arrived::Peer(Some((peer, alive))) => self.startup.on_presence(peer, alive),
-            Arrived::Peer(None) => self.waited = Some(None),
-            Arrived::Interrupted => self.waited = Some(Some(Waited::Interrupted)),
-        }
-    }
-
-    fn poll_timeout(&self) -> Option<Moment> {
-        Some(self.startup.poll_timeout())
-    }
-
-    fn handle_timeout(&mut self, now: Moment, _: Moment) {
-        if let Some(check) = self.startup.handle_timeout(now) {
-            self.waited.get_or_insert(Some(Waited::TimedOut(check)));
-        }
-    }
-
-    fn poll_output(&mut self) -> Option<Infallible> {
-        None
-    }
-
-    fn poll_exit(&mut self) -> Option<Option<Waited>> {
-        if self.waited.is_none() && (self.done)(self.startup) {
-            return Some(Some(Waited::Done));
-        }
-        self.waited.take()
-    }
+    awaited: Awaited,
+) -> Waited {
+    startup.awaiting(awaited);
+    let Ok(waited) = drive(startup, &mut Heard { presence, shutdown }, *monotonic).await;
+    waited
 }
 
 /// Liveliness and signals, before the agent's other subscriptions are there.
@@ -524,24 +455,24 @@ struct Heard<'a> {
     shutdown: &'a mut Shutdown,
 }
 
-impl Wiring<Awaiting<'_>> for Heard<'_> {
+impl Wiring<AgentStartup> for Heard<'_> {
     type Error = Infallible;
 
-    async fn next(&mut self) -> Arrived {
+    async fn next(&mut self) -> Liveliness<Peer> {
         loop {
             tokio::select! {
                 p = self.presence.recv() => match p {
                     Some(p) => if let Some(peer) = peer(p) {
-                        return Arrived::Peer(Some((peer, p.alive)));
+                        return Liveliness::Changed(peer, p.alive);
                     },
-                    None => return Arrived::Peer(None),
+                    None => return Liveliness::Closed,
                 },
-                _ = self.shutdown.recv() => return Arrived::Interrupted,
+                _ = self.shutdown.recv() => return Liveliness::Interrupted,
             }
         }
     }
 
-    async fn perform(&mut self, output: Infallible, _: &Awaiting<'_>) -> Result<Option<Arrived>, Infallible> {
+    async fn perform(&mut self, output: Infallible, _: &AgentStartup) -> Result<Option<Liveliness<Peer>>, Infallible> {
         match output {}
     }
 }

@@ -4,7 +4,7 @@
 //! commands, serves the wall-clock epoch everyone keeps time by, and answers recorders from its
 //! history of the states it ran).
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -27,7 +27,7 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{Arrival, Decision, Gathering, Member, Missing};
+use tcpf_core::fleet::membership::{Arrival, Decision, Gathered, Gathering, Liveliness, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, TickRecord, PROTOCOL_VERSION};
@@ -487,21 +487,16 @@ async fn serve(
         .await
         .map_err(|e| anyhow!("liveliness token: {e}"))?;
 
-    let mut gathered = Gathered {
-        gathering: &mut gathering,
-        arrivals: VecDeque::new(),
-        exit: None,
-    };
     let mut heard = Present {
         presence,
         shutdown: &mut shutdown,
     };
-    let Ok(exit) = drive(&mut gathered, &mut heard, monotonic).await;
-    match exit {
-        Gather::Complete => {}
-        Gather::Interrupted => return Ok((Exit::Interrupted, None)),
-        Gather::Closed => return Err(anyhow!("liveliness subscription closed")),
-        Gather::Missing(missing) => return Err(anyhow!("world: {missing}")),
+    let Ok(gathered) = drive(&mut gathering, &mut heard, monotonic).await;
+    match gathered {
+        Gathered::Complete => {}
+        Gathered::Interrupted => return Ok((Exit::Interrupted, None)),
+        Gathered::Closed => return Err(anyhow!("liveliness subscription closed")),
+        Gathered::Missing(missing) => return Err(anyhow!("world: {missing}")),
     }
     tracing::info!(
         "world: {} agents present, starting ({:?} clock, simulating vehicles {simulated:?})",
@@ -875,93 +870,35 @@ impl Wiring<Locked<'_>> for Lockstep<'_, '_> {
     }
 }
 
-/// The world's gathering before its first tick, as its process drives it.
-struct Gathered<'a> {
-    gathering: &'a mut Gathering,
-    arrivals: VecDeque<Arrival>,
-    exit: Option<Gather>,
-}
-
-/// A member's token came (`true`) or went; nothing more will come (`None`); a signal.
-enum Joined {
-    Member(Option<(Member, bool)>),
-    Interrupted,
-}
-
-enum Gather {
-    Complete,
-    Missing(Missing),
-    /// The liveliness subscription closed.
-    Closed,
-    Interrupted,
-}
-
-impl Machine for Gathered<'_> {
-    type Input = Joined;
-    type Output = Arrival;
-    type Exit = Gather;
-
-    fn handle(&mut self, input: Joined, _: Moment) {
-        match input {
-            Joined::Member(Some((member, alive))) => {
-                self.arrivals.extend(self.gathering.on_presence(member, alive));
-            }
-            Joined::Member(None) => self.exit = Some(Gather::Closed),
-            Joined::Interrupted => self.exit = Some(Gather::Interrupted),
-        }
-    }
-
-    fn poll_timeout(&self) -> Option<Moment> {
-        Some(self.gathering.poll_timeout())
-    }
-
-    fn handle_timeout(&mut self, now: Moment, _: Moment) {
-        if let Some(missing) = self.gathering.handle_timeout(now) {
-            self.exit.get_or_insert(Gather::Missing(missing));
-        }
-    }
-
-    fn poll_output(&mut self) -> Option<Arrival> {
-        self.arrivals.pop_front()
-    }
-
-    fn poll_exit(&mut self) -> Option<Gather> {
-        if self.exit.is_none() && self.gathering.complete() {
-            return Some(Gather::Complete);
-        }
-        self.exit.take()
-    }
-}
-
 /// Liveliness and signals, as the world gathers its fleet.
 struct Present<'a> {
     presence: &'a mut Followed,
     shutdown: &'a mut Shutdown,
 }
 
-impl Wiring<Gathered<'_>> for Present<'_> {
+impl Wiring<Gathering> for Present<'_> {
     type Error = Infallible;
 
-    async fn next(&mut self) -> Joined {
+    async fn next(&mut self) -> Liveliness<Member> {
         loop {
             tokio::select! {
                 p = self.presence.recv() => {
                     let Some(p) = p else {
-                        return Joined::Member(None);
+                        return Liveliness::Closed;
                     };
                     let member = match p.role {
                         Role::Agent => Member::Agent(p.id),
                         Role::Record => Member::Recorder(p.id),
                         _ => continue,
                     };
-                    return Joined::Member(Some((member, p.alive)));
+                    return Liveliness::Changed(member, p.alive);
                 }
-                _ = self.shutdown.recv() => return Joined::Interrupted,
+                _ = self.shutdown.recv() => return Liveliness::Interrupted,
             }
         }
     }
 
-    async fn perform(&mut self, arrival: Arrival, _: &Gathered<'_>) -> Result<Option<Joined>, Infallible> {
+    async fn perform(&mut self, arrival: Arrival, _: &Gathering) -> Result<Option<Liveliness<Member>>, Infallible> {
         match arrival {
             Arrival::Agent { id, here, of } => tracing::info!("world: agent {id} is here ({here} of {of})"),
             Arrival::Recorder { here, of } => tracing::info!("world: a recorder is here ({here} of {of})"),

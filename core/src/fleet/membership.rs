@@ -11,13 +11,24 @@
 //! thing a resumed process does is read what came while it was stopped), and the pause is still
 //! the role's own.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, VecDeque};
+use std::convert::Infallible;
 use std::fmt;
 use std::time::Duration;
 
 use crate::fleet::pause;
 use crate::msg::{LossReason, Lost};
+use crate::roles::machine::Machine;
 use crate::time::Moment;
+
+/// What a start-up wait hears: a token of `P` came (`true`) or went, no more will come (the
+/// liveliness subscription closed), or a signal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Liveliness<P> {
+    Changed(P, bool),
+    Closed,
+    Interrupted,
+}
 
 /// A liveliness change the world gathers: an agent (by vehicle id) or a recorder (by its id).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,6 +75,17 @@ pub struct Gathering {
     recorders: BTreeSet<u32>,
     timeout: Duration,
     deadline: Moment,
+    arrivals: VecDeque<Arrival>,
+    gathered: Option<Gathered>,
+}
+
+/// How the world's gathering ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Gathered {
+    Complete,
+    Missing(Missing),
+    Closed,
+    Interrupted,
 }
 
 impl Gathering {
@@ -75,6 +97,8 @@ impl Gathering {
             recorders: BTreeSet::new(),
             timeout,
             deadline: now + timeout,
+            arrivals: VecDeque::new(),
+            gathered: None,
         }
     }
 
@@ -112,18 +136,58 @@ impl Gathering {
         self.agents.len() == self.ids.len() && self.recorders.len() >= self.recorders_wanted
     }
 
-    pub fn poll_timeout(&self) -> Moment {
+    pub fn deadline(&self) -> Moment {
         self.deadline
     }
 
     /// Who is still missing, once the startup timeout has passed and the fleet is not complete.
-    pub fn handle_timeout(&self, now: Moment) -> Option<Missing> {
+    pub fn missing(&self, now: Moment) -> Option<Missing> {
         (now >= self.deadline && !self.complete()).then(|| Missing {
             after: self.timeout,
             agents: self.ids.iter().copied().filter(|i| !self.agents.contains(i)).collect(),
             recorders: self.recorders_wanted.saturating_sub(self.recorders.len()),
             recorders_wanted: self.recorders_wanted,
         })
+    }
+}
+
+/// The world's process before its first tick: gathering ends once the fleet is complete, at the
+/// startup timeout with who is missing, or on a signal.
+impl Machine for Gathering {
+    type Input = Liveliness<Member>;
+    type Output = Arrival;
+    type Exit = Gathered;
+
+    fn handle(&mut self, input: Liveliness<Member>, _: Moment) {
+        match input {
+            Liveliness::Changed(member, alive) => {
+                let arrival = self.on_presence(member, alive);
+                self.arrivals.extend(arrival);
+            }
+            Liveliness::Closed => self.gathered = Some(Gathered::Closed),
+            Liveliness::Interrupted => self.gathered = Some(Gathered::Interrupted),
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        Some(self.deadline)
+    }
+
+    fn handle_timeout(&mut self, now: Moment, _: Moment) {
+        if let Some(missing) = self.missing(now) {
+            self.gathered.get_or_insert(Gathered::Missing(missing));
+        }
+    }
+
+    fn poll_output(&mut self) -> Option<Arrival> {
+        self.arrivals.pop_front()
+    }
+
+    fn poll_exit(&mut self) -> Option<Gathered> {
+        if self.gathered.is_none() && self.complete() {
+            return Some(Gathered::Complete);
+        }
+        self.gathered.take()
     }
 }
 
@@ -281,6 +345,29 @@ pub struct AgentStartup {
     neighbours: Vec<u32>,
     present: BTreeSet<u32>,
     deadline: Moment,
+    awaited: Awaited,
+    waited: Option<Waited>,
+}
+
+/// What an agent's start waits for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Awaited {
+    /// The world and the planner.
+    Fleet,
+    /// Its neighbours, unless the world or the planner went.
+    Neighbours,
+}
+
+/// How an agent's wait at its start ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Waited {
+    /// What it waited for is there.
+    Done,
+    /// The startup timeout passed first, leaving this.
+    TimedOut(StartupCheck),
+    /// The liveliness subscription closed.
+    Closed,
+    Interrupted,
 }
 
 impl AgentStartup {
@@ -292,7 +379,15 @@ impl AgentStartup {
             neighbours: neighbours.to_vec(),
             present: BTreeSet::new(),
             deadline: now + timeout,
+            awaited: Awaited::Fleet,
+            waited: None,
         }
+    }
+
+    /// From now on, the start waits for `awaited`, as a machine.
+    pub fn awaiting(&mut self, awaited: Awaited) {
+        self.awaited = awaited;
+        self.waited = None;
     }
 
     pub fn on_presence(&mut self, peer: Peer, alive: bool) {
@@ -334,13 +429,13 @@ impl AgentStartup {
             .collect()
     }
 
-    pub fn poll_timeout(&self) -> Moment {
+    pub fn deadline(&self) -> Moment {
         self.deadline
     }
 
     /// What the startup timeout leaves, once it has passed: without the fleet, nothing to do;
     /// without some neighbours, a start without them.
-    pub fn handle_timeout(&self, now: Moment) -> Option<StartupCheck> {
+    pub fn check(&self, now: Moment) -> Option<StartupCheck> {
         if now < self.deadline {
             return None;
         }
@@ -349,6 +444,46 @@ impl AgentStartup {
         }
         let absent = self.absent();
         (!absent.is_empty()).then_some(StartupCheck::WithoutNeighbours(absent))
+    }
+}
+
+/// An agent's process before its first tick, waiting for what `awaiting` said.
+impl Machine for AgentStartup {
+    type Input = Liveliness<Peer>;
+    type Output = Infallible;
+    type Exit = Waited;
+
+    fn handle(&mut self, input: Liveliness<Peer>, _: Moment) {
+        match input {
+            Liveliness::Changed(peer, alive) => self.on_presence(peer, alive),
+            Liveliness::Closed => self.waited = Some(Waited::Closed),
+            Liveliness::Interrupted => self.waited = Some(Waited::Interrupted),
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        Some(self.deadline)
+    }
+
+    fn handle_timeout(&mut self, now: Moment, _: Moment) {
+        if let Some(check) = self.check(now) {
+            self.waited.get_or_insert(Waited::TimedOut(check));
+        }
+    }
+
+    fn poll_output(&mut self) -> Option<Infallible> {
+        None
+    }
+
+    fn poll_exit(&mut self) -> Option<Waited> {
+        let done = match self.awaited {
+            Awaited::Fleet => self.fleet_here(),
+            Awaited::Neighbours => self.deserted.is_some() || self.absent().is_empty(),
+        };
+        if self.waited.is_none() && done {
+            return Some(Waited::Done);
+        }
+        self.waited.take()
     }
 }
 
@@ -461,7 +596,7 @@ mod tests {
     #[test]
     fn the_world_starts_once_every_agent_and_recorder_is_there_and_names_who_is_missing_after_the_timeout() {
         let mut g = Gathering::new(&[1, 2], 1, 60 * S, at(100.0));
-        assert_eq!(g.poll_timeout(), at(160.0));
+        assert_eq!(g.deadline(), at(160.0));
         assert_eq!(
             g.on_presence(Member::Agent(2), true),
             Some(Arrival::Agent { id: 2, here: 1, of: 2 })
@@ -472,9 +607,9 @@ mod tests {
             Some(Arrival::Recorder { here: 1, of: 1 })
         );
         assert!(!g.complete());
-        assert_eq!(g.handle_timeout(at(159.9)), None, "not yet due");
+        assert_eq!(g.missing(at(159.9)), None, "not yet due");
         assert_eq!(g.on_presence(Member::Recorder(77), false), None);
-        let missing = g.handle_timeout(at(160.0)).unwrap();
+        let missing = g.missing(at(160.0)).unwrap();
         assert_eq!(
             missing.to_string(),
             "after 60s, agents [1] and 1 of 1 recorders still missing"
@@ -482,7 +617,7 @@ mod tests {
         g.on_presence(Member::Agent(1), true);
         g.on_presence(Member::Recorder(5), true);
         assert!(g.complete());
-        assert_eq!(g.handle_timeout(at(200.0)), None, "complete: nothing missing");
+        assert_eq!(g.missing(at(200.0)), None, "complete: nothing missing");
     }
 
     fn lost(id: u32, tick: u64) -> Lost {
@@ -639,22 +774,19 @@ mod tests {
     #[test]
     fn an_agent_waits_for_its_world_planner_and_neighbours_within_one_timeout() {
         let mut start = AgentStartup::new(&[2, 3], 60 * S, at(0.0));
-        assert_eq!(start.poll_timeout(), at(60.0));
+        assert_eq!(start.deadline(), at(60.0));
         start.on_presence(Peer::Neighbour(2), true);
         start.on_presence(Peer::Neighbour(7), true);
         start.on_presence(Peer::World, true);
         assert!(!start.fleet_here());
-        assert_eq!(start.handle_timeout(at(59.0)), None, "not yet due");
-        assert_eq!(start.handle_timeout(at(60.0)), Some(StartupCheck::NoFleet));
+        assert_eq!(start.check(at(59.0)), None, "not yet due");
+        assert_eq!(start.check(at(60.0)), Some(StartupCheck::NoFleet));
         start.on_presence(Peer::Planner, true);
         assert!(start.fleet_here());
         assert_eq!(start.absent(), vec![3], "not a neighbour: 7 is not waited for");
-        assert_eq!(
-            start.handle_timeout(at(60.0)),
-            Some(StartupCheck::WithoutNeighbours(vec![3]))
-        );
+        assert_eq!(start.check(at(60.0)), Some(StartupCheck::WithoutNeighbours(vec![3])));
         start.on_presence(Peer::Neighbour(3), true);
-        assert_eq!(start.handle_timeout(at(61.0)), None, "everyone here");
+        assert_eq!(start.check(at(61.0)), None, "everyone here");
         start.on_presence(Peer::Neighbour(2), false);
         assert_eq!(start.absent(), vec![2], "a neighbour whose token went is absent again");
         assert_eq!(start.deserted(), None);
@@ -665,5 +797,51 @@ mod tests {
         early.on_presence(Peer::World, true);
         early.on_presence(Peer::World, false);
         assert_eq!(early.deserted(), None);
+    }
+
+    #[test]
+    fn as_a_machine_the_gathering_says_each_arrival_and_ends_complete_missing_or_interrupted() {
+        let mut g = Gathering::new(&[1, 2], 0, 60 * S, at(0.0));
+        assert_eq!(g.poll_timeout(), Some(at(60.0)));
+        g.handle(Liveliness::Changed(Member::Agent(1), true), at(1.0));
+        assert_eq!(g.poll_output(), Some(Arrival::Agent { id: 1, here: 1, of: 2 }));
+        assert_eq!(g.poll_exit(), None);
+        g.handle(Liveliness::Changed(Member::Agent(2), true), at(2.0));
+        assert_eq!(g.poll_exit(), Some(Gathered::Complete));
+        let mut g = Gathering::new(&[1, 2], 0, 60 * S, at(0.0));
+        g.handle_timeout(at(59.0), at(59.0));
+        assert_eq!(g.poll_exit(), None, "not yet due");
+        g.handle_timeout(at(60.0), at(60.0));
+        assert!(matches!(g.poll_exit(), Some(Gathered::Missing(m)) if m.agents == [1, 2]));
+        let mut g = Gathering::new(&[1], 0, 60 * S, at(0.0));
+        g.handle(Liveliness::Interrupted, at(1.0));
+        assert_eq!(g.poll_exit(), Some(Gathered::Interrupted));
+        let mut g = Gathering::new(&[1], 0, 60 * S, at(0.0));
+        g.handle(Liveliness::Closed, at(1.0));
+        assert_eq!(g.poll_exit(), Some(Gathered::Closed));
+    }
+
+    #[test]
+    fn as_a_machine_an_agents_start_waits_for_the_fleet_then_for_its_neighbours() {
+        let mut start = AgentStartup::new(&[2], 60 * S, at(0.0));
+        start.handle(Liveliness::Changed(Peer::Neighbour(2), true), at(1.0));
+        assert_eq!(start.poll_exit(), None, "the world and the planner first");
+        start.handle(Liveliness::Changed(Peer::World, true), at(2.0));
+        start.handle(Liveliness::Changed(Peer::Planner, true), at(3.0));
+        assert_eq!(start.poll_exit(), Some(Waited::Done));
+        start.awaiting(Awaited::Neighbours);
+        assert_eq!(start.poll_exit(), Some(Waited::Done), "its neighbour came first");
+        start.handle(Liveliness::Changed(Peer::Neighbour(2), false), at(4.0));
+        assert_eq!(start.poll_exit(), None);
+        start.handle_timeout(at(60.0), at(60.0));
+        assert_eq!(
+            start.poll_exit(),
+            Some(Waited::TimedOut(StartupCheck::WithoutNeighbours(vec![2])))
+        );
+        let mut alone = AgentStartup::new(&[], 60 * S, at(0.0));
+        alone.handle_timeout(at(60.0), at(60.0));
+        assert_eq!(alone.poll_exit(), Some(Waited::TimedOut(StartupCheck::NoFleet)));
+        alone.handle(Liveliness::Interrupted, at(61.0));
+        assert_eq!(alone.poll_exit(), Some(Waited::Interrupted));
     }
 }
