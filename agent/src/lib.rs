@@ -18,13 +18,13 @@ use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::Outlet;
 use tcpf_bus::paths::fetch_paths;
-use tcpf_bus::presence::{presence_of, Presence};
+use tcpf_bus::presence::{presence_of, Presence, Waiting};
 use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{AgentStartup, Awaited, Liveliness, Peer, StartupCheck, Waited};
+use tcpf_core::fleet::membership::{AgentStartup, Awaited, Peer, StartupCheck, Waited};
 use tcpf_core::fleet::watch::EndGrace;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
@@ -445,36 +445,14 @@ async fn await_startup(
     awaited: Awaited,
 ) -> Waited {
     startup.awaiting(awaited);
-    let Ok(waited) = drive(startup, &mut Heard { presence, shutdown }, *monotonic).await;
+    let mut heard = Waiting {
+        changes: presence,
+        shutdown,
+        about: peer,
+        said: |nothing: Infallible| match nothing {},
+    };
+    let Ok(waited) = drive(startup, &mut heard, *monotonic).await;
     waited
-}
-
-/// Liveliness and signals, before the agent's other subscriptions are there.
-struct Heard<'a> {
-    presence: &'a mut UnboundedReceiver<Presence>,
-    shutdown: &'a mut Shutdown,
-}
-
-impl Wiring<AgentStartup> for Heard<'_> {
-    type Error = Infallible;
-
-    async fn next(&mut self) -> Liveliness<Peer> {
-        loop {
-            tokio::select! {
-                p = self.presence.recv() => match p {
-                    Some(p) => if let Some(peer) = peer(p) {
-                        return Liveliness::Changed(peer, p.alive);
-                    },
-                    None => return Liveliness::Closed,
-                },
-                _ = self.shutdown.recv() => return Liveliness::Interrupted,
-            }
-        }
-    }
-
-    async fn perform(&mut self, output: Infallible, _: &AgentStartup) -> Result<Option<Liveliness<Peer>>, Infallible> {
-        match output {}
-    }
 }
 
 /// Whom a liveliness change is about, for an agent's startup.

@@ -1,15 +1,21 @@
 //! Who of a mission is present, by liveliness tokens: asked once, or followed (and waited out).
 
+use std::convert::Infallible;
+use std::future::Future;
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
+use tcpf_core::fleet::membership::Liveliness;
 use tcpf_core::fleet::present::Present;
+use tcpf_core::roles::machine::Machine;
 use tokio::sync::mpsc;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::SampleKind;
 use zenoh::Session;
 
+use crate::driver::Wiring;
 use crate::keys::{Keys, Role};
+use crate::signals::Shutdown;
 use crate::waits;
 
 /// A liveliness change of the mission: someone came or went.
@@ -115,4 +121,117 @@ pub async fn presence_of(
         subscribers.push(subscriber);
     }
     Ok((subscribers, rx))
+}
+
+/// Where liveliness changes come from: a channel of them, or a `Followed` fleet.
+pub trait Changes {
+    /// The next change, `None` once the subscription is closed (cancel-safe).
+    fn recv(&mut self) -> impl Future<Output = Option<Presence>>;
+}
+
+impl Changes for mpsc::UnboundedReceiver<Presence> {
+    async fn recv(&mut self) -> Option<Presence> {
+        mpsc::UnboundedReceiver::recv(self).await
+    }
+}
+
+impl Changes for Followed {
+    async fn recv(&mut self) -> Option<Presence> {
+        Followed::recv(self).await
+    }
+}
+
+/// The wiring of a start-up wait (`tcpf_core::fleet::membership`): liveliness changes and
+/// signals in, as `Liveliness` about whom `about` names (a change about no one the wait counts
+/// is passed over); each output given to `said`, which only tells the user.
+pub struct Waiting<'a, S, P, O> {
+    pub changes: &'a mut S,
+    pub shutdown: &'a mut Shutdown,
+    pub about: fn(Presence) -> Option<P>,
+    pub said: fn(O),
+}
+
+impl<M, S, P> Wiring<M> for Waiting<'_, S, P, M::Output>
+where
+    M: Machine<Input = Liveliness<P>>,
+    S: Changes,
+{
+    type Error = Infallible;
+
+    async fn next(&mut self) -> Liveliness<P> {
+        loop {
+            tokio::select! {
+                p = self.changes.recv() => match p {
+                    Some(p) => if let Some(whom) = (self.about)(p) {
+                        return Liveliness::Changed(whom, p.alive);
+                    },
+                    None => return Liveliness::Closed,
+                },
+                _ = self.shutdown.recv() => return Liveliness::Interrupted,
+            }
+        }
+    }
+
+    async fn perform(&mut self, output: M::Output, _: &M) -> Result<Option<Liveliness<P>>, Infallible> {
+        (self.said)(output);
+        Ok(None)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::time::Duration;
+
+    use tcpf_core::fleet::membership::{Arrival, Gathered, Gathering, Member};
+    use tcpf_core::time::Moment;
+
+    use super::*;
+    use crate::alarm::tests::ByHand;
+    use crate::driver::drive;
+
+    static ARRIVALS: AtomicUsize = AtomicUsize::new(0);
+
+    fn agent(p: Presence) -> Option<Member> {
+        (p.role == Role::Agent).then_some(Member::Agent(p.id))
+    }
+
+    fn counted(_: Arrival) {
+        ARRIVALS.fetch_add(1, Ordering::SeqCst);
+    }
+
+    fn came(role: Role, id: u32) -> Presence {
+        Presence { role, id, alive: true }
+    }
+
+    /// A start-up wait hears the changes about whom it counts, passes over the rest, and ends
+    /// when its fleet is there; a closed subscription ends the next wait.
+    #[tokio::test]
+    async fn a_wait_hears_whom_it_counts_until_it_is_done() {
+        let (tx, mut changes) = mpsc::unbounded_channel();
+        let mut shutdown = Shutdown::new().unwrap();
+        for p in [
+            came(Role::World, 0),
+            came(Role::Agent, 1),
+            came(Role::Planner, 0),
+            came(Role::Agent, 2),
+        ] {
+            tx.send(p).unwrap();
+        }
+        let mut waiting = Waiting {
+            changes: &mut changes,
+            shutdown: &mut shutdown,
+            about: agent,
+            said: counted,
+        };
+        let mut gathering = Gathering::new(&[1, 2], 0, Duration::from_secs(60), Moment::default());
+        let Ok(gathered) = drive(&mut gathering, &mut waiting, ByHand::at_zero()).await;
+        assert_eq!(gathered, Gathered::Complete);
+        assert_eq!(ARRIVALS.load(Ordering::SeqCst), 2);
+
+        drop(tx);
+        let mut gathering = Gathering::new(&[1, 2, 3], 0, Duration::from_secs(60), Moment::default());
+        let Ok(gathered) = drive(&mut gathering, &mut waiting, ByHand::at_zero()).await;
+        assert_eq!(gathered, Gathered::Closed);
+    }
 }

@@ -20,14 +20,14 @@ use tcpf_bus::history::Asked;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::{say_now, Outlet};
 use tcpf_bus::paths::fetch_paths;
-use tcpf_bus::presence::Followed;
+use tcpf_bus::presence::{Followed, Presence, Waiting};
 use tcpf_bus::rejected::Rejected;
 use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{Arrival, Decision, Gathered, Gathering, Liveliness, Member};
+use tcpf_core::fleet::membership::{Arrival, Decision, Gathered, Gathering, Member};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, TickRecord, PROTOCOL_VERSION};
@@ -487,9 +487,11 @@ async fn serve(
         .await
         .map_err(|e| anyhow!("liveliness token: {e}"))?;
 
-    let mut heard = Present {
-        presence,
+    let mut heard = Waiting {
+        changes: presence,
         shutdown: &mut shutdown,
+        about: member,
+        said: arrived,
     };
     let Ok(gathered) = drive(&mut gathering, &mut heard, monotonic).await;
     match gathered {
@@ -870,39 +872,18 @@ impl Wiring<Locked<'_>> for Lockstep<'_, '_> {
     }
 }
 
-/// Liveliness and signals, as the world gathers its fleet.
-struct Present<'a> {
-    presence: &'a mut Followed,
-    shutdown: &'a mut Shutdown,
+/// Whom a liveliness change is about, as the world gathers its fleet.
+fn member(p: Presence) -> Option<Member> {
+    match p.role {
+        Role::Agent => Some(Member::Agent(p.id)),
+        Role::Record => Some(Member::Recorder(p.id)),
+        Role::World | Role::Planner => None,
+    }
 }
 
-impl Wiring<Gathering> for Present<'_> {
-    type Error = Infallible;
-
-    async fn next(&mut self) -> Liveliness<Member> {
-        loop {
-            tokio::select! {
-                p = self.presence.recv() => {
-                    let Some(p) = p else {
-                        return Liveliness::Closed;
-                    };
-                    let member = match p.role {
-                        Role::Agent => Member::Agent(p.id),
-                        Role::Record => Member::Recorder(p.id),
-                        _ => continue,
-                    };
-                    return Liveliness::Changed(member, p.alive);
-                }
-                _ = self.shutdown.recv() => return Liveliness::Interrupted,
-            }
-        }
-    }
-
-    async fn perform(&mut self, arrival: Arrival, _: &Gathering) -> Result<Option<Liveliness<Member>>, Infallible> {
-        match arrival {
-            Arrival::Agent { id, here, of } => tracing::info!("world: agent {id} is here ({here} of {of})"),
-            Arrival::Recorder { here, of } => tracing::info!("world: a recorder is here ({here} of {of})"),
-        }
-        Ok(None)
+fn arrived(arrival: Arrival) {
+    match arrival {
+        Arrival::Agent { id, here, of } => tracing::info!("world: agent {id} is here ({here} of {of})"),
+        Arrival::Recorder { here, of } => tracing::info!("world: a recorder is here ({here} of {of})"),
     }
 }
