@@ -6,10 +6,12 @@
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::{anyhow, Result};
-use tcpf_core::fleet::claim::{Claim, Claimant, Outcome};
+use tcpf_core::fleet::claim::{Claim, ClaimWaits, Claiming, Look, Seen, Settled};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
 
+use crate::clock::Monotonic;
+use crate::driver::{drive, Wiring};
 use crate::error::{AlreadyRunning, Error};
 use crate::keys::{Keys, Role};
 use crate::waits::{CLAIM_LINGER, CLAIM_LOOK_AGAIN, CLAIM_QUERY, CLAIM_SETTLE};
@@ -70,50 +72,67 @@ pub async fn claim(
             .map_err(|e| anyhow!("liveliness token: {e}"))
     };
     let token = declare(mine.chunk()).await?;
-    let (settle, contemporaries) = match rivals {
-        Rivals::Possible => (CLAIM_SETTLE, CLAIM_SETTLE),
-        Rivals::OneRouter => (Duration::ZERO, CLAIM_SETTLE),
-        Rivals::None => (Duration::ZERO, Duration::ZERO),
+    let waits = ClaimWaits {
+        settle: if rivals == Rivals::Possible {
+            CLAIM_SETTLE
+        } else {
+            Duration::ZERO
+        },
+        contemporaries: if rivals == Rivals::None {
+            Duration::ZERO
+        } else {
+            CLAIM_SETTLE
+        },
+        linger: CLAIM_LINGER,
+        look_again: CLAIM_LOOK_AGAIN,
     };
-    tokio::time::sleep(settle).await;
-    let deadline = tokio::time::Instant::now() + CLAIM_LINGER;
-    let refused = |holder| AlreadyRunning {
+    let monotonic = Monotonic::start();
+    let mut claiming = Claiming::new(mine.clone(), rivals == Rivals::OneRouter, waits, monotonic.now());
+    let mut looking = Looking {
+        session,
+        keys,
         role,
         id,
-        mission: mission.to_string(),
-        holder,
     };
-    loop {
-        // Each look afresh: what a claimant sees is what the router holds now. Not followed by a
-        // liveliness subscriber, which would make the look unreliable: a liveliness query from a
-        // session with a liveliness subscriber of its own at times answers nothing (Zenoh 1.10).
-        let mut claimant = Claimant::new(
-            mine.clone(),
-            contemporaries.as_nanos() as u64,
-            rivals == Rivals::OneRouter,
-        );
-        for (claim, held) in claims(session, keys, role, id).await? {
-            claimant.saw(claim, held);
-        }
-        let last_look = tokio::time::Instant::now() >= deadline;
-        let decided = match claimant.outcome() {
-            Outcome::HeldBy(_) | Outcome::Unseen | Outcome::Contested if !last_look => {
-                tokio::time::sleep(CLAIM_LOOK_AGAIN).await;
-                continue;
-            }
-            _ => claimant.settled(),
-        };
-        return match decided {
-            Outcome::Holds => Ok(Claimed {
-                held: declare(mine.held_chunk()).await?,
-                claim: token,
-            }),
-            Outcome::Lost(holder) | Outcome::HeldBy(holder) => Err(Error::from(refused(holder)).into()),
-            Outcome::Unseen | Outcome::Contested => Err(anyhow!(
-                "the router did not show this {role}'s claim within {:?}: cannot tell whether another process holds it",
-                settle + CLAIM_LINGER
-            )),
-        };
+    match drive(&mut claiming, &mut looking, monotonic).await? {
+        Settled::Holds => Ok(Claimed {
+            held: declare(mine.held_chunk()).await?,
+            claim: token,
+        }),
+        Settled::Refused(holder) => Err(Error::from(AlreadyRunning {
+            role,
+            id,
+            mission: mission.to_string(),
+            holder,
+        })
+        .into()),
+        Settled::Unsure => Err(anyhow!(
+            "the router did not show this {role}'s claim within {:?}: cannot tell whether another process holds it",
+            waits.settle + waits.linger
+        )),
+    }
+}
+
+/// A claimant's looks at the claims: it hears nothing else.
+struct Looking<'a> {
+    session: &'a Session,
+    keys: &'a Keys,
+    role: Role,
+    id: u32,
+}
+
+impl Wiring<Claiming> for Looking<'_> {
+    type Error = anyhow::Error;
+
+    async fn next(&mut self) -> Seen {
+        std::future::pending().await
+    }
+
+    /// Each look afresh: what a claimant sees is what the router holds now. Not followed by a
+    /// liveliness subscriber, which would make the look unreliable: a liveliness query from a
+    /// session with a liveliness subscriber of its own at times answers nothing (Zenoh 1.10).
+    async fn perform(&mut self, Look: Look, _: &Claiming) -> Result<Option<Seen>> {
+        Ok(Some(Seen(claims(self.session, self.keys, self.role, self.id).await?)))
     }
 }
 

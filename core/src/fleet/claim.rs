@@ -14,6 +14,10 @@
 //! fall to the lesser session id, which every claimant reads the same.
 
 use std::fmt;
+use std::time::Duration;
+
+use crate::roles::machine::Machine;
+use crate::time::Moment;
 
 /// What a holder's mark adds to its claim's chunk.
 const HELD: &str = "-held";
@@ -150,6 +154,120 @@ impl Claimant {
             Outcome::Contested => Outcome::Holds,
             decided => decided,
         }
+    }
+}
+
+/// How long a claimant waits to look, and looks again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClaimWaits {
+    /// Before its first look: how long a contemporary's claim may take to reach it (peers that
+    /// may not have met), or nothing (one router, or no rival).
+    pub settle: Duration,
+    /// How far apart two claims may be and still be contemporaries (`Claimant`).
+    pub contemporaries: Duration,
+    /// After the first look, how long an undecided claimant looks again: as long as the claim of
+    /// a process just gone lingers at the router.
+    pub linger: Duration,
+    /// Between two looks.
+    pub look_again: Duration,
+}
+
+/// A claimant's process (`tcpf_bus::claim`): it looks at the claims of its role once `settle`
+/// has passed, and again while what it sees is undecided and `linger` has not, then says what
+/// it settled on.
+#[derive(Debug)]
+pub struct Claiming {
+    mine: Claim,
+    patient: bool,
+    waits: ClaimWaits,
+    /// When the next look is due; `None` while one is under way.
+    look_at: Option<Moment>,
+    /// A look is due and not yet asked for.
+    asking: bool,
+    /// After the first look, the last at which it may still wait.
+    last: Option<Moment>,
+    settled: Option<Settled>,
+}
+
+/// What a claimant settled on.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Settled {
+    Holds,
+    /// Another holds the role, or claimed it first.
+    Refused(Claim),
+    /// The router never showed this claim, or a contest never ended, within the waits.
+    Unsure,
+}
+
+/// A claimant's input: the claims the router showed at a look, each with whether it is a
+/// holder's mark.
+#[derive(Debug, Clone)]
+pub struct Seen(pub Vec<(Claim, bool)>);
+
+/// A claimant's output: look at the claims.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Look;
+
+impl Claiming {
+    /// `patient`: the claimants meet at one router (`Claimant`).
+    pub fn new(mine: Claim, patient: bool, waits: ClaimWaits, now: Moment) -> Claiming {
+        Claiming {
+            mine,
+            patient,
+            waits,
+            look_at: Some(now + waits.settle),
+            asking: false,
+            last: None,
+            settled: None,
+        }
+    }
+}
+
+impl Machine for Claiming {
+    type Input = Seen;
+    type Output = Look;
+    type Exit = Settled;
+
+    fn handle(&mut self, Seen(claims): Seen, now: Moment) {
+        let last = *self.last.get_or_insert(now + self.waits.linger);
+        let mut claimant = Claimant::new(
+            self.mine.clone(),
+            self.waits.contemporaries.as_nanos() as u64,
+            self.patient,
+        );
+        for (claim, held) in claims {
+            claimant.saw(claim, held);
+        }
+        self.settled = match claimant.outcome() {
+            Outcome::HeldBy(_) | Outcome::Unseen | Outcome::Contested if now < last => {
+                self.look_at = Some(now + self.waits.look_again);
+                return;
+            }
+            _ => Some(match claimant.settled() {
+                Outcome::Holds => Settled::Holds,
+                Outcome::Lost(holder) | Outcome::HeldBy(holder) => Settled::Refused(holder),
+                Outcome::Unseen | Outcome::Contested => Settled::Unsure,
+            }),
+        };
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        self.look_at
+    }
+
+    fn handle_timeout(&mut self, now: Moment, _: Moment) {
+        if self.look_at.is_some_and(|at| at <= now) {
+            self.look_at = None;
+            self.asking = true;
+        }
+    }
+
+    fn poll_output(&mut self) -> Option<Look> {
+        std::mem::take(&mut self.asking).then_some(Look)
+    }
+
+    fn poll_exit(&mut self) -> Option<Settled> {
+        self.settled.clone()
     }
 }
 
@@ -295,5 +413,77 @@ mod tests {
             assert_eq!(Claim::parse(bad), None, "{bad:?}");
         }
         assert_eq!(c.to_string(), "session 8e2a61f0c3 (claimed at 11:06:40 UTC)");
+    }
+
+    const WAITS: ClaimWaits = ClaimWaits {
+        settle: Duration::ZERO,
+        contemporaries: Duration::from_millis(1500),
+        linger: Duration::from_secs(2),
+        look_again: Duration::from_millis(20),
+    };
+
+    /// Runs `claiming` on a clock that jumps to each wake-up, the router answering each look
+    /// at `t` with `shown(t)`: what it settled on, and when.
+    fn settle(mut claiming: Claiming, shown: impl Fn(f64) -> Vec<(Claim, bool)>) -> (Settled, f64) {
+        loop {
+            let at = claiming.poll_timeout().expect("an undecided claimant waits for a look");
+            claiming.handle_timeout(at, at);
+            while claiming.poll_output().is_some() {
+                claiming.handle(Seen(shown(at.secs())), at);
+            }
+            if let Some(settled) = claiming.poll_exit() {
+                return (settled, at.secs());
+            }
+        }
+    }
+
+    #[test]
+    fn a_claimant_looks_once_settled_and_again_until_the_facts_are_in() {
+        let (old, mine) = (claim(100, "0a"), claim(SETTLE * 10, "0b"));
+        let start = Moment::from_secs(5.0);
+
+        // Alone at one router: it looks at once and holds.
+        let claiming = Claiming::new(mine.clone(), true, WAITS, start);
+        assert_eq!(claiming.poll_timeout(), Some(start));
+        assert_eq!(settle(claiming, |_| vec![(mine.clone(), false)]), (Settled::Holds, 5.0));
+
+        // A peer looks only once a contemporary's claim has had time to reach it.
+        let peer = ClaimWaits {
+            settle: Duration::from_millis(1500),
+            ..WAITS
+        };
+        let claiming = Claiming::new(mine.clone(), false, peer, start);
+        assert_eq!(claiming.poll_timeout(), Some(start + 1.5));
+        assert_eq!(settle(claiming, |_| vec![(mine.clone(), false)]), (Settled::Holds, 6.5));
+
+        // The claim of a holder just gone lingers: it looks every 20 ms until the claim goes.
+        let mut claiming = Claiming::new(mine.clone(), true, WAITS, start);
+        let lingering = |t: f64| {
+            let mut shown = vec![(mine.clone(), false)];
+            if t < 5.5 {
+                shown.push((old.clone(), true));
+            }
+            shown
+        };
+        claiming.handle_timeout(start, start);
+        assert_eq!(claiming.poll_output(), Some(Look));
+        assert_eq!(claiming.poll_output(), None, "one look at a time");
+        claiming.handle(Seen(lingering(5.0)), start);
+        assert_eq!(claiming.poll_exit(), None);
+        let (settled, at) = settle(claiming, lingering);
+        assert_eq!(settled, Settled::Holds);
+        assert!((5.5..5.53).contains(&at), "held at {at}");
+
+        // A holder that stays is named once the claim of one just gone would have lingered.
+        let claiming = Claiming::new(mine.clone(), true, WAITS, start);
+        let (settled, at) = settle(claiming, |_| vec![(mine.clone(), false), (old.clone(), true)]);
+        assert_eq!(settled, Settled::Refused(old.clone()));
+        assert!((7.0..7.03).contains(&at), "refused at {at}");
+
+        // A router that never shows the claim leaves it unsure, after as long.
+        let claiming = Claiming::new(mine.clone(), true, WAITS, start);
+        let (settled, at) = settle(claiming, |_| Vec::new());
+        assert_eq!(settled, Settled::Unsure);
+        assert!((7.0..7.03).contains(&at), "unsure at {at}");
     }
 }
