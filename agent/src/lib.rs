@@ -4,7 +4,6 @@
 
 mod footprint;
 
-use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -25,14 +24,16 @@ use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
 use tcpf_bus::waits;
 use tcpf_core::fleet::membership::{AgentStartup, Awaited, Peer, StartupCheck, Waited};
-use tcpf_core::fleet::watch::EndGrace;
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
 use tcpf_core::outputs::ros2::Stamp;
 use tcpf_core::roles::agent::Agent;
-use tcpf_core::roles::lockstep::{AgentNode, Reject, Timing};
+use tcpf_core::roles::lockstep::{AgentNode, Timing};
 use tcpf_core::roles::lockstep_agent::{Input, LockstepAgent, Output, Source};
-use tcpf_core::roles::machine::Machine;
+use tcpf_core::roles::lockstep_agent_task::{
+    Exit as TaskExit, Input as TaskInput, LockstepAgentTask, Output as TaskOutput,
+};
+use tcpf_core::roles::machine::Shared;
 use tcpf_core::roles::realtime::RealtimeAgent;
 use tcpf_core::roles::realtime_agent::{
     Exit as RealtimeExit, Input as RealtimeInput, Output as RealtimeOutput, RealtimeAgentNode,
@@ -181,14 +182,6 @@ impl Feed {
         self.perform(&mut fed);
     }
 
-    /// Does `change` to the machine, then what it has ready.
-    fn with<R>(&self, change: impl FnOnce(&mut LockstepAgent, Moment) -> R) -> R {
-        let mut fed = self.lock();
-        let result = change(&mut fed.machine, self.monotonic.now());
-        self.perform(&mut fed);
-        result
-    }
-
     /// Publishes what the machine has ready, counts what it refused and says what it gave up.
     fn perform(&self, fed: &mut Fed) {
         while let Some(output) = fed.machine.poll_output() {
@@ -231,6 +224,18 @@ impl Feed {
         }
     }
 }
+
+impl Shared<LockstepAgent> for Feed {
+    fn with<R>(&self, change: impl FnOnce(&mut LockstepAgent, Moment) -> R) -> R {
+        let mut fed = self.lock();
+        let result = change(&mut fed.machine, self.monotonic.now());
+        self.perform(&mut fed);
+        result
+    }
+}
+
+/// The lockstep agent's task, on the machine Zenoh's thread feeds.
+type Task<'a> = LockstepAgentTask<'a, Feed, String>;
 
 fn warn_if_not_finite(id: u32, command: &Command) {
     if !command.finite() {
@@ -528,15 +533,12 @@ impl Shell {
         if clock.is_none() {
             feed.start();
         }
-        let now = feed.monotonic.now();
-        let mut machine = FedAgent {
+        let mut machine = LockstepAgentTask::new(
             feed,
-            gone: EndGrace::new(waits::END_AFTER_THE_WORLD),
-            stale_timeout: options.stale_timeout.as_secs_f64(),
-            look_at: now + options.stale_timeout.as_secs_f64(),
-            outputs: VecDeque::new(),
-            exit: None,
-        };
+            options.stale_timeout,
+            waits::END_AFTER_THE_WORLD,
+            feed.monotonic.now(),
+        );
         let mut wiring = Lockstep {
             shell: self,
             feed,
@@ -547,8 +549,11 @@ impl Shell {
         };
         let Ok(exit) = drive(&mut machine, &mut wiring, feed.monotonic).await;
         let exit = match exit {
-            FedExit::Stopped(exit) => exit,
-            FedExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
+            TaskExit::Ended => Exit::Ended,
+            TaskExit::Lost => Exit::Lost,
+            TaskExit::Orphaned => Exit::Orphaned,
+            TaskExit::Interrupted => Exit::Interrupted,
+            TaskExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
         };
         let (gamma, timing) = {
             let fed = feed.lock();
@@ -693,111 +698,6 @@ impl Wiring<RealtimeAgentNode<String>> for Realtime<'_> {
     }
 }
 
-/// The lockstep agent's machine as its task drives it: behind the lock it shares with Zenoh's
-/// thread, which feeds it the states and γ. The task feeds it the rest, and waits for a gone
-/// world's end (`EndGrace`).
-struct FedAgent<'a> {
-    feed: &'a Feed,
-    gone: EndGrace,
-    stale_timeout: f64,
-    /// Not waiting for anything, the machine is woken once per stale timeout while the fleet
-    /// moves on, to look again: the next time, from the last input.
-    look_at: Moment,
-    outputs: VecDeque<FedOutput>,
-    exit: Option<FedExit>,
-}
-
-enum FedInput {
-    /// The world's clock answered, and it is this agent's mission's: the run starts.
-    Started,
-    /// The world's token came (`true`) or went.
-    World(bool),
-    PlannerGone,
-    /// Neighbour `id`'s agent came (`true`) or went.
-    Neighbour(u32, bool),
-    /// An end, on `key`.
-    End(End, String),
-    /// A loss, on its vehicle's key.
-    Lost(Lost, String),
-    /// A publication failed, or the world's clock is not this agent's.
-    Failed,
-    Interrupted,
-}
-
-enum FedOutput {
-    Refused(Reject, String),
-    PlannerGone,
-    /// The world gave up on this vehicle at this tick, for this reason.
-    Lost(Lost),
-    WorldGone,
-}
-
-enum FedExit {
-    Stopped(Exit),
-    Failed,
-}
-
-impl Machine for FedAgent<'_> {
-    type Input = FedInput;
-    type Output = FedOutput;
-    type Exit = FedExit;
-
-    fn handle(&mut self, input: FedInput, now: Moment) {
-        self.look_at = now + self.stale_timeout;
-        match input {
-            FedInput::Started => self.feed.start(),
-            // The world's end may come after its token has gone.
-            FedInput::World(true) => self.gone.back(),
-            FedInput::World(false) => self.gone.left(now),
-            FedInput::PlannerGone => self.outputs.push_back(FedOutput::PlannerGone),
-            FedInput::Neighbour(j, alive) => {
-                self.feed
-                    .with(|machine, now| machine.with(now, |node| node.set_gone(j, !alive)));
-            }
-            FedInput::End(end, key) => match self.feed.lock().machine.on_end(&end) {
-                Ok(()) => self.exit = Some(FedExit::Stopped(Exit::Ended)),
-                Err(why) => self.outputs.push_back(FedOutput::Refused(why, key)),
-            },
-            FedInput::Lost(lost, key) => match self.feed.with(|machine, now| machine.on_lost(&lost, now)) {
-                Ok(true) => {
-                    self.outputs.push_back(FedOutput::Lost(lost));
-                    self.exit = Some(FedExit::Stopped(Exit::Lost));
-                }
-                Ok(false) => {}
-                Err(why) => self.outputs.push_back(FedOutput::Refused(why, key)),
-            },
-            FedInput::Failed => self.exit = Some(FedExit::Failed),
-            FedInput::Interrupted => self.exit = Some(FedExit::Stopped(Exit::Interrupted)),
-        }
-    }
-
-    fn poll_timeout(&self) -> Option<Moment> {
-        let own = self.feed.lock().machine.poll_timeout().unwrap_or(self.look_at);
-        Some(self.gone.poll_timeout().map_or(own, |grace| grace.min(own)))
-    }
-
-    fn handle_timeout(&mut self, now: Moment, _due: Moment) {
-        if self.gone.poll_timeout().is_some_and(|grace| grace <= now) && self.gone.handle_timeout(now) {
-            self.outputs.push_back(FedOutput::WorldGone);
-            self.exit = Some(FedExit::Stopped(Exit::Orphaned));
-            return;
-        }
-        let own = self.feed.lock().machine.poll_timeout().unwrap_or(self.look_at);
-        if own <= now {
-            self.feed.with(|machine, now| machine.handle_timeout(now, own));
-            self.look_at = now + self.stale_timeout;
-        }
-    }
-
-    fn poll_output(&mut self) -> Option<FedOutput> {
-        self.outputs.pop_front()
-    }
-
-    fn poll_exit(&mut self) -> Option<FedExit> {
-        self.exit.take()
-    }
-}
-
 /// A lockstep agent's task: the world's clock until it answers, liveliness, the end, losses,
 /// publications that failed and signals.
 struct Lockstep<'s> {
@@ -812,16 +712,16 @@ struct Lockstep<'s> {
 }
 
 impl Lockstep<'_> {
-    fn failed(&mut self, e: anyhow::Error) -> FedInput {
+    fn failed(&mut self, e: anyhow::Error) -> TaskInput<String> {
         self.failed = Some(e);
-        FedInput::Failed
+        TaskInput::Failed
     }
 }
 
-impl<'a> Wiring<FedAgent<'a>> for Lockstep<'_> {
+impl<'a> Wiring<Task<'a>> for Lockstep<'_> {
     type Error = Infallible;
 
-    async fn next(&mut self) -> FedInput {
+    async fn next(&mut self) -> TaskInput<String> {
         let shell = &mut *self.shell;
         loop {
             tokio::select! {
@@ -829,7 +729,7 @@ impl<'a> Wiring<FedAgent<'a>> for Lockstep<'_> {
                 answer = answered(&mut self.clock), if self.clock.is_some() => {
                     self.clock = None;
                     return match answer.and_then(|clock| check_clock(self.mission, &clock)) {
-                        Ok(()) => FedInput::Started,
+                        Ok(()) => TaskInput::Started,
                         Err(e) => self.failed(e),
                     };
                 }
@@ -837,37 +737,42 @@ impl<'a> Wiring<FedAgent<'a>> for Lockstep<'_> {
                     self.clock.iter().for_each(ClockAnswer::look_again);
                 }
                 Some(p) = shell.presence.recv() => match p.role {
-                    Role::World => return FedInput::World(p.alive),
+                    Role::World => return TaskInput::World(p.alive),
                     // This agent has its path: the planner serves only agents that start.
-                    Role::Planner if !p.alive => return FedInput::PlannerGone,
-                    Role::Agent if shell.audible.contains(&p.id) => return FedInput::Neighbour(p.id, p.alive),
+                    Role::Planner if !p.alive => return TaskInput::PlannerGone,
+                    Role::Agent if shell.audible.contains(&p.id) => return TaskInput::Neighbour(p.id, p.alive),
                     _ => {}
                 },
-                Some(e) = shell.ends.recv() => return FedInput::End(e.message, e.key),
+                Some(e) = shell.ends.recv() => return TaskInput::End(e.message, e.key),
                 Some(l) = shell.losses.recv() => {
                     let lost = Lost::from(l.message);
                     if shell.rejected.from_sender(&l.key, lost.id) {
-                        return FedInput::Lost(lost, l.key);
+                        return TaskInput::Lost(lost, l.key);
                     }
                 }
-                _ = shell.shutdown.recv() => return FedInput::Interrupted,
+                _ = shell.shutdown.recv() => return TaskInput::Interrupted,
             }
         }
     }
 
-    async fn perform(&mut self, output: FedOutput, _: &FedAgent<'a>) -> Result<Option<FedInput>, Infallible> {
+    async fn perform(
+        &mut self,
+        output: TaskOutput<String>,
+        _: &Task<'a>,
+    ) -> Result<Option<TaskInput<String>>, Infallible> {
         let id = self.shell.id;
         match output {
-            FedOutput::Refused(why, key) => self.shell.rejected.reject(why, &key),
-            FedOutput::PlannerGone => {
+            TaskOutput::Started => let_go_of_the_start(id),
+            TaskOutput::Refused(why, key) => self.shell.rejected.reject(why, &key),
+            TaskOutput::PlannerGone => {
                 tracing::warn!("agent {id}: the planner is gone; going on with the path it served")
             }
-            FedOutput::Lost(lost) => tracing::warn!(
+            TaskOutput::Lost(lost) => tracing::warn!(
                 "agent {id}: the world gave up on this vehicle at tick {} ({:?}); stopping",
                 lost.tick,
                 lost.reason
             ),
-            FedOutput::WorldGone => tracing::warn!("agent {id}: the world is gone; stopping"),
+            TaskOutput::WorldGone => tracing::warn!("agent {id}: the world is gone; stopping"),
         }
         Ok(None)
     }

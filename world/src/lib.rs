@@ -34,7 +34,7 @@ use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State,
 use tcpf_core::outputs::ros2::{Played, Stamp, MAP_FRAME};
 use tcpf_core::roles::lockstep::{Reject, Timing, WorldNode};
 use tcpf_core::roles::lockstep_world::{Io, LockstepWorld};
-use tcpf_core::roles::machine::Machine;
+use tcpf_core::roles::lockstep_world_task::{Exit as TaskExit, Input as TaskInput, LockstepWorldTask, SharedWorld};
 use tcpf_core::roles::realtime::RealtimeWorld;
 use tcpf_core::roles::realtime_world::{
     Exit as RealtimeExit, Input as RealtimeInput, Output as RealtimeOutput, RealtimeWorldNode,
@@ -238,6 +238,14 @@ impl Stepper {
     /// A publication failed: the task stops on it.
     fn failed(&self, e: anyhow::Error) {
         let _ = self.ends.send(Err(e));
+    }
+}
+
+/// For the task: the same, its outlets lent as any `Io` (the commands' path, which calls
+/// `Stepper::with`, keeps them as they are).
+impl SharedWorld for Stepper {
+    fn with(&self, act: impl FnOnce(&mut LockstepWorld, Moment, &mut dyn Io)) {
+        Stepper::with(self, |world, now, doing| act(world, now, doing));
     }
 }
 
@@ -547,7 +555,7 @@ impl Shell<'_> {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         stepper.lock().clock.epoch = unix_now();
         stepper.with(|world, now, doing| world.start(now, doing));
-        let mut machine = Locked { stepper, exit: None };
+        let mut machine = LockstepWorldTask::new(stepper);
         let mut wiring = Lockstep {
             shell: self,
             ids,
@@ -556,7 +564,7 @@ impl Shell<'_> {
         };
         let Ok(exit) = drive(&mut machine, &mut wiring, stepper.monotonic).await;
         let (exit, end) = match exit {
-            LockstepExit::Ended(end) => {
+            TaskExit::Ended(end) => {
                 let exit = Exit::Ended {
                     ticks: end.ticks,
                     lost: end.lost.len(),
@@ -565,8 +573,8 @@ impl Shell<'_> {
                 (exit, Some(end))
             }
             // The end the interrupt published, unless one was out already.
-            LockstepExit::Interrupted => (Exit::Interrupted, wiring.ends.try_recv().ok().transpose()?),
-            LockstepExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
+            TaskExit::Interrupted => (Exit::Interrupted, wiring.ends.try_recv().ok().transpose()?),
+            TaskExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
         };
         let handing: Vec<_> = std::mem::take(&mut *stepper.handovers.lock().unwrap_or_else(|e| e.into_inner()));
         for loss in handing {
@@ -776,67 +784,6 @@ impl Wiring<RealtimeNode> for Realtime<'_, '_> {
     }
 }
 
-/// The lockstep world's machine as its task drives it: behind the lock it shares with Zenoh's
-/// thread, which feeds it the commands. The task feeds it the rest.
-struct Locked<'a> {
-    stepper: &'a Stepper,
-    exit: Option<LockstepExit>,
-}
-
-enum LockstepInput {
-    /// Agent `id` of the fleet came (`alive`) or went.
-    Agent(u32, bool),
-    /// The end is out.
-    End(End),
-    /// A publication failed.
-    Failed,
-    Interrupted,
-}
-
-enum LockstepExit {
-    Ended(End),
-    Interrupted,
-    Failed,
-}
-
-impl Machine for Locked<'_> {
-    type Input = LockstepInput;
-    type Output = Infallible;
-    type Exit = LockstepExit;
-
-    fn handle(&mut self, input: LockstepInput, _: Moment) {
-        match input {
-            LockstepInput::Agent(id, alive) => {
-                self.stepper
-                    .with(|world, now, doing| world.handle_agent(id, alive, now, doing));
-            }
-            LockstepInput::End(end) => self.exit = Some(LockstepExit::Ended(end)),
-            LockstepInput::Failed => self.exit = Some(LockstepExit::Failed),
-            LockstepInput::Interrupted => {
-                self.stepper.with(|world, _, doing| world.interrupt(doing));
-                self.exit = Some(LockstepExit::Interrupted);
-            }
-        }
-    }
-
-    fn poll_timeout(&self) -> Option<Moment> {
-        self.stepper.lock().world.poll_timeout()
-    }
-
-    fn handle_timeout(&mut self, _: Moment, due: Moment) {
-        self.stepper
-            .with(|world, now, doing| world.handle_timeout(now, due, doing));
-    }
-
-    fn poll_output(&mut self) -> Option<Infallible> {
-        None
-    }
-
-    fn poll_exit(&mut self) -> Option<LockstepExit> {
-        self.exit.take()
-    }
-}
-
 /// A lockstep world's task: the agents' liveliness, the end and signals.
 struct Lockstep<'s, 'a> {
     shell: &'s mut Shell<'a>,
@@ -846,28 +793,32 @@ struct Lockstep<'s, 'a> {
     failed: Option<anyhow::Error>,
 }
 
-impl Wiring<Locked<'_>> for Lockstep<'_, '_> {
+impl Wiring<LockstepWorldTask<'_, Stepper>> for Lockstep<'_, '_> {
     type Error = Infallible;
 
-    async fn next(&mut self) -> LockstepInput {
+    async fn next(&mut self) -> TaskInput {
         loop {
             tokio::select! {
                 Some(end) = self.ends.recv() => return match end {
-                    Ok(end) => LockstepInput::End(end),
+                    Ok(end) => TaskInput::End(end),
                     Err(e) => {
                         self.failed = Some(e);
-                        LockstepInput::Failed
+                        TaskInput::Failed
                     }
                 },
                 Some(p) = self.shell.presence.recv() => if p.role == Role::Agent && self.ids.contains(&p.id) {
-                    return LockstepInput::Agent(p.id, p.alive);
+                    return TaskInput::Agent(p.id, p.alive);
                 },
-                _ = self.shell.shutdown.recv() => return LockstepInput::Interrupted,
+                _ = self.shell.shutdown.recv() => return TaskInput::Interrupted,
             }
         }
     }
 
-    async fn perform(&mut self, output: Infallible, _: &Locked<'_>) -> Result<Option<LockstepInput>, Infallible> {
+    async fn perform(
+        &mut self,
+        output: Infallible,
+        _: &LockstepWorldTask<'_, Stepper>,
+    ) -> Result<Option<TaskInput>, Infallible> {
         match output {}
     }
 }

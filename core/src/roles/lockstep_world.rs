@@ -55,7 +55,7 @@ impl LockstepWorld {
     }
 
     /// The run starts: the first states leave, then what came before them goes in.
-    pub fn start(&mut self, now: Moment, io: &mut impl Io) {
+    pub fn start(&mut self, now: Moment, io: &mut (impl Io + ?Sized)) {
         let Some(held) = self.held.take() else {
             return;
         };
@@ -67,7 +67,7 @@ impl LockstepWorld {
     }
 
     /// A command came at `now`, on its vehicle's key.
-    pub fn handle_command(&mut self, command: Command, now: Moment, io: &mut impl Io) {
+    pub fn handle_command(&mut self, command: Command, now: Moment, io: &mut (impl Io + ?Sized)) {
         if let Some(held) = &mut self.held {
             held.push(command);
         } else if !self.over {
@@ -77,7 +77,7 @@ impl LockstepWorld {
     }
 
     /// Agent `id` of the fleet came (`alive`) or went.
-    pub fn handle_agent(&mut self, id: u32, alive: bool, now: Moment, io: &mut impl Io) {
+    pub fn handle_agent(&mut self, id: u32, alive: bool, now: Moment, io: &mut (impl Io + ?Sized)) {
         let lost = self.node.loss_of(id);
         if let Some(decision) = self.deadlines.on_agent(id, alive, lost, now) {
             self.decide(decision, now, io);
@@ -91,7 +91,7 @@ impl LockstepWorld {
     }
 
     /// Woken at `now` from a sleep until `woken_for`.
-    pub fn handle_timeout(&mut self, now: Moment, woken_for: Moment, io: &mut impl Io) {
+    pub fn handle_timeout(&mut self, now: Moment, woken_for: Moment, io: &mut (impl Io + ?Sized)) {
         let node = &self.node;
         for decision in self.deadlines.handle_timeout(now, woken_for, || node.waiting_for()) {
             self.decide(decision, now, io);
@@ -99,7 +99,7 @@ impl LockstepWorld {
     }
 
     /// A signal: the run ends before the tick under way closes, unless its end is out already.
-    pub fn interrupt(&mut self, io: &mut impl Io) {
+    pub fn interrupt(&mut self, io: &mut (impl Io + ?Sized)) {
         if !self.over {
             self.over = true;
             io.end(&self.node.interrupted());
@@ -116,7 +116,7 @@ impl LockstepWorld {
         self.node.not_arrived()
     }
 
-    fn take(&mut self, command: Command, io: &mut impl Io) {
+    fn take(&mut self, command: Command, io: &mut (impl Io + ?Sized)) {
         let id = command.id;
         if let Err(reject) = self.node.on_command(command) {
             io.rejected(id, reject);
@@ -124,7 +124,7 @@ impl LockstepWorld {
     }
 
     /// Closes every tick that waits for nobody, publishing each next one's states, or the end.
-    fn step(&mut self, now: Moment, io: &mut impl Io) {
+    fn step(&mut self, now: Moment, io: &mut (impl Io + ?Sized)) {
         while !self.over && !self.node.waiting() {
             match self.node.advance(|record| io.record(record)) {
                 Some(end) => {
@@ -136,12 +136,12 @@ impl LockstepWorld {
         }
     }
 
-    fn publish(&mut self, now: Moment, io: &mut impl Io) {
+    fn publish(&mut self, now: Moment, io: &mut (impl Io + ?Sized)) {
         io.states(self.node.tick(), self.node.states());
         self.deadlines.on_tick(now);
     }
 
-    fn decide(&mut self, decision: Decision, now: Moment, io: &mut impl Io) {
+    fn decide(&mut self, decision: Decision, now: Moment, io: &mut (impl Io + ?Sized)) {
         // One wake-up may decide a vehicle's loss twice (gone past its rejoin deadline, and
         // silent past the tick's command timeout): it is lost, and said, once.
         if let Decision::Lose { id, .. } = decision {
@@ -165,7 +165,7 @@ impl LockstepWorld {
     }
 
     /// Vehicle `id` is given up on: said first, then the tick goes on without it.
-    fn lose(&mut self, id: u32, reason: LossReason, now: Moment, io: &mut impl Io) {
+    fn lose(&mut self, id: u32, reason: LossReason, now: Moment, io: &mut (impl Io + ?Sized)) {
         if let Some(lost) = self.node.on_lost(id, reason) {
             io.lost(lost);
         }

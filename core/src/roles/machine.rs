@@ -31,3 +31,10 @@ pub trait Machine {
     /// Whether, and why, the machine is done; asked once every output is taken.
     fn poll_exit(&mut self) -> Option<Self::Exit>;
 }
+
+/// A machine another thread feeds too (Zenoh's, with the hot path's messages), behind the lock
+/// the two share: the role's task reaches it only through `with`, which does `act` at the
+/// process's `now` and then performs what the machine has ready, as the feeding thread does.
+pub trait Shared<M> {
+    fn with<R>(&self, act: impl FnOnce(&mut M, Moment) -> R) -> R;
+}
