@@ -1,7 +1,7 @@
 //! Last words that must reach the recorders (an exit report, the end, a loss) travel as a query
 //! to every recorder's queryable, and each recorder's reply is its acknowledgement: the sender
 //! knows who has them, instead of lingering a while and hoping. A recorder that did not answer
-//! is asked again, up to `ATTEMPTS` times; what still went unacknowledged is logged by the
+//! is asked again, up to `HANDOVER_ATTEMPTS` times (`tcpf_core::fleet::handover`); what still went unacknowledged is logged by the
 //! sender, and the recorder's summary names what never came (an unreported role, a missed end).
 //!
 //! A query overtakes nothing sent before it on the same link, so a recorder that takes the end
@@ -9,33 +9,27 @@
 //! fetched those from the world's history (`take_over_held`), which the world answers until
 //! then.
 
-use std::collections::BTreeSet;
-
 use anyhow::{anyhow, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
+use tcpf_core::fleet::handover::{Done, Handed, Handover, Step};
 use tcpf_core::msg::Checked;
 use tokio::sync::mpsc;
 use zenoh::query::{ConsolidationMode, Query, QueryTarget, Queryable};
 use zenoh::{Session, Wait};
 
+use crate::clock::Monotonic;
 use crate::codec::{decode, encode};
+use crate::driver::{drive, Wiring};
 use crate::keys::{Keys, Role};
 use crate::presence::present;
 use crate::rejected::Rejected;
 use crate::subscribe::{enqueue, Received};
 use crate::waits::{HANDOVER_ATTEMPT, HANDOVER_ATTEMPTS};
 
-/// How a hand-over went: of the recorders present, how many acknowledged.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Handed {
-    pub acknowledged: usize,
-    pub recorders: usize,
-    pub attempts: u32,
-}
-
 /// Hands `message` over on `key` to every recorder of the mission and waits for their
-/// acknowledgements; `what` names it in the warning if some never came.
+/// acknowledgements (`tcpf_core::fleet::handover`); `what` names it in the warning if some
+/// never came.
 pub async fn hand_over<T: Serialize>(
     session: &Session,
     keys: &Keys,
@@ -43,49 +37,70 @@ pub async fn hand_over<T: Serialize>(
     message: &T,
     what: &str,
 ) -> Result<Handed> {
-    let payload = encode(message);
-    let mut acknowledged = BTreeSet::new();
-    let mut recorders = 0;
-    for attempt in 1..=HANDOVER_ATTEMPTS {
-        recorders = present(session, keys)
-            .await?
-            .iter()
-            .filter(|(role, _)| *role == Role::Record)
-            .count();
-        // Asked once even with no recorder present: one that has every report it waits for
-        // withdraws its token, and still takes what comes (the planner's report, last of all).
-        if attempt > 1 && acknowledged.len() >= recorders {
-            return Ok(Handed {
-                acknowledged: acknowledged.len(),
-                recorders,
-                attempts: attempt - 1,
-            });
-        }
-        let replies = session
-            .get(key.clone())
-            .payload(payload.clone())
-            .target(QueryTarget::All)
-            .consolidation(ConsolidationMode::None)
-            .timeout(HANDOVER_ATTEMPT)
-            .await
-            .map_err(|e| anyhow!("cannot hand over {what}: {e}"))?;
-        while let Ok(reply) = replies.recv_async().await {
-            if reply.result().is_ok() {
-                acknowledged.extend(reply.replier_id().map(|id| id.zid()));
-            }
-        }
-    }
-    if acknowledged.len() < recorders {
+    let mut handing = Handing {
+        session,
+        keys,
+        key,
+        payload: encode(message),
+        what,
+    };
+    let handed = drive(&mut Handover::new(HANDOVER_ATTEMPTS), &mut handing, Monotonic::start()).await?;
+    if handed.unacknowledged() > 0 {
         tracing::warn!(
-            "{what}: {} of {recorders} recorder(s) did not acknowledge it after {HANDOVER_ATTEMPTS} attempts",
-            recorders - acknowledged.len()
+            "{what}: {} of {} recorder(s) did not acknowledge it after {} attempts",
+            handed.unacknowledged(),
+            handed.recorders,
+            handed.attempts
         );
     }
-    Ok(Handed {
-        acknowledged: acknowledged.len(),
-        recorders,
-        attempts: HANDOVER_ATTEMPTS,
-    })
+    Ok(handed)
+}
+
+/// A hand-over's steps: the recorders counted by their tokens, and asked by a query to all.
+struct Handing<'a> {
+    session: &'a Session,
+    keys: &'a Keys,
+    key: String,
+    payload: Vec<u8>,
+    what: &'a str,
+}
+
+impl Wiring<Handover<String>> for Handing<'_> {
+    type Error = anyhow::Error;
+
+    async fn next(&mut self) -> Done<String> {
+        std::future::pending().await
+    }
+
+    async fn perform(&mut self, step: Step, _: &Handover<String>) -> Result<Option<Done<String>>> {
+        Ok(Some(match step {
+            Step::Count => Done::Counted(
+                present(self.session, self.keys)
+                    .await?
+                    .iter()
+                    .filter(|(role, _)| *role == Role::Record)
+                    .count(),
+            ),
+            Step::Ask => {
+                let replies = self
+                    .session
+                    .get(self.key.clone())
+                    .payload(self.payload.clone())
+                    .target(QueryTarget::All)
+                    .consolidation(ConsolidationMode::None)
+                    .timeout(HANDOVER_ATTEMPT)
+                    .await
+                    .map_err(|e| anyhow!("cannot hand over {}: {e}", self.what))?;
+                let mut repliers = Vec::new();
+                while let Ok(reply) = replies.recv_async().await {
+                    if reply.result().is_ok() {
+                        repliers.extend(reply.replier_id().map(|id| id.zid().to_string()));
+                    }
+                }
+                Done::Answered(repliers)
+            }
+        }))
+    }
 }
 
 /// A recorder's acknowledgement of one hand-over, for it to send once it has what the message
