@@ -84,7 +84,7 @@ fn run(args: &MissionArgs, count: u64, fleets: &[u32]) -> Result<ExitCode, Failu
     if let Some(failure) = unwritten {
         return Err(failure);
     }
-    if !measured.map_err(Failure::Failed)? {
+    if !measured.map_err(Failure::failed)? {
         eprintln!("interrupted: no figures");
         return Ok(code(false, true));
     }

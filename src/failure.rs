@@ -1,5 +1,5 @@
-//! How a command fails, and the one place that turns it into an exit code: 2 for bad input, 1
-//! for a mission or run that failed, 130 for an interrupt.
+//! How a command fails, and the one place that turns the crates' errors into an exit code: 2 for
+//! bad input, 1 for a mission or run that failed, 130 for an interrupt.
 
 use std::process::ExitCode;
 
@@ -11,15 +11,85 @@ pub enum Failure {
     Interrupted(anyhow::Error),
 }
 
-/// A role's (or a launcher's) failure: the bus's errors say whether they are bad input (a
-/// clock the fleet does not run, Zenoh options that cannot work, a role another process holds)
-/// or a signal before the work began; anything else is a failed run.
-pub fn role_failure(e: anyhow::Error) -> Failure {
-    match tcpf_bus::error::Error::kind_of(&e) {
-        Some(Kind::Input) => Failure::Input(e),
-        Some(Kind::Interrupted) => Failure::Interrupted(e),
-        None => Failure::Failed(e),
+impl Failure {
+    /// Bad input, whatever its error's type.
+    pub fn input(e: impl Into<anyhow::Error>) -> Failure {
+        Failure::Input(e.into())
     }
+
+    /// A mission or run that failed, whatever its error's type.
+    pub fn failed(e: impl Into<anyhow::Error>) -> Failure {
+        Failure::Failed(e.into())
+    }
+
+    fn of(kind: Kind, e: impl Into<anyhow::Error>) -> Failure {
+        match kind {
+            Kind::Input => Failure::Input(e.into()),
+            Kind::Interrupted => Failure::Interrupted(e.into()),
+            Kind::Failed => Failure::Failed(e.into()),
+        }
+    }
+}
+
+/// The bus says which of its errors are bad input (a clock the fleet does not run, Zenoh options
+/// that cannot work, a role another process holds) and which a signal before the work began.
+impl From<tcpf_bus::error::Error> for Failure {
+    fn from(e: tcpf_bus::error::Error) -> Failure {
+        Failure::of(e.kind(), e)
+    }
+}
+
+impl From<tcpf_agent::Error> for Failure {
+    fn from(e: tcpf_agent::Error) -> Failure {
+        match e {
+            tcpf_agent::Error::Bus(e) => e.into(),
+            tcpf_agent::Error::NoVehicle(_) => Failure::Input(e.into()),
+            tcpf_agent::Error::NoFleet { .. } | tcpf_agent::Error::NoClock { .. } | tcpf_agent::Error::Closed => {
+                Failure::Failed(e.into())
+            }
+        }
+    }
+}
+
+impl From<tcpf_world::Error> for Failure {
+    fn from(e: tcpf_world::Error) -> Failure {
+        match e {
+            tcpf_world::Error::Bus(e) => e.into(),
+            tcpf_world::Error::Missing(_) | tcpf_world::Error::Closed => Failure::Failed(e.into()),
+        }
+    }
+}
+
+impl From<tcpf_report::error::Error> for Failure {
+    fn from(e: tcpf_report::error::Error) -> Failure {
+        Failure::Failed(e.into())
+    }
+}
+
+/// A recording that stopped before its first tick fails as its cause does, said as it.
+impl From<tcpf_coordinator::error::Error> for Failure {
+    fn from(e: tcpf_coordinator::error::Error) -> Failure {
+        use tcpf_coordinator::error::Error;
+        match e {
+            Error::Bus(e) => e.into(),
+            Error::NothingRecorded(ref cause) => Failure::of(coordinator_kind(cause), e),
+            Error::Report(_) | Error::RunFailed(_) | Error::Failed(_) => Failure::Failed(e.into()),
+        }
+    }
+}
+
+fn coordinator_kind(e: &tcpf_coordinator::error::Error) -> Kind {
+    use tcpf_coordinator::error::Error;
+    match e {
+        Error::Bus(e) => e.kind(),
+        Error::NothingRecorded(cause) => coordinator_kind(cause),
+        Error::Report(_) | Error::RunFailed(_) | Error::Failed(_) => Kind::Failed,
+    }
+}
+
+/// A role's (or a launcher's) failure, by its crate's error.
+pub fn role_failure(e: impl Into<Failure>) -> Failure {
+    e.into()
 }
 
 /// A command that ran to its end: it succeeded (`ok`), or it did not, or it was interrupted.

@@ -80,15 +80,14 @@ pub fn run_dir(out: Option<&Path>, mission: &Mission, invocation: Invocation) ->
 /// An output directory that cannot be made. One the user named (`given`) on a path that cannot
 /// hold it (under a file or a directory that is not there or not theirs, a name too long) is
 /// theirs to change, exit 2; a failing disk, or the default directory, is not.
-pub fn out_failure(e: anyhow::Error, given: bool) -> Failure {
+pub fn out_failure(e: tcpf_report::error::Error, given: bool) -> Failure {
     use std::io::ErrorKind::*;
-    let kind = e.root_cause().downcast_ref::<std::io::Error>().map(|io| io.kind());
-    match kind {
+    match e.io_kind() {
         Some(NotFound | NotADirectory | PermissionDenied | ReadOnlyFilesystem | AlreadyExists | InvalidFilename)
             if given =>
         {
-            Failure::Input(e.context("--out"))
+            Failure::Input(anyhow::Error::new(e).context("--out"))
         }
-        _ => Failure::Failed(e),
+        _ => Failure::Failed(e.into()),
     }
 }

@@ -245,7 +245,7 @@ fn credential(file: &Path) -> Result<ExitCode, Failure> {
             file.display()
         )));
     }
-    tcpf_bus::credential::create(file).map_err(Failure::Input)?;
+    tcpf_bus::credential::create(file).map_err(Failure::input)?;
     sayln!(
         "wrote {0} (owner-only): copy it to every host of the fleet and give every role and the router `--credential {0}`; only processes that present it can join",
         file.display()
@@ -284,7 +284,7 @@ fn fleet_credentials(
         played,
     };
     let identities =
-        tcpf_bus::credential::create_fleet(dir, &mission.mission.name, &fleet, proof).map_err(Failure::Input)?;
+        tcpf_bus::credential::create_fleet(dir, &mission.mission.name, &fleet, proof).map_err(Failure::input)?;
     let files: Vec<String> = identities
         .iter()
         .map(|&i| tcpf_bus::credential::key_file(i, proof))
@@ -402,9 +402,7 @@ fn record(
     .map_err(|e| {
         // Nothing recorded (no session, no world, refused by the world's clock): the
         // corrected command may take the same --out.
-        if e.downcast_ref::<tcpf_coordinator::recording::NothingRecorded>()
-            .is_some()
-        {
+        if matches!(e, tcpf_coordinator::error::Error::NothingRecorded(_)) {
             dir.discard();
         }
         role_failure(e)

@@ -190,7 +190,7 @@ fn run(
     }
     let dir = run_dir(out, &mission, invocation)?;
     let summary = if in_process {
-        inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::Failed)?
+        inprocess::run(&mission, &plan, &dir, options.live).map_err(Failure::failed)?
     } else {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
@@ -221,7 +221,7 @@ fn report(dir: &Path, figure_width: f64) -> Result<ExitCode, Failure> {
         )));
     }
     // What it cannot read or make sense of is the directory's fault: bad input.
-    tcpf_report::report::write(dir, &tcpf_report::report::Options { figure_width }).map_err(Failure::Input)?;
+    tcpf_report::report::write(dir, &tcpf_report::report::Options { figure_width }).map_err(Failure::input)?;
     sayln!("{}", dir.join("report.html").display());
     Ok(ExitCode::SUCCESS)
 }

@@ -163,7 +163,7 @@ fn run(args: &SweepArgs, invocation: &Invocation) -> Result<ExitCode, Failure> {
     }
     let runs = sweep::Runs { grid, missions };
     // Every point planned before anything is written: an infeasible one leaves no directory.
-    let plans = runs.plans().map_err(Failure::Failed)?;
+    let plans = runs.plans().map_err(Failure::failed)?;
     // The file alone may be incomplete (a table set key by key, the swept keys among them).
     let base = &runs.missions[0];
     let design = Design {
@@ -183,11 +183,11 @@ fn run(args: &SweepArgs, invocation: &Invocation) -> Result<ExitCode, Failure> {
     let mut provenance = Provenance::of(base);
     invocation.fill(&mut provenance);
     let made = if let Some(dir) = out.filter(|dir| args.resume && dir.exists()) {
-        Sweep::resume(dir, provenance, design).map_err(Failure::Input)
+        Sweep::resume(dir, provenance, design).map_err(Failure::input)
     } else {
         Sweep::create(out, &as_run, provenance, design).map_err(|e| {
             let e = match out {
-                Some(out) => e.context(format!("{}: cannot write the sweep there", out.display())),
+                Some(out) => e.said_after(format!("{}: cannot write the sweep there", out.display())),
                 None => e,
             };
             out_failure(e, out.is_some())
@@ -195,23 +195,23 @@ fn run(args: &SweepArgs, invocation: &Invocation) -> Result<ExitCode, Failure> {
     };
     let mut rows = made?;
     rows.draw(args.series, look(args.band, args.figure_width))
-        .map_err(Failure::Failed)?;
+        .map_err(Failure::failed)?;
     let interrupted = if args.processes {
         let exe = std::env::current_exe().map_err(|e| Failure::Failed(e.into()))?;
         runtime()?
             .block_on(sweep::run_processes(&runs, &plans, &exe, &mut rows))
-            .map_err(Failure::Failed)?
+            .map_err(Failure::failed)?
     } else {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let jobs = args.jobs.map_or(cores, |j| j as usize);
-        sweep::run_in_process(&runs, &plans, jobs, &mut rows).map_err(Failure::Failed)?
+        sweep::run_in_process(&runs, &plans, jobs, &mut rows).map_err(Failure::failed)?
     };
     finish(rows, interrupted)
 }
 
 fn finish(rows: Sweep, interrupted: bool) -> Result<ExitCode, Failure> {
     let dir = rows.dir().to_path_buf();
-    let (summary, table) = rows.finish().map_err(Failure::Failed)?;
+    let (summary, table) = rows.finish().map_err(Failure::failed)?;
     say!("{table}");
     sayln!("sweep directory: {}", dir.display());
     sayln!("again: {}/rerun.sh DIR   ({})", dir.display(), summary.rerun);
@@ -220,7 +220,7 @@ fn finish(rows: Sweep, interrupted: bool) -> Result<ExitCode, Failure> {
 
 fn merge(dirs: &[PathBuf], out: &Path, look: Look, invocation: &Invocation) -> Result<ExitCode, Failure> {
     fresh_out(Some(out))?;
-    let mut rows = Sweep::merge(dirs, out, invocation).map_err(Failure::Input)?;
-    rows.draw(false, look).map_err(Failure::Failed)?;
+    let mut rows = Sweep::merge(dirs, out, invocation).map_err(Failure::input)?;
+    rows.draw(false, look).map_err(Failure::failed)?;
     finish(rows, false)
 }

@@ -8,11 +8,11 @@ use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use anyhow::{anyhow, Result};
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{self, metronome, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, ask_clock, await_clock, ClockAnswer, ClockBell};
 use tcpf_bus::driver::{drive, Wiring};
+use tcpf_bus::error::{Context, Error as BusError};
 use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::Outlet;
@@ -43,6 +43,27 @@ use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use tokio::sync::Notify;
 use zenoh::pubsub::Subscriber;
 use zenoh::Session;
+
+/// What an agent fails with: the bus's errors, or its own.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Bus(#[from] BusError),
+    /// `--id` names no vehicle of the mission.
+    #[error("the mission has no vehicle with id {0}")]
+    NoVehicle(u32),
+    /// The world and the planner had not come within the startup timeout.
+    #[error("agent {id}: no world and planner for mission {mission} within {within:?}")]
+    NoFleet { id: u32, mission: String, within: Duration },
+    /// A realtime world that had not started its clock by the startup timeout.
+    #[error("agent {id}: the world did not start the clock of mission {mission} in time")]
+    NoClock { id: u32, mission: String },
+    /// Zenoh closed the liveliness subscription.
+    #[error("liveliness subscription closed")]
+    Closed,
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Where in its period a realtime agent acts: after the world published the period's states,
 /// and early enough that its command reaches the world before the next.
@@ -115,7 +136,7 @@ enum Inbound {
     /// Lockstep: into the node on Zenoh's thread.
     Fed {
         feed: Arc<Feed>,
-        faults: UnboundedReceiver<anyhow::Error>,
+        faults: UnboundedReceiver<BusError>,
     },
 }
 
@@ -144,7 +165,7 @@ struct Feed {
     commands: Outlet,
     gamma_out: Outlet,
     rejected: Rejected,
-    faults: UnboundedSender<anyhow::Error>,
+    faults: UnboundedSender<BusError>,
     /// A state came before the start: the world has started, and its clock answers.
     first_state: Notify,
     /// The agent's monotonic clock, which the machine's stale timeout counts in.
@@ -218,7 +239,7 @@ impl Feed {
     }
 
     /// A publication that failed ends the loop, which owns the error.
-    fn sent(&self, publication: Result<()>) {
+    fn sent(&self, publication: Result<(), BusError>) {
         if let Err(e) = publication {
             let _ = self.faults.send(e);
         }
@@ -248,7 +269,7 @@ fn warn_if_not_finite(id: u32, command: &Command) {
 
 pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Options) -> Result<Exit> {
     if !mission.vehicles.iter().any(|v| v.id == id) {
-        return Err(anyhow!("the mission has no vehicle with id {id}"));
+        return Err(Error::NoVehicle(id));
     }
     let realtime = mission.mission.clock == ClockKind::Realtime;
     let keys = Keys::new(&mission.mission.name);
@@ -348,13 +369,13 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     match await_startup(&mut presence, &mut shutdown, &mut startup, &monotonic, Awaited::Fleet).await {
         Waited::Done => {}
         Waited::Interrupted => return Ok(Exit::Interrupted),
-        Waited::Closed => return Err(anyhow!("liveliness subscription closed")),
+        Waited::Closed => return Err(Error::Closed),
         Waited::TimedOut(_) => {
-            return Err(anyhow!(
-                "agent {id}: no world and planner for mission {} within {:?}",
-                mission.mission.name,
-                options.startup_timeout
-            ))
+            return Err(Error::NoFleet {
+                id,
+                mission: mission.mission.name.clone(),
+                within: options.startup_timeout,
+            })
         }
     }
     // Listened for before the question, and before this agent's token, which the world waits for
@@ -369,7 +390,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         .liveliness()
         .declare_token(keys.alive(Role::Agent, id))
         .await
-        .map_err(|e| anyhow!("liveliness token: {e}"))?;
+        .context("liveliness token")?;
     let mut shell = Shell {
         id,
         audible: audible.clone(),
@@ -405,7 +426,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 let (presence, shutdown) = (&mut shell.presence, &mut shell.shutdown);
                 match await_startup(presence, shutdown, &mut startup, &monotonic, Awaited::Neighbours).await {
                     Waited::Interrupted => return Ok(Exit::Interrupted),
-                    Waited::Closed => return Err(anyhow!("liveliness subscription closed")),
+                    Waited::Closed => return Err(Error::Closed),
                     Waited::TimedOut(StartupCheck::WithoutNeighbours(absent)) => {
                         tracing::warn!("agent {id}: starting without neighbours {absent:?}")
                     }
@@ -471,23 +492,24 @@ fn peer(p: Presence) -> Option<Peer> {
 }
 
 /// This agent's clock against the world's.
-fn check_clock(mission: &Mission, clock: &Clock) -> Result<()> {
-    Ok(clock::check_clock("agent", &clock::Expected::of(mission), clock)?)
+fn check_clock(mission: &Mission, clock: &Clock) -> Result<(), BusError> {
+    clock::check_clock("agent", &clock::Expected::of(mission), clock)
 }
 
 impl Shell {
     /// This agent's exit report: its lockstep timing, or its realtime one.
     async fn report(&self, timing: &Timing, realtime: Option<RealtimeReport>) -> Result<()> {
-        report(
+        let id = self.id;
+        Ok(report(
             &self.session,
             &self.keys,
             Role::Agent,
-            self.id,
+            id,
             &self.rejected,
             timing,
             realtime,
         )
-        .await
+        .await?)
     }
 
     /// Realtime: asks for the world's clock until it has started (`None` on a signal).
@@ -501,11 +523,10 @@ impl Shell {
         let waited = tokio::time::timeout_at(deadline, answered(&mut answer));
         match self.shutdown.unless(waited).await {
             None => Ok(None),
-            Some(Err(_)) => Err(anyhow!(
-                "agent {}: the world did not start the clock of mission {} in time",
-                self.id,
-                mission.mission.name
-            )),
+            Some(Err(_)) => Err(Error::NoClock {
+                id: self.id,
+                mission: mission.mission.name.clone(),
+            }),
             Some(Ok(clock)) => {
                 let clock = clock?;
                 check_clock(mission, &clock)?;
@@ -521,7 +542,7 @@ impl Shell {
         mission: &Mission,
         unchecked: Option<ClockBell>,
         feed: &Feed,
-        faults: &mut UnboundedReceiver<anyhow::Error>,
+        faults: &mut UnboundedReceiver<BusError>,
         options: &Options,
     ) -> Result<Exit> {
         let id = self.id;
@@ -553,7 +574,7 @@ impl Shell {
             TaskExit::Lost => Exit::Lost,
             TaskExit::Orphaned => Exit::Orphaned,
             TaskExit::Interrupted => Exit::Interrupted,
-            TaskExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
+            TaskExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error").into()),
         };
         let (gamma, timing) = {
             let fed = feed.lock();
@@ -639,7 +660,7 @@ struct Realtime<'a> {
 }
 
 impl Wiring<RealtimeAgentNode<String>> for Realtime<'_> {
-    type Error = anyhow::Error;
+    type Error = Error;
 
     async fn next(&mut self) -> RealtimeInput<String> {
         let shell = &mut *self.shell;
@@ -706,13 +727,13 @@ struct Lockstep<'s> {
     mission: &'s Mission,
     /// The world's clock, until it answers.
     clock: Option<ClockAnswer>,
-    faults: &'s mut UnboundedReceiver<anyhow::Error>,
+    faults: &'s mut UnboundedReceiver<BusError>,
     /// Why the run failed.
-    failed: Option<anyhow::Error>,
+    failed: Option<BusError>,
 }
 
 impl Lockstep<'_> {
-    fn failed(&mut self, e: anyhow::Error) -> TaskInput<String> {
+    fn failed(&mut self, e: BusError) -> TaskInput<String> {
         self.failed = Some(e);
         TaskInput::Failed
     }

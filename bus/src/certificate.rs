@@ -3,7 +3,7 @@
 //! fleet's authority can have signed. A stock ROS 2 (rmw_zenoh, whose Zenoh has TLS but no
 //! user-password authentication) can present one.
 
-use anyhow::{anyhow, Context, Result};
+use crate::error::{failed, Context, Result};
 use base64::Engine;
 use rcgen::{
     BasicConstraints, CertificateParams, CertifiedIssuer, DnType, ExtendedKeyUsagePurpose, IsCa, KeyPair,
@@ -162,16 +162,16 @@ impl std::fmt::Debug for Bundle {
 
 /// The Common Name of the certificate in `pem`: the identity the router knows it by.
 pub fn common_name(pem: &[u8]) -> Result<String> {
-    let (_, pem) = x509_parser::pem::parse_x509_pem(pem).map_err(|e| anyhow!("not a PEM certificate: {e}"))?;
-    let certificate = pem.parse_x509().map_err(|e| anyhow!("not an X.509 certificate: {e}"))?;
+    let (_, pem) = x509_parser::pem::parse_x509_pem(pem).map_err(|e| failed!("not a PEM certificate: {e}"))?;
+    let certificate = pem.parse_x509().map_err(|e| failed!("not an X.509 certificate: {e}"))?;
     let name = certificate
         .subject()
         .iter_common_name()
         .next()
-        .ok_or_else(|| anyhow!("the certificate has no Common Name"))?;
+        .ok_or_else(|| failed!("the certificate has no Common Name"))?;
     Ok(name
         .as_str()
-        .map_err(|e| anyhow!("its Common Name is not text: {e}"))?
+        .map_err(|e| failed!("its Common Name is not text: {e}"))?
         .to_string())
 }
 

@@ -5,7 +5,7 @@
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use tcpf_core::fleet::claim::{Claim, ClaimWaits, Claiming, Look, Seen, Settled};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
@@ -69,7 +69,7 @@ pub async fn claim(
             .liveliness()
             .declare_token(keys.claim(role, id, &chunk))
             .await
-            .map_err(|e| anyhow!("liveliness token: {e}"))
+            .map_err(|e| failed!("liveliness token: {e}"))
     };
     let token = declare(mine.chunk()).await?;
     let waits = ClaimWaits {
@@ -104,9 +104,8 @@ pub async fn claim(
             id,
             mission: mission.to_string(),
             holder,
-        })
-        .into()),
-        Settled::Unsure => Err(anyhow!(
+        })),
+        Settled::Unsure => Err(failed!(
             "the router did not show this {role}'s claim within {:?}: cannot tell whether another process holds it",
             waits.settle + waits.linger
         )),
@@ -122,7 +121,7 @@ struct Looking<'a> {
 }
 
 impl Wiring<Claiming> for Looking<'_> {
-    type Error = anyhow::Error;
+    type Error = Error;
 
     async fn next(&mut self) -> Seen {
         std::future::pending().await
@@ -151,7 +150,7 @@ async fn claims(session: &Session, keys: &Keys, role: Role, id: u32) -> Result<V
         .get(keys.claims(role, id))
         .timeout(CLAIM_QUERY)
         .await
-        .map_err(|e| anyhow!("cannot look at the claims of the {role}: {e}"))?;
+        .map_err(|e| failed!("cannot look at the claims of the {role}: {e}"))?;
     let mut seen = Vec::new();
     while let Ok(reply) = replies.recv_async().await {
         if let Ok(sample) = reply.result() {

@@ -3,7 +3,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use tcpf_core::msg::Clock;
 use tokio::sync::{oneshot, Notify};
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -39,13 +39,13 @@ impl ClockServer {
                 }
             })
             .await
-            .map_err(|e| anyhow!("cannot serve {key}: {e}"))?;
+            .map_err(|e| failed!("cannot serve {key}: {e}"))?;
         // Said once, and waited for by every process that asks: not dropped on a full queue.
         let started = session
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Block)
             .await
-            .map_err(|e| anyhow!("cannot announce on {key}: {e}"))?;
+            .map_err(|e| failed!("cannot announce on {key}: {e}"))?;
         Ok(ClockServer {
             clock,
             started,
@@ -83,7 +83,7 @@ impl ClockBell {
             .declare_subscriber(key.clone())
             .callback(move |_| ring.notify_one())
             .await
-            .map_err(|e| anyhow!("cannot listen to {key}: {e}"))?;
+            .map_err(|e| failed!("cannot listen to {key}: {e}"))?;
         Ok(ClockBell {
             rung,
             _subscriber: subscriber,
@@ -106,7 +106,7 @@ pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> R
         .consolidation(ConsolidationMode::None)
         .timeout(waits::CLOCK_QUERY)
         .await
-        .map_err(|e| anyhow!("cannot query {key}: {e}"))?;
+        .map_err(|e| failed!("cannot query {key}: {e}"))?;
     let mut found = None;
     while let Ok(reply) = replies.recv_async().await {
         let Ok(sample) = reply.result() else { continue };
@@ -172,7 +172,7 @@ pub async fn answered(answer: &mut Option<ClockAnswer>) -> Result<Clock> {
     match answer {
         Some(answer) => (&mut answer.answer)
             .await
-            .map_err(|_| anyhow!("the task asking for the world's clock stopped"))?,
+            .map_err(|_| failed!("the task asking for the world's clock stopped"))?,
         None => std::future::pending().await,
     }
 }

@@ -17,7 +17,7 @@ use std::io::{Read, Write};
 use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt, PermissionsExt};
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 
 use crate::acl::{self, Fleet, Identity, Naming};
 use crate::certificate::{Authority, Bundle};
@@ -123,7 +123,10 @@ pub fn create_fleet(dir: &Path, name: &str, fleet: &Fleet, proof: Proof) -> Resu
         }
     };
     let access = acl::access_control(fleet, naming);
-    private(&dir.join(ACCESS), &(serde_json::to_string_pretty(&access)? + "\n"))?;
+    private(
+        &dir.join(ACCESS),
+        &(serde_json::to_string_pretty(&access).context("cannot write the access rules")? + "\n"),
+    )?;
     Ok(identities)
 }
 

@@ -1,6 +1,8 @@
-//! What a role on the bus fails with that is not its run failing: input it cannot work with, or
-//! a signal before its work began. Everything else a role returns is a failed run. The binary's
-//! one mapping to exit codes asks `Error::kind`.
+//! What the bus fails with: input a role cannot work with, a signal before its work began, or
+//! the run failing (Zenoh or the system refused what it was asked, said with what the role was
+//! doing). The binary's one mapping to exit codes asks `Error::kind`.
+
+use std::fmt;
 
 use tcpf_core::fleet::claim::Claim;
 
@@ -21,15 +23,22 @@ pub enum Error {
     /// A signal came before the role could start its work (its session still opening, say).
     #[error("interrupted {0}")]
     Interrupted(&'static str),
+    /// The run failed: what Zenoh or the system refused, with what the role was doing.
+    #[error("{0}")]
+    Failed(String),
 }
 
-/// How the binary ends for an `Error`.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// How the binary ends for an error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
     /// Bad input: exit 2.
     Input,
     /// A signal: exit 130.
     Interrupted,
+    /// The run failed: exit 1.
+    Failed,
 }
 
 impl Error {
@@ -37,17 +46,32 @@ impl Error {
         match self {
             Error::WrongClock(_) | Error::BadZenohConfig(_) | Error::AlreadyRunning(_) => Kind::Input,
             Error::Interrupted(_) => Kind::Interrupted,
+            Error::Failed(_) => Kind::Failed,
         }
     }
+}
 
-    /// The kind of the bus's error that `e` is, if it is one.
-    pub fn kind_of(e: &anyhow::Error) -> Option<Kind> {
-        e.downcast_ref::<Error>().map(Error::kind)
+/// A failed run, said as `format!` says it.
+macro_rules! failed {
+    ($($words:tt)*) => {
+        $crate::error::Error::Failed(format!($($words)*))
+    };
+}
+pub(crate) use failed;
+
+/// What failed, said after what the role was doing, as anyhow's `context` says it.
+pub trait Context<T> {
+    fn context(self, doing: impl fmt::Display) -> Result<T>;
+    fn with_context<D: fmt::Display>(self, doing: impl FnOnce() -> D) -> Result<T>;
+}
+
+impl<T, E: fmt::Display> Context<T> for std::result::Result<T, E> {
+    fn context(self, doing: impl fmt::Display) -> Result<T> {
+        self.map_err(|e| Error::Failed(format!("{doing}: {e}")))
     }
 
-    /// Whether `e` is a signal that came before the work began.
-    pub fn interrupted(e: &anyhow::Error) -> bool {
-        Error::kind_of(e) == Some(Kind::Interrupted)
+    fn with_context<D: fmt::Display>(self, doing: impl FnOnce() -> D) -> Result<T> {
+        self.map_err(|e| Error::Failed(format!("{}: {e}", doing())))
     }
 }
 

@@ -9,7 +9,7 @@
 //! fetched those from the world's history (`take_over_held`), which the world answers until
 //! then.
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Error, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tcpf_core::fleet::handover::{Done, Handed, Handover, Step};
@@ -66,7 +66,7 @@ struct Handing<'a> {
 }
 
 impl Wiring<Handover<String>> for Handing<'_> {
-    type Error = anyhow::Error;
+    type Error = Error;
 
     async fn next(&mut self) -> Done<String> {
         std::future::pending().await
@@ -90,7 +90,7 @@ impl Wiring<Handover<String>> for Handing<'_> {
                     .consolidation(ConsolidationMode::None)
                     .timeout(HANDOVER_ATTEMPT)
                     .await
-                    .map_err(|e| anyhow!("cannot hand over {}: {e}", self.what))?;
+                    .map_err(|e| failed!("cannot hand over {}: {e}", self.what))?;
                 let mut repliers = Vec::new();
                 while let Ok(reply) = replies.recv_async().await {
                     if reply.result().is_ok() {
@@ -185,7 +185,7 @@ where
             }
         })
         .await
-        .map_err(|e| anyhow!("cannot take over {key}: {e}"))
+        .map_err(|e| failed!("cannot take over {key}: {e}"))
 }
 
 #[cfg(test)]

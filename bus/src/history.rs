@@ -1,7 +1,7 @@
 //! The realtime world's history on the bus: the world serves `history` (what it answers is
 //! `RealtimeWorld::answer`'s), and a recorder asks it for the states its `Sampler` never got.
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use tcpf_core::msg::{Fetch, State};
 use tokio::sync::mpsc;
 use zenoh::query::{ConsolidationMode, Query, Queryable};
@@ -48,7 +48,7 @@ pub async fn serve(
             }
         })
         .await
-        .map_err(|e| anyhow!("cannot serve {key}: {e}"))?;
+        .map_err(|e| failed!("cannot serve {key}: {e}"))?;
     Ok((queryable, rx))
 }
 
@@ -61,7 +61,7 @@ pub fn answer<'a>(asked: &Asked, states: impl Iterator<Item = &'a State>, unkept
             .query
             .reply(key.clone(), encode(state))
             .wait()
-            .map_err(|e| anyhow!("cannot answer {key}: {e}"))?;
+            .map_err(|e| failed!("cannot answer {key}: {e}"))?;
     }
     if !unkept.is_empty() {
         let unkept = Fetch {
@@ -72,7 +72,7 @@ pub fn answer<'a>(asked: &Asked, states: impl Iterator<Item = &'a State>, unkept
             .query
             .reply_err(encode(&unkept))
             .wait()
-            .map_err(|e| anyhow!("cannot answer {key}: {e}"))?;
+            .map_err(|e| failed!("cannot answer {key}: {e}"))?;
     }
     Ok(())
 }

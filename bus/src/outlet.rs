@@ -1,6 +1,6 @@
 //! Typed publishers, each with the congestion control and reliability its clock needs.
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use serde::Serialize;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::{CongestionControl, Reliability};
@@ -65,7 +65,7 @@ impl Outlet {
             // realtime, where a late message is worth nothing, must not risk: it is express.
             .express(express)
             .await
-            .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
+            .map_err(|e| failed!("cannot publish on {key}: {e}"))?;
         Ok(Outlet { publisher })
     }
 
@@ -74,14 +74,14 @@ impl Outlet {
         self.publisher
             .put(encode(message))
             .wait()
-            .map_err(|e| anyhow!("publish on {}: {e}", self.publisher.key_expr()))
+            .map_err(|e| failed!("publish on {}: {e}", self.publisher.key_expr()))
     }
 
     pub async fn put<T: Serialize>(&self, message: &T) -> Result<()> {
         self.publisher
             .put(encode(message))
             .await
-            .map_err(|e| anyhow!("publish on {}: {e}", self.publisher.key_expr()))
+            .map_err(|e| failed!("publish on {}: {e}", self.publisher.key_expr()))
     }
 }
 
@@ -95,5 +95,5 @@ pub fn say_now<T: Serialize>(session: &Session, key: String, message: &T) -> Res
         .reliability(Reliability::Reliable)
         .express(true)
         .wait()
-        .map_err(|e| anyhow!("publish on {key}: {e}"))
+        .map_err(|e| failed!("publish on {key}: {e}"))
 }

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::PathMsg;
 use tokio::sync::mpsc;
@@ -44,14 +44,14 @@ pub async fn fetch_paths(
             }
         })
         .await
-        .map_err(|e| anyhow!("cannot follow liveliness: {e}"))?;
+        .map_err(|e| failed!("cannot follow liveliness: {e}"))?;
     let mut found: BTreeMap<u32, GeneralizedPath> = BTreeMap::new();
     loop {
         let replies = session
             .get(selector.clone())
             .timeout(waits::PATH_QUERY)
             .await
-            .map_err(|e| anyhow!("cannot query {selector}: {e}"))?;
+            .map_err(|e| failed!("cannot query {selector}: {e}"))?;
         while let Ok(reply) = replies.recv_async().await {
             let Ok(sample) = reply.result() else { continue };
             let key = sample.key_expr().as_str().to_string();
@@ -75,13 +75,13 @@ pub async fn fetch_paths(
                 .get(keys.alive(Role::Planner, 0))
                 .timeout(waits::PLANNER_QUERY)
                 .await
-                .map_err(|e| anyhow!("cannot query liveliness: {e}"))?;
+                .map_err(|e| failed!("cannot query liveliness: {e}"))?;
             if planner.recv_async().await.is_err() {
-                return Err(anyhow!(
+                return Err(failed!(
                     "no path from the planner for vehicle(s) {missing:?}: no planner of this mission is on the bus, or none this identity may see (one that served the fleet may have left once it ran: start `tcpf planner` for this mission again; or the router's access control hides it)"
                 ));
             }
-            return Err(anyhow!(
+            return Err(failed!(
                 "no path from the planner for vehicle(s) {missing:?} within {:.0} s (does the router's access control let this identity ask for it?)",
                 timeout.as_secs_f64()
             ));

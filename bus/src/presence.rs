@@ -4,7 +4,7 @@ use std::convert::Infallible;
 use std::future::Future;
 use std::time::Duration;
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use tcpf_core::fleet::membership::Liveliness;
 use tcpf_core::fleet::present::Present;
 use tcpf_core::roles::machine::Machine;
@@ -33,7 +33,7 @@ pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>>
         .get(keys.alive_all())
         .timeout(waits::PRESENCE_QUERY)
         .await
-        .map_err(|e| anyhow!("cannot ask who is present: {e}"))?;
+        .map_err(|e| failed!("cannot ask who is present: {e}"))?;
     let mut present = Vec::new();
     while let Ok(reply) = replies.recv_async().await {
         if let Ok(sample) = reply.result() {
@@ -117,7 +117,7 @@ pub async fn presence_of(
                 }
             })
             .await
-            .map_err(|e| anyhow!("cannot follow liveliness: {e}"))?;
+            .map_err(|e| failed!("cannot follow liveliness: {e}"))?;
         subscribers.push(subscriber);
     }
     Ok((subscribers, rx))

@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use tcpf_core::mission::Ros2Config;
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Command, State};
@@ -45,7 +45,7 @@ impl Topic {
             .attachment(attachment.to_vec())
             .timestamp(timestamp)
             .wait()
-            .map_err(|e| anyhow!("publish on {}: {e}", self.publisher.key_expr()))?;
+            .map_err(|e| failed!("publish on {}: {e}", self.publisher.key_expr()))?;
         Ok(attachment)
     }
 }
@@ -124,7 +124,7 @@ impl Declaring {
             .liveliness()
             .declare_token(token)
             .await
-            .map_err(|e| anyhow!("cannot declare the ROS 2 {what}: {e}"))
+            .map_err(|e| failed!("cannot declare the ROS 2 {what}: {e}"))
     }
 
     async fn publisher(&mut self, topic: String, ty: Type, qos: &str) -> Result<Topic> {
@@ -134,7 +134,7 @@ impl Declaring {
             .declare_publisher(key.clone())
             .congestion_control(self.congestion)
             .await
-            .map_err(|e| anyhow!("cannot publish on {key}: {e}"))?;
+            .map_err(|e| failed!("cannot publish on {key}: {e}"))?;
         let token = self.token(Entity::Publisher, &topic, &ty, qos);
         let gid = ros2::gid(&token);
         Ok(Topic {
@@ -168,7 +168,7 @@ impl Declaring {
                 }
             })
             .await
-            .map_err(|e| anyhow!("cannot serve the history of {adv}: {e}"))?;
+            .map_err(|e| failed!("cannot serve the history of {adv}: {e}"))?;
         Ok(Latched {
             topic,
             session: self.session.clone(),
@@ -197,7 +197,7 @@ impl Declaring {
                 enqueue(&tx, sample.key_expr().as_str(), (id, payload), &overflowed);
             })
             .await
-            .map_err(|e| anyhow!("cannot subscribe to {key}: {e}"))?;
+            .map_err(|e| failed!("cannot subscribe to {key}: {e}"))?;
         let token = self.token(Entity::Subscription, &topic, &ty, ros2::QOS);
         Ok((
             subscriber,
@@ -391,7 +391,7 @@ pub async fn node_present(session: &Session, ros2: &Ros2Config, name: &str) -> R
         .liveliness()
         .get(key.clone())
         .await
-        .map_err(|e| anyhow!("cannot ask the ROS 2 graph for {key}: {e}"))?;
+        .map_err(|e| failed!("cannot ask the ROS 2 graph for {key}: {e}"))?;
     while let Ok(reply) = replies.recv_async().await {
         if reply.result().is_ok() {
             return Ok(true);

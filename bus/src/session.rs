@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::{anyhow, Context, Result};
+use crate::error::{failed, Context, Result};
 use zenoh::{Config, Session};
 
 use crate::acl::Identity;
@@ -46,8 +46,8 @@ fn json_list(items: &[String]) -> String {
 }
 
 /// Zenoh options that cannot work, whatever the network does: bad input (exit 2).
-fn bad(message: String) -> anyhow::Error {
-    Error::BadZenohConfig(message).into()
+fn bad(message: String) -> Error {
+    Error::BadZenohConfig(message)
 }
 
 /// A Zenoh error in a user's words: without the source file and line Zenoh appends to an error
@@ -226,7 +226,7 @@ pub const ACCEPT_TIMEOUT_MS: u64 = 5000;
 fn set(config: &mut Config, key: &str, value: &str) -> Result<()> {
     config
         .insert_json5(key, value)
-        .map_err(|e| anyhow!("zenoh {key}: {}", zenoh_words(e)))
+        .map_err(|e| failed!("zenoh {key}: {}", zenoh_words(e)))
 }
 
 /// A certificate is presented over TLS only: over another protocol a link would carry none, and
@@ -274,7 +274,7 @@ fn guard(config: &mut Config, dir: &std::path::Path, listen: Option<&str>) -> Re
             let auth = serde_json::json!({ "dictionary_file": dictionary });
             config
                 .insert_json5("transport/auth/usrpwd", &auth.to_string())
-                .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
+                .map_err(|e| failed!("--credential: {}", zenoh_words(e)))?;
         }
     }
     config.insert_json5("access_control", &rules.to_string()).map_err(|e| {
@@ -364,13 +364,13 @@ impl ZenohArgs {
             }
             config
                 .insert_json5("mode", &format!("\"{mode}\""))
-                .map_err(|e| anyhow!("--mode: {}", zenoh_words(e)))?;
+                .map_err(|e| failed!("--mode: {}", zenoh_words(e)))?;
             // Without a config nothing is scouted for, and a router's open would sleep 500 ms
             // for it (a peer's waits as long for its --connect links, which it keeps).
             if self.config.is_none() && mode == "router" {
                 config
                     .insert_json5("scouting/delay", "0")
-                    .map_err(|e| anyhow!("zenoh scouting/delay: {}", zenoh_words(e)))?;
+                    .map_err(|e| failed!("zenoh scouting/delay: {}", zenoh_words(e)))?;
             }
         }
         for (flag, endpoints, key) in [
@@ -472,7 +472,7 @@ impl ZenohArgs {
         });
         config
             .insert_json5("transport/auth/usrpwd", &auth.to_string())
-            .map_err(|e| anyhow!("--credential: {}", zenoh_words(e)))?;
+            .map_err(|e| failed!("--credential: {}", zenoh_words(e)))?;
         self.suit_mode(config)
     }
 
@@ -537,7 +537,7 @@ impl ZenohArgs {
         let mode = self
             .config()?
             .get_json("mode")
-            .map_err(|e| anyhow!("zenoh mode: {e}"))?;
+            .map_err(|e| failed!("zenoh mode: {e}"))?;
         Ok(mode.trim_matches('"') == "router")
     }
 
@@ -558,16 +558,16 @@ impl ZenohArgs {
         }
         let opening = tokio::time::timeout(within, tokio::spawn(open(config)));
         match shutdown.unless(opening).await {
-            Some(Ok(opened)) => opened.map_err(|e| anyhow!("opening the Zenoh session: {e}"))?,
-            Some(Err(_)) if trying => Err(anyhow!(
+            Some(Ok(opened)) => opened.map_err(|e| failed!("opening the Zenoh session: {e}"))?,
+            Some(Err(_)) if trying => Err(failed!(
                 "cannot open the Zenoh session: nothing answered at {endpoints} within {} s (--startup-timeout), or it refused this process's credential; is the router up, reachable from this host, and given the same --credential (the fleet's shared one, or the directory this role's key came from)? (RUST_LOG=zenoh=debug says which)",
                 within.as_secs_f64()
             )),
-            Some(Err(_)) => Err(anyhow!(
+            Some(Err(_)) => Err(failed!(
                 "cannot open the Zenoh session within {} s (--startup-timeout)",
                 within.as_secs_f64()
             )),
-            None => Err(Error::Interrupted("while the Zenoh session was opening").into()),
+            None => Err(Error::Interrupted("while the Zenoh session was opening")),
         }
     }
 
@@ -578,7 +578,7 @@ impl ZenohArgs {
 
 /// Opens a session with `config`, saying in a user's words why it could not.
 async fn open(config: Config) -> Result<Session> {
-    let opened = zenoh::open(config).await.map_err(|e| anyhow!("{}", zenoh_words(e)));
+    let opened = zenoh::open(config).await.map_err(|e| failed!("{}", zenoh_words(e)));
     if let Err(e) = &opened {
         let words = e.to_string();
         if words.contains("listener") {
@@ -589,7 +589,7 @@ async fn open(config: Config) -> Result<Session> {
             } else {
                 ""
             };
-            return Err(anyhow!("cannot open the Zenoh session: {e}{hint}"));
+            return Err(failed!("cannot open the Zenoh session: {e}{hint}"));
         }
     }
     opened.context(
@@ -674,7 +674,7 @@ mod tests {
             std::fs::write(&file, text).unwrap();
             let e = from_file(&file).unwrap_err();
             assert!(
-                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                matches!(e, Error::BadZenohConfig(_)),
                 "{e}"
             );
             let said = e.to_string();
@@ -713,7 +713,7 @@ mod tests {
             write(key);
             let e = args.config().unwrap_err();
             assert!(
-                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                matches!(e, Error::BadZenohConfig(_)),
                 "{e}"
             );
             let words = e.to_string();
@@ -750,7 +750,7 @@ mod tests {
         };
         let e = flagged.config().unwrap_err();
         assert!(
-            matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+            matches!(e, Error::BadZenohConfig(_)),
             "{e}"
         );
         let words = e.to_string();
@@ -790,7 +790,7 @@ mod tests {
         ] {
             let e = endpoint("-e", bad).unwrap_err();
             assert!(
-                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                matches!(e, Error::BadZenohConfig(_)),
                 "{bad}"
             );
         }
@@ -800,7 +800,7 @@ mod tests {
     fn a_role_runs_open_only_when_told_and_a_credential_makes_a_router_or_its_client() {
         let e = ZenohArgs::default().config().unwrap_err();
         assert!(
-            matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+            matches!(e, Error::BadZenohConfig(_)),
             "{e}"
         );
         let words = e.to_string();
@@ -845,7 +845,7 @@ mod tests {
         };
         let e = args.config().unwrap_err();
         assert!(
-            matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+            matches!(e, Error::BadZenohConfig(_)),
             "{e}"
         );
         assert!(
@@ -908,7 +908,7 @@ mod tests {
             agent(1).speaks_as(Identity::Agent(1)).unwrap();
             let e = agent(1).speaks_as(Identity::Agent(2)).unwrap_err();
             assert!(
-                matches!(e.downcast_ref::<Error>(), Some(Error::BadZenohConfig(_))),
+                matches!(e, Error::BadZenohConfig(_)),
                 "{e}"
             );
             let words = e.to_string();

@@ -2,7 +2,7 @@
 //! to a core machine: what to do with a message is the machines' business. Refused payloads are
 //! counted (`Rejected`), never fatal.
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use serde::de::DeserializeOwned;
 use tcpf_core::msg::Checked;
 use tokio::sync::mpsc;
@@ -145,6 +145,6 @@ where
             }
         })
         .await
-        .map_err(|e| anyhow!("cannot subscribe to {key}: {e}"))?;
+        .map_err(|e| failed!("cannot subscribe to {key}: {e}"))?;
     Ok(subscriber)
 }

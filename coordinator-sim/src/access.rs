@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use crate::error::{Context, Result};
 use serde_json::json;
 use tcpf_bus::acl::{self, Fleet, Identity, Naming};
 use tcpf_bus::certificate::{self, Authority};
@@ -182,7 +182,7 @@ pub fn create(
                 "transport": { "auth": auth, "link": link },
             })
         };
-        let text = serde_json::to_string_pretty(&config)? + "\n";
+        let text = serde_json::to_string_pretty(&config).context("cannot write a role's Zenoh configuration")? + "\n";
         private(&dir.join(file_name(identity)), &text)?;
         if identity == Identity::Observer && ros2.is_some() {
             private(&dir.join(ROS2_CONFIG), &text)?;
@@ -225,5 +225,5 @@ pub fn forget(dir: &Path) -> Result<()> {
 /// Writes `endpoint` (owner-only) into `dir` once the world listens there: its existence says
 /// that the run can be joined.
 pub fn announce(dir: &Path, endpoint: &str) -> Result<()> {
-    private(&dir.join("endpoint"), &format!("{endpoint}\n"))
+    Ok(private(&dir.join("endpoint"), &format!("{endpoint}\n"))?)
 }

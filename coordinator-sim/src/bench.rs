@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Context, Result};
+use crate::error::{failed, Context, Result};
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::Outlet;
@@ -84,7 +84,7 @@ pub async fn pong(zenoh: &ZenohArgs, count: u64, id: u32) -> Result<()> {
         .liveliness()
         .declare_token(token)
         .await
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(|e| failed!("{e}"))?;
     for _ in 0..count {
         let Some(echo) = echoes.recv().await else { break };
         echo?;
@@ -149,7 +149,7 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
     let deadline = tokio::time::Instant::now() + PONG_UP;
     while tokio::time::timeout_at(deadline, alive.recv())
         .await
-        .map_err(|_| anyhow!("pong never came up"))?
+        .map_err(|_| failed!("pong never came up"))?
         .is_none_or(|p| !p.alive)
     {}
     let mut times = Vec::with_capacity(count as usize);
@@ -159,7 +159,7 @@ pub async fn ping(exe: &Path, count: u64, routed: bool) -> Result<Vec<Duration>>
         loop {
             let p = tokio::time::timeout(PONG_ANSWER, pongs.recv())
                 .await
-                .map_err(|_| anyhow!("no pong"))?;
+                .map_err(|_| failed!("no pong"))?;
             if p.is_some_and(|p| p.message.tick == k) {
                 break;
             }
@@ -308,11 +308,11 @@ pub fn modem_cost(repeat: usize) -> Result<ModemCost> {
     let text = tcpf_core::mission::generate::lanes(10, 0.0);
     let mission = |sets: &[&str]| {
         let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-        tcpf_core::mission::parse("lanes10.toml", &text, &sets).map_err(|e| anyhow!("{e}"))
+        tcpf_core::mission::parse("lanes10.toml", &text, &sets).map_err(|e| failed!("{e}"))
     };
     let plain = mission(&["comms.trigger=\"event\""])?;
     let modem = mission(&["comms.trigger=\"event\"", "comms.modem={}"])?;
-    let plan = tcpf_core::model::planner::plan(&plain).map_err(|e| anyhow!("{e}"))?;
+    let plan = tcpf_core::model::planner::plan(&plain).map_err(|e| failed!("{e}"))?;
     let mut frames = 0;
     let mut ticks = 0;
     let mut best = |m: &Mission, count: bool| {
@@ -342,14 +342,14 @@ pub fn modem_cost(repeat: usize) -> Result<ModemCost> {
 
 /// A router listening on `endpoint`, with nothing else.
 async fn open_router(endpoint: &str) -> Result<zenoh::Session> {
-    ZenohArgs {
+    Ok(ZenohArgs {
         listen: vec![endpoint.into()],
         mode: Some("router".into()),
         open: true,
         ..ZenohArgs::default()
     }
     .open()
-    .await
+    .await?)
 }
 
 fn client(endpoint: &str) -> ZenohArgs {
@@ -449,7 +449,7 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
                 up.insert(p.id);
             }
             Ok(Some(_)) => {}
-            _ => return Err(anyhow!("only {} of {n} idle clients came up", up.len())),
+            _ => return Err(failed!("only {} of {n} idle clients came up", up.len())),
         }
     }
     tokio::time::sleep(IDLE_SETTLE).await;
@@ -642,8 +642,8 @@ fn keep_faster(best: &mut Option<Summary>, run: Summary) {
 async fn lanes(vehicles: u32, exe: &Path, scratch: &Path, shutdown: &mut Shutdown) -> Result<Option<(Summary, f64)>> {
     let name = format!("lanes{vehicles}.toml");
     let mission = tcpf_core::mission::parse(&name, &tcpf_core::mission::generate::lanes(vehicles, 0.2), &[])
-        .map_err(|e| anyhow!("{e}"))?;
-    let plan = tcpf_core::model::planner::plan(&mission).map_err(|e| anyhow!("{name}: {e}"))?;
+        .map_err(|e| failed!("{e}"))?;
+    let plan = tcpf_core::model::planner::plan(&mission).map_err(|e| failed!("{name}: {e}"))?;
     let mut best: Option<Summary> = None;
     for round in 0..ROUNDS {
         let out = scratch.join(format!("lanes-{vehicles}-{round}"));
@@ -765,7 +765,7 @@ async fn processes(
         }
     }
     let [Some(fleet), Some(ros2), Some(passwords), Some(plain)] = best else {
-        bail!("a variant of the fleet did not run")
+        return Err(failed!("a variant of the fleet did not run"));
     };
     let settled = launcher::Options {
         rivals: Rivals::Possible,

@@ -4,7 +4,7 @@ use std::net::SocketAddr;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use anyhow::Result;
+use crate::error::Result;
 use tcpf_core::mission::Mission;
 use tcpf_core::model::planner::Plan;
 use tcpf_core::roles::sim::Fleet;
@@ -38,7 +38,7 @@ pub fn run(mission: &Mission, plan: &Plan, dir: &RunDir, live: Option<SocketAddr
     let wall_time_s = started.elapsed().as_secs_f64();
     progress.finish();
     if let Some(e) = failure {
-        return Err(e);
+        return Err(e.into());
     }
     telemetry.finish()?;
     let ticks = results.ticks;

@@ -9,12 +9,12 @@ use std::process::Stdio;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
+use crate::error::{failed, Context, Error, Result};
 use tcpf_bus::acl::Identity;
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::clock::Monotonic;
 use tcpf_bus::driver::{drive, Wiring};
-use tcpf_bus::error::Error;
+use tcpf_bus::error::Error as BusError;
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
@@ -243,7 +243,7 @@ fn spawn(exe: &Path, dir: &RunDir, role: Role, id: Option<u32>, args: &[String],
         .with_context(|| format!("cannot start {} {who}", exe.display()))?;
     let pid = child
         .id()
-        .ok_or_else(|| anyhow!("cannot start {who}: it exited at once"))?;
+        .ok_or_else(|| failed!("cannot start {who}: it exited at once"))?;
     Ok(Process {
         role,
         id: id.unwrap_or(0),
@@ -280,7 +280,7 @@ async fn connect(
     // neither a dead world nor Ctrl-C waits out zenoh.json5's minute.
     config
         .insert_json5("connect/timeout_ms", &ATTEMPT_MS.to_string())
-        .map_err(|e| anyhow!("zenoh connect/timeout_ms: {e}"))?;
+        .map_err(|e| failed!("zenoh connect/timeout_ms: {e}"))?;
     let started = Instant::now();
     loop {
         let attempt = config.clone();
@@ -289,16 +289,16 @@ async fn connect(
             opened = &mut opening => if let Ok(Ok(session)) = opened {
                 return Ok(session);
             },
-            _ = shutdown.recv() => return Err(Error::Interrupted("while the world was starting").into()),
+            _ = shutdown.recv() => return Err(BusError::Interrupted("while the world was starting").into()),
             ended = world.child.wait() => {
                 if let Ok(status) = ended {
                     world.exited(status);
                 }
-                return Err(anyhow!(died(dir, world.child(), world.exit(), When::AsItStarted)));
+                return Err(Error::Failed(died(dir, world.child(), world.exit(), When::AsItStarted)));
             }
         }
         if started.elapsed() > startup {
-            return Err(anyhow!(
+            return Err(failed!(
                 "the world did not listen within {} s; see logs/world.log",
                 startup.as_secs_f64()
             ));
@@ -396,10 +396,10 @@ async fn unstarted(
     dir: &RunDir,
     children: &mut [Process],
     begun: Instant,
-    e: anyhow::Error,
-) -> anyhow::Error {
+    e: Error,
+) -> Error {
     stop(children).await;
-    let interrupted = Error::interrupted(&e);
+    let interrupted = e.interrupted();
     let summary = Summary::before_the_first_tick(
         mission,
         plan.t_f,
@@ -624,7 +624,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             let args = [as_role(Identity::Agent(v.id)), agent_args.clone()].concat();
             children.push(spawn(exe, dir, Role::Agent, Some(v.id), &args, lockstep)?);
         }
-        anyhow::Ok(())
+        Ok::<_, Error>(())
     }
     .await;
     let progress = Ticks::new(mission);

@@ -4,6 +4,7 @@
 
 pub mod access;
 pub mod bench;
+pub mod error;
 pub mod inprocess;
 pub mod launcher;
 pub mod planner_node;

@@ -3,7 +3,7 @@
 
 use std::convert::Infallible;
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Result};
 use tcpf_bus::clock::Monotonic;
 use tcpf_bus::codec::encode;
 use tcpf_bus::driver::drive;
@@ -54,20 +54,20 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
     let queryable = session
         .declare_queryable(keys.plan("*"))
         .await
-        .map_err(|e| anyhow!("cannot serve {}: {e}", keys.plan("*")))?;
+        .map_err(|e| failed!("cannot serve {}: {e}", keys.plan("*")))?;
     let (_presence, presence) = presence(&session, &keys).await?;
     let (_ends, ends) = subscribe::<End>(&session, &keys.end(), &rejected).await?;
     for (key, bytes) in &paths {
         session
             .put(key.clone(), bytes.clone())
             .await
-            .map_err(|e| anyhow!("publish {key}: {e}"))?;
+            .map_err(|e| failed!("publish {key}: {e}"))?;
     }
     let token = session
         .liveliness()
         .declare_token(keys.alive(Role::Planner, 0))
         .await
-        .map_err(|e| anyhow!("liveliness token: {e}"))?;
+        .map_err(|e| failed!("liveliness token: {e}"))?;
     tracing::info!(
         "planner: t_f = {:.3} s for {} vehicles, serving {}",
         plan.t_f,
@@ -83,7 +83,7 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
         shutdown,
     };
     let mut machine = PlannerNode::new(waits::END_AFTER_THE_WORLD);
-    let exit = drive(&mut machine, &mut wiring, Monotonic::start()).await?;
+    let Ok(exit) = drive(&mut machine, &mut wiring, Monotonic::start()).await;
     tracing::info!("planner: {exit}");
     report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default(), None).await?;
     let _ = token.undeclare().await;

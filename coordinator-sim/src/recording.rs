@@ -7,7 +7,7 @@ use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Error, Result};
 use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, await_clock, ClockAnswer, ClockBell};
 use tcpf_bus::driver::{drive, Wiring};
@@ -45,15 +45,9 @@ use crate::progress::Ticks;
 /// fleet sends, so it may lag behind a fast lockstep fleet by many ticks (one message each).
 const INBOX: usize = 65_536;
 
-/// `tcpf record` stopped before it recorded a tick (its session did not open, no world came,
-/// the world's clock refused it): the context of its error.
-#[derive(Debug)]
-pub struct NothingRecorded;
-
-impl std::fmt::Display for NothingRecorded {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("nothing recorded")
-    }
+/// `tcpf record` stopped before it recorded a tick, for `e`.
+fn unrecorded(e: impl Into<Error>) -> Error {
+    Error::NothingRecorded(Box::new(e.into()))
 }
 
 pub struct Recording {
@@ -152,7 +146,7 @@ struct Speaking {
 impl Speaking {
     fn put_paths(&mut self) -> Result<()> {
         let clock = self.clock;
-        self.node.put_paths(&self.paths, |t| Stamp::of(clock.as_ref(), t))
+        Ok(self.node.put_paths(&self.paths, |t| Stamp::of(clock.as_ref(), t))?)
     }
 }
 
@@ -167,8 +161,8 @@ fn write_tick(
     match ros2 {
         Some(r) => {
             let stamp = Stamp::of(r.clock.as_ref(), states[0].t);
-            r.node
-                .put(states.iter().zip(commands).map(|(s, c)| (s, c.as_ref())), stamp)
+            let carried = states.iter().zip(commands).map(|(s, c)| (s, c.as_ref()));
+            Ok(r.node.put(carried, stamp)?)
         }
         None => Ok(()),
     }
@@ -258,7 +252,7 @@ impl Recording {
     pub async fn speak_ros2(&mut self, ros2: &Ros2Config, mission: &Mission, plan: &Plan) -> Result<()> {
         let session = &self.outlets.session;
         if tcpf_bus::ros2::node_present(session, ros2, "world").await? {
-            return Err(anyhow!(
+            return Err(failed!(
                 "the fleet's world speaks ROS 2 on domain {} already (its --ros2 or [ros2]): a recorder with --ros2 would publish every topic again; leave --ros2 out",
                 ros2.domain
             ));
@@ -297,7 +291,7 @@ impl Recording {
             .liveliness()
             .declare_token(self.outlets.keys.alive(Role::Record, id))
             .await
-            .map_err(|e| anyhow!("liveliness token: {e}"))?;
+            .map_err(|e| failed!("liveliness token: {e}"))?;
         self.token = Some(token);
         Ok(())
     }
@@ -321,13 +315,13 @@ impl Recording {
             }
             m = self.inbox.recv(), if self.node.takes_messages() => {
                 let Some(Received { key, message }) = m else {
-                    return Err(anyhow!("the recorder's subscriptions closed"));
+                    return Err(failed!("the recorder's subscriptions closed"));
                 };
                 if from_its_sender(&message, &key, &self.outlets.keys, &self.rejected) {
                     match self.node.handle(message, self.monotonic.now(), &mut self.outlets) {
                         Ok(()) => {}
                         Err(Refused::Message(why)) => self.rejected.reject(why, &key),
-                        Err(late @ Refused::CameLate { .. }) => return Err(anyhow!("recorder: {late}")),
+                        Err(late @ Refused::CameLate { .. }) => return Err(failed!("recorder: {late}")),
                     }
                 }
             }
@@ -456,7 +450,6 @@ pub async fn record(
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission, tcpf_core::outputs::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
-    let unrecorded = |e: anyhow::Error| e.context(NothingRecorded);
     let session = zenoh
         .open_unless(&mut shutdown, startup_timeout)
         .await
@@ -514,7 +507,7 @@ pub async fn record(
     match exit.stop {
         Stop::Unrecorded => return Err(unrecorded(error.expect("a failed step keeps its error"))),
         Stop::NoWorld => {
-            return Err(unrecorded(anyhow!(
+            return Err(unrecorded(failed!(
                 "recorder: no world of mission {} within {startup_timeout:?}: is it started, with the same Zenoh endpoints (-e) and credentials as this recorder?",
                 mission.mission.name
             )))
@@ -553,7 +546,7 @@ struct Recorder<'a> {
     progress: Ticks,
     asking: Option<JoinHandle<Option<bool>>>,
     /// The error of a failed step.
-    error: Option<anyhow::Error>,
+    error: Option<Error>,
     /// Why the run failed, for its summary.
     failure: Option<String>,
 }

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc;
 use std::time::Instant;
 
-use anyhow::{anyhow, Result};
+use crate::error::{failed, Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use tcpf_core::mission::Mission;
 use tcpf_core::model::planner::Plan;
@@ -18,8 +18,6 @@ use tcpf_report::rundir::RunDir;
 use tcpf_report::sweep::grid::split_values;
 use tcpf_report::sweep::series::{self, Samples};
 use tcpf_report::sweep::{Design, FailedRun, Grid, Param, Row, Sweep, GIVE_UP};
-
-use crate::launcher::RunFailed;
 
 /// The runs of a sweep: its grid, and the mission of every grid point (seed aside: a run's
 /// mission is its point's with the run's seed, made only when it starts).
@@ -43,7 +41,7 @@ impl Runs {
             .enumerate()
             .map(|(p, mission)| {
                 crate::planning::plan(mission)
-                    .map_err(|e| anyhow!("{}: infeasible plan: {e}", self.grid.label(p as u64)))
+                    .map_err(|e| failed!("{}: infeasible plan: {e}", self.grid.label(p as u64)))
             })
             .collect()
     }
@@ -281,7 +279,7 @@ pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut 
         crate::access::forget(&path)?;
         let summary = match ran {
             // Stopped as its world started: the sweep is cut short there, as by any interrupt.
-            Err(e) if tcpf_bus::error::Error::interrupted(&e) => {
+            Err(e) if e.interrupted() => {
                 bar.finish_and_clear();
                 return Ok(true);
             }
@@ -289,8 +287,7 @@ pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut 
             // failed row, and the sweep goes on: the runs after it are as good as ever, and
             // three failures in a row end it. Any other error (the run directory cannot be
             // written, no port is free) would fail them all: it ends the sweep.
-            Err(e) => {
-                let failed = e.downcast::<RunFailed>()?;
+            Err(Error::RunFailed(failed)) => {
                 let said = format!("run {name} failed: {failed}");
                 let run = FailedRun {
                     run: k,
@@ -308,6 +305,7 @@ pub async fn run_processes(runs: &Runs, plans: &[Plan], exe: &Path, sweep: &mut 
                 bar.inc(1);
                 continue;
             }
+            Err(e) => return Err(e),
             Ok(summary) => summary,
         };
         if summary.interrupted {
@@ -344,7 +342,7 @@ fn set_aside(path: &Path) -> Result<()> {
         .find(|p| !p.exists())
         .expect("a free name");
     std::fs::rename(path, &aside)
-        .map_err(|e| anyhow!("{}: cannot set the earlier attempt aside: {e}", path.display()))?;
+        .map_err(|e| failed!("{}: cannot set the earlier attempt aside: {e}", path.display()))?;
     tracing::info!(
         "{}: an earlier attempt, set aside as {}",
         path.display(),

@@ -13,7 +13,7 @@ use std::fs::{self, File};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use mcap::records::{MessageHeader, Metadata};
 use tcpf_core::mission::{Mission, Ros2Config};
 use tcpf_core::model::path::GeneralizedPath;

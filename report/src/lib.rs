@@ -4,6 +4,7 @@
 //! Changing a report rebuilds this crate, not Zenoh.
 
 pub mod bag;
+pub mod error;
 pub mod labels;
 pub mod live;
 pub mod pdf;

@@ -15,7 +15,7 @@ use std::net::SocketAddr;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::Duration;
 
-use anyhow::{anyhow, Result};
+use crate::error::{bail, failed, Result};
 use base64::Engine;
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{json, Value};
@@ -114,14 +114,14 @@ impl Live {
         let thread = std::thread::Builder::new().name("tcpf-live".into()).spawn(move || {
             let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
                 Ok(r) => r,
-                Err(e) => return drop(ready_tx.send(Err(anyhow!("live view runtime: {e}")))),
+                Err(e) => return drop(ready_tx.send(Err(failed!("live view runtime: {e}")))),
             };
             runtime.block_on(async move {
                 let listener = match TcpListener::bind(addr).await {
                     Ok(l) => l,
-                    Err(e) => return drop(ready_tx.send(Err(anyhow!("cannot serve the live view on {addr}: {e}")))),
+                    Err(e) => return drop(ready_tx.send(Err(failed!("cannot serve the live view on {addr}: {e}")))),
                 };
-                let _ = ready_tx.send(listener.local_addr().map_err(|e| anyhow!("{e}")));
+                let _ = ready_tx.send(listener.local_addr().map_err(|e| failed!("{e}")));
                 tokio::select! {
                     _ = accept(listener, serving) => {}
                     _ = stopped => {}
@@ -130,7 +130,7 @@ impl Live {
         })?;
         let addr = ready_rx
             .recv()
-            .map_err(|_| anyhow!("the live view's thread stopped before listening"))??;
+            .map_err(|_| failed!("the live view's thread stopped before listening"))??;
         // Said whatever the log level: with a port of 0 it is the only way to know where.
         eprintln!("live view for Foxglove on ws://{addr}");
         Ok(Live {
@@ -248,7 +248,7 @@ async fn handshake(stream: TcpStream) -> Result<Socket> {
         tokio_tungstenite::accept_hdr_async_with_config(stream, negotiate, Some(limits)),
     )
     .await
-    .map_err(|_| anyhow!("no WebSocket handshake within {} s: closed", HANDSHAKE.as_secs()))?
+    .map_err(|_| failed!("no WebSocket handshake within {} s: closed", HANDSHAKE.as_secs()))?
     .map_err(Into::into)
 }
 
@@ -256,7 +256,7 @@ async fn handshake(stream: TcpStream) -> Result<Socket> {
 async fn send(socket: &mut Socket, message: Message) -> Result<()> {
     tokio::time::timeout(SEND_PATIENCE, socket.send(message))
         .await
-        .map_err(|_| anyhow!("it took no message for {} s: dropped", SEND_PATIENCE.as_secs()))?
+        .map_err(|_| failed!("it took no message for {} s: dropped", SEND_PATIENCE.as_secs()))?
         .map_err(Into::into)
 }
 
@@ -336,7 +336,7 @@ async fn client(mut socket: Socket, shared: &Shared) -> Result<()> {
             _ = ping.tick() => {
                 // Two pings unanswered: a client that reads would have answered the first.
                 if heard.elapsed() > 2 * PING {
-                    anyhow::bail!("no answer to a ping for {} s: dropped", heard.elapsed().as_secs());
+                    bail!("no answer to a ping for {} s: dropped", heard.elapsed().as_secs());
                 }
                 send(socket, Message::Ping(Vec::new().into())).await?;
             }

@@ -5,7 +5,7 @@
 
 use std::sync::{Arc, OnceLock};
 
-use anyhow::{anyhow, bail, Result};
+use crate::error::{bail, failed, Error, Result};
 use pdf_writer::{Content, Finish, Name, Pdf, Rect, Ref};
 use usvg::tiny_skia_path::PathSegment;
 
@@ -62,7 +62,7 @@ impl Page {
         }
         let colour = |paint: &usvg::Paint| match paint {
             usvg::Paint::Color(c) => Ok([c.red, c.green, c.blue].map(|v| f32::from(v) / 255.0)),
-            _ => Err(anyhow!(
+            _ => Err(failed!(
                 "a figure with a gradient or pattern, which its PDF does not draw"
             )),
         };
@@ -72,10 +72,10 @@ impl Page {
         c.transform([t.sx, t.ky, t.kx, t.sy, t.tx, t.ty]);
         let fill = path
             .fill()
-            .map(|f| Ok::<_, anyhow::Error>((colour(f.paint())?, f.opacity().get(), f.rule())));
+            .map(|f| Ok::<_, Error>((colour(f.paint())?, f.opacity().get(), f.rule())));
         let stroke = path
             .stroke()
-            .map(|s| Ok::<_, anyhow::Error>((colour(s.paint())?, s.opacity().get(), s)));
+            .map(|s| Ok::<_, Error>((colour(s.paint())?, s.opacity().get(), s)));
         if let Some(fill) = fill {
             let (rgb, opacity, rule) = fill?;
             let name = self.alpha(alpha * opacity);
@@ -160,7 +160,7 @@ pub fn of_svg(svg: &str) -> Result<Vec<u8>> {
         font_family: "DejaVu Sans".into(),
         ..usvg::Options::default()
     };
-    let tree = usvg::Tree::from_str(svg, &options).map_err(|e| anyhow!("a figure's SVG: {e}"))?;
+    let tree = usvg::Tree::from_str(svg, &options).map_err(|e| failed!("a figure's SVG: {e}"))?;
     // usvg gives sizes in CSS pixels, 96 to the inch.
     const POINTS: f32 = 0.75;
     let (w, h) = (tree.size().width() * POINTS, tree.size().height() * POINTS);

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::Path;
 
-use anyhow::{anyhow, Context, Result};
+use crate::error::{failed, Context, Result};
 use tcpf_core::links::{Cause, LinkStats};
 use tcpf_core::mission::{self, Mission, ModemConfig};
 use tcpf_core::model::dynamics::{DEAD_ZONE, FULL};
@@ -67,14 +67,14 @@ fn read_telemetry(file: &Path, ids: &[u32]) -> Result<BTreeMap<u32, Track>> {
     let mut lines = reader.lines();
     let first = lines
         .next()
-        .ok_or_else(|| anyhow!("{}: empty", file.display()))?
+        .ok_or_else(|| failed!("{}: empty", file.display()))?
         .with_context(|| format!("cannot read {}", file.display()))?;
     let header: Vec<&str> = first.split(',').collect();
     let col = |name: &str| {
         header
             .iter()
             .position(|h| *h == name)
-            .ok_or_else(|| anyhow!("{}: no column {name}", file.display()))
+            .ok_or_else(|| failed!("{}: no column {name}", file.display()))
     };
     let (ct, cid, cx, cy, cg, cv, cye) = (
         col("t")?,
@@ -92,10 +92,10 @@ fn read_telemetry(file: &Path, ids: &[u32]) -> Result<BTreeMap<u32, Track>> {
         let line = line.with_context(|| format!("cannot read {}", file.display()))?;
         let f: Vec<&str> = line.split(',').collect();
         let num = |c: usize| f.get(c).and_then(|s| s.parse::<f64>().ok());
-        let bad = || anyhow!("{}:{}: malformed row", file.display(), n + 2);
+        let bad = || failed!("{}:{}: malformed row", file.display(), n + 2);
         let id: u32 = f.get(cid).and_then(|s| s.parse().ok()).ok_or_else(bad)?;
         if !ids.contains(&id) {
-            return Err(anyhow!(
+            return Err(failed!(
                 "{}:{}: vehicle {id} is not one of the mission's (mission.toml)",
                 file.display(),
                 n + 2
@@ -146,7 +146,7 @@ fn read_messages(file: &Path) -> Result<Vec<Message>> {
         .skip(1)
         .map(|(n, line)| {
             let f: Vec<&str> = line.split(',').collect();
-            let bad = || anyhow!("{}:{}: malformed row", file.display(), n + 1);
+            let bad = || failed!("{}:{}: malformed row", file.display(), n + 1);
             let field = |c: usize| f.get(c).copied().ok_or_else(bad);
             // The columns after `delivered` came with the acoustic modem: absent in older runs.
             let number = |c: usize| match f.get(c).copied().unwrap_or("") {
@@ -219,19 +219,19 @@ pub fn write(dir: &Path, options: &Options) -> Result<()> {
     let width = options.figure_width;
     // As `--figure-width` allows: under 2 in. a figure's 8 pt words crowd its plot out.
     if !(2.0..=20.0).contains(&width) {
-        return Err(anyhow!("a figure width of {width} in.: from 2 to 20 in."));
+        return Err(failed!("a figure width of {width} in.: from 2 to 20 in."));
     }
     let read = |name: &str| {
         std::fs::read_to_string(dir.join(name)).with_context(|| format!("cannot read {}", dir.join(name).display()))
     };
     let mission_file = dir.join("mission.toml").display().to_string();
-    let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| anyhow!("{e}"))?;
+    let mission: Mission = mission::parse(&mission_file, &read("mission.toml")?, &[]).map_err(|e| failed!("{e}"))?;
     let summary_file = dir.join("summary.json").display().to_string();
     let json: serde_json::Value = serde_json::from_str(&read("summary.json")?)
         .with_context(|| format!("{summary_file}: not the JSON a run writes"))?;
     // Read as what the run wrote, field by field: JSON of another shape is another file.
     let summary: Summary =
-        serde_json::from_value(json).map_err(|e| anyhow!("{summary_file}: not the summary a run writes: {e}"))?;
+        serde_json::from_value(json).map_err(|e| failed!("{summary_file}: not the summary a run writes: {e}"))?;
     let ids: Vec<u32> = mission.vehicles.iter().map(|v| v.id).collect();
     let tracks = read_telemetry(&dir.join("telemetry.csv"), &ids)?;
     // A lockstep recording has a row per vehicle and tick (a realtime one, a row per period the

@@ -8,7 +8,7 @@ use std::sync::mpsc::{self, SyncSender};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
+use crate::error::{failed, Context, Error, Result};
 use tcpf_core::mission::{Mission, Ros2Config};
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{Clock, Command, State};
@@ -56,23 +56,14 @@ fn claim(path: &Path, first: &str) -> Result<Claimed> {
     let file = match File::options().write(true).create_new(true).open(path.join(first)) {
         Ok(file) => file,
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-            return Err(
-                anyhow::Error::new(e).context(Taken(format!("{} is another run's: it holds {first}", path.display())))
-            )
+            return Err(Error::Taken(format!(
+                "{} is another run's: it holds {first}: {e}",
+                path.display()
+            )))
         }
-        Err(e) => return Err(anyhow::Error::new(e).context(cannot_write(&path, first))),
+        Err(e) => return Err(e).context(cannot_write(&path, first)),
     };
     Ok(Claimed { path, file, made })
-}
-
-/// The directory `claim` was given holds its first file already: another run's.
-#[derive(Debug)]
-struct Taken(String);
-
-impl std::fmt::Display for Taken {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
 }
 
 /// `claim` of `<root>/<name>`, or of `<name>-2`, `-3`, … if another has it: runs started in the
@@ -90,7 +81,7 @@ fn claim_unused(root: &Path, name: &str, first: &str) -> Result<Claimed> {
             continue;
         }
         match claim(&path, first) {
-            Err(e) if is_taken(&e) => continue,
+            Err(e) if e.is_taken() => continue,
             claimed => return claimed,
         }
     }
@@ -102,10 +93,6 @@ pub fn claim_out(out: Option<&Path>, name: &str, first: &str) -> Result<Claimed>
         Some(out) => claim(out, first),
         None => claim_unused(Path::new("runs"), name, first),
     }
-}
-
-fn is_taken(e: &anyhow::Error) -> bool {
-    e.downcast_ref::<Taken>().is_some()
 }
 
 impl RunDir {
@@ -342,8 +329,8 @@ impl Telemetry {
             // The thread stops on a write that failed, and says why as it is joined.
             Some((batches, _)) => batches
                 .send((self.epoch, self.clock, batch))
-                .map_err(|_| anyhow!("{}: the thread writing it stopped", cannot_write(&self.dir, "run.mcap"))),
-            None => Err(anyhow!("run.mcap is closed")),
+                .map_err(|_| failed!("{}: the thread writing it stopped", cannot_write(&self.dir, "run.mcap"))),
+            None => Err(failed!("run.mcap is closed")),
         }
     }
 
@@ -371,7 +358,7 @@ impl Telemetry {
         handed?;
         thread
             .join()
-            .map_err(|_| anyhow!("the thread writing run.mcap panicked"))?
+            .map_err(|_| failed!("the thread writing run.mcap panicked"))?
     }
 }
 
@@ -399,7 +386,7 @@ mod tests {
         let first = claim(&root.join("given"), "mission.toml").unwrap();
         assert_eq!(first.made, [root.clone(), root.join("given")]);
         let again = claim(&root.join("given"), "mission.toml").err().unwrap();
-        assert!(is_taken(&again), "{again:#}");
+        assert!(again.is_taken(), "{again:#}");
         assert!(format!("{again:#}").contains("is another run's: it holds mission.toml"));
 
         let names: Vec<PathBuf> = (0..3)
@@ -411,7 +398,7 @@ mod tests {
         // A root that cannot be made is an error at once, not a search through names.
         std::os::unix::fs::symlink(root.join("nowhere"), root.join("gone")).unwrap();
         let dangling = claim_unused(&root.join("gone"), "run", "mission.toml").err().unwrap();
-        assert!(!is_taken(&dangling), "{dangling:#}");
+        assert!(!dangling.is_taken(), "{dangling:#}");
         assert_eq!(
             claim_unused(&root, "next", "mission.toml").unwrap().path,
             root.join("next-2")

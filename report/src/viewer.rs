@@ -20,7 +20,7 @@ use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::Arc;
 
-use anyhow::{anyhow, Context as _, Result};
+use crate::error::{failed, Context as _, Result};
 use foxglove::messages::{Pose, PoseInFrame, PosesInFrame, Quaternion, Timestamp, Vector3};
 use foxglove::{
     Context, Encode, McapAttachment, McapCompression, McapWriteOptions, McapWriterHandle, PartialMetadata, RawChannel,
@@ -220,7 +220,7 @@ impl Viewer {
 
     /// A channel of one of Foxglove's message types.
     fn topic<T: Encode>(&self, name: &str) -> Result<Topic> {
-        let schema = T::get_schema().ok_or_else(|| anyhow!("{name}: no schema"))?;
+        let schema = T::get_schema().ok_or_else(|| failed!("{name}: no schema"))?;
         topic(&self.context, &self.live, name, (schema, T::get_message_encoding()))
     }
 
@@ -369,7 +369,7 @@ impl Viewer {
     pub fn finish(mut self) -> Result<()> {
         self.live.take();
         if let Some(mcap) = self.mcap.take() {
-            mcap.close().map_err(|e| anyhow!("run.mcap: {e}"))?;
+            mcap.close().map_err(|e| failed!("run.mcap: {e}"))?;
         }
         drop(self.context);
         Ok(())
@@ -403,7 +403,7 @@ fn topic(
         .message_encoding(encoding)
         .schema(schema)
         .build_raw()
-        .map_err(|e| anyhow!("channel {name}: {e}"))?;
+        .map_err(|e| failed!("channel {name}: {e}"))?;
     Ok(Topic {
         file,
         live,

@@ -9,11 +9,11 @@ use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use anyhow::{anyhow, Result};
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{metronome, unix_now, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::ClockServer;
 use tcpf_bus::driver::{drive, Wiring};
+use tcpf_bus::error::{Context, Error as BusError};
 use tcpf_bus::exit_report::{report, RealtimeReport};
 use tcpf_bus::handover::hand_over;
 use tcpf_bus::history::Asked;
@@ -27,7 +27,7 @@ use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
 use tcpf_bus::waits;
-use tcpf_core::fleet::membership::{Arrival, Decision, Gathered, Gathering, Member};
+use tcpf_core::fleet::membership::{Arrival, Decision, Gathered, Gathering, Member, Missing};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Clock, Command, End, Loss, LossReason, Lost, Player, State, TickRecord, PROTOCOL_VERSION};
@@ -44,6 +44,21 @@ use tokio::sync::mpsc::{self, Receiver, UnboundedReceiver, UnboundedSender};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::sample::Locality;
 use zenoh::Session;
+
+/// What a world fails with: the bus's errors, or its fleet that did not gather.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Bus(#[from] BusError),
+    /// Agents or recorders that had not come within the startup timeout.
+    #[error("world: {0}")]
+    Missing(Missing),
+    /// Zenoh closed the liveliness subscription.
+    #[error("liveliness subscription closed")]
+    Closed,
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// How far ahead of now a realtime world sets t = 0: every process waiting for the clock (each
 /// asks a few times a second) has it before the first period, so nobody starts late.
@@ -150,7 +165,7 @@ enum Inbound {
     /// Lockstep: into the node on Zenoh's thread.
     Fed {
         stepper: Arc<Stepper>,
-        ends: UnboundedReceiver<Result<End>>,
+        ends: UnboundedReceiver<Result<End, BusError>>,
     },
 }
 
@@ -174,7 +189,7 @@ struct Stepper {
     /// For the log of a vehicle lost for silence.
     command_timeout: Duration,
     /// The end, once published, or a publication that failed: the task stops on either.
-    ends: UnboundedSender<Result<End>>,
+    ends: UnboundedSender<Result<End, BusError>>,
     /// The losses being handed over to the recorders.
     handovers: Mutex<Vec<tokio::task::JoinHandle<()>>>,
 }
@@ -236,7 +251,7 @@ impl Stepper {
     }
 
     /// A publication failed: the task stops on it.
-    fn failed(&self, e: anyhow::Error) {
+    fn failed(&self, e: BusError) {
         let _ = self.ends.send(Err(e));
     }
 }
@@ -493,7 +508,7 @@ async fn serve(
         .liveliness()
         .declare_token(keys.alive(Role::World, 0))
         .await
-        .map_err(|e| anyhow!("liveliness token: {e}"))?;
+        .context("liveliness token")?;
 
     let mut heard = Waiting {
         changes: presence,
@@ -505,8 +520,8 @@ async fn serve(
     match gathered {
         Gathered::Complete => {}
         Gathered::Interrupted => return Ok((Exit::Interrupted, None)),
-        Gathered::Closed => return Err(anyhow!("liveliness subscription closed")),
-        Gathered::Missing(missing) => return Err(anyhow!("world: {missing}")),
+        Gathered::Closed => return Err(Error::Closed),
+        Gathered::Missing(missing) => return Err(Error::Missing(missing)),
     }
     tracing::info!(
         "world: {} agents present, starting ({:?} clock, simulating vehicles {simulated:?})",
@@ -534,23 +549,24 @@ async fn serve(
 impl Shell<'_> {
     /// The world's exit report: a realtime world's timing with it.
     async fn report(&self, realtime: Option<RealtimeReport>) -> Result<()> {
-        report(
+        let timing = Timing::default();
+        Ok(report(
             &self.session,
             &self.keys,
             Role::World,
             0,
             &self.rejected,
-            &Timing::default(),
+            &timing,
             realtime,
         )
-        .await
+        .await?)
     }
 
     async fn lockstep(
         &mut self,
         paths: &[(u32, GeneralizedPath)],
         stepper: &Stepper,
-        ends: &mut UnboundedReceiver<Result<End>>,
+        ends: &mut UnboundedReceiver<Result<End, BusError>>,
     ) -> Result<Exit> {
         let ids: Vec<u32> = paths.iter().map(|p| p.0).collect();
         stepper.lock().clock.epoch = unix_now();
@@ -574,7 +590,7 @@ impl Shell<'_> {
             }
             // The end the interrupt published, unless one was out already.
             TaskExit::Interrupted => (Exit::Interrupted, wiring.ends.try_recv().ok().transpose()?),
-            TaskExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error")),
+            TaskExit::Failed => return Err(wiring.failed.take().expect("a failure keeps its error").into()),
         };
         let handing: Vec<_> = std::mem::take(&mut *stepper.handovers.lock().unwrap_or_else(|e| e.into_inner()));
         for loss in handing {
@@ -710,7 +726,7 @@ struct Realtime<'s, 'a> {
 type RealtimeNode = RealtimeWorldNode<String, Asked>;
 
 impl Wiring<RealtimeNode> for Realtime<'_, '_> {
-    type Error = anyhow::Error;
+    type Error = Error;
 
     async fn next(&mut self) -> RealtimeInput<String, Asked> {
         let shell = &mut *self.shell;
@@ -788,9 +804,9 @@ impl Wiring<RealtimeNode> for Realtime<'_, '_> {
 struct Lockstep<'s, 'a> {
     shell: &'s mut Shell<'a>,
     ids: Vec<u32>,
-    ends: &'s mut UnboundedReceiver<Result<End>>,
+    ends: &'s mut UnboundedReceiver<Result<End, BusError>>,
     /// The error of a publication that failed.
-    failed: Option<anyhow::Error>,
+    failed: Option<BusError>,
 }
 
 impl Wiring<LockstepWorldTask<'_, Stepper>> for Lockstep<'_, '_> {

@@ -19,7 +19,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{anyhow, bail, Context, Result};
+use crate::error::{bail, failed, Context, Result};
 use serde::{Deserialize, Serialize};
 use tcpf_core::outputs::summary::Provenance;
 
@@ -297,7 +297,7 @@ impl Sweep {
     /// The shards in `dirs` joined into `out` by `invocation`: what the sweep unsharded writes.
     /// Refused if they are not shards of one sweep, or if a run of it is in none of them.
     pub fn merge(dirs: &[PathBuf], out: &Path, invocation: &Invocation) -> Result<Sweep> {
-        let first = dirs.first().ok_or_else(|| anyhow!("no shard to merge"))?;
+        let first = dirs.first().ok_or_else(|| failed!("no shard to merge"))?;
         let base = read_written(first)?;
         let mut rows: BTreeMap<u64, (Row, PathBuf)> = BTreeMap::new();
         for dir in dirs {

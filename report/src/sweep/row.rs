@@ -2,7 +2,7 @@
 //! its seed, its status and every metric. Only what the mission and the seed determine: a row
 //! written, read back and written again is the same bytes.
 
-use anyhow::{anyhow, bail, Context, Result};
+use crate::error::{bail, failed, Context, Result};
 use serde::{Deserialize, Serialize};
 use tcpf_core::links::Cause;
 use tcpf_core::outputs::metrics::Results;
@@ -174,7 +174,7 @@ pub fn parse(grid: &Grid, record: &csv::StringRecord) -> Result<Row> {
             &record[1 + k]
         );
     }
-    let status = Status::parse(&record[2 + k]).ok_or_else(|| anyhow!("run {run}: no status {}", &record[2 + k]))?;
+    let status = Status::parse(&record[2 + k]).ok_or_else(|| failed!("run {run}: no status {}", &record[2 + k]))?;
     let mut metrics = [None; N_METRICS];
     for ((m, cell), metric) in metrics.iter_mut().zip(record.iter().skip(3 + k)).zip(&METRICS) {
         if !cell.is_empty() {

@@ -7,7 +7,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::Result;
+use crate::error::Result;
 
 use super::{Grid, Running, Stats};
 
@@ -107,7 +107,7 @@ impl Series {
 /// ticks that are multiples of `stride`; a sample whose tick the recording lacks (a realtime
 /// run samples its ticks) is NaN, counted by no statistic.
 pub fn from_telemetry(file: &Path, stride: u64) -> Result<Samples> {
-    use anyhow::Context as _;
+    use crate::error::Context;
     let mut reader = csv::Reader::from_path(file).with_context(|| format!("{}: no telemetry", file.display()))?;
     let header = reader.headers()?.clone();
     let column = |name: &str| {

@@ -1,0 +1,69 @@
+//! What the launcher, the recorder, the planner's process, a sweep and the bench fail with: the
+//! bus's errors and the report's, a run as processes that failed (its run directory written), a
+//! recording that stopped before its first tick, or the coordinator's own words.
+
+use std::fmt;
+
+use crate::launcher::RunFailed;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Bus(#[from] tcpf_bus::error::Error),
+    #[error(transparent)]
+    Report(#[from] tcpf_report::error::Error),
+    /// A run as processes that failed: its world or recorder stopped short, or a role could not
+    /// be started.
+    #[error(transparent)]
+    RunFailed(#[from] RunFailed),
+    /// `tcpf record` stopped before it recorded a tick (its session did not open, no world came,
+    /// the world's clock refused it): its run directory holds nothing worth keeping.
+    #[error("nothing recorded: {0}")]
+    NothingRecorded(Box<Error>),
+    /// Anything else that failed, said in words.
+    #[error("{0}")]
+    Failed(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// Whether a signal stopped the work before it began.
+    pub fn interrupted(&self) -> bool {
+        match self {
+            Error::Bus(e) => e.kind() == tcpf_bus::error::Kind::Interrupted,
+            Error::NothingRecorded(e) => e.interrupted(),
+            _ => false,
+        }
+    }
+}
+
+impl From<std::io::Error> for Error {
+    fn from(e: std::io::Error) -> Error {
+        Error::Failed(e.to_string())
+    }
+}
+
+/// A failure said as `format!` says it.
+macro_rules! failed {
+    ($($words:tt)*) => {
+        $crate::error::Error::Failed(format!($($words)*))
+    };
+}
+pub(crate) use failed;
+
+/// What failed, said after what was being done, as anyhow's `context` says it.
+pub trait Context<T> {
+    fn context(self, doing: impl fmt::Display) -> Result<T>;
+    fn with_context<D: fmt::Display>(self, doing: impl FnOnce() -> D) -> Result<T>;
+}
+
+impl<T, E: fmt::Display> Context<T> for std::result::Result<T, E> {
+    fn context(self, doing: impl fmt::Display) -> Result<T> {
+        self.map_err(|e| Error::Failed(format!("{doing}: {e}")))
+    }
+
+    fn with_context<D: fmt::Display>(self, doing: impl FnOnce() -> D) -> Result<T> {
+        self.map_err(|e| Error::Failed(format!("{}: {e}", doing())))
+    }
+}
