@@ -673,10 +673,7 @@ mod tests {
         ] {
             std::fs::write(&file, text).unwrap();
             let e = from_file(&file).unwrap_err();
-            assert!(
-                matches!(e, Error::BadZenohConfig(_)),
-                "{e}"
-            );
+            assert!(matches!(e, Error::BadZenohConfig(_)), "{e}");
             let said = e.to_string();
             let expected = format!("{}: bad Zenoh config: {at}", file.display());
             assert!(said.starts_with(&expected) && said.contains(words), "{said}");
@@ -712,10 +709,7 @@ mod tests {
         for key in ["connect_certificate", "listen_private_key"] {
             write(key);
             let e = args.config().unwrap_err();
-            assert!(
-                matches!(e, Error::BadZenohConfig(_)),
-                "{e}"
-            );
+            assert!(matches!(e, Error::BadZenohConfig(_)), "{e}");
             let words = e.to_string();
             assert!(words.contains(&format!("transport/link/tls/{key}")), "{words}");
             assert!(words.contains("missing.pem: No such file"), "{words}");
@@ -749,10 +743,7 @@ mod tests {
             ..Default::default()
         };
         let e = flagged.config().unwrap_err();
-        assert!(
-            matches!(e, Error::BadZenohConfig(_)),
-            "{e}"
-        );
+        assert!(matches!(e, Error::BadZenohConfig(_)), "{e}");
         let words = e.to_string();
         assert!(
             words.starts_with(&format!("--connect {missing}: root_ca_certificate_file: ")),
@@ -789,20 +780,14 @@ mod tests {
             "ws/127.0.0.1:80",
         ] {
             let e = endpoint("-e", bad).unwrap_err();
-            assert!(
-                matches!(e, Error::BadZenohConfig(_)),
-                "{bad}"
-            );
+            assert!(matches!(e, Error::BadZenohConfig(_)), "{bad}");
         }
     }
 
     #[test]
     fn a_role_runs_open_only_when_told_and_a_credential_makes_a_router_or_its_client() {
         let e = ZenohArgs::default().config().unwrap_err();
-        assert!(
-            matches!(e, Error::BadZenohConfig(_)),
-            "{e}"
-        );
+        assert!(matches!(e, Error::BadZenohConfig(_)), "{e}");
         let words = e.to_string();
         for named in ["run open", "tcpf credential fleet.key", "--credential", "--open"] {
             assert!(words.contains(named), "{named}: {words}");
@@ -844,10 +829,7 @@ mod tests {
             ..Default::default()
         };
         let e = args.config().unwrap_err();
-        assert!(
-            matches!(e, Error::BadZenohConfig(_)),
-            "{e}"
-        );
+        assert!(matches!(e, Error::BadZenohConfig(_)), "{e}");
         assert!(
             e.to_string()
                 .starts_with(&format!("--credential {}: others may read it", file.display())),
@@ -907,10 +889,7 @@ mod tests {
             assert_eq!(credential(&agent(1).config().unwrap()), Some(demands));
             agent(1).speaks_as(Identity::Agent(1)).unwrap();
             let e = agent(1).speaks_as(Identity::Agent(2)).unwrap_err();
-            assert!(
-                matches!(e, Error::BadZenohConfig(_)),
-                "{e}"
-            );
+            assert!(matches!(e, Error::BadZenohConfig(_)), "{e}");
             let words = e.to_string();
             assert!(words.contains("is agent-1's, and this process is agent-2"), "{words}");
             let own = dir.join(credential::key_file(Identity::Agent(2), proof));
