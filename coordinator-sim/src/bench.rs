@@ -4,12 +4,15 @@
 //! processes beside a raw Zenoh round trip, direct and through a router; the fleet's memory and
 //! sockets beside as many idle Zenoh clients.
 
+use std::convert::Infallible;
 use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use crate::error::{failed, Context, Result};
 use tcpf_bus::claim::Rivals;
+use tcpf_bus::clock::Monotonic;
+use tcpf_bus::driver::{drive, Wiring};
 use tcpf_bus::keys::{Keys, Role};
 use tcpf_bus::outlet::Outlet;
 use tcpf_bus::presence::presence;
@@ -21,7 +24,9 @@ use tcpf_core::mission::{Mission, VehicleKind};
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{Gamma, Sample, PROTOCOL_VERSION};
 use tcpf_core::outputs::summary::Summary;
+use tcpf_core::roles::machine::Machine;
 use tcpf_core::roles::sim::{world_alone, world_and_laws, Fleet};
+use tcpf_core::time::Moment;
 use tcpf_report::provenance::Invocation;
 use tcpf_report::rundir::RunDir;
 
@@ -424,6 +429,105 @@ impl Footprint {
     }
 }
 
+/// Reading the footprint of a role's processes from `/proc`, which tells no one when it changes:
+/// once, `after` a while (`Readings::once`), or every `period` while they run, keeping the last
+/// reading of all of them, until they are gone (`Readings::until_gone`).
+struct Readings {
+    period: Option<f64>,
+    next: Option<Moment>,
+    due: bool,
+    kept: Footprint,
+    done: bool,
+}
+
+/// Read the footprint now.
+struct Read;
+
+impl Readings {
+    fn once(after: Duration, now: Moment) -> Readings {
+        Readings {
+            period: None,
+            next: Some(now + after),
+            due: false,
+            kept: Footprint::default(),
+            done: false,
+        }
+    }
+
+    fn until_gone(period: Duration, now: Moment) -> Readings {
+        Readings {
+            period: Some(period.as_secs_f64()),
+            ..Readings::once(period, now)
+        }
+    }
+}
+
+impl Machine for Readings {
+    type Input = Footprint;
+    type Output = Read;
+    type Exit = Footprint;
+
+    fn handle(&mut self, read: Footprint, now: Moment) {
+        let Some(period) = self.period else {
+            self.kept = read;
+            self.done = true;
+            return;
+        };
+        // Once its agents have let go of the code of their start (`agent/src/footprint.rs`),
+        // before the first leaves.
+        if read.processes >= self.kept.processes && read.processes > 0 {
+            self.kept = read;
+        }
+        if read.processes == 0 && self.kept.processes > 0 {
+            self.done = true;
+        } else {
+            self.next = Some(now + period);
+        }
+    }
+
+    fn poll_timeout(&self) -> Option<Moment> {
+        self.next
+    }
+
+    fn handle_timeout(&mut self, _: Moment, _: Moment) {
+        self.next = None;
+        self.due = true;
+    }
+
+    fn poll_output(&mut self) -> Option<Read> {
+        std::mem::take(&mut self.due).then_some(Read)
+    }
+
+    fn poll_exit(&mut self) -> Option<Footprint> {
+        self.done.then(|| std::mem::take(&mut self.kept))
+    }
+}
+
+/// Reads the footprint of the children that are `role` processes, off the runtime's threads.
+struct Reader {
+    role: &'static str,
+}
+
+impl Wiring<Readings> for Reader {
+    type Error = Infallible;
+
+    async fn next(&mut self) -> Footprint {
+        std::future::pending().await
+    }
+
+    async fn perform(&mut self, Read: Read, _: &Readings) -> Result<Option<Footprint>, Infallible> {
+        let role = self.role;
+        let read = tokio::task::spawn_blocking(move || Footprint::of_children(role)).await;
+        Ok(Some(read.unwrap_or_default()))
+    }
+}
+
+/// The footprint of the children that are `role` processes, read as `readings` says.
+async fn read(role: &'static str, mut readings: Readings) -> Footprint {
+    let Ok(footprint) = drive(&mut readings, &mut Reader { role }, Monotonic::start()).await;
+    footprint
+}
+
 /// The footprint of `n` idle Zenoh clients (`tcpf pong`, one subscription, one publisher, one
 /// token) of one router: what a fleet of agents costs before it does anything.
 pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
@@ -452,8 +556,7 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
             _ => return Err(failed!("only {} of {n} idle clients came up", up.len())),
         }
     }
-    tokio::time::sleep(IDLE_SETTLE).await;
-    let footprint = Footprint::of_children("pong");
+    let footprint = read("pong", Readings::once(IDLE_SETTLE, Monotonic::start().now())).await;
     for mut c in children {
         let _ = c.start_kill();
         let _ = c.wait().await;
@@ -711,23 +814,11 @@ async fn processes(
         return Ok(None);
     };
     let dir = RunDir::create(Some(scratch), mission, SCRATCH)?;
-    // The fleet's footprint as it runs: the last sample of the whole fleet, once its agents have
-    // let go of the code of their start (`agent/src/footprint.rs`), before the first leaves.
-    let sampling = tokio::spawn(async {
-        let mut running = Footprint::default();
-        loop {
-            tokio::time::sleep(FLEET_SAMPLE).await;
-            let now = tokio::task::spawn_blocking(|| Footprint::of_children("agent"))
-                .await
-                .unwrap_or_default();
-            if now.processes >= running.processes && now.processes > 0 {
-                running = now;
-            }
-            if now.processes == 0 && running.processes > 0 {
-                return running;
-            }
-        }
-    });
+    // The fleet's footprint as it runs: the last reading of the whole fleet.
+    let sampling = tokio::spawn(read(
+        "agent",
+        Readings::until_gone(FLEET_SAMPLE, Monotonic::start().now()),
+    ));
     let sampled = launcher::run(mission, plan, &dir, exe, launcher::Options::default()).await?;
     let running = tokio::time::timeout(FLEET_SAMPLED, sampling).await;
     let running = running.ok().and_then(Result::ok).unwrap_or_default();
@@ -788,4 +879,48 @@ async fn processes(
         running,
         idle: idle?,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn of(processes: usize, rss_kib: u64) -> Footprint {
+        Footprint {
+            processes,
+            rss_kib,
+            ..Footprint::default()
+        }
+    }
+
+    /// Runs `readings` on a clock that jumps to each wake-up, each reading the next of `found`:
+    /// what it kept, and when it stopped.
+    fn run(mut readings: Readings, found: &[Footprint]) -> (Footprint, f64) {
+        let mut found = found.iter();
+        loop {
+            let at = readings.poll_timeout().expect("a reading is due");
+            readings.handle_timeout(at, at);
+            while readings.poll_output().is_some() {
+                readings.handle(*found.next().expect("read no more than found"), at);
+            }
+            if let Some(kept) = readings.poll_exit() {
+                return (kept, at.secs());
+            }
+        }
+    }
+
+    #[test]
+    fn a_running_fleet_is_read_until_it_is_gone_its_last_whole_reading_kept() {
+        let found = [of(0, 0), of(3, 30), of(5, 60), of(5, 50), of(2, 20), of(0, 0)];
+        let (kept, at) = run(Readings::until_gone(FLEET_SAMPLE, Moment::default()), &found);
+        assert_eq!((kept.processes, kept.rss_kib), (5, 50));
+        assert!((at - 0.6).abs() < 1e-9, "read every 100 ms, six times: {at}");
+    }
+
+    #[test]
+    fn idle_clients_are_read_once_after_they_settle() {
+        let (kept, at) = run(Readings::once(IDLE_SETTLE, Moment::default()), &[of(4, 40)]);
+        assert_eq!((kept.processes, kept.rss_kib), (4, 40));
+        assert_eq!(at, 1.0);
+    }
 }
