@@ -69,21 +69,7 @@ impl From<tcpf_report::error::Error> for Failure {
 /// A recording that stopped before its first tick fails as its cause does, said as it.
 impl From<tcpf_coordinator::error::Error> for Failure {
     fn from(e: tcpf_coordinator::error::Error) -> Failure {
-        use tcpf_coordinator::error::Error;
-        match e {
-            Error::Bus(e) => e.into(),
-            Error::NothingRecorded(ref cause) => Failure::of(coordinator_kind(cause), e),
-            Error::Report(_) | Error::RunFailed(_) | Error::Failed(_) => Failure::Failed(e.into()),
-        }
-    }
-}
-
-fn coordinator_kind(e: &tcpf_coordinator::error::Error) -> Kind {
-    use tcpf_coordinator::error::Error;
-    match e {
-        Error::Bus(e) => e.kind(),
-        Error::NothingRecorded(cause) => coordinator_kind(cause),
-        Error::Report(_) | Error::RunFailed(_) | Error::Failed(_) => Kind::Failed,
+        Failure::of(e.kind(), e)
     }
 }
 

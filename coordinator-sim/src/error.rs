@@ -4,6 +4,8 @@
 
 use std::fmt;
 
+use tcpf_bus::error::Kind;
+
 use crate::launcher::RunFailed;
 
 #[derive(Debug, thiserror::Error)]
@@ -28,13 +30,18 @@ pub enum Error {
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
+    /// How the binary ends for it: as the bus's error it is or stands for, else a failed run.
+    pub fn kind(&self) -> Kind {
+        match self {
+            Error::Bus(e) => e.kind(),
+            Error::NothingRecorded(cause) => cause.kind(),
+            Error::Report(_) | Error::RunFailed(_) | Error::Failed(_) => Kind::Failed,
+        }
+    }
+
     /// Whether a signal stopped the work before it began.
     pub fn interrupted(&self) -> bool {
-        match self {
-            Error::Bus(e) => e.kind() == tcpf_bus::error::Kind::Interrupted,
-            Error::NothingRecorded(e) => e.interrupted(),
-            _ => false,
-        }
+        self.kind() == Kind::Interrupted
     }
 }
 
