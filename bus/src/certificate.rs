@@ -3,7 +3,6 @@
 //! fleet's authority can have signed. A stock ROS 2 (rmw_zenoh, whose Zenoh has TLS but no
 //! user-password authentication) can present one.
 
-use crate::error::{failed, Context, Result};
 use base64::Engine;
 use rcgen::{
     BasicConstraints, CertificateParams, CertifiedIssuer, DnType, ExtendedKeyUsagePurpose, IsCa, KeyPair,
@@ -11,6 +10,8 @@ use rcgen::{
 };
 
 use serde_json::{json, Value};
+
+use crate::error::{failed, Context, Result};
 
 /// A certificate and its private key, in PEM.
 pub struct Pair {

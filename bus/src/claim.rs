@@ -5,14 +5,13 @@
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use crate::error::{failed, Result};
 use tcpf_core::fleet::claim::{Claim, ClaimWaits, Claiming, Look, Seen, Settled};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
 
 use crate::clock::Monotonic;
 use crate::driver::{drive, Wiring};
-use crate::error::{AlreadyRunning, Error};
+use crate::error::{failed, AlreadyRunning, Error, Result};
 use crate::keys::{Keys, Role};
 use crate::waits::{CLAIM_LINGER, CLAIM_LOOK_AGAIN, CLAIM_QUERY, CLAIM_SETTLE};
 

@@ -3,7 +3,6 @@
 
 use std::sync::{Arc, Mutex};
 
-use crate::error::{failed, Result};
 use tcpf_core::msg::Clock;
 use tokio::sync::{oneshot, Notify};
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -12,6 +11,7 @@ use zenoh::query::{ConsolidationMode, QueryTarget};
 use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode};
+use crate::error::{failed, Result};
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
 use crate::waits;

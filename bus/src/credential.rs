@@ -17,10 +17,9 @@ use std::io::{Read, Write};
 use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt, PermissionsExt};
 use std::path::Path;
 
-use crate::error::{Context, Result};
-
 use crate::acl::{self, Fleet, Identity, Naming};
 use crate::certificate::{Authority, Bundle};
+use crate::error::{Context, Result};
 
 /// The user every process of a fleet presents.
 pub const USER: &str = "tcpf";

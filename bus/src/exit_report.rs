@@ -1,11 +1,11 @@
 //! A process's exit report: who it was, what it refused, and in realtime how it kept its period,
 //! handed over to the recorders.
 
-use crate::error::Result;
 use tcpf_core::msg::{PeriodTiming, Player, Report};
 use tcpf_core::roles::lockstep::Timing;
 use zenoh::Session;
 
+use crate::error::Result;
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
 

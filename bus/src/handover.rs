@@ -1,15 +1,15 @@
 //! Last words that must reach the recorders (an exit report, the end, a loss) travel as a query
 //! to every recorder's queryable, and each recorder's reply is its acknowledgement: the sender
 //! knows who has them, instead of lingering a while and hoping. A recorder that did not answer
-//! is asked again, up to `HANDOVER_ATTEMPTS` times (`tcpf_core::fleet::handover`); what still went unacknowledged is logged by the
-//! sender, and the recorder's summary names what never came (an unreported role, a missed end).
+//! is asked again, up to `HANDOVER_ATTEMPTS` times (`tcpf_core::fleet::handover`); what still
+//! went unacknowledged is logged by the sender, and the recorder's summary names what never came
+//! (an unreported role, a missed end).
 //!
 //! A query overtakes nothing sent before it on the same link, so a recorder that takes the end
 //! has had every tick before it, or knows which it lost; it acknowledges the end once it has
 //! fetched those from the world's history (`take_over_held`), which the world answers until
 //! then.
 
-use crate::error::{failed, Error, Result};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tcpf_core::fleet::handover::{Done, Handed, Handover, Step};
@@ -21,6 +21,7 @@ use zenoh::{Session, Wait};
 use crate::clock::Monotonic;
 use crate::codec::{decode, encode};
 use crate::driver::{drive, Wiring};
+use crate::error::{failed, Error, Result};
 use crate::keys::{Keys, Role};
 use crate::presence::present;
 use crate::rejected::Rejected;

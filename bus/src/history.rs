@@ -1,13 +1,13 @@
 //! The realtime world's history on the bus: the world serves `history` (what it answers is
 //! `RealtimeWorld::answer`'s), and a recorder asks it for the states its `Sampler` never got.
 
-use crate::error::{failed, Result};
 use tcpf_core::msg::{Fetch, State};
 use tokio::sync::mpsc;
 use zenoh::query::{ConsolidationMode, Query, Queryable};
 use zenoh::{Session, Wait};
 
 use crate::codec::{decode, encode};
+use crate::error::{failed, Result};
 use crate::keys::Keys;
 use crate::rejected::Rejected;
 use crate::subscribe::{enqueue, Received};

@@ -1,12 +1,12 @@
 //! Typed publishers, each with the congestion control and reliability its clock needs.
 
-use crate::error::{failed, Result};
 use serde::Serialize;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::{CongestionControl, Reliability};
 use zenoh::{Session, Wait};
 
 use crate::codec::encode;
+use crate::error::{failed, Result};
 
 /// A publisher: one that never drops for lockstep, which waits for every message; one that
 /// drops under congestion for realtime, where the freshest message wins and a late one is

@@ -3,7 +3,6 @@
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
-use crate::error::{failed, Result};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::PathMsg;
 use tokio::sync::mpsc;
@@ -11,6 +10,7 @@ use zenoh::sample::SampleKind;
 use zenoh::Session;
 
 use crate::codec::decode;
+use crate::error::{failed, Result};
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
 use crate::waits;

@@ -4,7 +4,6 @@ use std::convert::Infallible;
 use std::future::Future;
 use std::time::Duration;
 
-use crate::error::{failed, Result};
 use tcpf_core::fleet::membership::Liveliness;
 use tcpf_core::fleet::present::Present;
 use tcpf_core::roles::machine::Machine;
@@ -14,6 +13,7 @@ use zenoh::sample::SampleKind;
 use zenoh::Session;
 
 use crate::driver::Wiring;
+use crate::error::{failed, Result};
 use crate::keys::{Keys, Role};
 use crate::signals::Shutdown;
 use crate::waits;

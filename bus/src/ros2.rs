@@ -6,7 +6,6 @@
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
-use crate::error::{failed, Result};
 use tcpf_core::mission::Ros2Config;
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Command, State};
@@ -19,6 +18,7 @@ use zenoh::query::Queryable;
 use zenoh::time::Timestamp;
 use zenoh::{Session, Wait};
 
+use crate::error::{failed, Result};
 use crate::rejected::Rejected;
 use crate::subscribe::{enqueue, queue, Received};
 

@@ -3,13 +3,12 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use crate::error::{failed, Context, Result};
 use zenoh::{Config, Session};
 
 use crate::acl::Identity;
 use crate::certificate;
 use crate::credential::{self, Credential, Demand, Proof};
-use crate::error::Error;
+use crate::error::{failed, Context, Error, Result};
 use crate::signals::Shutdown;
 use tcpf_core::msg::{Checked, TickRecord};
 

@@ -6,9 +6,10 @@
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use crate::error::{Context, Result};
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use tokio::signal::unix::{signal, Signal, SignalKind};
+
+use crate::error::{Context, Result};
 
 pub struct Shutdown {
     interrupt: Signal,

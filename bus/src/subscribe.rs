@@ -2,7 +2,6 @@
 //! to a core machine: what to do with a message is the machines' business. Refused payloads are
 //! counted (`Rejected`), never fatal.
 
-use crate::error::{failed, Result};
 use serde::de::DeserializeOwned;
 use tcpf_core::msg::Checked;
 use tokio::sync::mpsc;
@@ -11,6 +10,7 @@ use zenoh::sample::Locality;
 use zenoh::Session;
 
 use crate::codec::decode;
+use crate::error::{failed, Result};
 use crate::rejected::Rejected;
 
 /// How many messages a subscription may hold before the next are dropped (and counted). Lockstep

@@ -14,7 +14,6 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::error::{Context, Result};
 use serde_json::json;
 use tcpf_bus::acl::{self, Fleet, Identity, Naming};
 use tcpf_bus::certificate::{self, Authority};
@@ -22,6 +21,8 @@ use tcpf_bus::credential::{private, secret};
 use tcpf_bus::keys::Keys;
 use tcpf_bus::session::{ACCEPT_PENDING, ACCEPT_TIMEOUT_MS};
 use tcpf_core::mission::{Mission, Ros2Config};
+
+use crate::error::{Context, Result};
 
 /// How long a client of the run waits for the world to listen.
 const CONNECT_TIMEOUT_MS: u64 = 60_000;

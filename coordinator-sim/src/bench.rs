@@ -9,7 +9,6 @@ use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use crate::error::{failed, Context, Result};
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::clock::Monotonic;
 use tcpf_bus::driver::{drive, Wiring};
@@ -30,6 +29,7 @@ use tcpf_core::time::Moment;
 use tcpf_report::provenance::Invocation;
 use tcpf_report::rundir::RunDir;
 
+use crate::error::{failed, Context, Result};
 use crate::launcher;
 use tokio::process::{Child, Command};
 

@@ -4,11 +4,11 @@ use std::net::SocketAddr;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use crate::error::Result;
 use tcpf_core::mission::Mission;
 use tcpf_core::model::planner::Plan;
 use tcpf_core::roles::sim::Fleet;
 
+use crate::error::Result;
 use crate::progress::Ticks;
 use tcpf_core::outputs::summary::{Clock, Mode, Provenance, Summary};
 use tcpf_report::rundir::RunDir;

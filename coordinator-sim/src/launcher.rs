@@ -9,7 +9,6 @@ use std::process::Stdio;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use crate::error::{failed, Context, Error, Result};
 use tcpf_bus::acl::Identity;
 use tcpf_bus::claim::Rivals;
 use tcpf_bus::clock::Monotonic;
@@ -26,6 +25,7 @@ use tokio::process::Command;
 
 pub use crate::access::Links;
 use crate::access::ROS2_CONFIG;
+use crate::error::{failed, Context, Error, Result};
 use crate::progress::Ticks;
 use crate::recording::Recording;
 use tcpf_core::outputs::summary::{ChildSummary, Closing, Mode, Summary};

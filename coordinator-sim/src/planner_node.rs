@@ -3,7 +3,6 @@
 
 use std::convert::Infallible;
 
-use crate::error::{failed, Result};
 use tcpf_bus::clock::Monotonic;
 use tcpf_bus::codec::encode;
 use tcpf_bus::driver::drive;
@@ -25,6 +24,8 @@ use zenoh::handlers::FifoChannelHandler;
 use zenoh::key_expr::KeyExpr;
 use zenoh::query::{Query, Queryable};
 use zenoh::Wait;
+
+use crate::error::{failed, Result};
 
 pub use tcpf_core::roles::planner_node::Exit;
 

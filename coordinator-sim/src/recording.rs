@@ -7,7 +7,6 @@ use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
-use crate::error::{failed, Error, Result};
 use tcpf_bus::clock::{check_clock, unix_now, Expected, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, await_clock, ClockAnswer, ClockBell};
 use tcpf_bus::driver::{drive, Wiring};
@@ -39,6 +38,7 @@ use zenoh::pubsub::Subscriber;
 use zenoh::query::Queryable;
 use zenoh::Session;
 
+use crate::error::{failed, Error, Result};
 use crate::progress::Ticks;
 
 /// Messages the recorder may hold before the next are dropped (and counted): it writes what a

@@ -1,9 +1,10 @@
 //! `tcpf router`: a Zenoh router and nothing else, for a testbed's shore host. Every role of the
 //! fleet is its client; access control, when configured, is enforced here (docs/TESTBED.md).
 
-use crate::error::{failed, Result};
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
+
+use crate::error::{failed, Result};
 
 /// Routes until SIGINT, SIGTERM or SIGHUP. Router mode unless the options say otherwise.
 pub async fn run(zenoh: &ZenohArgs) -> Result<()> {

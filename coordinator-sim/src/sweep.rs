@@ -8,7 +8,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc;
 use std::time::Instant;
 
-use crate::error::{failed, Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use tcpf_core::mission::Mission;
 use tcpf_core::model::planner::Plan;
@@ -18,6 +17,8 @@ use tcpf_report::rundir::RunDir;
 use tcpf_report::sweep::grid::split_values;
 use tcpf_report::sweep::series::{self, Samples};
 use tcpf_report::sweep::{Design, FailedRun, Grid, Param, Row, Sweep, GIVE_UP};
+
+use crate::error::{failed, Error, Result};
 
 /// The runs of a sweep: its grid, and the mission of every grid point (seed aside: a run's
 /// mission is its point's with the run's seed, made only when it starts).

@@ -13,13 +13,14 @@ use std::fs::{self, File};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use crate::error::{Context, Result};
 use mcap::records::{MessageHeader, Metadata};
 use tcpf_core::mission::{Mission, Ros2Config};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Clock, Command, State};
 use tcpf_core::outputs::ros2::{self, FleetTopic, LinkCounts, Stamp};
 use tcpf_core::time::UnixTime;
+
+use crate::error::{Context, Result};
 
 /// The bag's directory in the run directory, and its one file, named as rosbag2 names them.
 pub const DIR: &str = "rosbag2";

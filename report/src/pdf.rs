@@ -5,9 +5,10 @@
 
 use std::sync::{Arc, OnceLock};
 
-use crate::error::{bail, failed, Error, Result};
 use pdf_writer::{Content, Finish, Name, Pdf, Rect, Ref};
 use usvg::tiny_skia_path::PathSegment;
+
+use crate::error::{bail, failed, Error, Result};
 
 fn fonts() -> Arc<usvg::fontdb::Database> {
     static FONTS: OnceLock<Arc<usvg::fontdb::Database>> = OnceLock::new();

@@ -5,13 +5,13 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::Path;
 
-use crate::error::{failed, Context, Result};
 use tcpf_core::links::{Cause, LinkStats};
 use tcpf_core::mission::{self, Mission, ModemConfig};
 use tcpf_core::model::dynamics::{DEAD_ZONE, FULL};
 use tcpf_core::msg::Player;
 use tcpf_core::outputs::metrics::Thrusters;
 
+use crate::error::{failed, Context, Result};
 use crate::plots::{bars, Chart, Series};
 use crate::style::{self, Size};
 use plotters::style::RGBColor;

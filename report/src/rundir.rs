@@ -8,7 +8,6 @@ use std::sync::mpsc::{self, SyncSender};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::error::{failed, Context, Error, Result};
 use tcpf_core::mission::{Mission, Ros2Config};
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{Clock, Command, State};
@@ -16,6 +15,7 @@ use tcpf_core::outputs::telemetry;
 use tcpf_core::time::UnixTime;
 
 use crate::bag::Bag;
+use crate::error::{failed, Context, Error, Result};
 use crate::provenance::Invocation;
 use crate::viewer::Viewer;
 use tcpf_core::outputs::summary::{Mode, Summary};

@@ -20,7 +20,6 @@ use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::Arc;
 
-use crate::error::{failed, Context as _, Result};
 use foxglove::messages::{Pose, PoseInFrame, PosesInFrame, Quaternion, Timestamp, Vector3};
 use foxglove::{
     Context, Encode, McapAttachment, McapCompression, McapWriteOptions, McapWriterHandle, PartialMetadata, RawChannel,
@@ -32,6 +31,7 @@ use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::{Command, State};
 use tcpf_core::time::UnixTime;
 
+use crate::error::{failed, Context as _, Result};
 use crate::live::{ChannelInfo, Live};
 use crate::provenance::Invocation;
 

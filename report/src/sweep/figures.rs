@@ -8,10 +8,10 @@
 
 use std::path::Path;
 
-use crate::error::Result;
 use plotters::prelude::*;
 
 use super::{PointSummary, Stats, SweepSummary};
+use crate::error::Result;
 use crate::labels;
 use crate::style::{self, Marker, Size, Swatch};
 

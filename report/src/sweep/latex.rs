@@ -11,9 +11,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::error::{Context, Result};
-
 use super::{Stats, SweepSummary, METRICS};
+use crate::error::{Context, Result};
 use crate::labels;
 
 /// Columns past which aggregate.tex sets the table in `\footnotesize` (8 pt at 10 pt).
