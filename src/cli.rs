@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use tcpf_bus::session::ZenohArgs;
-use tcpf_bus::waits;
+use tcpf_bus::waits::Timeouts;
 use tcpf_core::mission;
 use tcpf_report::provenance::Invocation;
 
@@ -259,10 +259,11 @@ pub fn seconds(text: &str) -> Result<Duration, String> {
 /// `tcpf run --command-timeout`: more than the agents' stale timeout, or an agent waiting for a
 /// silent neighbour would be lost with it.
 pub fn command_timeout(text: &str) -> Result<Duration, String> {
+    let stale = Timeouts::default().stale;
     match seconds(text)? {
-        d if d <= waits::STALE => Err(format!(
+        d if d <= stale => Err(format!(
             "{text} s: must exceed the agents' stale timeout ({} s), or an agent waiting for a silent neighbour would be lost with it",
-            waits::STALE.as_secs()
+            stale.as_secs()
         )),
         d => Ok(d),
     }

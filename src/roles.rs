@@ -13,7 +13,7 @@ use tcpf_bus::claim::Rivals;
 use tcpf_bus::credential::Proof;
 use tcpf_bus::keys::Keys;
 use tcpf_bus::session::ZenohArgs;
-use tcpf_bus::waits;
+use tcpf_bus::waits::{self, Timeouts};
 use tcpf_coordinator::planner_node;
 use tcpf_core::mission;
 use tcpf_report::provenance::Invocation;
@@ -183,10 +183,13 @@ impl PlannerArgs {
 impl WorldArgs {
     pub fn run(self) -> Result<ExitCode, Failure> {
         let options = tcpf_world::Options {
-            startup_timeout: self.startup_timeout,
+            timeouts: Timeouts {
+                startup: self.startup_timeout,
+                command: self.command_timeout,
+                rejoin: self.rejoin_timeout,
+                ..Timeouts::default()
+            },
             recorders: self.recorders,
-            command_timeout: self.command_timeout,
-            rejoin_timeout: self.rejoin_timeout,
             vehicles: self.vehicles,
             ros2: self.ros2,
             rivals: rivals(self.no_rivals, &self.role.zenoh),
@@ -213,8 +216,11 @@ impl RecordArgs {
 impl AgentArgs {
     pub fn run(self) -> Result<ExitCode, Failure> {
         let options = tcpf_agent::Options {
-            startup_timeout: self.startup_timeout,
-            stale_timeout: self.stale_timeout,
+            timeouts: Timeouts {
+                startup: self.startup_timeout,
+                stale: self.stale_timeout,
+                ..Timeouts::default()
+            },
             ros2: self.ros2,
             rivals: rivals(self.no_rivals, &self.role.zenoh),
         };
@@ -321,7 +327,7 @@ fn planner(args: &MissionArgs, zenoh: &ZenohArgs) -> Result<ExitCode, Failure> {
     let mission = load(args, None)?;
     zenoh.speaks_as(Identity::Planner).map_err(role_failure)?;
     let plan = solve(&mission, &args.file)?;
-    let exit = role(planner_node::run(&mission, &plan, zenoh))?.map_err(role_failure)?;
+    let exit = role(planner_node::run(&mission, &plan, zenoh, &Timeouts::default()))?.map_err(role_failure)?;
     Ok(code(
         exit == planner_node::Exit::Ended,
         exit == planner_node::Exit::Interrupted,
@@ -392,7 +398,10 @@ fn record(
     // Only when asked: the world and agents speak ROS 2 for a mission with [ros2] already.
     let options = tcpf_coordinator::recording::RecordOptions {
         live,
-        startup_timeout,
+        timeouts: Timeouts {
+            startup: startup_timeout,
+            ..Timeouts::default()
+        },
         ros2: ros2.and_then(|domain| mission.ros2(Some(domain))),
     };
     realtime_priority(&mission, "recorder");

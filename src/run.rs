@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::anyhow;
 use clap::{Args, ValueEnum};
-use tcpf_bus::waits;
+use tcpf_bus::waits::{self, Timeouts};
 use tcpf_coordinator::{inprocess, launcher};
 use tcpf_core::mission;
 use tcpf_report::provenance::Invocation;
@@ -105,8 +105,11 @@ impl RunArgs {
     pub fn run(self, invocation: Invocation) -> Result<ExitCode, Failure> {
         let options = launcher::Options {
             live: self.live,
-            command_timeout: self.command_timeout,
-            startup_timeout: self.startup_timeout,
+            roles: Timeouts {
+                command: self.command_timeout,
+                startup: self.startup_timeout,
+                ..Timeouts::default()
+            },
             restart: self.restart == Restart::OnFailure,
             recorders: self.recorders,
             ros2: self.ros2,

@@ -22,7 +22,7 @@ use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe, subscribe_into, subscribe_with, Received};
-use tcpf_bus::waits;
+use tcpf_bus::waits::Timeouts;
 use tcpf_core::fleet::membership::{AgentStartup, Awaited, Peer, StartupCheck, Waited};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::msg::{Checked, Clock, Command, End, Gamma, Loss, Lost, State};
@@ -71,10 +71,9 @@ const AGENT_PHASE: f64 = 0.5;
 
 #[derive(Debug, Clone)]
 pub struct Options {
-    /// How long to wait for the planner, the world and the neighbours at start.
-    pub startup_timeout: Duration,
-    /// A live neighbour whose γ has not come for this long stops being counted.
-    pub stale_timeout: Duration,
+    /// Its waits: for the planner, the world and the neighbours at start (`startup`), a silent
+    /// neighbour (`stale`), a gone world's end, a realtime world out of reach.
+    pub timeouts: Timeouts,
     /// The ROS 2 domain to speak rmw_zenoh on (`--ros2`), over the mission's `[ros2]`.
     pub ros2: Option<u32>,
     /// Whether another process may be claiming the same role now (`--no-rivals`: no).
@@ -113,6 +112,7 @@ struct Shell {
     session: Session,
     shutdown: Shutdown,
     rejected: Rejected,
+    timeouts: Timeouts,
     presence: UnboundedReceiver<Presence>,
     ends: Receiver<Received<End>>,
     losses: Receiver<Received<Loss>>,
@@ -274,14 +274,23 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     let realtime = mission.mission.clock == ClockKind::Realtime;
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown, options.startup_timeout).await?;
+    let session = zenoh.open_unless(&mut shutdown, options.timeouts.startup).await?;
     let rejected = Rejected::default();
     // Before this session follows liveliness: a liveliness query from a session with a liveliness
     // subscriber of its own at times answers nothing (Zenoh 1.10), and a second agent of a
     // running vehicle then found nobody holding its id.
-    let claimed = claim(&session, &keys, Role::Agent, id, &mission.mission.name, options.rivals).await?;
+    let claimed = claim(
+        &session,
+        &keys,
+        Role::Agent,
+        id,
+        &mission.mission.name,
+        options.rivals,
+        &options.timeouts,
+    )
+    .await?;
     let ids = [id];
-    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, options.startup_timeout, &rejected));
+    let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, &options.timeouts, &rejected));
     let Some(paths) = fetched.await else {
         return Ok(Exit::Interrupted);
     };
@@ -325,7 +334,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             id,
             keys: keys.clone(),
             fed: Mutex::new(Fed {
-                machine: LockstepAgent::new(AgentNode::new(agent), options.stale_timeout),
+                machine: LockstepAgent::new(AgentNode::new(agent), options.timeouts.stale),
                 ros2: ros2.map(|r| (r, mission.mission.control_period)),
             }),
             commands: Outlet::for_clock(&session, keys.cmd(id), false).await?,
@@ -365,7 +374,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
     // The world's token first: its clock is declared before it, so whether the run is under way
     // (the clock answers) is then known for sure.
     let monotonic = Monotonic::start();
-    let mut startup = AgentStartup::new(&audible, options.startup_timeout, monotonic.now());
+    let mut startup = AgentStartup::new(&audible, options.timeouts.startup, monotonic.now());
     match await_startup(&mut presence, &mut shutdown, &mut startup, &monotonic, Awaited::Fleet).await {
         Waited::Done => {}
         Waited::Interrupted => return Ok(Exit::Interrupted),
@@ -374,14 +383,14 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
             return Err(Error::NoFleet {
                 id,
                 mission: mission.mission.name.clone(),
-                within: options.startup_timeout,
+                within: options.timeouts.startup,
             })
         }
     }
     // Listened for before the question, and before this agent's token, which the world waits for
     // before it starts: its announcement of the start cannot pass between them.
     let bell = ClockBell::declare(&session, &keys).await?;
-    let under_way = ask_clock(&session, &keys, &rejected).await?;
+    let under_way = ask_clock(&session, &keys, &rejected, &options.timeouts).await?;
     if let Some(clock) = &under_way {
         check_clock(mission, clock)?;
         tracing::info!("agent {id}: the run is under way (tick {}); rejoining it", clock.tick);
@@ -398,6 +407,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         session,
         shutdown,
         rejected,
+        timeouts: options.timeouts,
         presence,
         ends,
         losses,
@@ -442,13 +452,7 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
                 }
             }
             let exit = shell
-                .lockstep(
-                    mission,
-                    under_way.is_none().then_some(bell),
-                    &feed,
-                    &mut faults,
-                    options,
-                )
+                .lockstep(mission, under_way.is_none().then_some(bell), &feed, &mut faults)
                 .await;
             feed.lock().machine.stop();
             exit?
@@ -499,15 +503,14 @@ fn check_clock(mission: &Mission, clock: &Clock) -> Result<(), BusError> {
 impl Shell {
     /// This agent's exit report: its lockstep timing, or its realtime one.
     async fn report(&self, timing: &Timing, realtime: Option<RealtimeReport>) -> Result<()> {
-        let id = self.id;
         Ok(report(
             &self.session,
             &self.keys,
-            Role::Agent,
-            id,
+            (Role::Agent, self.id),
             &self.rejected,
             timing,
             realtime,
+            &self.timeouts,
         )
         .await?)
     }
@@ -519,7 +522,13 @@ impl Shell {
         bell: ClockBell,
         deadline: tokio::time::Instant,
     ) -> Result<Option<Clock>> {
-        let mut answer = Some(await_clock(&self.session, &self.keys, &self.rejected, bell));
+        let mut answer = Some(await_clock(
+            &self.session,
+            &self.keys,
+            &self.rejected,
+            bell,
+            &self.timeouts,
+        ));
         let waited = tokio::time::timeout_at(deadline, answered(&mut answer));
         match self.shutdown.unless(waited).await {
             None => Ok(None),
@@ -543,21 +552,20 @@ impl Shell {
         unchecked: Option<ClockBell>,
         feed: &Feed,
         faults: &mut UnboundedReceiver<BusError>,
-        options: &Options,
     ) -> Result<Exit> {
         let id = self.id;
         // Came before the world started: what arrives stays held, and no command leaves, until
         // the world's clock says it runs this agent's mission (an agent of another would steer
         // its vehicle for hundreds of ticks before it heard). The clock answers once the world
         // has started, which it announces and its first state shows: asked at each.
-        let clock = unchecked.map(|bell| await_clock(&self.session, &self.keys, &self.rejected, bell));
+        let clock = unchecked.map(|bell| await_clock(&self.session, &self.keys, &self.rejected, bell, &self.timeouts));
         if clock.is_none() {
             feed.start();
         }
         let mut machine = LockstepAgentTask::new(
             feed,
-            options.stale_timeout,
-            waits::END_AFTER_THE_WORLD,
+            self.timeouts.stale,
+            self.timeouts.end_after_the_world,
             feed.monotonic.now(),
         );
         let mut wiring = Lockstep {
@@ -591,7 +599,7 @@ impl Shell {
         // γ_i starts at 0 for an agent there from the beginning, from wherever the vehicle is
         // for one that finds the run under way (started again, or late).
         let node = RealtimeAgent::new(queued.agent, mission, true);
-        let mut machine = RealtimeAgentNode::new(node, fleet.period().as_secs_f64(), waits::WORLD_AWAY);
+        let mut machine = RealtimeAgentNode::new(node, fleet.period().as_secs_f64(), self.timeouts.world_away);
         let beats = metronome(fleet, AGENT_PHASE, fleet.periods_now().floor() as u64);
         let_go_of_the_start(id);
         let mut wiring = Realtime {

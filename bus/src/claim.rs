@@ -5,7 +5,7 @@
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use tcpf_core::fleet::claim::{Claim, ClaimWaits, Claiming, Look, Seen, Settled};
+use tcpf_core::fleet::claim::{Claim, Claiming, Look, Seen, Settled};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
 
@@ -13,12 +13,12 @@ use crate::clock::Monotonic;
 use crate::driver::{drive, Wiring};
 use crate::error::{failed, AlreadyRunning, Error, Result};
 use crate::keys::{Keys, Role};
-use crate::waits::{CLAIM_LINGER, CLAIM_LOOK_AGAIN, CLAIM_QUERY, CLAIM_SETTLE};
+use crate::waits::Timeouts;
 
 /// Who else may be claiming the role at this moment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Rivals {
-    /// Started by hand as a peer: another process may claim the role within `CLAIM_SETTLE` of
+    /// Started by hand as a peer: another process may claim the role within `Timeouts::claim_settle` of
     /// this one, and only after that long has every claim reached this one.
     #[default]
     Possible,
@@ -55,6 +55,7 @@ pub async fn claim(
     id: u32,
     mission: &str,
     rivals: Rivals,
+    timeouts: &Timeouts,
 ) -> Result<Claimed> {
     let since_ns = SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -71,20 +72,7 @@ pub async fn claim(
             .map_err(|e| failed!("liveliness token: {e}"))
     };
     let token = declare(mine.chunk()).await?;
-    let waits = ClaimWaits {
-        settle: if rivals == Rivals::Possible {
-            CLAIM_SETTLE
-        } else {
-            Duration::ZERO
-        },
-        contemporaries: if rivals == Rivals::None {
-            Duration::ZERO
-        } else {
-            CLAIM_SETTLE
-        },
-        linger: CLAIM_LINGER,
-        look_again: CLAIM_LOOK_AGAIN,
-    };
+    let waits = timeouts.claim(rivals);
     let monotonic = Monotonic::start();
     let mut claiming = Claiming::new(mine.clone(), rivals == Rivals::OneRouter, waits, monotonic.now());
     let mut looking = Looking {
@@ -92,6 +80,7 @@ pub async fn claim(
         keys,
         role,
         id,
+        query: timeouts.claim_query,
     };
     match drive(&mut claiming, &mut looking, monotonic).await? {
         Settled::Holds => Ok(Claimed {
@@ -117,6 +106,7 @@ struct Looking<'a> {
     keys: &'a Keys,
     role: Role,
     id: u32,
+    query: Duration,
 }
 
 impl Wiring<Claiming> for Looking<'_> {
@@ -130,24 +120,27 @@ impl Wiring<Claiming> for Looking<'_> {
     /// liveliness subscriber, which would make the look unreliable: a liveliness query from a
     /// session with a liveliness subscriber of its own at times answers nothing (Zenoh 1.10).
     async fn perform(&mut self, Look: Look, _: &Claiming) -> Result<Option<Seen>> {
-        Ok(Some(Seen(claims(self.session, self.keys, self.role, self.id).await?)))
+        Ok(Some(Seen(
+            claims(self.session, self.keys, self.role, self.id, self.query).await?,
+        )))
     }
 }
 
 /// Who holds `role` `id`: the claimant that marked its claim held, or else the earliest of
 /// the claims the router knows, if any.
-pub async fn holder(session: &Session, keys: &Keys, role: Role, id: u32) -> Result<Option<Claim>> {
-    let seen = claims(session, keys, role, id).await?;
+pub async fn holder(session: &Session, keys: &Keys, role: Role, id: u32, within: Duration) -> Result<Option<Claim>> {
+    let seen = claims(session, keys, role, id, within).await?;
     let marked = seen.iter().filter(|(_, held)| *held).map(|(c, _)| c).min();
     Ok(marked.or(seen.iter().map(|(c, _)| c).min()).cloned())
 }
 
 /// The claims of `role` `id` the router knows, each with whether it is a holder's mark.
-async fn claims(session: &Session, keys: &Keys, role: Role, id: u32) -> Result<Vec<(Claim, bool)>> {
+/// A look waits at most `within` for the router's answer.
+async fn claims(session: &Session, keys: &Keys, role: Role, id: u32, within: Duration) -> Result<Vec<(Claim, bool)>> {
     let replies = session
         .liveliness()
         .get(keys.claims(role, id))
-        .timeout(CLAIM_QUERY)
+        .timeout(within)
         .await
         .map_err(|e| failed!("cannot look at the claims of the {role}: {e}"))?;
     let mut seen = Vec::new();

@@ -14,7 +14,7 @@ use crate::codec::{decode, encode};
 use crate::error::{failed, Result};
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
-use crate::waits;
+use crate::waits::Timeouts;
 
 /// The world's side of the clock: a queryable that answers once the run has started, with the
 /// tick under way, and the announcement that it has.
@@ -92,11 +92,16 @@ impl ClockBell {
 }
 
 /// Asks the world for its clock once: `None` if the run has not started (or no world answers).
-pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> Result<Option<Clock>> {
+pub async fn ask_clock(
+    session: &Session,
+    keys: &Keys,
+    rejected: &Rejected,
+    timeouts: &Timeouts,
+) -> Result<Option<Clock>> {
     let key = keys.clock();
     // Only the world that holds its role answers for the fleet's clock: another process that
     // answers is counted, and not listened to.
-    let Some(world) = crate::claim::holder(session, keys, Role::World, 0).await? else {
+    let Some(world) = crate::claim::holder(session, keys, Role::World, 0, timeouts.claim_query).await? else {
         return Ok(None);
     };
     // Every answer, not one per key: the world's must not be consolidated away behind another's.
@@ -104,7 +109,7 @@ pub async fn ask_clock(session: &Session, keys: &Keys, rejected: &Rejected) -> R
         .get(key.clone())
         .target(QueryTarget::All)
         .consolidation(ConsolidationMode::None)
-        .timeout(waits::CLOCK_QUERY)
+        .timeout(timeouts.clock_query)
         .await
         .map_err(|e| failed!("cannot query {key}: {e}"))?;
     let mut found = None;
@@ -140,10 +145,16 @@ impl ClockAnswer {
 /// on a task of its own: a query dropped halfway (by a `select!` that went another way) would
 /// leave its reply a closed channel. Rings while a question is out are kept as one, which is
 /// asked next. Dropping the answer stops the asking.
-pub fn await_clock(session: &Session, keys: &Keys, rejected: &Rejected, bell: ClockBell) -> ClockAnswer {
+pub fn await_clock(
+    session: &Session,
+    keys: &Keys,
+    rejected: &Rejected,
+    bell: ClockBell,
+    timeouts: &Timeouts,
+) -> ClockAnswer {
     let (mut tx, rx) = oneshot::channel();
     let rung = bell.rung.clone();
-    let (session, keys, rejected) = (session.clone(), keys.clone(), rejected.clone());
+    let (session, keys, rejected, timeouts) = (session.clone(), keys.clone(), rejected.clone(), *timeouts);
     tokio::spawn(async move {
         // Taken apart here, so that the subscriber is the task's: a block that used `bell.rung`
         // alone would capture that field alone, and the subscriber would be dropped (undeclared)
@@ -153,7 +164,7 @@ pub fn await_clock(session: &Session, keys: &Keys, rejected: &Rejected, bell: Cl
             _subscriber: _listening,
         } = bell;
         let answer = loop {
-            match ask_clock(&session, &keys, &rejected).await {
+            match ask_clock(&session, &keys, &rejected, &timeouts).await {
                 Ok(None) => tokio::select! {
                     () = bell.notified() => {}
                     () = tx.closed() => return,
@@ -205,9 +216,17 @@ mod tests {
         let session = lone_session().await;
         let keys = Keys::new("bell");
         let server = ClockServer::declare(&session, &keys).await.unwrap();
-        let _world = claim(&session, &keys, Role::World, 0, "bell", Rivals::None)
-            .await
-            .unwrap();
+        let _world = claim(
+            &session,
+            &keys,
+            Role::World,
+            0,
+            "bell",
+            Rivals::None,
+            &Timeouts::default(),
+        )
+        .await
+        .unwrap();
         let questions = Arc::new(AtomicU32::new(0));
         let count = questions.clone();
         let _counter = session
@@ -229,7 +248,7 @@ mod tests {
             .unwrap();
         let rejected = Rejected::default();
         let bell = ClockBell::declare(&session, &keys).await.unwrap();
-        let mut answer = Some(await_clock(&session, &keys, &rejected, bell));
+        let mut answer = Some(await_clock(&session, &keys, &rejected, bell, &Timeouts::default()));
         // Then quiet for half a second: the asking of old would have asked ten times more.
         let quiet = Duration::from_millis(500);
         until(|| asked() == 1, "asked at once").await;

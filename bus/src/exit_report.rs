@@ -8,6 +8,7 @@ use zenoh::Session;
 use crate::error::Result;
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
+use crate::waits::Timeouts;
 
 /// What a realtime role adds to its exit report: how it kept its period, the γ it published
 /// (an agent), the vehicles it left to others (the world).
@@ -25,11 +26,11 @@ pub struct RealtimeReport {
 pub async fn report(
     session: &Session,
     keys: &Keys,
-    role: Role,
-    id: u32,
+    (role, id): (Role, u32),
     rejected: &Rejected,
     timing: &Timing,
     realtime: Option<RealtimeReport>,
+    timeouts: &Timeouts,
 ) -> Result<()> {
     rejected.flush();
     let base = Report {
@@ -50,6 +51,6 @@ pub async fn report(
         None => base,
     };
     let what = format!("the exit report of {role} {id}");
-    crate::handover::hand_over(session, keys, keys.report(role, id), &report, &what).await?;
+    crate::handover::hand_over(session, keys, keys.report(role, id), &report, &what, timeouts).await?;
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! Last words that must reach the recorders (an exit report, the end, a loss) travel as a query
 //! to every recorder's queryable, and each recorder's reply is its acknowledgement: the sender
 //! knows who has them, instead of lingering a while and hoping. A recorder that did not answer
-//! is asked again, up to `HANDOVER_ATTEMPTS` times (`tcpf_core::fleet::handover`); what still
+//! is asked again, up to `Timeouts::handover_attempts` times (`tcpf_core::fleet::handover`); what still
 //! went unacknowledged is logged by the sender, and the recorder's summary names what never came
 //! (an unreported role, a missed end).
 //!
@@ -26,17 +26,18 @@ use crate::keys::{Keys, Role};
 use crate::presence::present;
 use crate::rejected::Rejected;
 use crate::subscribe::{enqueue, Received};
-use crate::waits::{HANDOVER_ATTEMPT, HANDOVER_ATTEMPTS};
+use crate::waits::Timeouts;
 
 /// Hands `message` over on `key` to every recorder of the mission and waits for their
-/// acknowledgements (`tcpf_core::fleet::handover`); `what` names it in the warning if some
-/// never came.
+/// acknowledgements (`tcpf_core::fleet::handover`), as often and as long as `timeouts` say;
+/// `what` names it in the warning if some never came.
 pub async fn hand_over<T: Serialize>(
     session: &Session,
     keys: &Keys,
     key: String,
     message: &T,
     what: &str,
+    timeouts: &Timeouts,
 ) -> Result<Handed> {
     let mut handing = Handing {
         session,
@@ -44,8 +45,10 @@ pub async fn hand_over<T: Serialize>(
         key,
         payload: encode(message),
         what,
+        timeouts,
     };
-    let handed = drive(&mut Handover::new(HANDOVER_ATTEMPTS), &mut handing, Monotonic::start()).await?;
+    let mut handover = Handover::new(timeouts.handover_attempts);
+    let handed = drive(&mut handover, &mut handing, Monotonic::start()).await?;
     if handed.unacknowledged() > 0 {
         tracing::warn!(
             "{what}: {} of {} recorder(s) did not acknowledge it after {} attempts",
@@ -64,6 +67,7 @@ struct Handing<'a> {
     key: String,
     payload: Vec<u8>,
     what: &'a str,
+    timeouts: &'a Timeouts,
 }
 
 impl Wiring<Handover<String>> for Handing<'_> {
@@ -76,7 +80,7 @@ impl Wiring<Handover<String>> for Handing<'_> {
     async fn perform(&mut self, step: Step, _: &Handover<String>) -> Result<Option<Done<String>>> {
         Ok(Some(match step {
             Step::Count => Done::Counted(
-                present(self.session, self.keys)
+                present(self.session, self.keys, self.timeouts.presence_query)
                     .await?
                     .iter()
                     .filter(|(role, _)| *role == Role::Record)
@@ -89,7 +93,7 @@ impl Wiring<Handover<String>> for Handing<'_> {
                     .payload(self.payload.clone())
                     .target(QueryTarget::All)
                     .consolidation(ConsolidationMode::None)
-                    .timeout(HANDOVER_ATTEMPT)
+                    .timeout(self.timeouts.handover_attempt)
                     .await
                     .map_err(|e| failed!("cannot hand over {}: {e}", self.what))?;
                 let mut repliers = Vec::new();
@@ -219,7 +223,9 @@ mod tests {
         };
         let sender = {
             let (session, keys, end) = (session.clone(), keys.clone(), end.clone());
-            tokio::spawn(async move { hand_over(&session, &keys, keys.end(), &end, "the end").await })
+            tokio::spawn(
+                async move { hand_over(&session, &keys, keys.end(), &end, "the end", &Timeouts::default()).await },
+            )
         };
         let (first, held) = rx.recv().await.unwrap().message;
         assert_eq!(first, end);

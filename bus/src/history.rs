@@ -1,6 +1,8 @@
 //! The realtime world's history on the bus: the world serves `history` (what it answers is
 //! `RealtimeWorld::answer`'s), and a recorder asks it for the states its `Sampler` never got.
 
+use std::time::Duration;
+
 use tcpf_core::msg::{Fetch, State};
 use tokio::sync::mpsc;
 use zenoh::query::{ConsolidationMode, Query, Queryable};
@@ -11,7 +13,6 @@ use crate::error::{failed, Result};
 use crate::keys::Keys;
 use crate::rejected::Rejected;
 use crate::subscribe::{enqueue, Received};
-use crate::waits;
 
 /// Fetches the world may hold before the next are dropped (and counted): a recorder asks once
 /// at a time.
@@ -77,17 +78,26 @@ pub fn answer<'a>(asked: &Asked, states: impl Iterator<Item = &'a State>, unkept
     Ok(())
 }
 
-/// Asks the world's history for `fetch` on a task of its own: each state it gives goes to `tx`
-/// as `state(..)`, then `done(unkept)` with the vehicles it keeps none of (also when it did not
-/// answer in time, or at all, with none).
+/// What the world's history gives a recorder that asked it.
+#[derive(Debug)]
+pub enum Answer {
+    /// A state it kept.
+    State(State),
+    /// It has answered: with the vehicles it keeps none of (also when it did not answer within
+    /// the wait, or at all, with none).
+    Done(Vec<u32>),
+}
+
+/// Asks the world's history for `fetch` on a task of its own, waiting at most `within`: each
+/// answer goes to `tx` as `answer(..)` makes it, the last one `Answer::Done`.
 pub fn ask<M: Send + 'static>(
     session: &Session,
     keys: &Keys,
     fetch: Fetch,
+    within: Duration,
     rejected: &Rejected,
     tx: mpsc::Sender<Received<M>>,
-    state: fn(State) -> M,
-    done: fn(Vec<u32>) -> M,
+    answer: fn(Answer) -> M,
 ) {
     let (session, key, rejected) = (session.clone(), keys.history(), rejected.clone());
     tokio::spawn(async move {
@@ -98,14 +108,14 @@ pub fn ask<M: Send + 'static>(
             .get(key.clone())
             .payload(encode(&fetch))
             .consolidation(ConsolidationMode::None)
-            .timeout(waits::HISTORY_FETCH);
+            .timeout(within);
         match get.await {
             Ok(replies) => {
                 while let Ok(reply) = replies.recv_async().await {
                     match reply.result() {
                         Ok(sample) => match decode::<State>(&sample.payload().to_bytes()) {
                             Ok(s) => {
-                                enqueue(&tx, &key, state(s), &rejected);
+                                enqueue(&tx, &key, answer(Answer::State(s)), &rejected);
                             }
                             Err(e) => rejected.invalid(e, &key),
                         },
@@ -122,7 +132,7 @@ pub fn ask<M: Send + 'static>(
         let _ = tx
             .send(Received {
                 key,
-                message: done(unkept),
+                message: answer(Answer::Done(unkept)),
             })
             .await;
     });

@@ -1,7 +1,7 @@
 //! A vehicle's generalized path, asked of the planner.
 
 use std::collections::BTreeMap;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::msg::PathMsg;
@@ -13,17 +13,17 @@ use crate::codec::decode;
 use crate::error::{failed, Result};
 use crate::keys::{Keys, Role};
 use crate::rejected::Rejected;
-use crate::waits;
+use crate::waits::Timeouts;
 
-/// Asks the planner for the paths of `ids`, retrying until `timeout`.
+/// Asks the planner for the paths of `ids`, retrying until the startup timeout.
 pub async fn fetch_paths(
     session: &Session,
     keys: &Keys,
     ids: &[u32],
-    timeout: Duration,
+    timeouts: &Timeouts,
     rejected: &Rejected,
 ) -> Result<Vec<(u32, GeneralizedPath)>> {
-    let deadline = Instant::now() + timeout;
+    let deadline = Instant::now() + timeouts.startup;
     let selector = if ids.len() == 1 {
         keys.plan(ids[0])
     } else {
@@ -49,7 +49,7 @@ pub async fn fetch_paths(
     loop {
         let replies = session
             .get(selector.clone())
-            .timeout(waits::PATH_QUERY)
+            .timeout(timeouts.path_query)
             .await
             .map_err(|e| failed!("cannot query {selector}: {e}"))?;
         while let Ok(reply) = replies.recv_async().await {
@@ -73,7 +73,7 @@ pub async fn fetch_paths(
             let planner = session
                 .liveliness()
                 .get(keys.alive(Role::Planner, 0))
-                .timeout(waits::PLANNER_QUERY)
+                .timeout(timeouts.planner_query)
                 .await
                 .map_err(|e| failed!("cannot query liveliness: {e}"))?;
             if planner.recv_async().await.is_err() {
@@ -83,9 +83,9 @@ pub async fn fetch_paths(
             }
             return Err(failed!(
                 "no path from the planner for vehicle(s) {missing:?} within {:.0} s (does the router's access control let this identity ask for it?)",
-                timeout.as_secs_f64()
+                timeouts.startup.as_secs_f64()
             ));
         }
-        let _ = tokio::time::timeout(waits::PATH_RETRY, appeared.recv()).await;
+        let _ = tokio::time::timeout(timeouts.path_retry, appeared.recv()).await;
     }
 }

@@ -16,7 +16,6 @@ use crate::driver::Wiring;
 use crate::error::{failed, Result};
 use crate::keys::{Keys, Role};
 use crate::signals::Shutdown;
-use crate::waits;
 
 /// A liveliness change of the mission: someone came or went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,12 +25,13 @@ pub struct Presence {
     pub alive: bool,
 }
 
-/// Who of the mission is present now, by their liveliness tokens.
-pub async fn present(session: &Session, keys: &Keys) -> Result<Vec<(Role, u32)>> {
+/// Who of the mission is present now, by their liveliness tokens (the router's answer waited
+/// for at most `within`).
+pub async fn present(session: &Session, keys: &Keys, within: Duration) -> Result<Vec<(Role, u32)>> {
     let replies = session
         .liveliness()
         .get(keys.alive_all())
-        .timeout(waits::PRESENCE_QUERY)
+        .timeout(within)
         .await
         .map_err(|e| failed!("cannot ask who is present: {e}"))?;
     let mut present = Vec::new();

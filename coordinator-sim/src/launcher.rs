@@ -17,7 +17,7 @@ use tcpf_bus::error::Error as BusError;
 use tcpf_bus::keys::Role;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
-use tcpf_bus::waits;
+use tcpf_bus::waits::Timeouts as RoleTimeouts;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::Report;
@@ -320,14 +320,13 @@ pub struct RunFailed {
 pub struct Options {
     /// Serve the run to Foxglove live.
     pub live: Option<SocketAddr>,
-    /// How long the world waits for an agent's command of a tick.
-    pub command_timeout: Duration,
+    /// The roles' waits: the world is given its wait for every agent and recorder (`startup`)
+    /// and for an agent's command of a tick (`command`).
+    pub roles: RoleTimeouts,
     /// Start an agent that died again, so that it rejoins.
     pub restart: bool,
     /// Recorders from elsewhere the run waits for, besides its own.
     pub recorders: usize,
-    /// How long the world waits for every agent and recorder.
-    pub startup_timeout: Duration,
     /// The ROS 2 domain the world speaks rmw_zenoh on, if any.
     pub ros2: Option<u32>,
     /// A `tcp/` endpoint where the world also listens with no credential, for ROS 2 nodes that
@@ -349,10 +348,9 @@ impl Default for Options {
     fn default() -> Options {
         Options {
             live: None,
-            command_timeout: waits::COMMAND,
+            roles: RoleTimeouts::default(),
             restart: false,
             recorders: 0,
-            startup_timeout: waits::STARTUP,
             ros2: None,
             ros2_open: None,
             rivals: Rivals::None,
@@ -363,12 +361,12 @@ impl Default for Options {
 }
 
 /// The supervisor's view of this run: the world's waits, and the wall period of its clock.
-fn supervision(mission: &Mission, command_timeout: Duration, restart: bool, startup_timeout: Duration) -> Supervision {
+fn supervision(mission: &Mission, roles: &RoleTimeouts, restart: bool) -> Supervision {
     Supervision {
         restart,
         lockstep: mission.mission.clock == ClockKind::Lockstep,
-        startup_timeout_s: startup_timeout.as_secs_f64(),
-        command_timeout_s: command_timeout.as_secs_f64(),
+        startup_timeout_s: roles.startup.as_secs_f64(),
+        command_timeout_s: roles.command.as_secs_f64(),
         wall_period_s: mission.mission.control_period / mission.mission.time_scale,
         timeouts: Timeouts::default(),
     }
@@ -494,10 +492,9 @@ fn joining(endpoint: &str, dir: &Path, ros2: Option<&Ros2Config>, open: Option<&
 pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, options: Options) -> Result<Summary> {
     let Options {
         live,
-        command_timeout,
+        roles,
         restart,
         recorders,
-        startup_timeout,
         ros2,
         ros2_open,
         rivals,
@@ -540,9 +537,9 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         "--recorders".to_string(),
         (1 + recorders).to_string(),
         "--command-timeout".to_string(),
-        command_timeout.as_secs_f64().to_string(),
+        roles.command.as_secs_f64().to_string(),
         "--startup-timeout".to_string(),
-        startup_timeout.as_secs_f64().to_string(),
+        roles.startup.as_secs_f64().to_string(),
     ]);
     if restart {
         let rejoin = Timeouts::default().rejoin_s;
@@ -574,7 +571,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         links,
         &mut children[0],
         dir,
-        startup_timeout,
+        roles.startup,
         &mut shutdown,
     )
     .await
@@ -593,7 +590,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
         if recorders > 0 {
             eprintln!(
                 "waiting up to {} s for {recorders} more recorder(s) before the run starts: join with `tcpf record {} -c {} --out <dir>`, or your own tool with that zenoh.json5",
-                startup_timeout.as_secs_f64(),
+                roles.startup.as_secs_f64(),
                 dir.path.join("mission.toml").display(),
                 configs.of(Identity::Recorder).display()
             );
@@ -603,6 +600,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
             mission,
             plan.t_f,
             dir.telemetry(mission, plan, Mode::Processes, live, graph.as_ref())?,
+            &roles,
         )
         .await
     };
@@ -632,7 +630,7 @@ pub async fn run(mission: &Mission, plan: &Plan, dir: &RunDir, exe: &Path, optio
     let started = if spawned.is_ok() { Instant::now() } else { begun };
     let clock = Monotonic::start();
     let mut supervisor = Supervisor::new(
-        supervision(mission, command_timeout, restart, startup_timeout),
+        supervision(mission, &roles, restart),
         children.iter().map(Process::child),
         clock.now(),
     );
@@ -832,9 +830,15 @@ mod tests {
 
     #[test]
     fn a_run_stalls_only_after_what_the_world_waits_for_on_purpose() {
-        let stall = |mission: &Mission, command| supervision(mission, command, false, waits::STARTUP).stall_limit_s();
+        let stall = |mission: &Mission, command| {
+            let roles = RoleTimeouts {
+                command,
+                ..RoleTimeouts::default()
+            };
+            supervision(mission, &roles, false).stall_limit_s()
+        };
         let b = mission(&[]);
-        assert_eq!(stall(&b, waits::COMMAND), 60.0);
+        assert_eq!(stall(&b, RoleTimeouts::default().command), 60.0);
         assert_eq!(stall(&b, Duration::from_secs(120)), 130.0);
         // A wall period of 50 s (a control period of 0.05 s at the slowest time scale): a tick
         // every 50 s is no stall.
@@ -843,7 +847,7 @@ mod tests {
             "mission.time_scale=0.001",
             "mission.control_period=0.05",
         ]);
-        assert_eq!(stall(&slow, waits::COMMAND), 110.0);
+        assert_eq!(stall(&slow, RoleTimeouts::default().command), 110.0);
     }
 
     #[test]

@@ -13,7 +13,7 @@ use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{subscribe, Received};
-use tcpf_bus::waits;
+use tcpf_bus::waits::Timeouts;
 use tcpf_core::mission::Mission;
 use tcpf_core::model::planner::Plan;
 use tcpf_core::msg::{End, PathMsg, PROTOCOL_VERSION};
@@ -30,12 +30,10 @@ use crate::error::{failed, Result};
 pub use tcpf_core::roles::planner_node::Exit;
 
 /// Serves `plan` until the world goes away (having announced the end, or not), or a signal.
-pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Exit> {
+pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs, timeouts: &Timeouts) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    // The planner has no --startup-timeout: it waits for its router as long as the other roles
-    // do by default.
-    let session = zenoh.open_unless(&mut shutdown, waits::STARTUP).await?;
+    let session = zenoh.open_unless(&mut shutdown, timeouts.startup).await?;
     let rejected = Rejected::default();
     let paths: Vec<(KeyExpr<'static>, Vec<u8>)> = plan
         .vehicles
@@ -83,10 +81,19 @@ pub async fn run(mission: &Mission, plan: &Plan, zenoh: &ZenohArgs) -> Result<Ex
         ends,
         shutdown,
     };
-    let mut machine = PlannerNode::new(waits::END_AFTER_THE_WORLD);
+    let mut machine = PlannerNode::new(timeouts.end_after_the_world);
     let Ok(exit) = drive(&mut machine, &mut wiring, Monotonic::start()).await;
     tracing::info!("planner: {exit}");
-    report(&session, &keys, Role::Planner, 0, &rejected, &Timing::default(), None).await?;
+    report(
+        &session,
+        &keys,
+        (Role::Planner, 0),
+        &rejected,
+        &Timing::default(),
+        None,
+        timeouts,
+    )
+    .await?;
     let _ = token.undeclare().await;
     let _ = session.close().await;
     Ok(exit)

@@ -18,6 +18,7 @@ use tcpf_bus::rejected::Rejected;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{subscribe_as, Received};
+use tcpf_bus::waits::Timeouts;
 use tcpf_core::mission::{ClockKind, Mission, Ros2Config};
 use tcpf_core::model::path::GeneralizedPath;
 use tcpf_core::model::planner::Plan;
@@ -82,6 +83,8 @@ struct Outlets {
     session: Session,
     keys: Keys,
     rejected: Rejected,
+    /// How long the world's history is waited for.
+    history_fetch: Duration,
     /// Where the world's history answers, into the inbox.
     answers: Sender<Received<Input<Ack>>>,
     /// The first write that failed: the rest are not tried.
@@ -106,10 +109,10 @@ impl Io<Ack> for Outlets {
             &self.session,
             &self.keys,
             fetch,
+            self.history_fetch,
             &self.rejected,
             self.answers.clone(),
-            Input::History,
-            Input::Fetched,
+            history_answer,
         );
     }
 
@@ -190,7 +193,13 @@ fn from_its_sender(message: &Input<Ack>, key: &str, keys: &Keys, rejected: &Reje
 impl Recording {
     /// Subscribes to the mission. The world waits for the recorder's token: declare it with
     /// `declare` once the recorder is sure to hear everyone.
-    pub async fn start(session: &Session, mission: &Mission, t_f: f64, telemetry: Telemetry) -> Result<Recording> {
+    pub async fn start(
+        session: &Session,
+        mission: &Mission,
+        t_f: f64,
+        telemetry: Telemetry,
+        timeouts: &Timeouts,
+    ) -> Result<Recording> {
         let keys = Keys::new(&mission.mission.name);
         let rejected = Rejected::default();
         let (tx, inbox) = mpsc::channel(INBOX);
@@ -219,7 +228,13 @@ impl Recording {
         let monotonic = Monotonic::start();
         // Before the recorder's token, which the world waits for: its announcement that it has
         // started cannot pass by unheard.
-        let clock = await_clock(session, &keys, &rejected, ClockBell::declare(session, &keys).await?);
+        let clock = await_clock(
+            session,
+            &keys,
+            &rejected,
+            ClockBell::declare(session, &keys).await?,
+            timeouts,
+        );
         Ok(Recording {
             rejected: rejected.clone(),
             node: RecorderNode::new(mission, t_f, monotonic.now()),
@@ -230,6 +245,7 @@ impl Recording {
                 session: session.clone(),
                 keys,
                 rejected,
+                history_fetch: timeouts.history_fetch,
                 answers: tx,
                 failure: Ok(()),
                 clock_due: false,
@@ -422,6 +438,14 @@ impl Recording {
 }
 
 /// A loss as the world announces it, or hands it over.
+/// The world's history as the recorder's node takes it.
+fn history_answer(answer: history::Answer) -> Input<Ack> {
+    match answer {
+        history::Answer::State(state) => Input::History(state),
+        history::Answer::Done(unkept) => Input::Fetched(unkept),
+    }
+}
+
 fn loss(loss: Loss) -> Input<Ack> {
     Input::Loss(loss.into())
 }
@@ -429,7 +453,8 @@ fn loss(loss: Loss) -> Input<Ack> {
 /// How `tcpf record` records: `live` serves it to Foxglove, `ros2` to ROS 2 tools.
 pub struct RecordOptions {
     pub live: Option<SocketAddr>,
-    pub startup_timeout: Duration,
+    /// Its waits: for the world (`startup`), its clock, its history, who is present.
+    pub timeouts: Timeouts,
     pub ros2: Option<Ros2Config>,
 }
 
@@ -442,11 +467,8 @@ pub async fn record(
     zenoh: &ZenohArgs,
     options: RecordOptions,
 ) -> Result<Summary> {
-    let RecordOptions {
-        live,
-        startup_timeout,
-        ros2,
-    } = options;
+    let RecordOptions { live, timeouts, ros2 } = options;
+    let startup_timeout = timeouts.startup;
     let mut shutdown = Shutdown::new()?;
     dir.write_mission(mission, tcpf_core::outputs::summary::Mode::Processes)?;
     dir.write_plan(plan)?;
@@ -466,6 +488,7 @@ pub async fn record(
             live,
             ros2.as_ref().or(mission.ros2.as_ref()),
         )?,
+        &timeouts,
     )
     .await
     .map_err(unrecorded)?;
@@ -484,6 +507,7 @@ pub async fn record(
         recording: &mut recording,
         session: &session,
         keys: &keys,
+        presence_query: timeouts.presence_query,
         presence,
         shutdown,
         progress: Ticks::new(mission),
@@ -541,6 +565,8 @@ struct Recorder<'a> {
     recording: &'a mut Recording,
     session: &'a Session,
     keys: &'a Keys,
+    /// How long the question of who is present waits for the router.
+    presence_query: Duration,
     presence: UnboundedReceiver<Presence>,
     shutdown: Shutdown,
     progress: Ticks,
@@ -591,9 +617,9 @@ impl Wiring<RecorderWatch> for Recorder<'_> {
     async fn perform(&mut self, output: WatchOutput, _: &RecorderWatch) -> Result<Option<WatchInput>, Infallible> {
         match output {
             WatchOutput::Ask => {
-                let (session, keys) = (self.session.clone(), self.keys.clone());
+                let (session, keys, within) = (self.session.clone(), self.keys.clone(), self.presence_query);
                 self.asking = Some(tokio::spawn(async move {
-                    match present(&session, &keys).await {
+                    match present(&session, &keys, within).await {
                         Ok(present) => Some(present.iter().any(|(role, _)| *role == Role::World)),
                         Err(e) => {
                             tracing::warn!("recorder: {e}");

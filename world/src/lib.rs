@@ -7,7 +7,6 @@
 use std::collections::BTreeMap;
 use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::Duration;
 
 use tcpf_bus::claim::{claim, Rivals};
 use tcpf_bus::clock::{metronome, unix_now, Beat, FleetClock, Monotonic};
@@ -26,7 +25,7 @@ use tcpf_bus::ros2::PlayedOdometry;
 use tcpf_bus::session::ZenohArgs;
 use tcpf_bus::signals::Shutdown;
 use tcpf_bus::subscribe::{queue, subscribe_as, subscribe_origin_as, subscribe_with, Received};
-use tcpf_bus::waits;
+use tcpf_bus::waits::Timeouts;
 use tcpf_core::fleet::membership::{Arrival, Decision, Gathered, Gathering, Member, Missing};
 use tcpf_core::mission::{ClockKind, Mission};
 use tcpf_core::model::path::GeneralizedPath;
@@ -66,15 +65,11 @@ const REALTIME_LEAD_S: f64 = 0.5;
 
 #[derive(Debug, Clone)]
 pub struct Options {
-    /// How long to wait for the planner and every agent (and recorder) at start.
-    pub startup_timeout: Duration,
+    /// Its waits: for the planner and every agent (and recorder) at start (`startup`), a live
+    /// agent's command (`command`), a gone agent coming back (`rejoin`), the hand-overs.
+    pub timeouts: Timeouts,
     /// Recorders to wait for before the first tick, so that they miss nothing.
     pub recorders: usize,
-    /// How long a tick waits for a live agent's command before that vehicle is lost (silent).
-    pub command_timeout: Duration,
-    /// Lockstep: how long a tick waits for a gone agent to come back before its vehicle is lost
-    /// (none: lost at once).
-    pub rejoin_timeout: Option<Duration>,
     /// Realtime: the vehicles this world simulates; the others are played by other processes.
     pub vehicles: Option<Vec<u32>>,
     /// The ROS 2 domain to speak rmw_zenoh on (`--ros2`), over the mission's `[ros2]`.
@@ -113,6 +108,7 @@ struct Shell<'a> {
     session: Session,
     shutdown: Shutdown,
     rejected: Rejected,
+    timeouts: Timeouts,
     presence: &'a mut Followed,
     /// One per simulated vehicle, in the mission's order.
     outlets: Arc<Vec<Outlet>>,
@@ -186,8 +182,8 @@ struct Stepper {
     /// The world's monotonic clock, which its machine's deadlines count in.
     monotonic: Monotonic,
     rejected: Rejected,
-    /// For the log of a vehicle lost for silence.
-    command_timeout: Duration,
+    /// For the hand-overs of losses, and the log of a vehicle lost for silence.
+    timeouts: Timeouts,
     /// The end, once published, or a publication that failed: the task stops on either.
     ends: UnboundedSender<Result<End, BusError>>,
     /// The losses being handed over to the recorders.
@@ -240,10 +236,10 @@ impl Stepper {
         if let Err(e) = say_now(&self.session, self.keys.lost(lost.id), &loss) {
             let _ = self.ends.send(Err(e));
         }
-        let (session, keys) = (self.session.clone(), self.keys.clone());
+        let (session, keys, timeouts) = (self.session.clone(), self.keys.clone(), self.timeouts);
         let handing = tokio::spawn(async move {
             let what = format!("world: the loss of vehicle {}", lost.id);
-            if let Err(e) = hand_over(&session, &keys, keys.lost(lost.id), &loss, &what).await {
+            if let Err(e) = hand_over(&session, &keys, keys.lost(lost.id), &loss, &what, &timeouts).await {
                 tracing::warn!("{e}");
             }
         });
@@ -321,7 +317,7 @@ impl Io for Doing<'_> {
                 ..
             } => tracing::warn!(
                 "world: agent {id} sent no command of t = {t:.2} s within {:?}; its vehicle is lost and drifts",
-                self.stepper.command_timeout
+                self.stepper.timeouts.command
             ),
             Decision::Lose {
                 id,
@@ -356,12 +352,21 @@ impl Io for Doing<'_> {
 pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Result<Exit> {
     let keys = Keys::new(&mission.mission.name);
     let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown, options.startup_timeout).await?;
+    let session = zenoh.open_unless(&mut shutdown, options.timeouts.startup).await?;
     let rejected = Rejected::default();
     // Before this session follows liveliness: a liveliness query from a session with a liveliness
     // subscriber of its own at times answers nothing (Zenoh 1.10), and a second world then found
     // no world running and drove the fleet.
-    let claimed = claim(&session, &keys, Role::World, 0, &mission.mission.name, options.rivals).await?;
+    let claimed = claim(
+        &session,
+        &keys,
+        Role::World,
+        0,
+        &mission.mission.name,
+        options.rivals,
+        &options.timeouts,
+    )
+    .await?;
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once its roles have had theirs acknowledged, and left.
     let routes = zenoh.routes()?;
@@ -372,8 +377,8 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     tracing::info!("world: {exit}");
     // The recorders acknowledged the end; it reaches the agents before the world leaves.
     match (routes, exit) {
-        (true, _) => presence.linger(&[Role::Agent], waits::HANDOVER).await,
-        (false, Exit::Ended { .. }) => presence.linger(&[Role::Agent], waits::LINGER).await,
+        (true, _) => presence.linger(&[Role::Agent], options.timeouts.handover()).await,
+        (false, Exit::Ended { .. }) => presence.linger(&[Role::Agent], options.timeouts.linger).await,
         (false, Exit::Interrupted) => {}
     }
     if let Some(token) = token {
@@ -382,7 +387,7 @@ pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Res
     let _ = claimed.undeclare().await;
     // The planner reports once the world's token has gone.
     if routes {
-        presence.linger(&[Role::Planner], waits::HANDOVER).await;
+        presence.linger(&[Role::Planner], options.timeouts.handover()).await;
     }
     let _ = session.close().await;
     Ok(exit)
@@ -411,8 +416,8 @@ async fn serve(
     // One deadline for the plan, the agents and the recorders: whoever waits on the world (its
     // launcher) knows when it will have said who is missing.
     let monotonic = Monotonic::start();
-    let mut gathering = Gathering::new(ids, options.recorders, options.startup_timeout, monotonic.now());
-    let fetched = shutdown.unless(fetch_paths(session, keys, ids, options.startup_timeout, &rejected));
+    let mut gathering = Gathering::new(ids, options.recorders, options.timeouts.startup, monotonic.now());
+    let fetched = shutdown.unless(fetch_paths(session, keys, ids, &options.timeouts, &rejected));
     let Some(paths) = fetched.await else {
         return Ok((Exit::Interrupted, None));
     };
@@ -467,8 +472,8 @@ async fn serve(
             stepped: Mutex::new(Stepped {
                 world: LockstepWorld::new(
                     WorldNode::new(mission, &paths),
-                    options.command_timeout,
-                    options.rejoin_timeout,
+                    options.timeouts.command,
+                    options.timeouts.rejoin,
                     monotonic.now(),
                 ),
                 clock: Clock {
@@ -489,7 +494,7 @@ async fn serve(
             clock: clock.clone(),
             monotonic,
             rejected: rejected.clone(),
-            command_timeout: options.command_timeout,
+            timeouts: options.timeouts,
             ends: ends_tx,
             handovers: Mutex::new(Vec::new()),
         });
@@ -533,6 +538,7 @@ async fn serve(
         session: session.clone(),
         shutdown,
         rejected,
+        timeouts: options.timeouts,
         presence,
         outlets,
         end_out,
@@ -553,11 +559,11 @@ impl Shell<'_> {
         Ok(report(
             &self.session,
             &self.keys,
-            Role::World,
-            0,
+            (Role::World, 0),
             &self.rejected,
             &timing,
             realtime,
+            &self.timeouts,
         )
         .await?)
     }
@@ -605,7 +611,15 @@ impl Shell<'_> {
 
     /// Hands the end over to the recorders: acknowledged, they have every tick before it too.
     async fn hand_over_end(&self, end: &End) -> Result<()> {
-        hand_over(&self.session, &self.keys, self.keys.end(), end, "world: the end").await?;
+        hand_over(
+            &self.session,
+            &self.keys,
+            self.keys.end(),
+            end,
+            "world: the end",
+            &self.timeouts,
+        )
+        .await?;
         Ok(())
     }
 
