@@ -51,13 +51,14 @@ impl Error {
     }
 }
 
-/// A failed run, said as `format!` says it.
+/// A failed run, said as `format!` says it; the crates above the bus say theirs with it too.
+#[macro_export]
 macro_rules! failed {
     ($($words:tt)*) => {
         $crate::error::Error::Failed(format!($($words)*))
     };
 }
-pub(crate) use failed;
+pub use crate::failed;
 
 /// What failed, said after what the role was doing, as anyhow's `context` says it.
 pub trait Context<T> {

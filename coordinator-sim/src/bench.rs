@@ -108,7 +108,7 @@ fn start_pong(exe: &Path, args: &[&str]) -> Result<Child> {
         .stdout(Stdio::null())
         .kill_on_drop(true);
     crate::launcher::dies_with_this_process(&mut pong);
-    pong.spawn().context("cannot start tcpf pong")
+    Ok(pong.spawn().context("cannot start tcpf pong")?)
 }
 
 /// Round-trip times to a `tcpf pong` child on a loopback port, sorted: peer to peer, or with
@@ -553,7 +553,7 @@ pub async fn idle_fleet(exe: &Path, n: usize) -> Result<Footprint> {
                 up.insert(p.id);
             }
             Ok(Some(_)) => {}
-            _ => return Err(failed!("only {} of {n} idle clients came up", up.len())),
+            _ => return Err(failed!("only {} of {n} idle clients came up", up.len()).into()),
         }
     }
     let footprint = read("pong", Readings::once(IDLE_SETTLE, Monotonic::start().now())).await;
@@ -856,7 +856,7 @@ async fn processes(
         }
     }
     let [Some(fleet), Some(ros2), Some(passwords), Some(plain)] = best else {
-        return Err(failed!("a variant of the fleet did not run"));
+        return Err(failed!("a variant of the fleet did not run").into());
     };
     let settled = launcher::Options {
         rivals: Rivals::Possible,

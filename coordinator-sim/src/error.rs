@@ -2,8 +2,6 @@
 //! bus's errors and the report's, a run as processes that failed (its run directory written), a
 //! recording that stopped before its first tick, or the coordinator's own words.
 
-use std::fmt;
-
 use tcpf_bus::error::Kind;
 
 use crate::launcher::RunFailed;
@@ -51,26 +49,6 @@ impl From<std::io::Error> for Error {
     }
 }
 
-/// A failure said as `format!` says it.
-macro_rules! failed {
-    ($($words:tt)*) => {
-        $crate::error::Error::Failed(format!($($words)*))
-    };
-}
-pub(crate) use failed;
-
-/// What failed, said after what was being done, as anyhow's `context` says it.
-pub trait Context<T> {
-    fn context(self, doing: impl fmt::Display) -> Result<T>;
-    fn with_context<D: fmt::Display>(self, doing: impl FnOnce() -> D) -> Result<T>;
-}
-
-impl<T, E: fmt::Display> Context<T> for std::result::Result<T, E> {
-    fn context(self, doing: impl fmt::Display) -> Result<T> {
-        self.map_err(|e| Error::Failed(format!("{doing}: {e}")))
-    }
-
-    fn with_context<D: fmt::Display>(self, doing: impl FnOnce() -> D) -> Result<T> {
-        self.map_err(|e| Error::Failed(format!("{}: {e}", doing())))
-    }
-}
+/// A failure said in words, and what was being done when it failed: the bus's, taken by `?` (or
+/// `Error::from`) as this crate's.
+pub(crate) use tcpf_bus::error::{failed, Context};

@@ -301,7 +301,8 @@ async fn connect(
             return Err(failed!(
                 "the world did not listen within {} s; see logs/world.log",
                 startup.as_secs_f64()
-            ));
+            )
+            .into());
         }
     }
 }

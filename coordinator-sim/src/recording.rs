@@ -271,7 +271,8 @@ impl Recording {
             return Err(failed!(
                 "the fleet's world speaks ROS 2 on domain {} already (its --ros2 or [ros2]): a recorder with --ros2 would publish every topic again; leave --ros2 out",
                 ros2.domain
-            ));
+            )
+            .into());
         }
         let lockstep = mission.mission.clock == ClockKind::Lockstep;
         let links = mission.directed_links();
@@ -331,13 +332,13 @@ impl Recording {
             }
             m = self.inbox.recv(), if self.node.takes_messages() => {
                 let Some(Received { key, message }) = m else {
-                    return Err(failed!("the recorder's subscriptions closed"));
+                    return Err(failed!("the recorder's subscriptions closed").into());
                 };
                 if from_its_sender(&message, &key, &self.outlets.keys, &self.rejected) {
                     match self.node.handle(message, self.monotonic.now(), &mut self.outlets) {
                         Ok(()) => {}
                         Err(Refused::Message(why)) => self.rejected.reject(why, &key),
-                        Err(late @ Refused::CameLate { .. }) => return Err(failed!("recorder: {late}")),
+                        Err(late @ Refused::CameLate { .. }) => return Err(failed!("recorder: {late}").into()),
                     }
                 }
             }

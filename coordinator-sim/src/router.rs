@@ -24,5 +24,5 @@ pub async fn run(zenoh: &ZenohArgs) -> Result<()> {
     tracing::info!("router {} listening on {}", session.zid(), listening.join(", "));
     shutdown.recv().await;
     tracing::info!("router: stopping");
-    session.close().await.map_err(|e| failed!("closing the router: {e}"))
+    Ok(session.close().await.map_err(|e| failed!("closing the router: {e}"))?)
 }

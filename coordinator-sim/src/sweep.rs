@@ -42,7 +42,7 @@ impl Runs {
             .enumerate()
             .map(|(p, mission)| {
                 crate::planning::plan(mission)
-                    .map_err(|e| failed!("{}: infeasible plan: {e}", self.grid.label(p as u64)))
+                    .map_err(|e| Error::from(failed!("{}: infeasible plan: {e}", self.grid.label(p as u64))))
             })
             .collect()
     }
