@@ -8,7 +8,7 @@ use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use tcpf_bus::claim::{claim, Rivals};
+use tcpf_bus::claim::{open_and_claim, Rivals};
 use tcpf_bus::clock::{self, metronome, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::{answered, ask_clock, await_clock, ClockAnswer, ClockBell};
 use tcpf_bus::driver::{drive, Wiring};
@@ -47,8 +47,6 @@ use zenoh::Session;
 /// What an agent fails with: the bus's errors, or its own.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    #[error(transparent)]
-    Bus(#[from] BusError),
     /// `--id` names no vehicle of the mission.
     #[error("the mission has no vehicle with id {0}")]
     NoVehicle(u32),
@@ -61,6 +59,8 @@ pub enum Error {
     /// Zenoh closed the liveliness subscription.
     #[error("liveliness subscription closed")]
     Closed,
+    #[error(transparent)]
+    Bus(#[from] BusError),
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -272,23 +272,15 @@ pub async fn run(mission: &Mission, id: u32, zenoh: &ZenohArgs, options: &Option
         return Err(Error::NoVehicle(id));
     }
     let realtime = mission.mission.clock == ClockKind::Realtime;
-    let keys = Keys::new(&mission.mission.name);
-    let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown, options.timeouts.startup).await?;
-    let rejected = Rejected::default();
-    // Before this session follows liveliness: a liveliness query from a session with a liveliness
-    // subscriber of its own at times answers nothing (Zenoh 1.10), and a second agent of a
-    // running vehicle then found nobody holding its id.
-    let claimed = claim(
-        &session,
-        &keys,
-        Role::Agent,
-        id,
+    let (keys, mut shutdown, session, claimed) = open_and_claim(
+        zenoh,
         &mission.mission.name,
+        (Role::Agent, id),
         options.rivals,
         &options.timeouts,
     )
     .await?;
+    let rejected = Rejected::default();
     let ids = [id];
     let fetched = shutdown.unless(fetch_paths(&session, &keys, &ids, &options.timeouts, &rejected));
     let Some(paths) = fetched.await else {

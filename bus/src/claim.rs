@@ -13,6 +13,8 @@ use crate::clock::Monotonic;
 use crate::driver::{drive, Wiring};
 use crate::error::{failed, AlreadyRunning, Error, Result};
 use crate::keys::{Keys, Role};
+use crate::session::ZenohArgs;
+use crate::signals::Shutdown;
 use crate::waits::Timeouts;
 
 /// Who else may be claiming the role at this moment.
@@ -45,6 +47,25 @@ impl Claimed {
         let _ = self.held.undeclare().await;
         let _ = self.claim.undeclare().await;
     }
+}
+
+/// A role's start: its mission's keys, its signals, its session (opened unless a signal comes
+/// first) and its role claimed at once, before the session follows liveliness: a liveliness
+/// query from a session with a liveliness subscriber of its own at times answers nothing (Zenoh
+/// 1.10), and a second agent of a running vehicle then found nobody holding its id, a second
+/// world no world running.
+pub async fn open_and_claim(
+    zenoh: &ZenohArgs,
+    mission: &str,
+    (role, id): (Role, u32),
+    rivals: Rivals,
+    timeouts: &Timeouts,
+) -> Result<(Keys, Shutdown, Session, Claimed)> {
+    let keys = Keys::new(mission);
+    let mut shutdown = Shutdown::new()?;
+    let session = zenoh.open_unless(&mut shutdown, timeouts.startup).await?;
+    let claimed = claim(&session, &keys, role, id, mission, rivals, timeouts).await?;
+    Ok((keys, shutdown, session, claimed))
 }
 
 /// Claims `role` `id` for this process: what it returns holds it until dropped.

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::convert::Infallible;
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use tcpf_bus::claim::{claim, Rivals};
+use tcpf_bus::claim::{open_and_claim, Rivals};
 use tcpf_bus::clock::{metronome, unix_now, Beat, FleetClock, Monotonic};
 use tcpf_bus::clock_query::ClockServer;
 use tcpf_bus::driver::{drive, Wiring};
@@ -350,23 +350,15 @@ impl Io for Doing<'_> {
 }
 
 pub async fn run(mission: &Mission, zenoh: &ZenohArgs, options: &Options) -> Result<Exit> {
-    let keys = Keys::new(&mission.mission.name);
-    let mut shutdown = Shutdown::new()?;
-    let session = zenoh.open_unless(&mut shutdown, options.timeouts.startup).await?;
-    let rejected = Rejected::default();
-    // Before this session follows liveliness: a liveliness query from a session with a liveliness
-    // subscriber of its own at times answers nothing (Zenoh 1.10), and a second world then found
-    // no world running and drove the fleet.
-    let claimed = claim(
-        &session,
-        &keys,
-        Role::World,
-        0,
+    let (keys, shutdown, session, claimed) = open_and_claim(
+        zenoh,
         &mission.mission.name,
+        (Role::World, 0),
         options.rivals,
         &options.timeouts,
     )
     .await?;
+    let rejected = Rejected::default();
     // A world that routes the fleet (`tcpf run`'s) carries everyone's exit report to the
     // recorders: it leaves only once its roles have had theirs acknowledged, and left.
     let routes = zenoh.routes()?;
