@@ -20,8 +20,9 @@ use crate::waits::Timeouts;
 /// Who else may be claiming the role at this moment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Rivals {
-    /// Started by hand as a peer: another process may claim the role within `Timeouts::claim_settle` of
-    /// this one, and only after that long has every claim reached this one.
+    /// Started by hand as a peer: another process may claim the role within
+    /// `Timeouts::claim_settle` of this one, and only after that long has every claim reached
+    /// this one.
     #[default]
     Possible,
     /// Started by hand as a client of a router, where every claimant of the fleet meets (the
