@@ -5,7 +5,7 @@
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use tcpf_core::fleet::claim::{Claim, Claiming, Look, Seen, Settled};
+use tcpf_core::fleet::claim::{Claim, ClaimWaits, Claiming, Look, Seen, Settled};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::Session;
 
@@ -35,6 +35,26 @@ pub enum Rivals {
     /// the role or the lingering claim of one just gone, so the claims are looked at at once.
     /// Without it every run's first tick waited 1.5 s.
     None,
+}
+
+impl Rivals {
+    /// A claimant's waits, by who else may be claiming the role now: peers wait for every claim
+    /// to reach them before they look; a router's clients look at once, and wait for a
+    /// contemporary's word; the only claimant `tcpf run` starts waits for neither.
+    pub fn waits(self, timeouts: &Timeouts) -> ClaimWaits {
+        ClaimWaits {
+            settle: match self {
+                Rivals::Possible => timeouts.claim_settle,
+                Rivals::OneRouter | Rivals::None => Duration::ZERO,
+            },
+            contemporaries: match self {
+                Rivals::Possible | Rivals::OneRouter => timeouts.claim_settle,
+                Rivals::None => Duration::ZERO,
+            },
+            linger: timeouts.claim_linger,
+            look_again: timeouts.claim_look_again,
+        }
+    }
 }
 
 /// A role held: the claim and the mark that says it is held, both withdrawn together.
@@ -94,7 +114,7 @@ pub async fn claim(
             .map_err(|e| failed!("liveliness token: {e}"))
     };
     let token = declare(mine.chunk()).await?;
-    let waits = timeouts.claim(rivals);
+    let waits = rivals.waits(timeouts);
     let monotonic = Monotonic::start();
     let mut claiming = Claiming::new(mine.clone(), rivals == Rivals::OneRouter, waits, monotonic.now());
     let mut looking = Looking {
@@ -173,4 +193,27 @@ async fn claims(session: &Session, keys: &Keys, role: Role, id: u32, within: Dur
         }
     }
     Ok(seen)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_claimant_waits_as_its_rivals_may_come() {
+        let t = Timeouts::default();
+        let peer = Rivals::Possible.waits(&t);
+        assert_eq!((peer.settle, peer.contemporaries), (t.claim_settle, t.claim_settle));
+        let client = Rivals::OneRouter.waits(&t);
+        assert_eq!((client.settle, client.contemporaries), (Duration::ZERO, t.claim_settle));
+        let launched = Rivals::None.waits(&t);
+        assert_eq!(
+            (launched.settle, launched.contemporaries),
+            (Duration::ZERO, Duration::ZERO)
+        );
+        assert_eq!(
+            (launched.linger, launched.look_again),
+            (t.claim_linger, t.claim_look_again)
+        );
+    }
 }

@@ -5,10 +5,6 @@
 
 use std::time::Duration;
 
-use tcpf_core::fleet::claim::ClaimWaits;
-
-use crate::claim::Rivals;
-
 /// `--startup-timeout`'s default, as clap takes it.
 pub const STARTUP_S: &str = "60";
 /// `--command-timeout`'s default, as clap takes it.
@@ -111,24 +107,6 @@ impl Timeouts {
     pub fn handover(&self) -> Duration {
         self.handover_attempt * self.handover_attempts + Duration::from_secs(1)
     }
-
-    /// A claimant's waits, by who else may be claiming the role now: peers wait for every claim
-    /// to reach them before they look; a router's clients look at once, and wait for a
-    /// contemporary's word; the only claimant `tcpf run` starts waits for neither.
-    pub fn claim(&self, rivals: Rivals) -> ClaimWaits {
-        ClaimWaits {
-            settle: match rivals {
-                Rivals::Possible => self.claim_settle,
-                Rivals::OneRouter | Rivals::None => Duration::ZERO,
-            },
-            contemporaries: match rivals {
-                Rivals::Possible | Rivals::OneRouter => self.claim_settle,
-                Rivals::None => Duration::ZERO,
-            },
-            linger: self.claim_linger,
-            look_again: self.claim_look_again,
-        }
-    }
 }
 
 #[cfg(test)]
@@ -159,23 +137,5 @@ mod tests {
             "a silent agent's neighbours give up on it before the world does"
         );
         assert_eq!(t.handover(), Duration::from_secs(7));
-    }
-
-    #[test]
-    fn a_claimant_waits_as_its_rivals_may_come() {
-        let t = Timeouts::default();
-        let peer = t.claim(Rivals::Possible);
-        assert_eq!((peer.settle, peer.contemporaries), (t.claim_settle, t.claim_settle));
-        let client = t.claim(Rivals::OneRouter);
-        assert_eq!((client.settle, client.contemporaries), (Duration::ZERO, t.claim_settle));
-        let launched = t.claim(Rivals::None);
-        assert_eq!(
-            (launched.settle, launched.contemporaries),
-            (Duration::ZERO, Duration::ZERO)
-        );
-        assert_eq!(
-            (launched.linger, launched.look_again),
-            (t.claim_linger, t.claim_look_again)
-        );
     }
 }
