@@ -4,8 +4,6 @@
 
 use tcpf_bus::error::Kind;
 
-use crate::launcher::RunFailed;
-
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     #[error(transparent)]
@@ -26,6 +24,15 @@ pub enum Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// A run that failed (its world or recorder stopped short), its run directory written: what
+/// `failure` in its summary.json says.
+#[derive(Debug, thiserror::Error)]
+#[error("{why} (run directory {})", dir.display())]
+pub struct RunFailed {
+    pub why: String,
+    pub dir: std::path::PathBuf,
+}
 
 impl Error {
     /// How the binary ends for it: as the bus's error it is or stands for, else a failed run.

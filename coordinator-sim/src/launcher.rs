@@ -25,7 +25,7 @@ use tokio::process::Command;
 
 pub use crate::access::Links;
 use crate::access::ROS2_CONFIG;
-use crate::error::{failed, Context, Error, Result};
+use crate::error::{failed, Context, Error, Result, RunFailed};
 use crate::progress::Ticks;
 use crate::recording::Recording;
 use tcpf_core::outputs::summary::{ChildSummary, Closing, Mode, Summary};
@@ -305,15 +305,6 @@ async fn connect(
             .into());
         }
     }
-}
-
-/// A run that failed (its world or recorder stopped short), its run directory written: what
-/// `failure` in its summary.json says.
-#[derive(Debug, thiserror::Error)]
-#[error("{why} (run directory {})", dir.display())]
-pub struct RunFailed {
-    pub why: String,
-    pub dir: std::path::PathBuf,
 }
 
 /// How `tcpf run` runs its children.
