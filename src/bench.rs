@@ -11,7 +11,7 @@ use tcpf_bus::signals::Shutdown;
 use tcpf_coordinator::{bench, launcher};
 use tcpf_core::mission;
 
-use crate::cli::MissionArgs;
+use crate::args::MissionArgs;
 use crate::failure::{code, role_failure, Failure};
 use crate::missions::{load, solve};
 use crate::out;

@@ -30,6 +30,7 @@ macro_rules! sayln {
     ($($arg:tt)*) => { $crate::out(format_args!("{}\n", format_args!($($arg)*)))? };
 }
 
+mod args;
 mod bench;
 mod cli;
 mod failure;

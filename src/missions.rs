@@ -10,7 +10,7 @@ use tcpf_coordinator::planning;
 use tcpf_core::mission::{self, Mission};
 use tcpf_core::model::planner::Plan;
 
-use crate::cli::{probability, ClockArgs, MissionArgs};
+use crate::args::{probability, MissionArgs};
 use crate::failure::Failure;
 
 #[derive(Args)]
@@ -37,21 +37,6 @@ impl GenArgs {
         let Generated::Lanes { vehicles, loss } = self.mission;
         crate::out(format_args!("{}", mission::generate::lanes(vehicles, loss)))?;
         Ok(ExitCode::SUCCESS)
-    }
-}
-
-/// The mission arguments with the clock flags as the `--set`s they stand for.
-pub fn clocked(args: &MissionArgs, clock: &ClockArgs) -> MissionArgs {
-    let sets = clock.sets();
-    MissionArgs {
-        file: args.file.clone(),
-        set: args
-            .set
-            .iter()
-            .cloned()
-            .chain(sets.iter().map(|s| s.0.clone()))
-            .collect(),
-        flags: args.flags.iter().cloned().chain(sets).collect(),
     }
 }
 

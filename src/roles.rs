@@ -19,7 +19,7 @@ use tcpf_core::mission;
 use tcpf_report::provenance::Invocation;
 use tcpf_report::table;
 
-use crate::cli::{recorders, ros2_domain, seconds, MissionArgs, RoleArgs};
+use crate::args::{recorders, ros2_domain, seconds, MissionArgs, RoleArgs};
 use crate::failure::{code, role_failure, Failure};
 use crate::missions::{load, solve};
 use crate::outputs::{fresh_out, live_free, run_dir};

@@ -13,9 +13,9 @@ use tcpf_core::mission;
 use tcpf_report::provenance::Invocation;
 use tcpf_report::table;
 
-use crate::cli::{command_timeout, figure_width, more_recorders, ros2_domain, seconds, ClockArgs, MissionArgs};
+use crate::args::{command_timeout, figure_width, more_recorders, ros2_domain, seconds, ClockArgs, MissionArgs};
 use crate::failure::{code, role_failure, Failure};
-use crate::missions::{clocked, load, solve};
+use crate::missions::{load, solve};
 use crate::outputs::{fresh_out, live_free, ros2_open_free, run_dir};
 use crate::runtime::runtime;
 
@@ -117,7 +117,7 @@ impl RunArgs {
             links: self.links,
             ..launcher::Options::default()
         };
-        let mission = clocked(&self.mission, &self.clock);
+        let mission = self.mission.clocked(&self.clock);
         run(
             &mission,
             self.out.as_deref(),

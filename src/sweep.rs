@@ -13,7 +13,7 @@ use tcpf_report::provenance::Invocation;
 use tcpf_report::sweep::figures::Look;
 use tcpf_report::sweep::{Design, Sweep};
 
-use crate::cli::{figure_width, look, Band, MissionArgs};
+use crate::args::{figure_width, look, Band, MissionArgs};
 use crate::failure::{code, Failure};
 use crate::missions::load;
 use crate::outputs::{fresh_out, out_failure};
